@@ -1,0 +1,152 @@
+// Helpers shared by the DAG tests: synthetic texel depths, the dense brute-force voxel
+// reference, and structural comparison of DAGs.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "cpvs/bake.h"
+#include "cpvs/dag.h"
+#include "cpvs/dag_builder.h"
+#include "cpvs/dag_compress.h"
+#include "cpvs/dag_merge.h"
+#include "cpvs/tile_masks.h"
+
+namespace cpvs::testing {
+
+/// Texel depths of a synthetic scene: axis-aligned boxes over a floor, seen from above.
+/// Closed boxes get an interior (hi > lo); open ones do not. Some boxes overlap and some
+/// are one texel wide, so masks, transitions and culling all get exercised.
+inline TexelDepths syntheticDepths(uint32_t R, bool closed, uint32_t seed) {
+  std::mt19937 rng(seed);
+  TexelDepths d;
+  size_t n = size_t(R) * R;
+  uint32_t floor = R - R / 8;
+  d.lo.assign(n, floor);
+  d.hi.assign(n, closed ? R - 2 : floor);
+  int boxes = 6 + int(rng() % 10);
+  for (int b = 0; b < boxes; ++b) {
+    uint32_t w = 1 + rng() % (R / 3), h = 1 + rng() % (R / 3);
+    uint32_t x0 = rng() % (R - w), y0 = rng() % (R - h);
+    uint32_t top = rng() % floor, bottom = top + 1 + rng() % (floor - top);
+    for (uint32_t y = y0; y < y0 + h; ++y)
+      for (uint32_t x = x0; x < x0 + w; ++x) {
+        size_t at = size_t(y) * R + x;
+        if (top < d.lo[at]) {
+          d.lo[at] = top;
+          d.hi[at] = closed ? std::max(top, bottom) : top;
+        }
+      }
+  }
+  // A few texels with no geometry at all, and a sloped ramp.
+  for (int i = 0; i < 20; ++i) {
+    size_t at = rng() % n;
+    d.lo[at] = d.hi[at] = R;
+  }
+  for (uint32_t y = 0; y < R / 4; ++y)
+    for (uint32_t x = R / 2; x < R / 2 + R / 4; ++x) {
+      size_t at = size_t(y) * R + x;
+      uint32_t z = (x + y) % R;
+      if (z < d.lo[at]) d.lo[at] = d.hi[at] = z;
+    }
+  return d;
+}
+
+/// The sub-block [x0, x0+T) x [y0, y0+T) of row-major depths of width R.
+inline TexelDepths cropDepths(const TexelDepths& d, uint32_t R, uint32_t x0, uint32_t y0, uint32_t T) {
+  TexelDepths out;
+  out.lo.resize(size_t(T) * T);
+  out.hi.resize(size_t(T) * T);
+  for (uint32_t y = 0; y < T; ++y)
+    for (uint32_t x = 0; x < T; ++x) {
+      out.lo[size_t(y) * T + x] = d.lo[size_t(y0 + y) * R + x0 + x];
+      out.hi[size_t(y) * T + x] = d.hi[size_t(y0 + y) * R + x0 + x];
+    }
+  return out;
+}
+
+/// Inserts (and compresses) one tile of the depths.
+inline Dag buildTile(const TexelDepths& all, int log2R, int log2T, uint32_t tx, uint32_t ty,
+                     UndefinedRule rule, bool cull, CompressMode mode, HashKind hash) {
+  uint32_t R = 1u << log2R, T = 1u << std::min(log2T, log2R);
+  TexelDepths tile = cropDepths(all, R, tx * T, ty * T, T);
+  ColumnMasks masks;
+  buildColumnMasks(tile, T, T, R, rule, masks);
+  MinMaxPyramid pyramid;
+  buildMinMaxPyramid(masks, pyramid);
+  Dag dag;
+  insertTile(masks, pyramid, log2R, std::min(log2T, log2R), tx, ty, cull, dag);
+  if (mode != CompressMode::None) {
+    computeHashes(dag, hash);
+    dag = compressDag(std::move(dag), mode);
+  }
+  return dag;
+}
+
+/// Whole-grid DAG of the depths built from tiles of 2^log2T, merged in `order`.
+inline Dag buildTiled(const TexelDepths& all, int log2R, int log2T, UndefinedRule rule, bool cull,
+                      CompressMode mode, HashKind hash, const std::vector<uint32_t>* order = nullptr) {
+  uint32_t n = log2T >= log2R ? 1 : 1u << (log2R - log2T);
+  StreamingMerger merger(mode);
+  for (uint32_t i = 0; i < n * n; ++i) {
+    uint32_t k = order ? (*order)[i] : i;
+    merger.add(buildTile(all, log2R, log2T, k % n, k / n, rule, cull, mode, hash));
+  }
+  return assembleRoots(*merger.finish(), hash, mode);
+}
+
+/// Compares every voxel with the dense reference: lit below lo, shadowed from hi on,
+/// either inside [lo, hi). Returns the number of mismatching defined voxels.
+inline uint64_t countReferenceMismatches(const Dag& dag, const TexelDepths& d, uint32_t R,
+                                         uint64_t* undefinedShadowed = nullptr) {
+  uint64_t bad = 0;
+  for (uint32_t y = 0; y < R; ++y)
+    for (uint32_t x = 0; x < R; ++x) {
+      size_t at = size_t(y) * R + x;
+      for (uint32_t z = 0; z < R; ++z) {
+        bool shadowed = lookupVoxel(dag, x, y, z);
+        if (z < d.lo[at]) {
+          bad += shadowed;
+        } else if (z >= std::max(d.lo[at], d.hi[at])) {
+          bad += !shadowed;
+        } else if (undefinedShadowed) {
+          *undefinedShadowed += shadowed;
+        }
+      }
+    }
+  return bad;
+}
+
+inline void expectSameDag(const Dag& a, const Dag& b) {
+  ASSERT_EQ(a.log2Resolution, b.log2Resolution);
+  ASSERT_EQ(a.levels.size(), b.levels.size());
+  EXPECT_EQ(a.leaves, b.leaves);
+  for (size_t l = 0; l < a.levels.size(); ++l) {
+    EXPECT_EQ(a.levels[l].codes, b.levels[l].codes) << "level " << l;
+    EXPECT_EQ(a.levels[l].children, b.levels[l].children) << "level " << l;
+  }
+  EXPECT_EQ(a.roots, b.roots);
+}
+
+/// No two nodes of a level have the same content (children already canonical).
+inline void expectOptimal(const Dag& dag) {
+  std::vector<uint64_t> leaves = dag.leaves;
+  std::sort(leaves.begin(), leaves.end());
+  EXPECT_EQ(std::adjacent_find(leaves.begin(), leaves.end()), leaves.end()) << "duplicate leaves";
+  for (size_t l = 0; l < dag.levels.size(); ++l) {
+    const InternalLevel& lv = dag.levels[l];
+    std::vector<std::vector<uint32_t>> nodes;
+    for (size_t i = 0; i < lv.size(); ++i) {
+      std::vector<uint32_t> v{lv.codes[i]};
+      for (uint32_t k = lv.childBegin[i]; k < lv.childBegin[i + 1]; ++k) v.push_back(lv.children[k]);
+      nodes.push_back(std::move(v));
+    }
+    std::sort(nodes.begin(), nodes.end());
+    EXPECT_EQ(std::adjacent_find(nodes.begin(), nodes.end()), nodes.end()) << "duplicate nodes in level " << l;
+  }
+}
+
+}  // namespace cpvs::testing
