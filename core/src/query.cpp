@@ -1,0 +1,70 @@
+#include "cpvs/query.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace cpvs {
+
+ShadowQuery::ShadowQuery(const CpvsArtifact& artifact) : a_(artifact), R_(int64_t(artifact.grid.resolution())) {}
+
+bool ShadowQuery::voxelShadowed(const VoxelCoord& v) const {
+  if (v.x < 0 || v.y < 0 || v.x >= R_ || v.y >= R_ || v.z < 0) return false;
+  int64_t z = std::min(v.z, R_ - 1);
+  return cpvs::lookupVoxel(a_.dag, uint64_t(v.x), uint64_t(v.y), uint64_t(z));
+}
+
+namespace {
+
+Vec3 offsetVoxel(const Grid& g, const Vec3& p, const Vec3& n, int pcf) {
+  Vec3 c = g.toVoxel(p);
+  if (n == Vec3{}) return c;
+  Vec3 nv = g.directionToVoxel(n);
+  double m = std::max({std::abs(nv.x), std::abs(nv.y), std::abs(nv.z)});
+  if (!(m > 0) || !std::isfinite(m)) return c;
+  return c + nv * (normalOffsetVoxels(pcf) / m);
+}
+
+int64_t floorToInt(double v) {
+  // Clamp far outside the grid so that the conversion stays defined.
+  v = std::clamp(v, -1e15, 1e15);
+  return int64_t(std::floor(v));
+}
+
+}  // namespace
+
+VoxelCoord ShadowQuery::lookupVoxel(const Vec3& p, const Vec3& n, int pcf) const {
+  Vec3 c = offsetVoxel(a_.grid, p, n, pcf);
+  return {floorToInt(c.x), floorToInt(c.y), floorToInt(c.z)};
+}
+
+Vec3 ShadowQuery::offsetPoint(const Vec3& p, const Vec3& n, int pcf) const {
+  return a_.grid.toWorld(offsetVoxel(a_.grid, p, n, pcf));
+}
+
+float ShadowQuery::filtered(const Vec3& p, const Vec3& n, int pcf) const {
+  if (pcf < 1 || pcf > kMaxPcfWidth || pcf % 2 == 0)
+    throw InputError("PCF width " + std::to_string(pcf) + " must be odd and between 1 and " +
+                     std::to_string(kMaxPcfWidth));
+  VoxelCoord v = lookupVoxel(p, n, pcf);
+  int r = pcf / 2, lit = 0;
+  for (int dy = -r; dy <= r; ++dy)
+    for (int dx = -r; dx <= r; ++dx) lit += !voxelShadowed({v.x + dx, v.y + dy, v.z});
+  return float(lit) / float(pcf * pcf);
+}
+
+void ShadowQuery::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
+                        std::vector<float>& out) const {
+  if (!normals.empty() && normals.size() != points.size())
+    throw InputError("batch query: " + std::to_string(normals.size()) + " normals for " +
+                     std::to_string(points.size()) + " points");
+  out.resize(points.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 1024), [&](const auto& range) {
+    for (size_t i = range.begin(); i != range.end(); ++i)
+      out[i] = filtered(points[i], normals.empty() ? Vec3{} : normals[i], pcf);
+  });
+}
+
+}  // namespace cpvs

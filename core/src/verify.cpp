@@ -1,0 +1,109 @@
+#include "cpvs/verify.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <mutex>
+
+namespace cpvs {
+
+namespace {
+
+uint64_t splitmix64(uint64_t& state) {
+  uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
+double uniform01(uint64_t& state) { return double(splitmix64(state) >> 11) * 0x1.0p-53; }
+
+// Distance from a point to beyond the grid's near plane along -dir: enough for any ray.
+double rayLength(const Grid& g) { return 2.0 * (g.depthExtent + g.extent) + 1.0; }
+
+}  // namespace
+
+std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
+                                          const Vec3& lightDir, uint64_t count, uint64_t seed) {
+  size_t tris = scene.triangleCount();
+  std::vector<double> cdf(tris + 1, 0.0);
+  for (size_t t = 0; t < tris; ++t) {
+    Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+    cdf[t + 1] = cdf[t] + 0.5 * length(cross(b - a, c - a));
+  }
+  std::vector<SurfaceSample> out(count);
+  if (tris == 0 || !(cdf[tris] > 0)) return {};
+  tbb::parallel_for(uint64_t(0), count, [&](uint64_t i) {
+    uint64_t state = seed * 0x9E3779B97F4A7C15ull + i;
+    splitmix64(state);
+    double pick = uniform01(state) * cdf[tris];
+    size_t t = size_t(std::upper_bound(cdf.begin(), cdf.end(), pick) - cdf.begin());
+    t = std::clamp<size_t>(t, 1, tris) - 1;
+    double r1 = uniform01(state), r2 = uniform01(state);
+    if (r1 + r2 > 1) {
+      r1 = 1 - r1;
+      r2 = 1 - r2;
+    }
+    Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+    Vec3 n = normalize(cross(b - a, c - a));
+    if (!rays.triangleClosed(uint32_t(t), closed) && dot(n, lightDir) > 0) n = -n;
+    out[i] = SurfaceSample{a + (b - a) * r1 + (c - a) * r2, n};
+  });
+  return out;
+}
+
+bool exactlyLit(const RayScene& rays, const Grid& grid, const Vec3& point) {
+  return !rays.occluded(point, -grid.frame.dir, 0.0, rayLength(grid));
+}
+
+VerifyResult verifyArtifact(const ShadowQuery& query, const Scene& scene, const RayScene& rays,
+                            uint64_t count, uint64_t seed) {
+  const Grid& g = query.grid();
+  const ClosedMode closed = query.artifact().options.closed;
+  auto samples = sampleSurfaces(scene, rays, closed, g.frame.dir, count, seed);
+  const double len = rayLength(g);
+  const Vec3 toLight = -g.frame.dir;
+  const Vec3 du = g.frame.u * g.texelSize(), dv = g.frame.v * g.texelSize(), dd = g.frame.dir * g.sliceSize();
+  const Vec3 neighbours[10] = {du, -du, dv, -dv, dd, -dd, du + dv, du - dv, dv - du, -du - dv};
+
+  std::atomic<uint64_t> used{0}, inside{0}, near{0}, badNear{0}, badElse{0};
+  std::mutex examplesMutex;
+  VerifyResult result;
+  tbb::parallel_for(size_t(0), samples.size(), [&](size_t i) {
+    const SurfaceSample& s = samples[i];
+    Vec3 q = query.offsetPoint(s.point, s.normal, 1);
+    RayHit hit;
+    bool blocked = rays.intersect(q, toLight, 0.0, len, hit);
+    if (blocked && hit.closed && !hit.front) {  // looking out of a closed object
+      ++inside;
+      return;
+    }
+    ++used;
+    bool exact = !blocked;
+    bool cpvs = !query.voxelShadowed(query.lookupVoxel(s.point, s.normal, 1));
+    bool isNear = false;
+    for (const Vec3& o : neighbours)
+      if (exactlyLit(rays, g, q + o) != exact) {
+        isNear = true;
+        break;
+      }
+    near += isNear;
+    if (cpvs == exact) return;
+    if (isNear) {
+      ++badNear;
+    } else {
+      ++badElse;
+      std::lock_guard lock(examplesMutex);
+      if (result.elsewhereExamples.size() < 16) result.elsewhereExamples.push_back(s);
+    }
+  });
+  result.samples = used;
+  result.insideClosed = inside;
+  result.nearBoundary = near;
+  result.mismatchNearBoundary = badNear;
+  result.mismatchElsewhere = badElse;
+  return result;
+}
+
+}  // namespace cpvs
