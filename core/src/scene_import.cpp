@@ -54,6 +54,12 @@ struct Mat4d {
     return r;
   }
 
+  /// Determinant of the linear part (upper-left 3x3).
+  double determinant3() const {
+    return m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) +
+           m[2] * (m[4] * m[9] - m[5] * m[8]);
+  }
+
   /// Transforms a point. Node transforms are affine, so the bottom row is ignored
   /// rather than dividing by w (a projective node matrix is not a meaningful scene).
   Vec3 transformPoint(double x, double y, double z) const {
@@ -66,6 +72,13 @@ std::string formatVec(const Vec3& v) {
   char buf[128];
   std::snprintf(buf, sizeof buf, "(%g, %g, %g)", v.x, v.y, v.z);
   return buf;
+}
+
+/// "vertex 17 of mesh 2 'hull'", for error messages.
+std::string describeVertex(const aiMesh& mesh, unsigned meshIndex, unsigned vertex) {
+  std::string s = "vertex " + std::to_string(vertex) + " of mesh " + std::to_string(meshIndex);
+  if (mesh.mName.length > 0) s += std::string(" '") + mesh.mName.C_Str() + "'";
+  return s;
 }
 
 /// Appends one instance of `mesh` under `world` to `scene`: every vertex (so that indices
@@ -81,17 +94,21 @@ void appendInstance(const std::string& path, const aiMesh& mesh, unsigned meshIn
     const aiVector3D& p = mesh.mVertices[v];
     const Vec3 w = world.transformPoint(p.x, p.y, p.z);
     if (!isFinite(w)) {
-      std::string meshName = mesh.mName.length ? std::string(" '") + mesh.mName.C_Str() + "'" : "";
-      throw InputError(path + ": vertex " + std::to_string(v) + " of mesh " +
-                       std::to_string(meshIndex) + meshName + " is not finite " + formatVec(w));
+      throw InputError(path + ": " + describeVertex(mesh, meshIndex, v) +
+                       " is not finite in world space " + formatVec(w));
     }
     scene.positions.push_back(w);
   }
+  // A mirroring transform (negative determinant) reverses the winding of what it places;
+  // the front side stays the front side (glTF states this rule, and it is the only one
+  // under which a mirrored closed mesh stays outward-facing), so such instances are
+  // written with two corners swapped.
+  const bool mirrored = world.determinant3() < 0;
   for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
     const aiFace& face = mesh.mFaces[f];
     if (face.mNumIndices != 3) continue;  // points and lines carry no shadow
     for (int c = 0; c < 3; ++c) {
-      const unsigned idx = face.mIndices[c];
+      const unsigned idx = face.mIndices[mirrored && c > 0 ? 3 - c : c];
       // assimp validates only when asked to; an out-of-range index is a broken file.
       if (idx >= mesh.mNumVertices)
         throw InputError(path + ": face " + std::to_string(f) + " of mesh " +
@@ -113,10 +130,25 @@ Scene loadScene(const std::string& path, SceneStats* stats) {
   // Points and lines are removed by SortByPType rather than skipped later so that the
   // remaining meshes are pure triangle meshes.
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  const aiScene* ai = importer.ReadFile(
-      path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_SortByPType);
+  const aiScene* ai = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_SortByPType);
   if (ai == nullptr) {
     throw InputError(path + ": assimp cannot read it: " + importer.GetErrorString());
+  }
+  // Positions are checked before JoinIdenticalVertices: that step compares positions
+  // with NaN-unaware ordering and was seen to merge a NaN vertex silently into a finite
+  // one (an OBJ line `v nan 0 0` became (0, 0, 0)).
+  for (unsigned m = 0; m < ai->mNumMeshes; ++m) {
+    const aiMesh& mesh = *ai->mMeshes[m];
+    for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+      const aiVector3D& p = mesh.mVertices[v];
+      const Vec3 local{p.x, p.y, p.z};
+      if (!isFinite(local))
+        throw InputError(path + ": " + describeVertex(mesh, m, v) + " is not finite " + formatVec(local));
+    }
+  }
+  ai = importer.ApplyPostProcessing(aiProcess_JoinIdenticalVertices);
+  if (ai == nullptr) {
+    throw InputError(path + ": assimp failed to post-process it: " + importer.GetErrorString());
   }
 
   Scene scene;

@@ -1,0 +1,656 @@
+// Scene import and topology: closed-part classification on hand-built meshes, degenerate
+// removal, import failures (tests that must fail), instancing through a node hierarchy,
+// the real scenes of shared/scenes against the figures in their README, the content
+// hash and the procedural city.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "cpvs/scene.h"
+#include "cpvs/types.h"
+
+namespace cpvs {
+namespace {
+
+namespace fs = std::filesystem;
+
+// --- helpers ------------------------------------------------------------------------
+
+/// Appends an axis-aligned cube of side `size` at `lo`, counter-clockwise seen from
+/// outside. Written out by hand, independently of the city generator.
+void appendCube(Scene& s, Vec3 lo, double size = 1.0) {
+  const uint32_t b = static_cast<uint32_t>(s.positions.size());
+  for (int i = 0; i < 8; ++i)
+    s.positions.push_back(lo + Vec3{(i & 1) ? size : 0.0, (i & 2) ? size : 0.0, (i & 4) ? size : 0.0});
+  const uint32_t tris[12][3] = {
+      {0, 4, 6}, {0, 6, 2},  // -x
+      {1, 3, 7}, {1, 7, 5},  // +x
+      {0, 1, 5}, {0, 5, 4},  // -y
+      {2, 6, 7}, {2, 7, 3},  // +y
+      {0, 2, 3}, {0, 3, 1},  // -z
+      {4, 5, 7}, {4, 7, 6},  // +z
+  };
+  for (const auto& t : tris)
+    for (uint32_t c : t) s.indices.push_back(b + c);
+}
+
+void flipTriangle(Scene& s, size_t tri) { std::swap(s.indices[3 * tri + 1], s.indices[3 * tri + 2]); }
+
+/// A fresh temporary folder, removed when the test ends.
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = fs::temp_directory_path() /
+            (std::string("cpvs_scene_test_") + info->test_suite_name() + "_" + info->name());
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string write(const std::string& name, const std::string& bytes) const {
+    const fs::path p = path_ / name;
+    std::ofstream(p, std::ios::binary) << bytes;
+    return p.string();
+  }
+
+ private:
+  fs::path path_;
+};
+
+/// Runs `f`, expects InputError, and returns its message.
+template <class F>
+std::string inputErrorOf(F&& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "expected InputError, got another exception: " << e.what();
+    return {};
+  }
+  ADD_FAILURE() << "expected InputError, nothing was thrown";
+  return {};
+}
+
+// --- closed-part classification -------------------------------------------------------
+
+TEST(SceneTopology, UnitCubeIsClosed) {
+  Scene s;
+  appendCube(s, {0, 0, 0});
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.triangles, 12u);
+  EXPECT_EQ(st.degenerateDropped, 0u);
+  EXPECT_EQ(st.parts, 1u);
+  EXPECT_EQ(st.closedParts, 1u);
+  EXPECT_EQ(st.closedTriangles, 12u);
+  ASSERT_EQ(s.closed.size(), 12u);
+  for (uint8_t c : s.closed) EXPECT_EQ(c, 1);
+}
+
+TEST(SceneTopology, CubeFarFromOriginIsClosed) {
+  // The signed volume is taken relative to the part, so 1e9 offsets do not cancel it away.
+  Scene s;
+  appendCube(s, {1e9, -1e9, 1e9}, 0.5);
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.closedParts, 1u);
+}
+
+TEST(SceneTopology, WeldsDuplicatedVerticesByPosition) {
+  // Every triangle with its own three vertices (as an unindexed file would give):
+  // still one closed part, because welding is by exact position.
+  Scene cube;
+  appendCube(cube, {0, 0, 0});
+  Scene s;
+  for (size_t t = 0; t < cube.triangleCount(); ++t)
+    for (int c = 0; c < 3; ++c) {
+      s.indices.push_back(static_cast<uint32_t>(s.positions.size()));
+      s.positions.push_back(cube.vertex(t, c));
+    }
+  // -0.0 and +0.0 are the same point.
+  for (size_t i = 0; i < s.positions.size(); i += 2)
+    if (s.positions[i].x == 0) s.positions[i].x = -0.0;
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.parts, 1u);
+  EXPECT_EQ(st.closedParts, 1u);
+}
+
+TEST(SceneTopology, FlippedTriangleIsNotClosed) {
+  Scene s;
+  appendCube(s, {0, 0, 0});
+  flipTriangle(s, 5);
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.parts, 1u);
+  EXPECT_EQ(st.closedParts, 0u);
+  EXPECT_EQ(st.closedTriangles, 0u);
+}
+
+TEST(SceneTopology, MissingTriangleIsNotClosed) {
+  Scene s;
+  appendCube(s, {0, 0, 0});
+  s.indices.resize(s.indices.size() - 3);
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.triangles, 11u);
+  EXPECT_EQ(st.parts, 1u);
+  EXPECT_EQ(st.closedParts, 0u);
+}
+
+TEST(SceneTopology, InwardFacingCubeIsNotClosed) {
+  Scene s;
+  appendCube(s, {0, 0, 0});
+  for (size_t t = 0; t < s.triangleCount(); ++t) flipTriangle(s, t);
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.parts, 1u);
+  EXPECT_EQ(st.closedParts, 0u);  // manifold and consistent, but the volume is negative
+}
+
+TEST(SceneTopology, DuplicatedFaceIsNonManifold) {
+  Scene s;
+  appendCube(s, {0, 0, 0});
+  s.indices.insert(s.indices.end(), {s.indices[0], s.indices[2], s.indices[1]});
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.closedParts, 0u);
+}
+
+TEST(SceneTopology, OpenAndClosedCubes) {
+  Scene s;
+  appendCube(s, {5, 0, 0});  // triangles 0-10: open (its last triangle is removed)
+  s.indices.resize(s.indices.size() - 3);
+  appendCube(s, {0, 0, 0});  // triangles 11-22: closed
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.triangles, 23u);
+  EXPECT_EQ(st.parts, 2u);
+  EXPECT_EQ(st.closedParts, 1u);
+  EXPECT_EQ(st.closedTriangles, 12u);
+  ASSERT_EQ(s.closed.size(), 23u);
+  for (size_t t = 0; t < 23; ++t) EXPECT_EQ(s.closed[t], t >= 11 ? 1 : 0) << "triangle " << t;
+}
+
+TEST(SceneTopology, CubesSharingOnlyAVertexAreTwoParts) {
+  Scene s;
+  appendCube(s, {0, 0, 0});
+  appendCube(s, {1, 1, 1});  // touches the first at the corner (1, 1, 1)
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.parts, 2u);
+  EXPECT_EQ(st.closedParts, 2u);
+}
+
+TEST(SceneTopology, DegenerateTrianglesAreDroppedAndCounted) {
+  Scene s;
+  appendCube(s, {0, 0, 0});
+  const uint32_t base = static_cast<uint32_t>(s.positions.size());
+  s.positions.push_back({10, 0, 0});
+  s.positions.push_back({11, 1, 1});
+  s.positions.push_back({12, 2, 2});  // collinear with the two before
+  s.positions.push_back({10, 0, 0});  // same position as base, another index
+  s.indices.insert(s.indices.end(), {0, 0, 1});                 // repeated index
+  s.indices.insert(s.indices.end(), {base, base + 1, base + 2});  // collinear
+  s.indices.insert(s.indices.end(), {base, base + 3, base + 1});  // repeated position
+  const SceneStats st = finalizeScene(s);
+  EXPECT_EQ(st.degenerateDropped, 3u);
+  EXPECT_EQ(st.triangles, 12u);
+  EXPECT_EQ(s.triangleCount(), 12u);
+  EXPECT_EQ(s.closed.size(), 12u);
+  EXPECT_EQ(st.closedParts, 1u);  // the cube is not disturbed by the dropped triangles
+  EXPECT_EQ(s.positions.size(), 8u);  // vertices only the dropped triangles used are gone
+}
+
+TEST(SceneTopology, RejectsBadIndices) {
+  Scene s;
+  appendCube(s, {0, 0, 0});
+  s.indices.back() = 99;
+  EXPECT_THROW(finalizeScene(s), InputError);
+  s.indices.pop_back();
+  EXPECT_THROW(finalizeScene(s), InputError);
+}
+
+TEST(SceneTopology, Bounds) {
+  Scene s;
+  Vec3 lo, hi;
+  sceneBounds(s, lo, hi);
+  EXPECT_EQ(lo, Vec3(0, 0, 0));
+  EXPECT_EQ(hi, Vec3(0, 0, 0));
+  appendCube(s, {-1, 2, 3}, 2.0);
+  s.positions.push_back({100, 100, 100});  // referenced by no triangle
+  sceneBounds(s, lo, hi);
+  EXPECT_EQ(lo, Vec3(-1, 2, 3));
+  EXPECT_EQ(hi, Vec3(1, 4, 5));
+}
+
+// --- content hash ---------------------------------------------------------------------
+
+TEST(SceneHash, StableAndSensitive) {
+  Scene a, b;
+  appendCube(a, {0, 0, 0});
+  appendCube(b, {0, 0, 0});
+  finalizeScene(a);
+  finalizeScene(b);
+  EXPECT_EQ(sceneHash(a), sceneHash(b));
+  EXPECT_EQ(sceneHash(a).hex().size(), 32u);
+  EXPECT_EQ(sceneHash(a).hex(), sceneHash(b).hex());
+
+  Scene c = a;
+  c.positions[3].y = std::nextafter(c.positions[3].y, 2.0);
+  EXPECT_NE(sceneHash(a), sceneHash(c));
+
+  Scene d = a;
+  flipTriangle(d, 0);
+  EXPECT_NE(sceneHash(a), sceneHash(d));
+}
+
+TEST(SceneHash, HexIsHiThenLo) {
+  const Hash128 h{0x0123456789abcdefull, 0xfedcba9876543210ull};
+  EXPECT_EQ(h.hex(), "fedcba98765432100123456789abcdef");
+}
+
+// --- import failures (these must fail, with the file named) ----------------------------
+
+TEST(SceneImport, MissingFile) {
+  const std::string msg = inputErrorOf([] { loadScene("/nonexistent/cpvs/no_such_scene.obj"); });
+  EXPECT_NE(msg.find("no_such_scene.obj"), std::string::npos) << msg;
+}
+
+TEST(SceneImport, UnreadableFile) {
+  TempDir dir;
+  const std::string path = dir.write("garbage.glb", "this is not a binary glTF file at all");
+  const std::string msg = inputErrorOf([&] { loadScene(path); });
+  EXPECT_NE(msg.find("garbage.glb"), std::string::npos) << msg;
+}
+
+TEST(SceneImport, NanVertex) {
+  TempDir dir;
+  const std::string path = dir.write("nan_vertex.obj",
+                                     "v 0 0 0\n"
+                                     "v 1 0 0\n"
+                                     "v nan 0 0\n"
+                                     "f 1 2 3\n");
+  const std::string msg = inputErrorOf([&] { loadScene(path); });
+  EXPECT_NE(msg.find("nan_vertex.obj"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("vertex 2"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("not finite"), std::string::npos) << msg;
+}
+
+TEST(SceneImport, InfVertex) {
+  TempDir dir;
+  const std::string path = dir.write("inf_vertex.obj",
+                                     "v 0 0 0\n"
+                                     "v 1 0 inf\n"
+                                     "v 0 1 0\n"
+                                     "f 1 2 3\n");
+  const std::string msg = inputErrorOf([&] { loadScene(path); });
+  EXPECT_NE(msg.find("inf_vertex.obj"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("vertex"), std::string::npos) << msg;
+}
+
+TEST(SceneImport, LinesOnlyHoldNoTriangles) {
+  TempDir dir;
+  const std::string path = dir.write("line_only.obj",
+                                     "v 0 0 0\n"
+                                     "v 1 0 0\n"
+                                     "l 1 2\n");
+  const std::string msg = inputErrorOf([&] { loadScene(path); });
+  EXPECT_NE(msg.find("line_only.obj"), std::string::npos) << msg;
+}
+
+TEST(SceneImport, OnlyDegenerateTrianglesHoldNoTriangles) {
+  TempDir dir;
+  const std::string path = dir.write("flat.obj",
+                                     "v 0 0 0\n"
+                                     "v 1 0 0\n"
+                                     "v 2 0 0\n"
+                                     "f 1 2 3\n");
+  const std::string msg = inputErrorOf([&] { loadScene(path); });
+  EXPECT_NE(msg.find("flat.obj"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("no triangles"), std::string::npos) << msg;
+}
+
+// --- import: a closed OBJ and an instanced node hierarchy -------------------------------
+
+TEST(SceneImport, ObjCube) {
+  TempDir dir;
+  // A unit cube as quads, counter-clockwise seen from outside; the importer triangulates.
+  const std::string path = dir.write("cube.obj",
+                                     "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+                                     "v 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\n"
+                                     "f 1 5 7 3\nf 2 4 8 6\nf 1 2 6 5\n"
+                                     "f 3 7 8 4\nf 1 3 4 2\nf 5 6 8 7\n");
+  SceneStats st;
+  const Scene s = loadScene(path, &st);
+  EXPECT_EQ(s.name, "cube.obj");
+  EXPECT_EQ(st.triangles, 12u);
+  EXPECT_EQ(st.closedParts, 1u);
+  EXPECT_EQ(st.closedTriangles, 12u);
+}
+
+/// Writes `name`.gltf and `name`.bin: one mesh (float positions, uint16 indices) and the
+/// given "nodes" array, whose first node is the scene's only root.
+std::string writeGltf(const TempDir& dir, const std::string& name, const std::vector<float>& positions,
+                      const std::vector<uint16_t>& indices, const std::string& nodesJson) {
+  std::string bin(reinterpret_cast<const char*>(positions.data()), positions.size() * sizeof(float));
+  const size_t indexOffset = bin.size();
+  bin.append(reinterpret_cast<const char*>(indices.data()), indices.size() * sizeof(uint16_t));
+  while (bin.size() % 4 != 0) bin.push_back('\0');
+  dir.write(name + ".bin", bin);
+  float lo[3] = {positions[0], positions[1], positions[2]}, hi[3] = {lo[0], lo[1], lo[2]};
+  for (size_t i = 0; i < positions.size(); ++i) {
+    lo[i % 3] = std::min(lo[i % 3], positions[i]);
+    hi[i % 3] = std::max(hi[i % 3], positions[i]);
+  }
+  char json[2048];
+  std::snprintf(json, sizeof json, R"({
+  "asset": {"version": "2.0"},
+  "scene": 0,
+  "scenes": [{"nodes": [0]}],
+  "nodes": %s,
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]}],
+  "buffers": [{"uri": "%s.bin", "byteLength": %zu}],
+  "bufferViews": [
+    {"buffer": 0, "byteOffset": 0, "byteLength": %zu, "target": 34962},
+    {"buffer": 0, "byteOffset": %zu, "byteLength": %zu, "target": 34963}
+  ],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": %zu, "type": "VEC3",
+     "min": [%g, %g, %g], "max": [%g, %g, %g]},
+    {"bufferView": 1, "componentType": 5123, "count": %zu, "type": "SCALAR"}
+  ]
+})",
+                nodesJson.c_str(), name.c_str(), bin.size(), indexOffset, indexOffset,
+                indices.size() * sizeof(uint16_t), positions.size() / 3, lo[0], lo[1], lo[2], hi[0],
+                hi[1], hi[2], indices.size());
+  return dir.write(name + ".gltf", json);
+}
+
+TEST(SceneImport, GltfInstancesUnderNodeTransforms) {
+  TempDir dir;
+  // One triangle (0,0,0) (1,0,0) (0,1,0), used by two child nodes of a scaled and
+  // translated parent: world = T(0,0,10) S(2) T(+-5,0,0) v.
+  const std::string path = writeGltf(dir, "instanced", {0, 0, 0, 1, 0, 0, 0, 1, 0}, {0, 1, 2}, R"([
+    {"name": "parent", "translation": [0, 0, 10], "scale": [2, 2, 2], "children": [1, 2]},
+    {"name": "right", "translation": [5, 0, 0], "mesh": 0},
+    {"name": "left", "translation": [-5, 0, 0], "mesh": 0}
+  ])");
+  SceneStats st;
+  const Scene s = loadScene(path, &st);
+  EXPECT_EQ(s.name, "instanced.gltf");
+  EXPECT_EQ(st.triangles, 2u);
+  EXPECT_EQ(s.triangleCount(), 2u);
+  EXPECT_EQ(st.parts, 2u);
+  Vec3 lo, hi;
+  sceneBounds(s, lo, hi);
+  EXPECT_EQ(lo, Vec3(-10, 0, 10));
+  EXPECT_EQ(hi, Vec3(12, 2, 10));
+  // Both instances keep their winding: normals along +z.
+  for (size_t t = 0; t < s.triangleCount(); ++t) {
+    const Vec3 n = cross(s.vertex(t, 1) - s.vertex(t, 0), s.vertex(t, 2) - s.vertex(t, 0));
+    EXPECT_GT(n.z, 0.0);
+  }
+}
+
+TEST(SceneImport, MirroredInstanceOfAClosedMeshStaysClosed) {
+  TempDir dir;
+  Scene cube;
+  appendCube(cube, {0, 0, 0});
+  std::vector<float> positions;
+  for (const Vec3& p : cube.positions)
+    positions.insert(positions.end(), {float(p.x), float(p.y), float(p.z)});
+  const std::vector<uint16_t> indices(cube.indices.begin(), cube.indices.end());
+  const std::string path = writeGltf(dir, "mirrored", positions, indices, R"([
+    {"name": "root", "children": [1, 2]},
+    {"name": "plain", "translation": [3, 0, 0], "mesh": 0},
+    {"name": "mirror", "scale": [-1, 1, 1], "mesh": 0}
+  ])");
+  SceneStats st;
+  const Scene s = loadScene(path, &st);
+  EXPECT_EQ(st.triangles, 24u);
+  EXPECT_EQ(st.parts, 2u);
+  EXPECT_EQ(st.closedParts, 2u);
+  Vec3 lo, hi;
+  sceneBounds(s, lo, hi);
+  EXPECT_EQ(lo, Vec3(-1, 0, 0));
+  EXPECT_EQ(hi, Vec3(4, 1, 1));
+}
+
+// --- the real scenes -------------------------------------------------------------------
+
+/// Per scene: the README's figures and what the classifier measures.
+///
+/// The README's part counts come from a different method than its text says: its parts
+/// are vertex-connected (triangles sharing a welded vertex), not edge-connected, and it
+/// welded the float positions of assimp's PreTransformVertices. readmeStyleParts below
+/// reproduces that method and the README's figures exactly, except for AC14-FZK-Haus,
+/// whose float world positions are not recovered by rounding our double ones.
+/// finalizeScene keeps edge-connected parts (scene.h's contract): a closed solid that
+/// only touches an open surface at a vertex stays closed, so it finds more parts and,
+/// in Wuson, one more closed part. Double-precision transforms also weld fewer
+/// vertices than float ones in the two files with node transforms (2CylinderEngine,
+/// AC14-FZK-Haus), which splits a few more parts there.
+struct Expected {
+  long total;             // README triangle count, degenerate ones included
+  long degenerate;        // README degenerate count; -1: not given
+  long readmeParts;       // README parts (vertex-connected); -1: not given or not reproducible
+  long readmeClosedParts;
+  long parts;             // finalizeScene's edge-connected parts, as measured
+  long closedParts;
+};
+
+const std::map<std::string, Expected>& sceneTable() {
+  static const std::map<std::string, Expected> table = {
+      {"stanford-bunny/bunny.obj", {3674, -1, 1, 1, 1, 1}},
+      {"assimp-testmodels/duck.dae", {4212, -1, 1, 1, 1, 1}},
+      {"assimp-testmodels/HUMAN.obj", {8560, -1, 1, 1, 1, 1}},
+      {"assimp-testmodels/teapots.DAE", {2976, -1, 9, 0, 12, 0}},
+      {"assimp-testmodels/WusonOBJ.obj", {3732, -1, 51, 0, 54, 1}},
+      {"assimp-testmodels/spider.obj", {1368, 56, 18, 14, 18, 14}},
+      {"assimp-testmodels/sphereWithHole.stl", {285, -1, -1, 0, 1, 0}},
+      {"assimp-testmodels/2CylinderEngine.glb", {121496, 11160, 85, 28, 96, 29}},
+      // README: 382 parts, 306 closed; float-rounded double positions give 380 and 304.
+      {"assimp-testmodels/AC14-FZK-Haus.ifc", {35906, -1, -1, -1, 591, 342}},
+      {"flightgear/zone_maisons-ba.ac", {6288, -1, 1034, 1, 1034, 1}},
+      {"flightgear/zone_maisons.obj", {6288, -1, 1034, 1, 1034, 1}},
+      {"openarena/ctf_compromise.obj", {33887, -1, 255, -1, 365, 3}},
+      {"openarena/oa_shouse.obj", {39215, -1, 44, -1, 91, 1}},
+      // README: "64 of 178 groups closed" counts OBJ groups, not parts.
+      {"loinesg-city/city.obj", {38871, -1, -1, -1, 399, 186}},
+  };
+  return table;
+}
+
+struct PartCounts {
+  size_t parts = 0, closedParts = 0;
+};
+
+/// The README's measurement: positions rounded to float and welded exactly, parts are
+/// vertex-connected components, a part is closed when each of its undirected edges is
+/// used by exactly two triangles in opposite directions and its signed volume is
+/// positive. Independent of finalizeScene on purpose (maps instead of sorting).
+PartCounts readmeStyleParts(const Scene& s) {
+  using Key = std::tuple<float, float, float>;
+  std::map<Key, uint32_t> ids;
+  std::vector<uint32_t> weld(s.positions.size());
+  for (size_t v = 0; v < s.positions.size(); ++v) {
+    const Vec3& p = s.positions[v];
+    const Key k{float(p.x) + 0.0f, float(p.y) + 0.0f, float(p.z) + 0.0f};
+    weld[v] = ids.try_emplace(k, static_cast<uint32_t>(ids.size())).first->second;
+  }
+  std::vector<uint32_t> parent(ids.size());
+  for (uint32_t i = 0; i < parent.size(); ++i) parent[i] = i;
+  auto find = [&](uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  std::map<std::pair<uint32_t, uint32_t>, std::pair<int, int>> edges;  // uses lo->hi, hi->lo
+  for (size_t t = 0; t < s.triangleCount(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = weld[s.indices[3 * t + k]], b = weld[s.indices[3 * t + (k + 1) % 3]];
+      parent[find(a)] = find(b);
+      auto& e = edges[{std::min(a, b), std::max(a, b)}];
+      (a < b ? e.first : e.second) += 1;
+    }
+  }
+  std::map<uint32_t, bool> bad;
+  std::map<uint32_t, double> volume;
+  for (const auto& [e, uses] : edges) bad[find(e.first)] |= !(uses.first == 1 && uses.second == 1);
+  for (size_t t = 0; t < s.triangleCount(); ++t) {
+    const Vec3 a = s.vertex(t, 0), b = s.vertex(t, 1), c = s.vertex(t, 2);
+    volume[find(weld[s.indices[3 * t]])] += dot(a, cross(b, c));
+  }
+  PartCounts r;
+  r.parts = volume.size();
+  for (const auto& [root, v] : volume) r.closedParts += !bad[root] && v > 0;
+  return r;
+}
+
+bool isModelFile(const fs::path& p) {
+  static const char* const kExtensions[] = {".obj", ".dae", ".glb", ".gltf", ".ifc", ".ac",
+                                            ".stl", ".ply", ".fbx", ".3ds", ".blend"};
+  std::string ext = p.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* e : kExtensions)
+    if (ext == e) return true;
+  return false;  // .bsp (assimp reads only .pk3), .mtl, .md, .txt, licence files
+}
+
+TEST(SceneImport, SharedScenes) {
+  const fs::path root = fs::path(CPVS_SOURCE_DIR) / ".." / "shared" / "scenes";
+  if (!fs::is_directory(root)) GTEST_SKIP() << "no scene folder at " << root.string();
+
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::recursive_directory_iterator(root))
+    if (entry.is_regular_file() && isModelFile(entry.path())) files.push_back(entry.path());
+  std::sort(files.begin(), files.end());
+  ASSERT_FALSE(files.empty());
+
+  size_t checked = 0;
+  for (const fs::path& file : files) {
+    const std::string rel = fs::relative(file, root).generic_string();
+    SCOPED_TRACE(rel);
+    SceneStats st;
+    Scene s;
+    ASSERT_NO_THROW(s = loadScene(file.string(), &st));
+    std::printf("  %-40s kept %7zu  degenerate %6zu  parts %5zu  closed parts %5zu  closed tris %7zu\n",
+                rel.c_str(), st.triangles, st.degenerateDropped, st.parts, st.closedParts,
+                st.closedTriangles);
+    EXPECT_GT(st.triangles, 0u);
+    EXPECT_EQ(s.triangleCount(), st.triangles);
+    EXPECT_EQ(s.closed.size(), st.triangles);
+    EXPECT_EQ(s.name, file.filename().string());
+
+    const auto it = sceneTable().find(rel);
+    if (it == sceneTable().end()) continue;
+    const Expected& e = it->second;
+    ++checked;
+    EXPECT_EQ(static_cast<long>(st.triangles + st.degenerateDropped), e.total);
+    if (e.degenerate >= 0) {
+      EXPECT_EQ(static_cast<long>(st.degenerateDropped), e.degenerate);
+    }
+    EXPECT_EQ(static_cast<long>(st.parts), e.parts);
+    EXPECT_EQ(static_cast<long>(st.closedParts), e.closedParts);
+    if (e.closedParts == e.parts) {
+      EXPECT_EQ(st.closedTriangles, st.triangles);
+    }
+    if (e.closedParts == 0) {
+      EXPECT_EQ(st.closedTriangles, 0u);
+    }
+    const PartCounts readme = readmeStyleParts(s);
+    if (e.readmeParts >= 0) {
+      EXPECT_EQ(static_cast<long>(readme.parts), e.readmeParts) << "README-style parts";
+    }
+    if (e.readmeClosedParts >= 0) {
+      EXPECT_EQ(static_cast<long>(readme.closedParts), e.readmeClosedParts) << "README-style closed parts";
+    }
+  }
+  EXPECT_EQ(checked, sceneTable().size()) << "a scene of the table is missing";
+}
+
+// --- the procedural city ---------------------------------------------------------------
+
+TEST(ProceduralCity, FullyClosed) {
+  const Scene city = makeProceduralCity(12, 1);
+  EXPECT_EQ(city.name, "procedural-city");
+  Scene copy = city;
+  const SceneStats st = finalizeScene(copy);  // already finalized: idempotent
+  EXPECT_EQ(st.degenerateDropped, 0u);
+  EXPECT_GT(st.parts, 12u * 12u);
+  EXPECT_EQ(st.closedParts, st.parts);
+  EXPECT_EQ(st.closedTriangles, st.triangles);
+  EXPECT_EQ(st.triangles % 12, 0u);  // boxes only
+  EXPECT_EQ(sceneHash(copy), sceneHash(city));
+  Vec3 lo, hi;
+  sceneBounds(city, lo, hi);
+  EXPECT_LT(lo.y, 0.0);
+  EXPECT_LE(hi.y, 60.0);
+}
+
+TEST(ProceduralCity, ClosedForManySeedsAndSizes) {
+  for (int blocks : {1, 2, 5, 20}) {
+    for (uint32_t seed : {0u, 2u, 3u, 77u, 0xffffffffu}) {
+      Scene city = makeProceduralCity(blocks, seed);
+      const SceneStats st = finalizeScene(city);
+      EXPECT_EQ(st.closedParts, st.parts) << blocks << " blocks, seed " << seed;
+    }
+  }
+}
+
+TEST(ProceduralCity, HasTouchingBuildingsPlinthsAndBridges) {
+  // Read the features back from the geometry: parts are boxes (8 vertices each, in order).
+  const Scene city = makeProceduralCity(12, 1);
+  ASSERT_EQ(city.positions.size() % 8, 0u);
+  struct Aabb {
+    Vec3 lo, hi;
+  };
+  std::vector<Aabb> boxes;
+  for (size_t b = 0; b < city.positions.size() / 8; ++b) {
+    Aabb a{city.positions[8 * b], city.positions[8 * b]};
+    for (int i = 1; i < 8; ++i) {
+      a.lo = min(a.lo, city.positions[8 * b + i]);
+      a.hi = max(a.hi, city.positions[8 * b + i]);
+    }
+    boxes.push_back(a);
+  }
+  size_t touching = 0, stacked = 0, bridges = 0;
+  for (size_t i = 1; i < boxes.size(); ++i) {  // box 0 is the ground
+    const Aabb& a = boxes[i];
+    if (a.lo.y > 0 && a.hi.y - a.lo.y <= 2) ++bridges;
+    for (size_t j = 1; j < boxes.size(); ++j) {
+      const Aabb& b = boxes[j];
+      if (i == j) continue;
+      const bool overlapZ = a.lo.z < b.hi.z && b.lo.z < a.hi.z;
+      const bool overlapX = a.lo.x < b.hi.x && b.lo.x < a.hi.x;
+      if (a.hi.x == b.lo.x && overlapZ && a.lo.y == 0 && b.lo.y == 0) ++touching;
+      if (a.lo.y > 0 && a.lo.y == b.hi.y && overlapX && overlapZ) ++stacked;
+    }
+  }
+  EXPECT_GT(touching, 10u);
+  EXPECT_GT(stacked, 10u);
+  EXPECT_GE(bridges, 3u);
+}
+
+TEST(ProceduralCity, Deterministic) {
+  const Scene a = makeProceduralCity(6, 42);
+  const Scene b = makeProceduralCity(6, 42);
+  EXPECT_EQ(sceneHash(a), sceneHash(b));
+  EXPECT_EQ(a.positions, b.positions);
+  const Scene c = makeProceduralCity(6, 43);
+  EXPECT_NE(sceneHash(a), sceneHash(c));
+}
+
+TEST(ProceduralCity, RejectsBadSize) {
+  EXPECT_THROW(makeProceduralCity(0, 1), InputError);
+  EXPECT_THROW(makeProceduralCity(-3, 1), InputError);
+}
+
+}  // namespace
+}  // namespace cpvs
