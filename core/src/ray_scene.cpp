@@ -2,9 +2,12 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "cpvs/scene.h"
 
@@ -100,6 +103,52 @@ bool RayScene::intersect(const Vec3& from, const Vec3& dir, double tnear, double
   hit.front = (rh.hit.Ng_x * rh.ray.dir_x + rh.hit.Ng_y * rh.ray.dir_y + rh.hit.Ng_z * rh.ray.dir_z) < 0;
   hit.closed = closed_[hit.triangle] != 0;
   return true;
+}
+
+namespace {
+
+struct NestingContext {
+  RTCIntersectContext ctx;
+  const RayScene* rays;
+  ClosedMode mode;
+  std::vector<std::pair<float, int>>* crossings;  // (t, +1 leaving / -1 entering)
+};
+
+void nestingFilter(const RTCFilterFunctionNArguments* args) {
+  auto* c = reinterpret_cast<const NestingContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    args->valid[i] = 0;  // reject every hit so that traversal visits them all
+    unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    if (!c->rays->triangleClosed(prim, c->mode)) continue;
+    float ng = RTCHitN_Ng_x(args->hit, args->N, i) * RTCRayN_dir_x(args->ray, args->N, i) +
+               RTCHitN_Ng_y(args->hit, args->N, i) * RTCRayN_dir_y(args->ray, args->N, i) +
+               RTCHitN_Ng_z(args->hit, args->N, i) * RTCRayN_dir_z(args->ray, args->N, i);
+    c->crossings->emplace_back(RTCRayN_tfar(args->ray, args->N, i), ng > 0 ? 1 : -1);
+  }
+}
+
+}  // namespace
+
+int RayScene::closedNesting(const Vec3& from, const Vec3& dir, double tfar, ClosedMode mode) const {
+  std::vector<std::pair<float, int>> crossings;
+  NestingContext c{{}, this, mode, &crossings};
+  rtcInitIntersectContext(&c.ctx);
+  c.ctx.filter = nestingFilter;
+  RTCRayHit rh = makeRay(from - origin_, dir, 0.0, tfar);
+  rtcIntersect1(static_cast<RTCScene>(scene_), &c.ctx, &rh);
+  // A ray through a shared edge or vertex may report each triangle around it: crossings
+  // of the same sign at (almost) the same distance are one crossing.
+  std::sort(crossings.begin(), crossings.end());
+  const float eps = 1e-6f * float(tfar);
+  int nesting = 0;
+  for (size_t i = 0; i < crossings.size(); ++i) {
+    bool duplicate = false;
+    for (size_t j = i; j-- > 0 && crossings[i].first - crossings[j].first <= eps;)
+      if (crossings[j].second == crossings[i].second) duplicate = true;
+    if (!duplicate) nesting += crossings[i].second;
+  }
+  return nesting;
 }
 
 }  // namespace cpvs

@@ -46,6 +46,12 @@ class RayScene {
   /// The closest hit along the ray, or false.
   bool intersect(const Vec3& from, const Vec3& dir, double tnear, double tfar, RayHit& hit) const;
 
+  /// How many closed solids (under `mode`) contain `from`, found by counting the closed
+  /// surfaces a ray along unit `dir` leaves minus those it enters up to tfar. Surfaces
+  /// that coincide (a box standing on another) are all counted, so a point in either is
+  /// inside. 0 for a point outside every closed part.
+  int closedNesting(const Vec3& from, const Vec3& dir, double tfar, ClosedMode mode) const;
+
   /// Opaque Embree handle for the depth renderer.
   void* embreeScene() const { return scene_; }
 

@@ -44,6 +44,11 @@ Scene loadScene(const std::string& path, SceneStats* stats = nullptr);
 /// Deterministic for a given seed. `blocks` is the number of city blocks per side.
 Scene makeProceduralCity(int blocks = 12, uint32_t seed = 1);
 
+/// Opens a scene by name: "city", "city:BLOCKS" or "city:BLOCKS:SEED" generates the
+/// procedural city (12 blocks, seed 1 by default); anything else is a file for loadScene.
+/// The command line and the farm accept the same names.
+Scene openScene(const std::string& spec, SceneStats* stats = nullptr);
+
 /// Removes zero-area triangles, fills `closed` from the mesh topology (welded by exact
 /// position), and returns the counts. Every generator and importer calls it last.
 SceneStats finalizeScene(Scene& scene);

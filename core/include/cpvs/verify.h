@@ -35,8 +35,11 @@ struct VerifyResult {
 
 /// Compares binary CPVS lookups with exact Embree shadow rays from the same offset points
 /// (the lookup's own normal offset). A point counts as near a shadow boundary when the
-/// exact visibility differs at any of its neighbours one voxel away (along u, v, the light
-/// direction, and the four diagonals in u, v).
+/// exact visibility is not constant within one voxel of it: it differs at one of the 124
+/// points offset by -1, -1/2, 0, 1/2 or 1 voxel along u, v and the light direction.
+/// A mismatching point also counts as near when one of those points lies inside closed
+/// geometry: the undefined voxels there may be resolved either way. Offset points inside
+/// closed geometry (where no lookup can come from) are skipped.
 VerifyResult verifyArtifact(const ShadowQuery& query, const Scene& scene, const RayScene& rays,
                             uint64_t count, uint64_t seed);
 

@@ -1,0 +1,194 @@
+// `cpvs bake`: one process, no server: scene in, .cpvs out, with a summary.
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include "cli_util.h"
+#include "commands.h"
+#include "cpvs/bake.h"
+#include "cpvs/cpvs_file.h"
+#include "cpvs/scene.h"
+
+namespace cpvs::cli {
+
+namespace {
+
+struct BakeArgs {
+  std::string scene, out, sunDir, resolution = "4K";
+  double elevation = NAN, azimuth = NAN;
+  std::string closed = "auto", exit = "exact", cull = "on", compress = "topdown", undefinedRule = "new";
+  int tileSize = 4096, threads = 0;
+  bool zstd = true, json = false, quiet = false;
+};
+
+std::string summaryJson(const BakeArgs& a, const Scene& scene, const SceneStats& ss, const CpvsArtifact& art,
+                        const StageTimes& st, double total, uint64_t tiles, uint64_t fileBytes) {
+  const Dag& dag = art.dag;
+  uint64_t R = art.grid.resolution();
+  std::ostringstream o;
+  o << "{\n  \"scene\": " << jsonString(scene.name) << ",\n  \"scene_hash\": " << jsonString(art.sceneHash.hex())
+    << ",\n  \"triangles\": " << ss.triangles << ",\n  \"degenerate_dropped\": " << ss.degenerateDropped
+    << ",\n  \"closed_triangles\": " << ss.closedTriangles << ",\n  \"resolution\": " << R
+    << ",\n  \"light_dir\": [" << jsonNumber(art.grid.frame.dir.x) << ", " << jsonNumber(art.grid.frame.dir.y) << ", "
+    << jsonNumber(art.grid.frame.dir.z) << "],\n  \"options\": {\"closed\": " << jsonString(closedName(art.options.closed))
+    << ", \"exit\": " << jsonString(exitName(art.options.exit)) << ", \"cull\": " << (art.options.cull ? "true" : "false")
+    << ", \"compress\": " << jsonString(compressName(art.options.compress))
+    << ", \"undefined\": " << jsonString(ruleName(art.options.undefinedRule))
+    << ", \"tile_size\": " << (1u << art.options.log2TileSize) << "},\n  \"tiles\": " << tiles
+    << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"file_bytes\": " << fileBytes
+    << ",\n  \"shadow_map_bytes\": " << R * R * 2
+    << ",\n  \"ratio_to_shadow_map\": " << jsonNumber(double(R * R * 2) / double(std::max<uint64_t>(1, dag.bytes())))
+    << ",\n  \"nodes\": " << dag.nodeCount() << ",\n  \"seconds_total\": " << jsonNumber(total) << ",\n  \"stages\": {";
+  bool first = true;
+  for (const auto& [k, v] : st.seconds) {
+    o << (first ? "" : ", ") << jsonString(k) << ": " << jsonNumber(v);
+    first = false;
+  }
+  o << "},\n  \"insert\": {\"nodes_created\": " << st.insert.nodesCreated << ", \"leaves_created\": "
+    << st.insert.leavesCreated << ", \"culled_nodes\": " << st.insert.culledNodes << ", \"culled_leaves\": "
+    << st.insert.culledLeaves << "},\n  \"levels\": [";
+  for (int l = -1; l < int(dag.levels.size()); ++l) {
+    size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
+    o << (l < 0 ? "\n    " : ",\n    ") << "{\"size\": " << (l < 0 ? 1 : (1u << (l + 3))) << ", \"nodes\": " << n
+      << ", \"bytes\": " << dag.levelBytes(l) << "}";
+  }
+  o << "\n  ],\n  \"out\": " << jsonString(a.out) << "\n}\n";
+  return o.str();
+}
+
+void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, const CpvsArtifact& art,
+                  const StageTimes& st, double total, uint64_t tiles, uint64_t fileBytes) {
+  const Dag& dag = art.dag;
+  uint64_t R = art.grid.resolution();
+  std::printf("\nBaked %s (%zu triangles, %zu closed) at %llu^3 in %llu tile%s\n", scene.name.c_str(), ss.triangles,
+              ss.closedTriangles, static_cast<unsigned long long>(R), static_cast<unsigned long long>(tiles),
+              tiles == 1 ? "" : "s");
+  std::printf("  options: closed=%s exit=%s cull=%s compress=%s undefined=%s tile=%u\n",
+              closedName(art.options.closed), exitName(art.options.exit), art.options.cull ? "on" : "off",
+              compressName(art.options.compress), ruleName(art.options.undefinedRule), 1u << art.options.log2TileSize);
+  std::printf("\n  %-10s %10s\n", "stage", "seconds");
+  for (const auto& name : std::vector<std::string>{"load", "render", "masks", "insert", "compress", "merge", "write"}) {
+    auto it = st.seconds.find(name);
+    std::printf("  %-10s %10.3f\n", name.c_str(), it == st.seconds.end() ? 0.0 : it->second);
+  }
+  std::printf("  %-10s %10.3f\n", "total", total);
+  std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
+  for (int l = -1; l < int(dag.levels.size()); ++l) {
+    size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
+    std::string size = l < 0 ? "leaf 8x8x1" : std::to_string(1u << (l + 3)) + "^3";
+    std::printf("  %-10s %12zu %12llu\n", size.c_str(), n, static_cast<unsigned long long>(dag.levelBytes(l)));
+  }
+  uint64_t sm = R * R * 2;
+  std::printf("\n  DAG: %s (%llu bytes), file: %s\n", humanBytes(dag.bytes()).c_str(),
+              static_cast<unsigned long long>(dag.bytes()), humanBytes(fileBytes).c_str());
+  std::printf("  16-bit shadow map of %llu^2: %s, %.1fx larger than the DAG\n", static_cast<unsigned long long>(R),
+              humanBytes(sm).c_str(), double(sm) / double(std::max<uint64_t>(1, dag.bytes())));
+  std::printf("  insertion: %llu nodes and %llu leaves created, %llu nodes and %llu leaves reused (culled)\n",
+              static_cast<unsigned long long>(st.insert.nodesCreated),
+              static_cast<unsigned long long>(st.insert.leavesCreated),
+              static_cast<unsigned long long>(st.insert.culledNodes),
+              static_cast<unsigned long long>(st.insert.culledLeaves));
+  std::printf("\nWrote %s\n", a.out.c_str());
+  std::printf("Look at it: cpvs render %s %s --out %s.png\n", a.out.c_str(), a.scene.c_str(),
+              a.out.substr(0, a.out.size() - (a.out.size() > 5 && a.out.ends_with(".cpvs") ? 5 : 0)).c_str());
+}
+
+int runBake(const BakeArgs& a) {
+  auto totalStart = std::chrono::steady_clock::now();
+  std::unique_ptr<tbb::global_control> limit;
+  if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
+
+  BakeOptions opt;
+  opt.closed = a.closed == "on" ? ClosedMode::On : (a.closed == "off" ? ClosedMode::Off : ClosedMode::Auto);
+  opt.exit = a.exit == "approx" ? ExitMode::Approx : ExitMode::Exact;
+  opt.cull = a.cull == "on";
+  opt.compress = a.compress == "bottomup" ? CompressMode::BottomUp
+                                           : (a.compress == "none" ? CompressMode::None : CompressMode::TopDown);
+  opt.undefinedRule = a.undefinedRule == "old" ? UndefinedRule::Old : UndefinedRule::New;
+  if (a.tileSize < 8 || (a.tileSize & (a.tileSize - 1)) != 0)
+    throw InputError("--tile-size " + std::to_string(a.tileSize) + " must be a power of two, at least 8");
+  opt.log2TileSize = 0;
+  while ((1 << opt.log2TileSize) < a.tileSize) ++opt.log2TileSize;
+  int log2R = parseResolution(a.resolution);
+
+  LightFrame frame;
+  if (!a.sunDir.empty()) {
+    if (!std::isnan(a.elevation) || !std::isnan(a.azimuth))
+      throw InputError("give either --sun-dir or --sun-elevation/--sun-azimuth, not both");
+    frame = LightFrame::fromDirection(parseVec3(a.sunDir, "--sun-dir"));
+  } else {
+    if (std::isnan(a.elevation)) throw InputError("give the light: --sun-dir X,Y,Z or --sun-elevation DEG");
+    frame = LightFrame::fromElevationAzimuth(a.elevation, std::isnan(a.azimuth) ? 0.0 : a.azimuth);
+  }
+
+  StageTimes st;
+  auto start = std::chrono::steady_clock::now();
+  SceneStats ss;
+  Scene scene = openScene(a.scene, &ss);
+  Grid grid = makeGrid(scene, frame, log2R);
+  RayScene rays(scene, grid.origin, a.threads);
+  st.add("load", secondsSince(start));
+  if (!a.json && !a.quiet)
+    spdlog::info("{}: {} triangles ({} closed, {} degenerate dropped), resolution {}^3, light ({:.4f}, {:.4f}, {:.4f})",
+                 scene.name, ss.triangles, ss.closedTriangles, ss.degenerateDropped, grid.resolution(), frame.dir.x,
+                 frame.dir.y, frame.dir.z);
+
+  ProgressDisplay progress(!a.json && !a.quiet);
+  CpvsArtifact art;
+  art.grid = grid;
+  art.options = opt;
+  art.sceneHash = sceneHash(scene);
+  art.dag = bakeGrid(rays, grid, opt, &st, [&](const std::string& s, uint64_t d, uint64_t t) {
+    return progress.update(s, d, t);
+  });
+  progress.finish();
+
+  start = std::chrono::steady_clock::now();
+  auto bytes = encodeCpvs(art, a.zstd);
+  writeFileAtomic(a.out, bytes);
+  st.add("write", secondsSince(start));
+  double total = secondsSince(totalStart);
+  uint64_t tiles = tilesPerSide(log2R, opt.log2TileSize);
+  tiles *= tiles;
+  if (a.json)
+    std::cout << summaryJson(a, scene, ss, art, st, total, tiles, bytes.size());
+  else
+    printSummary(a, scene, ss, art, st, total, tiles, bytes.size());
+  return 0;
+}
+
+}  // namespace
+
+void addBakeCommand(CLI::App& app, int& status) {
+  auto a = std::make_shared<BakeArgs>();
+  CLI::App* c = app.add_subcommand("bake", "Bake the sun shadows of a scene into a .cpvs file, in this process");
+  c->add_option("scene", a->scene, "Scene file (glTF/GLB, OBJ, DAE, PLY, FBX, STL, ...) or city[:BLOCKS[:SEED]] for the procedural city")->required();
+  c->add_option("--out,-o", a->out, "Output .cpvs file")->required();
+  c->add_option("--sun-dir", a->sunDir, "Light direction X,Y,Z, from the sun into the scene (any side)");
+  c->add_option("--sun-elevation", a->elevation, "Sun elevation above the horizon in degrees (0..90, Y up)");
+  c->add_option("--sun-azimuth", a->azimuth, "Sun azimuth in degrees (0 = towards +Z, 90 = towards +X)");
+  c->add_option("--resolution,-r", a->resolution, "Grid resolution R (voxels a side): 1024, 4K, 16K, ... 1M")
+      ->capture_default_str();
+  c->add_option("--closed", a->closed, "Closed-geometry interiors: auto (watertight parts), on (all), off (none)")
+      ->check(CLI::IsMember({"auto", "on", "off"}))->capture_default_str();
+  c->add_option("--exit", a->exit, "Exit depth: exact (face counting) or approx (first back face)")
+      ->check(CLI::IsMember({"exact", "approx"}))->capture_default_str();
+  c->add_option("--cull", a->cull, "Cull identical nodes during insertion (§3.2)")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  c->add_option("--compress", a->compress, "Compression: topdown (§4.2), bottomup (§4.1), none (as inserted)")
+      ->check(CLI::IsMember({"topdown", "bottomup", "none"}))->capture_default_str();
+  c->add_option("--undefined", a->undefinedRule, "Undefined voxels: new (§3.4 masks) or old (mixed -> shadowed)")
+      ->check(CLI::IsMember({"new", "old"}))->capture_default_str();
+  c->add_option("--tile-size", a->tileSize, "Tile size in texels (power of two >= 8)")->capture_default_str();
+  c->add_option("--threads,-j", a->threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  c->add_flag("!--no-zstd", a->zstd, "Store the levels uncompressed");
+  c->add_flag("--json", a->json, "Print the summary as JSON on stdout");
+  c->add_flag("--quiet,-q", a->quiet, "No progress output");
+  c->callback([a, &status] { status = runBake(*a); });
+}
+
+}  // namespace cpvs::cli

@@ -1,0 +1,140 @@
+#include "cli_util.h"
+
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace cpvs::cli {
+
+std::vector<double> parseNumbers(const std::string& text, const std::string& what) {
+  std::vector<double> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    size_t used = 0;
+    double v;
+    try {
+      v = std::stod(item, &used);
+    } catch (...) {
+      throw InputError(what + ": '" + item + "' is not a number");
+    }
+    while (used < item.size() && std::isspace(static_cast<unsigned char>(item[used]))) ++used;
+    if (used != item.size()) throw InputError(what + ": '" + item + "' is not a number");
+    if (!std::isfinite(v)) throw InputError(what + ": '" + item + "' is not finite");
+    out.push_back(v);
+  }
+  return out;
+}
+
+Vec3 parseVec3(const std::string& text, const std::string& what) {
+  auto v = parseNumbers(text, what);
+  if (v.size() != 3) throw InputError(what + ": expected X,Y,Z, got '" + text + "'");
+  return {v[0], v[1], v[2]};
+}
+
+const char* closedName(ClosedMode m) {
+  return m == ClosedMode::Auto ? "auto" : (m == ClosedMode::On ? "on" : "off");
+}
+const char* exitName(ExitMode m) { return m == ExitMode::Exact ? "exact" : "approx"; }
+const char* compressName(CompressMode m) {
+  return m == CompressMode::TopDown ? "topdown" : (m == CompressMode::BottomUp ? "bottomup" : "none");
+}
+const char* ruleName(UndefinedRule r) { return r == UndefinedRule::New ? "new" : "old"; }
+
+std::string jsonString(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\u%04x", c);
+          out += buf;
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out + "\"";
+}
+
+std::string jsonNumber(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.9g", v);
+  return buf;
+}
+
+std::string humanBytes(uint64_t b) {
+  const char* units[] = {"B", "KB", "MB", "GB", "TB"};
+  double v = double(b);
+  int u = 0;
+  while (v >= 1000 && u < 4) {
+    v /= 1000;
+    ++u;
+  }
+  char buf[32];
+  std::snprintf(buf, sizeof buf, u == 0 ? "%.0f %s" : "%.2f %s", v, units[u]);
+  return buf;
+}
+
+namespace {
+double now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+}  // namespace
+
+ProgressDisplay::ProgressDisplay(bool enabled) : enabled_(enabled), tty_(::isatty(STDERR_FILENO)), start_(now()) {}
+
+ProgressDisplay::~ProgressDisplay() { finish(); }
+
+bool ProgressDisplay::update(const std::string& stage, uint64_t done, uint64_t total) {
+  if (!enabled_ || total == 0) return true;
+  double t = now() - start_;
+  double frac = double(done) / double(total);
+  double eta = done > 0 ? t / frac - t : 0;
+  int percent = int(frac * 100);
+  if (tty_) {
+    const int width = 30;
+    int filled = int(frac * width);
+    std::fprintf(stderr, "\r%-8s [%s%s] %3d%%  %llu/%llu tiles  %.1fs elapsed  ETA %.1fs ", stage.c_str(),
+                 std::string(filled, '#').c_str(), std::string(width - filled, ' ').c_str(), percent,
+                 static_cast<unsigned long long>(done), static_cast<unsigned long long>(total), t,
+                 done > 0 ? eta : 0.0);
+    std::fflush(stderr);
+    drawn_ = true;
+  } else if (done == total || percent / 10 != lastPercent_ / 10 || t - lastLog_ >= 5) {
+    spdlog::info("{}: {}/{} tiles ({}%), {:.1f}s elapsed, ETA {:.1f}s", stage, done, total, percent, t, eta);
+    lastLog_ = t;
+    lastPercent_ = percent;
+  }
+  return true;
+}
+
+void ProgressDisplay::finish() {
+  if (drawn_) std::fprintf(stderr, "\n");
+  drawn_ = false;
+}
+
+}  // namespace cpvs::cli
+
+namespace cpvs::cli {
+
+Scene openMatchingScene(const std::string& spec, const CpvsArtifact& artifact) {
+  Scene scene = openScene(spec);
+  Hash128 h = sceneHash(scene);
+  if (!(h == artifact.sceneHash))
+    throw InputError("scene '" + spec + "' (hash " + h.hex() + ") is not the scene this file was baked from (hash " +
+                     artifact.sceneHash.hex() + ")");
+  return scene;
+}
+
+}  // namespace cpvs::cli

@@ -1,0 +1,59 @@
+// Parsing and printing helpers shared by the subcommands.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "cpvs/bake.h"
+#include "cpvs/types.h"
+
+namespace cpvs::cli {
+
+/// Parses "X,Y,Z" into a finite vector; InputError naming `what` otherwise.
+Vec3 parseVec3(const std::string& text, const std::string& what);
+/// Parses comma-separated numbers.
+std::vector<double> parseNumbers(const std::string& text, const std::string& what);
+
+/// Names of the option values, as the command line and JSON spell them.
+const char* closedName(ClosedMode m);
+const char* exitName(ExitMode m);
+const char* compressName(CompressMode m);
+const char* ruleName(UndefinedRule r);
+
+/// Minimal JSON writing: escaped strings, finite numbers.
+std::string jsonString(const std::string& s);
+std::string jsonNumber(double v);
+
+/// "1.23 MB" style.
+std::string humanBytes(uint64_t bytes);
+
+/// A progress display: a bar with stage, counts and ETA on a terminal, plain log lines
+/// (at most every 10 % or 5 s) otherwise.
+class ProgressDisplay {
+ public:
+  explicit ProgressDisplay(bool enabled);
+  ~ProgressDisplay();
+  bool update(const std::string& stage, uint64_t done, uint64_t total);
+  void finish();
+
+ private:
+  bool enabled_, tty_;
+  double start_, lastLog_ = -1;
+  int lastPercent_ = -1;
+  bool drawn_ = false;
+};
+
+}  // namespace cpvs::cli
+
+#include "cpvs/cpvs_file.h"
+#include "cpvs/scene.h"
+
+namespace cpvs::cli {
+
+/// Opens the scene an artifact was baked from and checks, by content hash, that it is
+/// the same geometry: verifying or rendering against another scene would compare
+/// shadows of different worlds. InputError otherwise.
+Scene openMatchingScene(const std::string& spec, const CpvsArtifact& artifact);
+
+}  // namespace cpvs::cli

@@ -1,0 +1,86 @@
+// `cpvs inspect`: what a .cpvs file holds, without the scene.
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include "cli_util.h"
+#include "commands.h"
+#include "cpvs/cpvs_file.h"
+
+namespace cpvs::cli {
+
+namespace {
+
+struct InspectArgs {
+  std::string file;
+  bool json = false;
+};
+
+std::string levelLabel(int l) { return l < 0 ? "leaf 8x8x1" : std::to_string(1u << (l + 3)) + "^3"; }
+
+int runInspect(const InspectArgs& a) {
+  auto bytes = readFile(a.file);
+  CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
+  const Dag& dag = art.dag;
+  const Grid& g = art.grid;
+  uint64_t R = g.resolution();
+  const BakeOptions& o = art.options;
+  if (a.json) {
+    std::ostringstream s;
+    s << "{\n  \"file\": " << jsonString(a.file) << ",\n  \"format_version\": " << kCpvsFormatVersion
+      << ",\n  \"file_bytes\": " << bytes.size() << ",\n  \"resolution\": " << R << ",\n  \"scene_hash\": "
+      << jsonString(art.sceneHash.hex()) << ",\n  \"light_dir\": [" << jsonNumber(g.frame.dir.x) << ", "
+      << jsonNumber(g.frame.dir.y) << ", " << jsonNumber(g.frame.dir.z) << "],\n  \"grid\": {\"origin\": ["
+      << jsonNumber(g.origin.x) << ", " << jsonNumber(g.origin.y) << ", " << jsonNumber(g.origin.z)
+      << "], \"u0\": " << jsonNumber(g.u0) << ", \"v0\": " << jsonNumber(g.v0) << ", \"d0\": " << jsonNumber(g.d0)
+      << ", \"extent\": " << jsonNumber(g.extent) << ", \"depth_extent\": " << jsonNumber(g.depthExtent)
+      << "},\n  \"options\": {\"closed\": " << jsonString(closedName(o.closed))
+      << ", \"exit\": " << jsonString(exitName(o.exit)) << ", \"cull\": " << (o.cull ? "true" : "false")
+      << ", \"compress\": " << jsonString(compressName(o.compress))
+      << ", \"undefined\": " << jsonString(ruleName(o.undefinedRule)) << ", \"tile_size\": " << (1u << o.log2TileSize)
+      << "},\n  \"bytes\": " << dag.bytes() << ",\n  \"nodes\": " << dag.nodeCount()
+      << ",\n  \"shadow_map_bytes\": " << R * R * 2 << ",\n  \"levels\": [";
+    for (int l = -1; l < int(dag.levels.size()); ++l) {
+      size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
+      s << (l < 0 ? "\n    " : ",\n    ") << "{\"size\": " << (l < 0 ? 1 : (1u << (l + 3))) << ", \"nodes\": " << n
+        << ", \"bytes\": " << dag.levelBytes(l) << "}";
+    }
+    s << "\n  ]\n}\n";
+    std::cout << s.str();
+    return 0;
+  }
+  std::printf("%s: CPVS format %u, %s on disk\n", a.file.c_str(), kCpvsFormatVersion, humanBytes(bytes.size()).c_str());
+  std::printf("  resolution   %llu^3 (texel %.6g, slice %.6g world units)\n", static_cast<unsigned long long>(R),
+              g.texelSize(), g.sliceSize());
+  std::printf("  light        (%.6f, %.6f, %.6f)\n", g.frame.dir.x, g.frame.dir.y, g.frame.dir.z);
+  std::printf("  grid origin  (%.6g, %.6g, %.6g), extent %.6g, depth %.6g\n", g.origin.x, g.origin.y, g.origin.z,
+              g.extent, g.depthExtent);
+  std::printf("  scene hash   %s\n", art.sceneHash.hex().c_str());
+  std::printf("  options      closed=%s exit=%s cull=%s compress=%s undefined=%s tile=%u\n", closedName(o.closed),
+              exitName(o.exit), o.cull ? "on" : "off", compressName(o.compress), ruleName(o.undefinedRule),
+              1u << o.log2TileSize);
+  std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
+  for (int l = -1; l < int(dag.levels.size()); ++l) {
+    size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
+    std::printf("  %-10s %12zu %12llu\n", levelLabel(l).c_str(), n, static_cast<unsigned long long>(dag.levelBytes(l)));
+  }
+  uint64_t sm = R * R * 2;
+  std::printf("  %-10s %12zu %12llu\n", "total", dag.nodeCount(), static_cast<unsigned long long>(dag.bytes()));
+  std::printf("\n  DAG %s; a 16-bit shadow map of %llu^2 is %s (%.1fx)\n", humanBytes(dag.bytes()).c_str(),
+              static_cast<unsigned long long>(R), humanBytes(sm).c_str(),
+              double(sm) / double(std::max<uint64_t>(1, dag.bytes())));
+  return 0;
+}
+
+}  // namespace
+
+void addInspectCommand(CLI::App& app, int& status) {
+  auto a = std::make_shared<InspectArgs>();
+  CLI::App* c = app.add_subcommand("inspect", "Show the header, options, and nodes and bytes per level of a .cpvs file");
+  c->add_option("file", a->file, ".cpvs file")->required();
+  c->add_flag("--json", a->json, "Print as JSON");
+  c->callback([a, &status] { status = runInspect(*a); });
+}
+
+}  // namespace cpvs::cli

@@ -1,0 +1,35 @@
+// `cpvs`: bake, inspect, query, verify and render compact precomputed voxelized shadows.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <exception>
+
+#include "commands.h"
+#include "cpvs/types.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "cpvs: compact precomputed voxelized shadows.\n"
+      "Bakes the sun's binary visibility of every voxel of a scene into a small DAG, and queries it."};
+  app.require_subcommand(1);
+  int status = 0;
+  cpvs::cli::addBakeCommand(app, status);
+  cpvs::cli::addInspectCommand(app, status);
+  cpvs::cli::addQueryCommand(app, status);
+  cpvs::cli::addVerifyCommand(app, status);
+  cpvs::cli::addRenderCommand(app, status);
+  spdlog::set_pattern("[%H:%M:%S] %v");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const cpvs::InputError& e) {
+    std::fprintf(stderr, "cpvs: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "cpvs: internal error: %s\n", e.what());
+    return 3;
+  }
+  return status;
+}

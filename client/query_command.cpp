@@ -1,0 +1,90 @@
+// `cpvs query`: sun visibility at world points, one from the command line or many from CSV.
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "cli_util.h"
+#include "commands.h"
+#include "cpvs/query.h"
+
+namespace cpvs::cli {
+
+namespace {
+
+struct QueryArgs {
+  std::string file, point, normal, pointsCsv;
+  int pcf = 1;
+};
+
+/// Reads "x,y,z" or "x,y,z,nx,ny,nz" per line; blank lines and lines starting with '#'
+/// are skipped, and a first line that is not numeric is taken as a header.
+void readPointsCsv(const std::string& path, std::vector<Vec3>& points, std::vector<Vec3>& normals) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open");
+  std::string line;
+  size_t lineNo = 0;
+  bool anyNormal = false, anyWithout = false;
+  while (std::getline(in, line)) {
+    ++lineNo;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.find_first_not_of(" \t") == std::string::npos || line[line.find_first_not_of(" \t")] == '#') continue;
+    std::vector<double> v;
+    try {
+      v = parseNumbers(line, path + " line " + std::to_string(lineNo));
+    } catch (const InputError&) {
+      if (points.empty() && lineNo == 1) continue;  // a header
+      throw;
+    }
+    if (v.size() != 3 && v.size() != 6)
+      throw InputError(path + " line " + std::to_string(lineNo) + ": expected x,y,z or x,y,z,nx,ny,nz, got " +
+                       std::to_string(v.size()) + " numbers");
+    points.push_back({v[0], v[1], v[2]});
+    normals.push_back(v.size() == 6 ? Vec3{v[3], v[4], v[5]} : Vec3{});
+    (v.size() == 6 ? anyNormal : anyWithout) = true;
+  }
+  if (points.empty()) throw InputError(path + ": no points");
+  if (!anyNormal) normals.clear();
+}
+
+int runQuery(const QueryArgs& a) {
+  if (a.point.empty() == a.pointsCsv.empty()) throw InputError("give exactly one of --point X,Y,Z and --points FILE.csv");
+  if (!a.pointsCsv.empty() && !a.normal.empty())
+    throw InputError("--normal goes with --point; in --points files put the normal in columns 4-6");
+  CpvsArtifact art = readCpvs(a.file);
+  ShadowQuery q(art);
+  if (!a.point.empty()) {
+    Vec3 p = parseVec3(a.point, "--point");
+    Vec3 n = a.normal.empty() ? Vec3{} : parseVec3(a.normal, "--normal");
+    float vis = q.filtered(p, n, a.pcf);
+    VoxelCoord v = q.lookupVoxel(p, n, a.pcf);
+    std::printf("%s  visibility %.4g  (voxel %lld, %lld, %lld)\n", vis == 1.0f ? "lit" : (vis == 0.0f ? "shadowed" : "partly lit"),
+                vis, static_cast<long long>(v.x), static_cast<long long>(v.y), static_cast<long long>(v.z));
+    return 0;
+  }
+  std::vector<Vec3> points, normals;
+  readPointsCsv(a.pointsCsv, points, normals);
+  std::vector<float> out;
+  q.batch(points, normals, a.pcf, out);
+  std::printf("x,y,z,visibility\n");
+  for (size_t i = 0; i < points.size(); ++i)
+    std::printf("%.9g,%.9g,%.9g,%.6g\n", points[i].x, points[i].y, points[i].z, out[i]);
+  return 0;
+}
+
+}  // namespace
+
+void addQueryCommand(CLI::App& app, int& status) {
+  auto a = std::make_shared<QueryArgs>();
+  CLI::App* c = app.add_subcommand(
+      "query", "Sun visibility at world points: 1 lit, 0 shadowed, a fraction with --pcf (CSV out for --points)");
+  c->add_option("file", a->file, ".cpvs file")->required();
+  c->add_option("--point,-p", a->point, "World point X,Y,Z");
+  c->add_option("--normal,-n", a->normal, "Surface normal at the point (applies the normal offset)");
+  c->add_option("--points", a->pointsCsv, "CSV file of x,y,z or x,y,z,nx,ny,nz rows");
+  c->add_option("--pcf", a->pcf, "Filter width in texels: 1, 3, 5, 7 or 9")
+      ->check(CLI::IsMember({1, 3, 5, 7, 9}))->capture_default_str();
+  c->callback([a, &status] { status = runQuery(*a); });
+}
+
+}  // namespace cpvs::cli
