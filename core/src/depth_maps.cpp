@@ -64,6 +64,36 @@ uint32_t toSlice(double t, double slicesPerUnit, uint32_t R) {
 
 }  // namespace
 
+int orderCrossings(RayHit* hits, int count, double tieDistance) {
+  std::sort(hits, hits + count, [](const RayHit& a, const RayHit& b) {
+    if (a.t != b.t) return a.t < b.t;
+    if (a.front != b.front) return a.front;
+    return a.triangle < b.triangle;
+  });
+  // Surfaces that coincide (a box standing on another) are computed from different
+  // triangles and land a few ulps apart in either order; within a run of crossings closer
+  // than tieDistance, enters go first so that the count never touches zero between them.
+  for (int i = 0; i < count;) {
+    int j = i + 1;
+    while (j < count && hits[j].t - hits[j - 1].t <= tieDistance) ++j;
+    std::stable_partition(hits + i, hits + j, [](const RayHit& h) { return h.front; });
+    i = j;
+  }
+  // A ray through a shared edge or vertex reports each triangle around it: crossings of
+  // the same kind within tieDistance are one crossing.
+  int n = 0;
+  for (int i = 0; i < count; ++i) {
+    bool dup = false;
+    for (int j = n - 1; j >= 0 && std::abs(hits[i].t - hits[j].t) <= tieDistance; --j)
+      if (hits[j].front == hits[i].front && hits[j].closed == hits[i].closed) {
+        dup = true;
+        break;
+      }
+    if (!dup) hits[n++] = hits[i];
+  }
+  return n;
+}
+
 void classifyTexel(const RayHit* hits, int count, bool exact, double slicesPerUnit, uint32_t R,
                    uint32_t& lo, uint32_t& hi) {
   if (count == 0) {
@@ -191,20 +221,7 @@ void renderTexelDepths(const RayScene& rays, const Grid& grid, ClosedMode closed
           int n = 0;
           if (!lh.overflow) {
             std::copy(lh.hits.begin(), lh.hits.begin() + lh.count, sorted.begin());
-            std::sort(sorted.begin(), sorted.begin() + lh.count, [](const RayHit& a, const RayHit& b) {
-              if (a.t != b.t) return a.t < b.t;
-              if (a.front != b.front) return a.front;  // at a shared plane, enter before leave
-              return a.triangle < b.triangle;
-            });
-            for (int i = 0; i < lh.count; ++i) {
-              bool dup = false;
-              for (int j = n - 1; j >= 0 && sorted[i].t - sorted[j].t <= dedupT; --j)
-                if (sorted[j].front == sorted[i].front && sorted[j].closed == sorted[i].closed) {
-                  dup = true;
-                  break;
-                }
-              if (!dup) sorted[n++] = sorted[i];
-            }
+            n = orderCrossings(sorted.data(), lh.count, dedupT);
           } else {
             sorted[0] = lh.hits[0];  // too many crossings: keep the enter depth only
             for (int i = 1; i < lh.count; ++i)

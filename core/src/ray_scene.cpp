@@ -54,6 +54,9 @@ RayScene::RayScene(const Scene& scene, const Vec3& origin, int threads) : origin
   rtcReleaseGeometry(geom);
   rtcCommitScene(rs);
 
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  tieDistance_ = 1e-6 * length(hi - lo);
   closed_.assign(tris, 0);
   for (size_t i = 0; i < tris && i < scene.closed.size(); ++i) closed_[i] = scene.closed[i];
 }
@@ -140,7 +143,7 @@ int RayScene::closedNesting(const Vec3& from, const Vec3& dir, double tfar, Clos
   // A ray through a shared edge or vertex may report each triangle around it: crossings
   // of the same sign at (almost) the same distance are one crossing.
   std::sort(crossings.begin(), crossings.end());
-  const float eps = 1e-6f * float(tfar);
+  const float eps = float(tieDistance_);
   int nesting = 0;
   for (size_t i = 0; i < crossings.size(); ++i) {
     bool duplicate = false;

@@ -39,6 +39,12 @@ void renderTexelDepths(const RayScene& rays, const Grid& grid, ClosedMode closed
 /// Crossings recorded along one ray for the exact exit depth.
 constexpr int kMaxHitsPerRay = 256;
 
+/// Puts one ray's crossings in the order the face count reads them and returns how many
+/// remain: sorted by distance; within runs closer than `tieDistance`, enters first
+/// (coinciding surfaces of touching parts); same-kind duplicates within it dropped (a ray
+/// through a shared edge). The shared rule of renderTexelDepths, exposed for tests.
+int orderCrossings(RayHit* hits, int count, double tieDistance);
+
 /// The texel classification of one ray's hits, sorted by distance: the shared rule of
 /// renderTexelDepths, exposed for tests. `t` values are world distances from the near
 /// plane; `slicesPerUnit` converts them to slices.

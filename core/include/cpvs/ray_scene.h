@@ -57,6 +57,7 @@ class RayScene {
 
  private:
   Vec3 origin_;
+  double tieDistance_ = 0;  // crossings closer than this are simultaneous (1e-6 of the scene's size)
   std::vector<uint8_t> closed_;
   void* device_ = nullptr;
   void* scene_ = nullptr;

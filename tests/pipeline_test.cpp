@@ -1,0 +1,248 @@
+// The whole bake on real and generated scenes, against brute-force references: texel
+// depths against every-ray-against-every-triangle, every voxel of the baked DAG against
+// the dense voxel classification, tilings and construction variants against each other,
+// and lookups against exact Embree shadow rays.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+#include "cpvs/bake.h"
+#include "cpvs/cpvs_file.h"
+#include "cpvs/dag_merge.h"
+#include "cpvs/verify.h"
+#include "dag_testing.h"
+#include "scene_testing.h"
+
+namespace cpvs {
+namespace {
+
+using testing::bruteForceDepths;
+using testing::expectOptimal;
+using testing::expectSameDag;
+
+struct SceneCase {
+  std::string name;      // for messages
+  std::string relative;  // under shared/scenes, or "" for the procedural city
+  Vec3 sun;
+};
+
+Scene openCase(const SceneCase& c) {
+  return c.relative.empty() ? openScene("city:4:7") : openScene(testing::sharedScenesDir() + "/" + c.relative);
+}
+
+class ScenePipeline : public ::testing::TestWithParam<SceneCase> {
+ protected:
+  void SetUp() override {
+    if (!GetParam().relative.empty() && testing::sharedScenesDir().empty())
+      GTEST_SKIP() << "shared/scenes is not beside the project: skipping " << GetParam().relative;
+    scene_ = openCase(GetParam());
+  }
+  Scene scene_;
+};
+
+// The packet renderer's texel depths equal a double-precision brute force for every
+// texel whose ray does not graze an edge or a slice boundary; those may differ by float
+// rounding and are few.
+TEST_P(ScenePipeline, DepthMapsMatchBruteForce) {
+  for (ExitMode exit : {ExitMode::Exact, ExitMode::Approx}) {
+    Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 6);
+    RayScene rays(scene_, grid.origin);
+    const uint64_t R = grid.resolution();
+    TexelDepths got, want;
+    std::vector<uint8_t> ambiguous;
+    renderTexelDepths(rays, grid, ClosedMode::Auto, exit, 0, 0, uint32_t(R), uint32_t(R), got);
+    bruteForceDepths(scene_, grid, ClosedMode::Auto, exit, want, ambiguous);
+    uint64_t bad = 0, skipped = 0, hitTexels = 0, interiorTexels = 0;
+    for (uint64_t i = 0; i < R * R; ++i) {
+      hitTexels += want.lo[i] < R;
+      interiorTexels += want.hi[i] > want.lo[i];
+      if (ambiguous[i]) {
+        ++skipped;
+        continue;
+      }
+      if (got.lo[i] != want.lo[i] || got.hi[i] != want.hi[i]) {
+        if (++bad <= 5)
+          ADD_FAILURE() << "texel " << i % R << "," << i / R << ": renderer lo/hi " << got.lo[i] << "/" << got.hi[i]
+                        << ", brute force " << want.lo[i] << "/" << want.hi[i];
+      }
+    }
+    EXPECT_EQ(bad, 0u);
+    EXPECT_LT(skipped, R * R / 50) << "too many ambiguous texels for the comparison to mean much";
+    EXPECT_GT(hitTexels, R * R / 10) << "the scene should cover the grid";
+    const auto closedTriangles = std::count(scene_.closed.begin(), scene_.closed.end(), 1);
+    if (2 * size_t(closedTriangles) > scene_.triangleCount()) {
+      EXPECT_GT(interiorTexels, 0u) << "a mostly closed scene has interiors";
+    }
+  }
+}
+
+// Every defined voxel of a full bake equals the dense brute-force classification, and
+// undefined voxels lie inside closed geometry.
+TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
+  // The brute force is every ray against every triangle: larger scenes stay at 64.
+  for (int log2R : {6, 7}) {
+    if (log2R > 6 && scene_.triangleCount() > 10000) break;
+    Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), log2R);
+    RayScene rays(scene_, grid.origin);
+    BakeOptions opt;
+    opt.log2TileSize = 5;  // several tiles even at small R
+    Dag dag = bakeGrid(rays, grid, opt);
+    expectOptimal(dag);
+    const uint64_t R = grid.resolution();
+    TexelDepths want;
+    std::vector<uint8_t> ambiguous;
+    bruteForceDepths(scene_, grid, ClosedMode::Auto, ExitMode::Exact, want, ambiguous);
+    uint64_t bad = 0, undefinedVoxels = 0, undefinedChecked = 0, undefinedOutside = 0;
+    for (uint64_t y = 0; y < R; ++y)
+      for (uint64_t x = 0; x < R; ++x) {
+        size_t at = y * R + x;
+        if (ambiguous[at]) continue;
+        for (uint64_t z = 0; z < R; ++z) {
+          bool shadowed = lookupVoxel(dag, x, y, z);
+          if (z < want.lo[at]) {
+            bad += shadowed;
+          } else if (z >= want.hi[at]) {
+            bad += !shadowed;
+          } else {
+            ++undefinedVoxels;
+          }
+        }
+        // A voxel strictly between the enter and exit slices lies inside: its centre
+        // must be inside a closed part by face counting.
+        if (want.hi[at] >= want.lo[at] + 3) {
+          Vec3 centre = grid.toWorld(Vec3{x + 0.5, y + 0.5, (want.lo[at] + want.hi[at]) / 2 + 0.5});
+          ++undefinedChecked;
+          undefinedOutside += rays.closedNesting(centre, -grid.frame.dir, 1e9, ClosedMode::Auto) <= 0;
+        }
+      }
+    EXPECT_EQ(bad, 0u) << "R=" << R;
+    EXPECT_EQ(undefinedOutside, 0u) << "of " << undefinedChecked << " undefined columns checked, R=" << R;
+  }
+}
+
+// Tile sizes 64, 256 and whole-grid give the same DAG: a voxel's resolved value depends
+// only on its 8x8 texel column, which no tile border splits, and homogeneity above the
+// tiles is decided from the merged children exactly as in an untiled build. So not only
+// every defined voxel but every byte agrees.
+TEST_P(ScenePipeline, TileSizesAgreeToTheByte) {
+  Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 9);
+  RayScene rays(scene_, grid.origin);
+  BakeOptions opt;
+  opt.log2TileSize = 9;
+  Dag whole = bakeGrid(rays, grid, opt);
+  for (int log2T : {6, 8}) {
+    opt.log2TileSize = log2T;
+    Dag tiled = bakeGrid(rays, grid, opt);
+    expectSameDag(whole, tiled);
+    EXPECT_EQ(whole.bytes(), tiled.bytes()) << "tile " << (1 << log2T);
+  }
+}
+
+// Sub-DAGs merged in a shuffled order give the same bytes as the in-order merge.
+TEST_P(ScenePipeline, MergeOrderDoesNotChangeBytes) {
+  Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
+  RayScene rays(scene_, grid.origin);
+  BakeOptions opt;
+  opt.log2TileSize = 6;
+  const uint64_t n = tilesPerSide(grid.log2Resolution, opt.log2TileSize);
+  std::vector<Dag> tiles;
+  for (uint64_t i = 0; i < n * n; ++i) tiles.push_back(bakeTile(rays, grid, i % n, i / n, opt));
+  Dag inOrder = bakeGrid(rays, grid, opt);
+  std::vector<uint64_t> order(n * n);
+  for (uint64_t i = 0; i < n * n; ++i) order[i] = i;
+  std::mt19937 rng(3);
+  for (int round = 0; round < 3; ++round) {
+    std::shuffle(order.begin(), order.end(), rng);
+    StreamingMerger merger(opt.compress);
+    for (uint64_t k : order) merger.add(Dag(tiles[k]));
+    Dag shuffled = assembleRoots(*merger.finish(), opt.hash, opt.compress);
+    expectSameDag(inOrder, shuffled);
+    expectOptimal(shuffled);
+    CpvsArtifact a{grid, opt, sceneHash(scene_), inOrder}, b{grid, opt, sceneHash(scene_), shuffled};
+    EXPECT_EQ(encodeCpvs(a, false), encodeCpvs(b, false));
+  }
+}
+
+// Culled and unculled insertion, top-down and bottom-up compression, and a weak 8-valued
+// hash that collides all the time, compute the same optimal DAG of the same voxels.
+TEST_P(ScenePipeline, ConstructionVariantsAgreeToTheByte) {
+  Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
+  RayScene rays(scene_, grid.origin);
+  BakeOptions base;
+  base.log2TileSize = 7;
+  Dag reference = bakeGrid(rays, grid, base);
+  expectOptimal(reference);
+  std::mt19937_64 rng(11);
+  const uint64_t R = grid.resolution();
+  for (bool cull : {true, false})
+    for (CompressMode mode : {CompressMode::TopDown, CompressMode::BottomUp})
+      for (HashKind hash : {HashKind::Xxh3, HashKind::WeakForTests}) {
+        BakeOptions opt = base;
+        opt.cull = cull;
+        opt.compress = mode;
+        opt.hash = hash;
+        SCOPED_TRACE(::testing::Message() << "cull " << cull << " mode " << int(mode) << " hash " << int(hash));
+        Dag dag = bakeGrid(rays, grid, opt);
+        if (hash == base.hash) {
+          expectSameDag(reference, dag);
+          continue;
+        }
+        // Levels are ordered by hash, so another hash orders them differently: the
+        // same optimal DAG then shows as the same node count per level and the same
+        // voxels (sampled), with no duplicate node despite the collisions.
+        expectOptimal(dag);
+        ASSERT_EQ(dag.levels.size(), reference.levels.size());
+        EXPECT_EQ(dag.leaves.size(), reference.leaves.size());
+        for (size_t l = 0; l < dag.levels.size(); ++l) EXPECT_EQ(dag.levels[l].size(), reference.levels[l].size());
+        uint64_t differ = 0;
+        for (int i = 0; i < 200000; ++i) {
+          uint64_t x = rng() % R, y = rng() % R, z = rng() % R;
+          differ += lookupVoxel(dag, x, y, z) != lookupVoxel(reference, x, y, z);
+        }
+        EXPECT_EQ(differ, 0u);
+      }
+}
+
+// Binary lookups agree with exact shadow rays everywhere but within one voxel of a
+// shadow boundary, and disagree there only rarely.
+TEST_P(ScenePipeline, LookupsAgreeWithShadowRaysAwayFromBoundaries) {
+  for (int log2R : {8, 10}) {
+    CpvsArtifact art;
+    art.grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), log2R);
+    RayScene rays(scene_, art.grid.origin);
+    art.dag = bakeGrid(rays, art.grid, art.options);
+    art.sceneHash = sceneHash(scene_);
+    ShadowQuery query(art);
+    VerifyResult r = verifyArtifact(query, scene_, rays, 20000, 5);
+    EXPECT_GT(r.samples, 15000u);
+    EXPECT_EQ(r.mismatchElsewhere, 0u) << "R=" << art.grid.resolution();
+    EXPECT_LT(r.fractionNearBoundary(), 0.02) << "R=" << art.grid.resolution();
+  }
+}
+
+// The same bake twice gives the same file bytes (threads do not leak into results).
+TEST_P(ScenePipeline, BakesAreDeterministic) {
+  CpvsArtifact a, b;
+  a.grid = b.grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
+  RayScene rays(scene_, a.grid.origin);
+  a.options.log2TileSize = b.options.log2TileSize = 6;
+  a.dag = bakeGrid(rays, a.grid, a.options);
+  b.dag = bakeGrid(rays, b.grid, b.options);
+  a.sceneHash = b.sceneHash = sceneHash(scene_);
+  EXPECT_EQ(encodeCpvs(a, true), encodeCpvs(b, true));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Scenes, ScenePipeline,
+    ::testing::Values(SceneCase{"city", "", {0.35, -1, 0.25}},
+                      SceneCase{"city_straight_down", "", {0, -1, 0}},
+                      SceneCase{"bunny", "stanford-bunny/bunny.obj", {0.3, -0.8, -0.5}},
+                      SceneCase{"duck", "assimp-testmodels/duck.dae", {-1, -0.4, 0.2}},
+                      SceneCase{"teapots_open", "assimp-testmodels/teapots.DAE", {0.2, -1, 0.6}},
+                      SceneCase{"spider_mixed", "assimp-testmodels/spider.obj", {0.5, -1, 0.1}},
+                      SceneCase{"shouse_open", "openarena/oa_shouse.obj", {0.4, -1, 0.3}}),
+    [](const ::testing::TestParamInfo<SceneCase>& info) { return info.param.name; });
+
+}  // namespace
+}  // namespace cpvs
