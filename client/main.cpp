@@ -23,7 +23,8 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help prints and exits 0; every malformed command line exits 2 like other bad input.
+    return app.exit(e) == 0 ? 0 : 2;
   } catch (const cpvs::InputError& e) {
     std::fprintf(stderr, "cpvs: %s\n", e.what());
     return 2;

@@ -1,0 +1,221 @@
+// The `cpvs` program as scripts use it: the JSON contract of bake, inspect and verify,
+// queries, pictures, and clear errors with exit status 2 for bad input.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "cpvs/cpvs_file.h"
+#include "cpvs/image.h"
+
+namespace cpvs {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct CliRun {
+  int status = -1;
+  std::string out;  // stdout and stderr together
+};
+
+/// Runs `cpvs ARGS` through the shell, bounded by coreutils' timeout.
+CliRun cpvs(const std::string& args) {
+  std::string cmd = "timeout 120 '" CPVS_CLI "' " + args + " 2>&1";
+  CliRun r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  int raw = pclose(p);
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  return r;
+}
+
+/// JSON printed on stdout (the commands print nothing else with --json and -q).
+json parse(const CliRun& r) {
+  size_t start = r.out.find('{');
+  EXPECT_NE(start, std::string::npos) << r.out;
+  return json::parse(r.out.substr(start == std::string::npos ? 0 : start));
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("cpvs_cli_test_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+    CliRun r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json -o " + path("c.cpvs"));
+    ASSERT_EQ(r.status, 0) << r.out;
+    bake_ = parse(r);
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+  static std::string path(const std::string& name) { return (dir_ / name).string(); }
+
+  static fs::path dir_;
+  static json bake_;
+};
+fs::path Cli::dir_;
+json Cli::bake_;
+
+TEST_F(Cli, BakeJsonContract) {
+  EXPECT_EQ(bake_["resolution"], 256);
+  EXPECT_EQ(bake_["shadow_map_bytes"], 256 * 256 * 2);
+  EXPECT_GT(bake_["bytes"].get<uint64_t>(), 0u);
+  EXPECT_GE(bake_["seconds_total"].get<double>(), 0.0);
+  EXPECT_EQ(bake_["tiles"], 16);
+  for (const char* stage : {"render", "masks", "insert", "compress", "merge", "write"})
+    EXPECT_TRUE(bake_["stages"].contains(stage)) << stage;
+  // The summary's bytes are the DAG in the file.
+  CpvsArtifact a = readCpvs(path("c.cpvs"));
+  EXPECT_EQ(bake_["bytes"].get<uint64_t>(), a.dag.bytes());
+  EXPECT_EQ(a.grid.resolution(), 256u);
+  EXPECT_EQ(a.options.log2TileSize, 6);
+}
+
+TEST_F(Cli, InspectJsonContract) {
+  CliRun r = cpvs("inspect --json " + path("c.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  json j = parse(r);
+  EXPECT_EQ(j["resolution"], 256);
+  EXPECT_EQ(j["bytes"], bake_["bytes"]);
+  ASSERT_TRUE(j["levels"].is_array());
+  uint64_t sum = 0;
+  for (const auto& l : j["levels"]) {
+    EXPECT_TRUE(l.contains("nodes"));
+    sum += l["bytes"].get<uint64_t>();
+  }
+  EXPECT_EQ(sum, j["bytes"].get<uint64_t>());
+  EXPECT_EQ(j["levels"].size(), 1u + 6u);  // leaves and node sizes 8 .. 256
+  EXPECT_EQ(j["levels"].back()["nodes"], 1);
+}
+
+TEST_F(Cli, InspectTextNamesTheLevels) {
+  CliRun r = cpvs("inspect " + path("c.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("256^3"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("compress=topdown"), std::string::npos) << r.out;
+}
+
+TEST_F(Cli, VerifyJsonContract) {
+  CliRun r = cpvs("verify --json -n 5000 " + path("c.cpvs") + " city:3");
+  ASSERT_EQ(r.status, 0) << r.out;
+  json j = parse(r);
+  EXPECT_GT(j["samples"].get<uint64_t>(), 4000u);
+  EXPECT_EQ(j["mismatch_elsewhere"].get<double>(), 0.0);
+  EXPECT_LT(j["mismatch_near_boundary"].get<double>(), 0.05);
+}
+
+TEST_F(Cli, QueryOnePointAndACsv) {
+  // Far above the city, sunlit; under the ground slab's middle, shadowed.
+  CliRun lit = cpvs("query " + path("c.cpvs") + " --point 40,200,40");
+  ASSERT_EQ(lit.status, 0) << lit.out;
+  EXPECT_EQ(lit.out.rfind("lit", 0), 0u) << lit.out;
+  CliRun dark = cpvs("query " + path("c.cpvs") + " --point 40,-5,40");
+  ASSERT_EQ(dark.status, 0) << dark.out;
+  EXPECT_EQ(dark.out.rfind("shadowed", 0), 0u) << dark.out;
+
+  std::ofstream(path("p.csv")) << "x,y,z\n40,200,40\n40,-5,40\n# a comment\n\n40,200,40,0,1,0\n";
+  CliRun many = cpvs("query " + path("c.cpvs") + " --points " + path("p.csv") + " --pcf 3");
+  ASSERT_EQ(many.status, 0) << many.out;
+  EXPECT_EQ(many.out, "x,y,z,visibility\n40,200,40,1\n40,-5,40,0\n40,200,40,1\n");
+}
+
+TEST_F(Cli, RenderWritesPicturesAndReference) {
+  CliRun r = cpvs("render " + path("c.cpvs") + " city:3 --size 64x48 --reference --out " + path("shot.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* f : {"shot.png", "shot.exr", "shot-reference.png", "shot-reference.exr", "shot-diff.png",
+                        "shot-diff.exr"})
+    EXPECT_TRUE(fs::exists(path(f))) << f;
+  Image img = readPng(path("shot.png"));
+  EXPECT_EQ(img.width, 64);
+  EXPECT_EQ(img.height, 48);
+  std::ifstream exr(path("shot.exr"), std::ios::binary);
+  char magic[4] = {};
+  exr.read(magic, 4);
+  EXPECT_EQ(std::string(magic, 4), std::string("\x76\x2f\x31\x01", 4)) << "OpenEXR magic number";
+  // The picture is not blank: the sky is blue and the city is grey.
+  float minL = 1, maxL = 0;
+  for (const Rgb& p : img.pixels) {
+    minL = std::min(minL, p.g);
+    maxL = std::max(maxL, p.g);
+  }
+  EXPECT_LT(minL, 0.2f);
+  EXPECT_GT(maxL, 0.3f);
+}
+
+// Bad input: exit status 2 and a message that names what is wrong.
+struct BadCase {
+  const char* args;
+  const char* message;
+};
+
+TEST_F(Cli, BadInputIsRejectedClearly) {
+  std::ofstream(path("empty.obj")) << "# nothing\n";
+  std::ofstream(path("nan.obj")) << "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n";
+  auto bytes = readFile(path("c.cpvs"));
+  {
+    std::ofstream t(path("truncated.cpvs"), std::ios::binary);
+    t.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size() / 2));
+    std::ofstream c(path("corrupt.cpvs"), std::ios::binary);
+    bytes[bytes.size() / 2] ^= 0x40;
+    c.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  }
+  const std::string out = " -o " + path("x.cpvs");
+  const std::vector<BadCase> cases{
+      {"bake /no/such/scene.obj --sun-dir 0,-1,0", "/no/such/scene.obj"},
+      {"bake city --sun-dir 0,-1,0 -r 3", "resolution"},
+      {"bake city --sun-dir 0,-1,0 -r 5000", "power of two"},
+      {"bake city --sun-dir 0,0,0", "zero vector"},
+      {"bake city --sun-dir 1,nan,0", "--sun-dir"},
+      {"bake city --sun-dir 0,-1", "--sun-dir"},
+      {"bake city --sun-elevation -5", "elevation"},
+      {"bake city --sun-elevation 30 --sun-dir 0,-1,0", "not both"},
+      {"bake city", "--sun-dir"},
+      {"bake city:x --sun-dir 0,-1,0", "city:x"},
+      {"bake city --sun-dir 0,-1,0 --tile-size 100", "--tile-size"},
+      {"bake ", "empty.obj"},
+      {"bake ", "nan.obj"},
+      {"inspect ", "truncated.cpvs"},
+      {"inspect ", "corrupt.cpvs"},
+      {"inspect /no/such/file.cpvs", "/no/such/file.cpvs"},
+      {"verify ", "not the scene"},
+      {"query ", "--point"},
+      {"query ", "--point"},
+  };
+  for (size_t i = 0; i < cases.size(); ++i) {
+    std::string args = cases[i].args;
+    if (i == 11) args += path("empty.obj") + " --sun-dir 0,-1,0";
+    if (i == 12) args += path("nan.obj") + " --sun-dir 0,-1,0";
+    if (i == 13) args += path("truncated.cpvs");
+    if (i == 14) args += path("corrupt.cpvs");
+    if (i == 16) args += path("c.cpvs") + " city:4";
+    if (i == 17) args += path("c.cpvs");
+    if (i == 18) args += path("c.cpvs") + " --point 1,2,3 --points " + path("p.csv");
+    if (args.starts_with("bake")) args += out;
+    CliRun r = cpvs(args);
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(cases[i].message), std::string::npos) << args << "\n" << r.out;
+    EXPECT_EQ(r.out.find("internal error"), std::string::npos) << args << "\n" << r.out;
+  }
+  EXPECT_FALSE(fs::exists(path("x.cpvs"))) << "a failed bake leaves no output";
+}
+
+TEST_F(Cli, HelpExplainsEveryCommand) {
+  CliRun r = cpvs("--help");
+  EXPECT_EQ(r.status, 0);
+  for (const char* c : {"bake", "inspect", "query", "verify", "render"})
+    EXPECT_NE(r.out.find(c), std::string::npos) << c;
+  CliRun b = cpvs("bake --help");
+  for (const char* o : {"--sun-dir", "--sun-elevation", "--resolution", "--closed", "--exit", "--cull", "--compress",
+                        "--undefined", "--tile-size", "--threads", "--json"})
+    EXPECT_NE(b.out.find(o), std::string::npos) << o;
+}
+
+}  // namespace
+}  // namespace cpvs
