@@ -1,0 +1,48 @@
+#include "farm_channel.h"
+
+#include <chrono>
+#include <fstream>
+#include <sstream>
+
+#include "cpvs/types.h"
+
+namespace cpvs::farm {
+
+std::shared_ptr<grpc::Channel> makeChannel(const Connection& c) {
+  grpc::ChannelArguments args;
+  args.SetInt(GRPC_ARG_ENABLE_HTTP_PROXY, 0);
+  args.SetMaxReceiveMessageSize(kMaxMessageBytes);
+  args.SetMaxSendMessageSize(kMaxMessageBytes);
+  std::shared_ptr<grpc::ChannelCredentials> creds;
+  if (c.caFile.empty()) {
+    creds = grpc::InsecureChannelCredentials();
+  } else {
+    std::ifstream in(c.caFile);
+    if (!in) throw InputError("cannot read the CA file " + c.caFile);
+    std::stringstream pem;
+    pem << in.rdbuf();
+    grpc::SslCredentialsOptions ssl;
+    ssl.pem_root_certs = pem.str();
+    creds = grpc::SslCredentials(ssl);
+  }
+  return grpc::CreateCustomChannel(c.address, creds, args);
+}
+
+void prepare(grpc::ClientContext& ctx, const Connection& c, double seconds) {
+  if (!c.token.empty()) ctx.AddMetadata("authorization", "Bearer " + c.token);
+  if (seconds > 0)
+    ctx.set_deadline(std::chrono::system_clock::now() +
+                     std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000)));
+}
+
+std::string describe(const grpc::Status& s) {
+  static const char* names[] = {"OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT", "DEADLINE_EXCEEDED", "NOT_FOUND",
+                                "ALREADY_EXISTS", "PERMISSION_DENIED", "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION",
+                                "ABORTED", "OUT_OF_RANGE", "UNIMPLEMENTED", "INTERNAL", "UNAVAILABLE", "DATA_LOSS",
+                                "UNAUTHENTICATED"};
+  int code = int(s.error_code());
+  std::string name = code >= 0 && code <= 16 ? names[code] : std::to_string(code);
+  return name + ": " + s.error_message();
+}
+
+}  // namespace cpvs::farm

@@ -1,0 +1,32 @@
+// How a client or worker reaches the coordinator: address, bearer token, TLS trust.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <memory>
+#include <string>
+
+namespace cpvs::farm {
+
+/// Chunk size of every streamed transfer (scenes, sub-DAGs, artifacts).
+constexpr size_t kChunkBytes = 1 << 20;
+/// Largest message either side accepts: a chunk plus its envelope.
+constexpr int kMaxMessageBytes = int(kChunkBytes) + (64 << 10);
+
+struct Connection {
+  std::string address;  // HOST:PORT
+  std::string token;    // bearer token; empty = none
+  std::string caFile;   // PEM roots to trust: TLS when set, plaintext otherwise
+};
+
+/// A channel to the coordinator (proxies ignored: farms run on private networks).
+/// Throws InputError when the CA file cannot be read.
+std::shared_ptr<grpc::Channel> makeChannel(const Connection& c);
+
+/// Adds the bearer token, and a deadline `seconds` from now when > 0.
+void prepare(grpc::ClientContext& ctx, const Connection& c, double seconds = 0);
+
+/// "UNAVAILABLE: failed to connect ..." for messages.
+std::string describe(const grpc::Status& s);
+
+}  // namespace cpvs::farm

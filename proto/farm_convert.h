@@ -1,0 +1,42 @@
+// Conversions between the farm's messages and the core's types, with the validation every
+// process applies at its boundary.
+#pragma once
+
+#include <string>
+
+#include "cpvs/bake.h"
+#include "cpvs/light_frame.h"
+#include "cpvs/types.h"
+#include "cpvs/v1/farm.pb.h"
+
+namespace cpvs::farm {
+
+namespace pb = ::cpvs::v1;
+
+pb::Vec3 toProto(const Vec3& v);
+Vec3 fromProto(const pb::Vec3& v);
+
+pb::BakeOptions toProto(const BakeOptions& o);
+/// Validates enum values and the tile size (a power of two, 8 .. 65536; 0 = 4096).
+/// Throws InputError naming the field.
+BakeOptions fromProto(const pb::BakeOptions& o);
+
+pb::GridSpec toProto(const Grid& g);
+/// Validates finiteness, a unit light direction, positive extents and the resolution.
+Grid fromProto(const pb::GridSpec& g);
+
+/// The light of a spec: a finite non-zero direction or a sun above the horizon.
+LightFrame lightOf(const pb::BakeSpec& spec);
+
+/// A 32-hex-digit content hash, lower case; InputError for anything else.
+Hash128 parseHashHex(const std::string& text, const std::string& what);
+/// XXH3-128 of bytes, the content address of uploaded scenes and downloaded artifacts.
+Hash128 contentHash(const void* data, size_t size);
+
+/// The JSON form of a spec (a job file) and back; InputError with protobuf's message.
+std::string specToJson(const pb::BakeSpec& spec);
+pb::BakeSpec specFromJson(const std::string& json, const std::string& source);
+
+const char* jobStateName(pb::JobState s);
+
+}  // namespace cpvs::farm

@@ -1,0 +1,33 @@
+// Bearer tokens with roles: clients submit and download, workers lease and return tiles,
+// administrators may do both.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+
+namespace cpvs::server {
+
+enum class Role { Client, Worker, Admin };
+
+const char* roleName(Role r);
+
+class TokenTable {
+ public:
+  /// No tokens: every call is allowed (a farm on a trusted network, or tests).
+  TokenTable() = default;
+  /// Reads "ROLE TOKEN" lines (ROLE: client, worker or admin; '#' starts a comment).
+  /// Throws InputError naming the file and line for anything else.
+  static TokenTable load(const std::string& path);
+
+  bool enabled() const { return !roles_.empty(); }
+  /// The role of a token, if it is known.
+  std::optional<Role> roleOf(const std::string& token) const;
+  /// Whether `role` may call an RPC that needs `needed` (admin may call anything).
+  static bool allows(Role role, Role needed) { return role == Role::Admin || role == needed; }
+
+ private:
+  std::map<std::string, Role> roles_;
+};
+
+}  // namespace cpvs::server

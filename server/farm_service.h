@@ -1,0 +1,47 @@
+// The gRPC edge of the coordinator: authorization, message limits, and FarmError kinds
+// turned into statuses. Everything else is Coordinator's.
+#pragma once
+
+#include "auth.h"
+#include "coordinator.h"
+#include "cpvs/v1/farm.grpc.pb.h"
+
+namespace cpvs::server {
+
+class FarmService final : public pb::Farm::Service {
+ public:
+  FarmService(Coordinator& c, const TokenTable& tokens) : c_(c), tokens_(tokens) {}
+
+  grpc::Status GetUploadStatus(grpc::ServerContext*, const pb::SceneRef*, pb::UploadStatus*) override;
+  grpc::Status UploadScene(grpc::ServerContext*, grpc::ServerReader<pb::UploadSceneChunk>*,
+                           pb::UploadSceneReply*) override;
+  grpc::Status SubmitBake(grpc::ServerContext*, const pb::SubmitBakeRequest*, pb::JobStatus*) override;
+  grpc::Status WatchJob(grpc::ServerContext*, const pb::JobRef*, grpc::ServerWriter<pb::JobStatus>*) override;
+  grpc::Status CancelJob(grpc::ServerContext*, const pb::JobRef*, pb::JobStatus*) override;
+  grpc::Status ListJobs(grpc::ServerContext*, const pb::ListJobsRequest*, pb::ListJobsReply*) override;
+  grpc::Status DownloadArtifact(grpc::ServerContext*, const pb::DownloadRequest*,
+                                grpc::ServerWriter<pb::ArtifactChunk>*) override;
+
+ private:
+  Coordinator& c_;
+  const TokenTable& tokens_;
+};
+
+class WorkerService final : public pb::Workers::Service {
+ public:
+  WorkerService(Coordinator& c, const TokenTable& tokens) : c_(c), tokens_(tokens) {}
+
+  grpc::Status LeaseTile(grpc::ServerContext*, const pb::LeaseRequest*, pb::TileLease*) override;
+  grpc::Status RenewLease(grpc::ServerContext*, const pb::RenewRequest*, pb::RenewReply*) override;
+  grpc::Status FetchScene(grpc::ServerContext*, const pb::FetchSceneRequest*,
+                          grpc::ServerWriter<pb::SceneChunk>*) override;
+  grpc::Status CompleteTile(grpc::ServerContext*, grpc::ServerReader<pb::TileResultChunk>*,
+                            pb::CompleteReply*) override;
+  grpc::Status FailTile(grpc::ServerContext*, const pb::FailRequest*, pb::FailReply*) override;
+
+ private:
+  Coordinator& c_;
+  const TokenTable& tokens_;
+};
+
+}  // namespace cpvs::server

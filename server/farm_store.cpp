@@ -1,0 +1,385 @@
+#include "farm_store.h"
+
+#include <stdexcept>
+
+namespace cpvs::server {
+
+namespace {
+
+/// A prepared statement with typed binding and reading; finalized on scope exit.
+class Statement {
+ public:
+  Statement(sqlite3* db, const char* sql) : db_(db) {
+    if (sqlite3_prepare_v2(db, sql, -1, &st_, nullptr) != SQLITE_OK)
+      throw std::runtime_error(std::string("sqlite prepare: ") + sqlite3_errmsg(db) + " in: " + sql);
+  }
+  ~Statement() { sqlite3_finalize(st_); }
+  Statement& bind(int i, const std::string& v) {
+    sqlite3_bind_blob(st_, i, v.data(), int(v.size()), SQLITE_TRANSIENT);
+    return *this;
+  }
+  Statement& text(int i, const std::string& v) {
+    sqlite3_bind_text(st_, i, v.data(), int(v.size()), SQLITE_TRANSIENT);
+    return *this;
+  }
+  Statement& bind(int i, int64_t v) {
+    sqlite3_bind_int64(st_, i, v);
+    return *this;
+  }
+  Statement& bind(int i, double v) {
+    sqlite3_bind_double(st_, i, v);
+    return *this;
+  }
+  /// Steps once: true while a row is available.
+  bool step() {
+    int rc = sqlite3_step(st_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    throw std::runtime_error(std::string("sqlite step: ") + sqlite3_errmsg(db_));
+  }
+  void run() {
+    while (step()) {
+    }
+  }
+  int64_t i64(int c) const { return sqlite3_column_int64(st_, c); }
+  double f64(int c) const { return sqlite3_column_double(st_, c); }
+  std::string str(int c) const {
+    const void* p = sqlite3_column_blob(st_, c);
+    int n = sqlite3_column_bytes(st_, c);
+    return p ? std::string(static_cast<const char*>(p), size_t(n)) : std::string();
+  }
+
+ private:
+  sqlite3* db_;
+  sqlite3_stmt* st_ = nullptr;
+};
+
+/// BEGIN IMMEDIATE ... COMMIT, rolled back if an exception leaves the scope.
+class Transaction {
+ public:
+  explicit Transaction(sqlite3* db) : db_(db) { Statement(db, "BEGIN IMMEDIATE").run(); }
+  void commit() {
+    Statement(db_, "COMMIT").run();
+    done_ = true;
+  }
+  ~Transaction() {
+    if (!done_) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+  }
+
+ private:
+  sqlite3* db_;
+  bool done_ = false;
+};
+
+constexpr const char* kJobColumns =
+    "id, request_id, scene_hash, geometry_hash, spec, grid, options, state, priority, created_ms, started_ms, "
+    "finished_ms, error, artifact_checksum, tiles_per_side, tiles_total, bytes, file_bytes, peak_merge_bytes, "
+    "resolution";
+
+JobRecord readJob(const Statement& s) {
+  JobRecord j;
+  j.id = s.str(0);
+  j.requestId = s.str(1);
+  j.sceneHash = s.str(2);
+  j.geometryHash = s.str(3);
+  j.spec = s.str(4);
+  j.grid = s.str(5);
+  j.options = s.str(6);
+  j.state = JobState(s.i64(7));
+  j.priority = int(s.i64(8));
+  j.createdMs = s.i64(9);
+  j.startedMs = s.i64(10);
+  j.finishedMs = s.i64(11);
+  j.error = s.str(12);
+  j.artifactChecksum = s.str(13);
+  j.tilesPerSide = uint64_t(s.i64(14));
+  j.tilesTotal = uint64_t(s.i64(15));
+  j.bytes = uint64_t(s.i64(16));
+  j.fileBytes = uint64_t(s.i64(17));
+  j.peakMergeBytes = uint64_t(s.i64(18));
+  j.resolution = uint64_t(s.i64(19));
+  return j;
+}
+
+}  // namespace
+
+FarmStore::FarmStore(const std::string& path) {
+  if (sqlite3_open(path.c_str(), &db_) != SQLITE_OK) {
+    std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
+    sqlite3_close(db_);
+    throw std::runtime_error("cannot open the job store " + path + ": " + msg);
+  }
+  sqlite3_busy_timeout(db_, 5000);
+  exec("PRAGMA journal_mode=WAL");
+  // FULL: an acknowledged tile or upload must survive a power cut, not only a crash.
+  exec("PRAGMA synchronous=FULL");
+  exec("PRAGMA foreign_keys=ON");
+  exec(
+      "CREATE TABLE IF NOT EXISTS scenes(hash TEXT PRIMARY KEY, file_name TEXT, total_size INTEGER, received INTEGER,"
+      " complete INTEGER, triangles INTEGER, geometry_hash TEXT)");
+  exec(
+      "CREATE TABLE IF NOT EXISTS jobs(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, scene_hash TEXT, geometry_hash "
+      "TEXT, spec BLOB, grid BLOB, options BLOB, state INTEGER, priority INTEGER, created_ms INTEGER, started_ms "
+      "INTEGER, finished_ms INTEGER, error TEXT, artifact_checksum TEXT, tiles_per_side INTEGER, tiles_total INTEGER,"
+      " bytes INTEGER, file_bytes INTEGER, peak_merge_bytes INTEGER, resolution INTEGER)");
+  exec(
+      "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
+      "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, PRIMARY KEY(job_id, idx))");
+  exec("CREATE INDEX IF NOT EXISTS tiles_by_state ON tiles(state, job_id)");
+  exec(
+      "CREATE TABLE IF NOT EXISTS leases(lease_id TEXT PRIMARY KEY, job_id TEXT, idx INTEGER, worker_id TEXT, "
+      "granted_ms INTEGER)");
+  exec("CREATE TABLE IF NOT EXISTS job_stages(job_id TEXT, stage TEXT, seconds REAL, PRIMARY KEY(job_id, stage))");
+}
+
+FarmStore::~FarmStore() { sqlite3_close(db_); }
+
+void FarmStore::exec(const char* sql) {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string msg = err ? err : "unknown error";
+    sqlite3_free(err);
+    throw std::runtime_error("sqlite: " + msg + " in: " + sql);
+  }
+}
+
+std::optional<SceneRecord> FarmStore::scene(const std::string& hash) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_,
+              "SELECT hash, file_name, total_size, received, complete, triangles, geometry_hash FROM scenes WHERE "
+              "hash = ?");
+  s.text(1, hash);
+  if (!s.step()) return std::nullopt;
+  SceneRecord r;
+  r.hash = s.str(0);
+  r.fileName = s.str(1);
+  r.totalSize = uint64_t(s.i64(2));
+  r.received = uint64_t(s.i64(3));
+  r.complete = s.i64(4) != 0;
+  r.triangles = uint64_t(s.i64(5));
+  r.geometryHash = s.str(6);
+  return r;
+}
+
+void FarmStore::putScene(const SceneRecord& r) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "INSERT OR REPLACE INTO scenes VALUES(?, ?, ?, ?, ?, ?, ?)");
+  s.text(1, r.hash).text(2, r.fileName).bind(3, int64_t(r.totalSize)).bind(4, int64_t(r.received));
+  s.bind(5, int64_t(r.complete)).bind(6, int64_t(r.triangles)).text(7, r.geometryHash);
+  s.run();
+}
+
+std::optional<JobRecord> FarmStore::job(const std::string& id) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, (std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?").c_str());
+  s.text(1, id);
+  if (!s.step()) return std::nullopt;
+  JobRecord j = readJob(s);
+  Statement d(db_, "SELECT COUNT(*) FROM tiles WHERE job_id = ? AND state = 2");
+  d.text(1, id);
+  d.step();
+  j.tilesDone = uint64_t(d.i64(0));
+  Statement st(db_, "SELECT stage, seconds FROM job_stages WHERE job_id = ?");
+  st.text(1, id);
+  while (st.step()) j.stages[st.str(0)] = st.f64(1);
+  return j;
+}
+
+std::optional<JobRecord> FarmStore::jobByRequest(const std::string& requestId) {
+  std::string id;
+  {
+    std::lock_guard lock(mutex_);
+    Statement s(db_, "SELECT id FROM jobs WHERE request_id = ?");
+    s.text(1, requestId);
+    if (!s.step()) return std::nullopt;
+    id = s.str(0);
+  }
+  return job(id);
+}
+
+void FarmStore::createJob(const JobRecord& j) {
+  std::lock_guard lock(mutex_);
+  Transaction t(db_);
+  Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns +
+                    ") VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)")
+                       .c_str());
+  s.text(1, j.id).text(2, j.requestId).text(3, j.sceneHash).text(4, j.geometryHash);
+  s.bind(5, j.spec).bind(6, j.grid).bind(7, j.options).bind(8, int64_t(j.state)).bind(9, int64_t(j.priority));
+  s.bind(10, j.createdMs).bind(11, j.startedMs).bind(12, j.finishedMs).text(13, j.error).text(14, j.artifactChecksum);
+  s.bind(15, int64_t(j.tilesPerSide)).bind(16, int64_t(j.tilesTotal)).bind(17, int64_t(0)).bind(18, int64_t(0));
+  s.bind(19, int64_t(0)).bind(20, int64_t(j.resolution));
+  s.run();
+  for (uint64_t i = 0; i < j.tilesTotal; ++i) {
+    Statement one(db_, "INSERT INTO tiles VALUES(?, ?, 0, 0, NULL, 0, '')");
+    one.text(1, j.id).bind(2, int64_t(i));
+    one.run();
+  }
+  t.commit();
+}
+
+std::vector<JobRecord> FarmStore::jobs(bool includeFinished) {
+  std::vector<std::string> ids;
+  {
+    std::lock_guard lock(mutex_);
+    Statement s(db_, includeFinished ? "SELECT id FROM jobs ORDER BY created_ms, id"
+                                     : "SELECT id FROM jobs WHERE state IN (1, 2, 3) ORDER BY created_ms, id");
+    while (s.step()) ids.push_back(s.str(0));
+  }
+  std::vector<JobRecord> out;
+  for (const auto& id : ids)
+    if (auto j = job(id)) out.push_back(std::move(*j));
+  return out;
+}
+
+size_t FarmStore::activeJobCount() {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT COUNT(*) FROM jobs WHERE state IN (1, 2, 3)");
+  s.step();
+  return size_t(s.i64(0));
+}
+
+void FarmStore::setJobState(const std::string& id, JobState state, const std::string& error, int64_t nowMs) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_,
+              "UPDATE jobs SET state = ?, error = ?, started_ms = CASE WHEN ? = 2 AND started_ms = 0 THEN ? ELSE "
+              "started_ms END, finished_ms = CASE WHEN ? IN (4, 5, 6) THEN ? ELSE finished_ms END WHERE id = ?");
+  s.bind(1, int64_t(state)).text(2, error).bind(3, int64_t(state)).bind(4, nowMs).bind(5, int64_t(state));
+  s.bind(6, nowMs).text(7, id);
+  s.run();
+}
+
+void FarmStore::finishJob(const std::string& id, uint64_t bytes, uint64_t fileBytes, uint64_t peak,
+                          const std::string& checksum, int64_t nowMs) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_,
+              "UPDATE jobs SET state = 4, bytes = ?, file_bytes = ?, peak_merge_bytes = MAX(peak_merge_bytes, ?), "
+              "artifact_checksum = ?, finished_ms = ? WHERE id = ?");
+  s.bind(1, int64_t(bytes)).bind(2, int64_t(fileBytes)).bind(3, int64_t(peak)).text(4, checksum).bind(5, nowMs);
+  s.text(6, id);
+  s.run();
+}
+
+void FarmStore::addStageSeconds(const std::string& id, const std::map<std::string, double>& stages) {
+  std::lock_guard lock(mutex_);
+  Transaction t(db_);
+  for (const auto& [stage, seconds] : stages) {
+    Statement s(db_,
+                "INSERT INTO job_stages VALUES(?, ?, ?) ON CONFLICT(job_id, stage) DO UPDATE SET seconds = seconds + "
+                "excluded.seconds");
+    s.text(1, id).text(2, stage).bind(3, seconds);
+    s.run();
+  }
+  t.commit();
+}
+
+void FarmStore::setPeakMergeBytes(const std::string& id, uint64_t bytes) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "UPDATE jobs SET peak_merge_bytes = MAX(peak_merge_bytes, ?) WHERE id = ?");
+  s.bind(1, int64_t(bytes)).text(2, id);
+  s.run();
+}
+
+std::optional<LeaseRecord> FarmStore::leaseNextTile(const std::string& workerId, const std::string& leaseId,
+                                                    int64_t nowMs, int64_t deadlineMs) {
+  std::lock_guard lock(mutex_);
+  Transaction t(db_);
+  Statement pick(db_,
+                 "SELECT t.job_id, t.idx FROM tiles t JOIN jobs j ON j.id = t.job_id "
+                 "WHERE t.state = 0 AND j.state IN (1, 2) "
+                 "ORDER BY j.priority DESC, "
+                 "(SELECT COUNT(*) FROM tiles l WHERE l.job_id = t.job_id AND l.state = 1), "
+                 "j.created_ms, j.id, t.idx LIMIT 1");
+  if (!pick.step()) return std::nullopt;
+  LeaseRecord r{leaseId, pick.str(0), workerId, uint64_t(pick.i64(1)), deadlineMs};
+  Statement upd(db_, "UPDATE tiles SET state = 1, attempts = attempts + 1, lease_id = ?, deadline_ms = ? "
+                     "WHERE job_id = ? AND idx = ?");
+  upd.text(1, leaseId).bind(2, deadlineMs).text(3, r.jobId).bind(4, int64_t(r.tile));
+  upd.run();
+  Statement ins(db_, "INSERT INTO leases VALUES(?, ?, ?, ?, ?)");
+  ins.text(1, leaseId).text(2, r.jobId).bind(3, int64_t(r.tile)).text(4, workerId).bind(5, nowMs);
+  ins.run();
+  Statement start(db_, "UPDATE jobs SET state = 2, started_ms = ? WHERE id = ? AND state = 1");
+  start.bind(1, nowMs).text(2, r.jobId);
+  start.run();
+  t.commit();
+  return r;
+}
+
+std::optional<LeaseRecord> FarmStore::lease(const std::string& leaseId) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_,
+              "SELECT l.lease_id, l.job_id, l.worker_id, l.idx, COALESCE(t.deadline_ms, 0) FROM leases l LEFT JOIN "
+              "tiles t ON t.job_id = l.job_id AND t.idx = l.idx AND t.lease_id = l.lease_id WHERE l.lease_id = ?");
+  s.text(1, leaseId);
+  if (!s.step()) return std::nullopt;
+  return LeaseRecord{s.str(0), s.str(1), s.str(2), uint64_t(s.i64(3)), s.i64(4)};
+}
+
+bool FarmStore::renewLease(const std::string& leaseId, int64_t deadlineMs) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_,
+              "UPDATE tiles SET deadline_ms = ? WHERE lease_id = ? AND state = 1 AND job_id IN (SELECT id FROM jobs "
+              "WHERE state IN (1, 2))");
+  s.bind(1, deadlineMs).text(2, leaseId);
+  s.run();
+  return sqlite3_changes(db_) > 0;
+}
+
+bool FarmStore::completeTile(const std::string& jobId, uint64_t tile) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "UPDATE tiles SET state = 2, lease_id = NULL WHERE job_id = ? AND idx = ? AND state IN (0, 1)");
+  s.text(1, jobId).bind(2, int64_t(tile));
+  s.run();
+  return sqlite3_changes(db_) > 0;
+}
+
+int FarmStore::requeueTile(const std::string& jobId, uint64_t tile, const std::string& error) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "UPDATE tiles SET state = 0, lease_id = NULL, last_error = ? WHERE job_id = ? AND idx = ? AND "
+                   "state = 1");
+  s.text(1, error).text(2, jobId).bind(3, int64_t(tile));
+  s.run();
+  Statement a(db_, "SELECT attempts FROM tiles WHERE job_id = ? AND idx = ?");
+  a.text(1, jobId).bind(2, int64_t(tile));
+  return a.step() ? int(a.i64(0)) : 0;
+}
+
+std::vector<std::tuple<std::string, uint64_t, int>> FarmStore::expireLeases(int64_t nowMs) {
+  std::lock_guard lock(mutex_);
+  Transaction t(db_);
+  std::vector<std::tuple<std::string, uint64_t, int>> out;
+  Statement s(db_, "SELECT job_id, idx, attempts FROM tiles WHERE state = 1 AND deadline_ms < ?");
+  s.bind(1, nowMs);
+  while (s.step()) out.emplace_back(s.str(0), uint64_t(s.i64(1)), int(s.i64(2)));
+  Statement u(db_, "UPDATE tiles SET state = 0, lease_id = NULL, last_error = 'lease expired' WHERE state = 1 AND "
+                   "deadline_ms < ?");
+  u.bind(1, nowMs);
+  u.run();
+  t.commit();
+  return out;
+}
+
+std::vector<uint64_t> FarmStore::doneTiles(const std::string& jobId) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT idx FROM tiles WHERE job_id = ? AND state = 2 ORDER BY idx");
+  s.text(1, jobId);
+  std::vector<uint64_t> out;
+  while (s.step()) out.push_back(uint64_t(s.i64(0)));
+  return out;
+}
+
+int FarmStore::tileAttempts(const std::string& jobId, uint64_t tile) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT attempts FROM tiles WHERE job_id = ? AND idx = ?");
+  s.text(1, jobId).bind(2, int64_t(tile));
+  return s.step() ? int(s.i64(0)) : 0;
+}
+
+void FarmStore::cancelTiles(const std::string& jobId) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "UPDATE tiles SET state = 3, lease_id = NULL WHERE job_id = ? AND state IN (0, 1)");
+  s.text(1, jobId);
+  s.run();
+}
+
+}  // namespace cpvs::server

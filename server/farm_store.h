@@ -1,0 +1,99 @@
+// The coordinator's durable state in SQLite (WAL): scenes, jobs, tiles, leases. Every
+// method is one transaction; the store is safe to call from any thread.
+#pragma once
+
+#include <sqlite3.h>
+
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace cpvs::server {
+
+/// Tile states as stored.
+enum class TileState : int { Queued = 0, Leased = 1, Done = 2, Cancelled = 3 };
+
+/// Job states as stored: the values of cpvs.v1.JobState.
+enum class JobState : int { Queued = 1, Running = 2, Merging = 3, Done = 4, Failed = 5, Cancelled = 6 };
+
+inline bool isFinal(JobState s) { return s == JobState::Done || s == JobState::Failed || s == JobState::Cancelled; }
+
+struct SceneRecord {
+  std::string hash, fileName, geometryHash;
+  uint64_t totalSize = 0, received = 0, triangles = 0;
+  bool complete = false;
+};
+
+struct JobRecord {
+  std::string id, requestId, sceneHash, geometryHash;
+  std::string spec;     // serialized cpvs.v1.BakeSpec
+  std::string grid;     // serialized cpvs.v1.GridSpec
+  std::string options;  // serialized cpvs.v1.BakeOptions (validated)
+  JobState state = JobState::Queued;
+  int priority = 0;
+  int64_t createdMs = 0, startedMs = 0, finishedMs = 0;
+  std::string error, artifactChecksum;
+  uint64_t tilesPerSide = 0, tilesTotal = 0, tilesDone = 0;
+  uint64_t bytes = 0, fileBytes = 0, peakMergeBytes = 0, resolution = 0;
+  std::map<std::string, double> stages;
+};
+
+struct LeaseRecord {
+  std::string leaseId, jobId, workerId;
+  uint64_t tile = 0;
+  int64_t deadlineMs = 0;
+};
+
+class FarmStore {
+ public:
+  /// Opens (creating if needed) the database file. Throws std::runtime_error.
+  explicit FarmStore(const std::string& path);
+  ~FarmStore();
+  FarmStore(const FarmStore&) = delete;
+  FarmStore& operator=(const FarmStore&) = delete;
+
+  // Scenes.
+  std::optional<SceneRecord> scene(const std::string& hash);
+  void putScene(const SceneRecord& s);
+
+  // Jobs.
+  std::optional<JobRecord> job(const std::string& id);
+  std::optional<JobRecord> jobByRequest(const std::string& requestId);
+  /// Inserts the job and its tiles, all queued.
+  void createJob(const JobRecord& j);
+  std::vector<JobRecord> jobs(bool includeFinished);
+  size_t activeJobCount();
+  void setJobState(const std::string& id, JobState s, const std::string& error, int64_t nowMs);
+  void finishJob(const std::string& id, uint64_t bytes, uint64_t fileBytes, uint64_t peakMergeBytes,
+                 const std::string& checksum, int64_t nowMs);
+  void addStageSeconds(const std::string& id, const std::map<std::string, double>& stages);
+  void setPeakMergeBytes(const std::string& id, uint64_t bytes);
+
+  // Tiles and leases.
+  /// Leases the next queued tile: highest job priority first, then the job with the
+  /// fewest tiles out on lease (fair sharing), then the oldest job, then tile order.
+  std::optional<LeaseRecord> leaseNextTile(const std::string& workerId, const std::string& leaseId, int64_t nowMs,
+                                           int64_t deadlineMs);
+  std::optional<LeaseRecord> lease(const std::string& leaseId);
+  /// Extends a lease that is still the tile's current one; false otherwise.
+  bool renewLease(const std::string& leaseId, int64_t deadlineMs);
+  /// Marks the tile done unless it already is; returns whether this call did.
+  bool completeTile(const std::string& jobId, uint64_t tile);
+  /// Returns an expired or failed tile to the queue; returns its attempts so far.
+  int requeueTile(const std::string& jobId, uint64_t tile, const std::string& error);
+  /// Tiles whose current lease expired before nowMs, returned to the queue: (job, tile, attempts).
+  std::vector<std::tuple<std::string, uint64_t, int>> expireLeases(int64_t nowMs);
+  std::vector<uint64_t> doneTiles(const std::string& jobId);
+  int tileAttempts(const std::string& jobId, uint64_t tile);
+  void cancelTiles(const std::string& jobId);
+
+ private:
+  void exec(const char* sql);
+  sqlite3* db_ = nullptr;
+  std::mutex mutex_;
+};
+
+}  // namespace cpvs::server

@@ -1,0 +1,111 @@
+// `cpvs-server`: the bake farm's coordinator.
+#include <CLI/CLI.hpp>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <csignal>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "auth.h"
+#include "coordinator.h"
+#include "cpvs/cpvs_file.h"
+#include "farm_channel.h"
+#include "farm_service.h"
+
+namespace {
+
+std::atomic<bool> gStop{false};
+
+void onSignal(int) { gStop = true; }
+
+std::string readText(const std::string& path, const char* what) {
+  std::ifstream in(path);
+  if (!in) throw cpvs::InputError(std::string("cannot read the ") + what + " " + path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"cpvs-server: the coordinator of a CPVS bake farm. Takes bake jobs, splits them into tiles, "
+               "leases them to workers, merges their sub-DAGs as they arrive and serves the artifacts."};
+  std::string listen = "127.0.0.1:7443", data, addressFile, tokensFile, tlsCert, tlsKey;
+  cpvs::server::CoordinatorConfig config;
+  std::string maxResolution = "256K";
+  double maxUploadMb = 4096;
+  app.add_option("--listen", listen, "HOST:PORT to serve on; port 0 picks a free port")->capture_default_str();
+  app.add_option("--data", data, "Folder for the job database, scenes, tile results and artifacts")->required();
+  app.add_option("--address-file", addressFile, "Write the bound HOST:PORT here once serving");
+  app.add_option("--tokens", tokensFile, "Bearer tokens, lines 'ROLE TOKEN' (client, worker, admin); none = open");
+  app.add_option("--tls-cert", tlsCert, "PEM certificate chain: serve TLS (with --tls-key)");
+  app.add_option("--tls-key", tlsKey, "PEM private key of --tls-cert");
+  app.add_option("--lease-seconds", config.leaseSeconds, "Tile lease length")->capture_default_str()->check(CLI::Range(1.0, 3600.0));
+  app.add_option("--max-attempts", config.maxAttempts, "Failures or expiries of one tile that fail its job")
+      ->capture_default_str()->check(CLI::Range(1, 100));
+  app.add_option("--max-resolution", maxResolution, "Largest resolution accepted")->capture_default_str();
+  app.add_option("--max-jobs", config.maxActiveJobs, "Most unfinished jobs held at once")->capture_default_str();
+  app.add_option("--max-upload-mb", maxUploadMb, "Largest scene upload in MiB")->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%l] %v");
+  try {
+    if (tlsCert.empty() != tlsKey.empty()) throw cpvs::InputError("give both --tls-cert and --tls-key, or neither");
+    config.dataDir = data;
+    config.maxLog2Resolution = cpvs::parseResolution(maxResolution);
+    config.maxUploadBytes = uint64_t(maxUploadMb * 1024 * 1024);
+    cpvs::server::TokenTable tokens = tokensFile.empty() ? cpvs::server::TokenTable() : cpvs::server::TokenTable::load(tokensFile);
+    if (!tokens.enabled()) spdlog::warn("no --tokens: every caller may do everything");
+
+    std::shared_ptr<grpc::ServerCredentials> creds;
+    if (tlsCert.empty()) {
+      creds = grpc::InsecureServerCredentials();
+    } else {
+      grpc::SslServerCredentialsOptions ssl;
+      ssl.pem_key_cert_pairs.push_back({readText(tlsKey, "TLS key"), readText(tlsCert, "TLS certificate")});
+      creds = grpc::SslServerCredentials(ssl);
+    }
+
+    cpvs::server::Coordinator coordinator(config);
+    cpvs::server::FarmService farm(coordinator, tokens);
+    cpvs::server::WorkerService workers(coordinator, tokens);
+    grpc::EnableDefaultHealthCheckService(true);
+    grpc::ServerBuilder builder;
+    int port = 0;
+    builder.AddListeningPort(listen, creds, &port);
+    builder.SetMaxReceiveMessageSize(cpvs::farm::kMaxMessageBytes);
+    builder.SetMaxSendMessageSize(cpvs::farm::kMaxMessageBytes);
+    builder.RegisterService(&farm);
+    builder.RegisterService(&workers);
+    std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+    if (!server || port == 0) throw cpvs::InputError("cannot listen on " + listen);
+    std::string host = listen.substr(0, listen.rfind(':'));
+    std::string bound = host + ":" + std::to_string(port);
+    if (!addressFile.empty()) {
+      std::string text = bound + "\n";
+      cpvs::writeFileAtomic(addressFile, std::vector<uint8_t>(text.begin(), text.end()));
+    }
+    spdlog::info("serving on {} ({}), data in {}", bound, tlsCert.empty() ? "plaintext" : "TLS", data);
+    std::signal(SIGTERM, onSignal);
+    std::signal(SIGINT, onSignal);
+    while (!gStop) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    spdlog::info("stopping");
+    server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
+    coordinator.stop();
+    return 0;
+  } catch (const cpvs::InputError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 3;
+  }
+}

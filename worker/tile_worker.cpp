@@ -1,0 +1,236 @@
+#include "tile_worker.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+#include <vector>
+
+#include "cpvs/bake.h"
+#include "cpvs/cpvs_file.h"
+#include "cpvs/sub_dag_file.h"
+#include "farm_convert.h"
+
+namespace cpvs::worker {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// A failed RPC that the pull loop answers by backing off and retrying.
+struct Unreachable : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+void check(const grpc::Status& s, const char* rpc) {
+  if (s.ok()) return;
+  if (s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED)
+    throw Unreachable(std::string(rpc) + ": " + farm::describe(s));
+  throw std::runtime_error(std::string(rpc) + ": " + farm::describe(s));
+}
+
+}  // namespace
+
+TileWorker::TileWorker(WorkerConfig config) : config_(std::move(config)) {
+  channel_ = farm::makeChannel(config_.server);
+  stub_ = pb::Workers::NewStub(channel_);
+  fs::create_directories(config_.cacheDir);
+}
+
+void TileWorker::run() {
+  std::vector<std::thread> threads;
+  for (int s = 0; s < config_.slots; ++s) threads.emplace_back([this, s] { slotLoop(s); });
+  for (auto& t : threads) t.join();
+}
+
+void TileWorker::slotLoop(int slot) {
+  int backoffMs = 200;
+  while (!stopping_) {
+    if (config_.maxTiles > 0 && tilesStarted_ >= uint64_t(config_.maxTiles)) return;
+    try {
+      pb::LeaseRequest req;
+      req.set_worker_id(config_.workerId + "/" + std::to_string(slot));
+      pb::TileLease lease;
+      grpc::ClientContext ctx;
+      farm::prepare(ctx, config_.server, 10);
+      check(stub_->LeaseTile(&ctx, req, &lease), "LeaseTile");
+      backoffMs = 200;
+      if (!lease.granted()) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(std::clamp<uint32_t>(lease.retry_after_ms(), 50, 5000)));
+        continue;
+      }
+      ++tilesStarted_;
+      bakeLeased(lease);
+    } catch (const Unreachable& e) {
+      spdlog::warn("coordinator unreachable ({}); retrying in {} ms", e.what(), backoffMs);
+      std::this_thread::sleep_for(std::chrono::milliseconds(backoffMs));
+      backoffMs = std::min(backoffMs * 2, 10000);
+    } catch (const std::exception& e) {
+      spdlog::error("{}", e.what());
+      std::this_thread::sleep_for(std::chrono::milliseconds(backoffMs));
+      backoffMs = std::min(backoffMs * 2, 10000);
+    }
+  }
+}
+
+void TileWorker::bakeLeased(const pb::TileLease& lease) {
+  spdlog::info("tile {} ({}, {}) of job {}: baking", lease.tile_index(), lease.tile_x(), lease.tile_y(), lease.job_id());
+  // Renew the lease in the background while the tile bakes: at a third of its length.
+  std::mutex m;
+  std::condition_variable cv;
+  bool done = false;
+  std::atomic<bool> lost{false};
+  std::thread renewer([&] {
+    int64_t periodMs = std::max<int64_t>(
+        200, (lease.deadline_unix_ms() -
+              std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
+                  .count()) / 3);
+    std::unique_lock lock(m);
+    while (!cv.wait_for(lock, std::chrono::milliseconds(periodMs), [&] { return done; })) {
+      pb::RenewRequest req;
+      req.set_lease_id(lease.lease_id());
+      pb::RenewReply reply;
+      grpc::ClientContext ctx;
+      farm::prepare(ctx, config_.server, 10);
+      if (stub_->RenewLease(&ctx, req, &reply).ok() && !reply.valid()) {
+        lost = true;  // expired or the job ended: the result will likely be declined
+        return;
+      }
+    }
+  });
+  auto stopRenewing = [&] {
+    {
+      std::lock_guard lock(m);
+      done = true;
+    }
+    cv.notify_all();
+    renewer.join();
+  };
+  try {
+    Grid grid = farm::fromProto(lease.grid());
+    BakeOptions options = farm::fromProto(lease.options());
+    auto rays = rayScene(lease.scene_hash(), grid.origin);
+    StageTimes times;
+    Dag dag = bakeTile(*rays, grid, lease.tile_x(), lease.tile_y(), options, &times);
+    auto start = std::chrono::steady_clock::now();
+    std::vector<uint8_t> encoded = encodeSubDag(dag, true);
+    times.add("encode", secondsSince(start));
+    stopRenewing();
+    if (abandoning_) {
+      release(lease, "worker stopping");
+      return;
+    }
+    sendResult(lease, encoded, times.seconds);
+    ++tilesDone_;
+    if (lost) spdlog::warn("tile {} of job {}: the lease was lost while baking", lease.tile_index(), lease.job_id());
+  } catch (const Unreachable&) {
+    if (renewer.joinable()) stopRenewing();
+    throw;
+  } catch (const std::exception& e) {
+    if (renewer.joinable()) stopRenewing();
+    spdlog::error("tile {} of job {} failed: {}", lease.tile_index(), lease.job_id(), e.what());
+    release(lease, e.what());
+  }
+}
+
+void TileWorker::sendResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
+                            const std::map<std::string, double>& stages) {
+  grpc::ClientContext ctx;
+  farm::prepare(ctx, config_.server, 600);
+  pb::CompleteReply reply;
+  auto writer = stub_->CompleteTile(&ctx, &reply);
+  size_t offset = 0;
+  do {
+    pb::TileResultChunk chunk;
+    if (offset == 0) {
+      chunk.set_lease_id(lease.lease_id());
+      chunk.set_total_size(encoded.size());
+      chunk.set_checksum(farm::contentHash(encoded.data(), encoded.size()).hex());
+      for (const auto& [stage, seconds] : stages) {
+        auto* s = chunk.add_stages();
+        s->set_stage(stage);
+        s->set_seconds(seconds);
+      }
+    }
+    size_t n = std::min(farm::kChunkBytes, encoded.size() - offset);
+    chunk.set_data(encoded.data() + offset, n);
+    offset += n;
+    if (!writer->Write(chunk)) break;
+  } while (offset < encoded.size());
+  writer->WritesDone();
+  check(writer->Finish(), "CompleteTile");
+  spdlog::info("tile {} of job {}: {} bytes returned{}", lease.tile_index(), lease.job_id(), encoded.size(),
+               reply.accepted() ? "" : " (declined: another result was taken)");
+}
+
+void TileWorker::release(const pb::TileLease& lease, const std::string& reason) {
+  pb::FailRequest req;
+  req.set_lease_id(lease.lease_id());
+  req.set_reason(reason);
+  pb::FailReply reply;
+  grpc::ClientContext ctx;
+  farm::prepare(ctx, config_.server, 10);
+  grpc::Status s = stub_->FailTile(&ctx, req, &reply);
+  if (!s.ok()) spdlog::warn("could not release tile {}: {}", lease.tile_index(), farm::describe(s));
+}
+
+std::string TileWorker::fetchScene(const std::string& sceneHash) {
+  std::lock_guard lock(fetchMutex_);
+  for (const auto& e : fs::directory_iterator(config_.cacheDir))
+    if (e.path().stem() == sceneHash && e.path().extension() != ".part") return e.path().string();
+  fs::path part = fs::path(config_.cacheDir) / (sceneHash + ".part");
+  uint64_t offset = fs::exists(part) ? fs::file_size(part) : 0;
+  std::string fileName;
+  {
+    pb::FetchSceneRequest req;
+    req.set_scene_hash(sceneHash);
+    req.set_offset(offset);
+    grpc::ClientContext ctx;
+    farm::prepare(ctx, config_.server, 600);
+    auto reader = stub_->FetchScene(&ctx, req);
+    std::ofstream out(part, std::ios::binary | std::ios::app);
+    pb::SceneChunk chunk;
+    while (reader->Read(&chunk)) {
+      if (chunk.offset() != offset) throw std::runtime_error("FetchScene: chunk out of order");
+      out.write(chunk.data().data(), std::streamsize(chunk.data().size()));
+      offset += chunk.data().size();
+      fileName = chunk.file_name();
+    }
+    out.close();
+    check(reader->Finish(), "FetchScene");
+  }
+  std::vector<uint8_t> bytes = readFile(part.string());
+  if (farm::contentHash(bytes.data(), bytes.size()).hex() != sceneHash) {
+    fs::remove(part);
+    throw std::runtime_error("scene " + sceneHash + " arrived damaged (hash mismatch)");
+  }
+  fs::path final = fs::path(config_.cacheDir) / (sceneHash + fs::path(fileName).extension().string());
+  fs::rename(part, final);
+  spdlog::info("scene {} fetched ({} bytes)", sceneHash, bytes.size());
+  return final.string();
+}
+
+std::shared_ptr<RayScene> TileWorker::rayScene(const std::string& sceneHash, const Vec3& origin) {
+  std::shared_ptr<CachedScene> cached;
+  {
+    std::lock_guard lock(cacheMutex_);
+    cached = cache_[sceneHash];
+    if (!cached) cached = cache_[sceneHash] = std::make_shared<CachedScene>();
+  }
+  std::lock_guard lock(cached->mutex);
+  if (cached->scene.indices.empty()) cached->scene = loadScene(fetchScene(sceneHash));
+  char key[80];
+  std::snprintf(key, sizeof key, "%a,%a,%a", origin.x, origin.y, origin.z);
+  auto& bvh = cached->bvhs[key];
+  if (!bvh) {
+    auto start = std::chrono::steady_clock::now();
+    bvh = std::make_shared<RayScene>(cached->scene, origin);
+    spdlog::info("BVH of scene {} built in {:.2f} s", sceneHash, secondsSince(start));
+  }
+  return bvh;
+}
+
+}  // namespace cpvs::worker

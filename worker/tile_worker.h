@@ -1,0 +1,70 @@
+// A farm worker: leases tiles from the coordinator, bakes their sub-DAGs with the core,
+// and returns them. Scenes and their Embree BVHs are cached by content hash, so a BVH is
+// built once per scene and grid origin, not once per tile.
+#pragma once
+
+#include <atomic>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "cpvs/ray_scene.h"
+#include "cpvs/scene.h"
+#include "cpvs/v1/farm.grpc.pb.h"
+#include "farm_channel.h"
+
+namespace cpvs::worker {
+
+namespace pb = ::cpvs::v1;
+
+struct WorkerConfig {
+  farm::Connection server;
+  int slots = 1;           // tiles baked at once
+  std::string cacheDir;    // fetched scene files
+  std::string workerId;    // for the coordinator's logs
+  int maxTiles = 0;        // stop after this many tiles (0 = never; for tests)
+};
+
+class TileWorker {
+ public:
+  explicit TileWorker(WorkerConfig config);
+
+  /// Runs the pull loop on `slots` threads until stop() (or maxTiles); reconnects with
+  /// backoff when the coordinator is unreachable.
+  void run();
+  /// Graceful stop: no new leases; tiles in progress finish and are returned.
+  void stop() { stopping_ = true; }
+  /// Hard stop: tiles in progress are abandoned and their leases released.
+  void abandon() {
+    stopping_ = true;
+    abandoning_ = true;
+  }
+  uint64_t tilesDone() const { return tilesDone_; }
+
+ private:
+  struct CachedScene {
+    Scene scene;
+    std::map<std::string, std::shared_ptr<RayScene>> bvhs;  // by grid origin
+    std::mutex mutex;
+  };
+
+  void slotLoop(int slot);
+  /// Bakes and returns one leased tile; false when the coordinator is unreachable.
+  void bakeLeased(const pb::TileLease& lease);
+  std::shared_ptr<RayScene> rayScene(const std::string& sceneHash, const Vec3& origin);
+  std::string fetchScene(const std::string& sceneHash);
+  void sendResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
+                  const std::map<std::string, double>& stages);
+  void release(const pb::TileLease& lease, const std::string& reason);
+
+  WorkerConfig config_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<pb::Workers::Stub> stub_;
+  std::atomic<bool> stopping_{false}, abandoning_{false};
+  std::atomic<uint64_t> tilesDone_{0}, tilesStarted_{0};
+  std::mutex cacheMutex_, fetchMutex_;
+  std::map<std::string, std::shared_ptr<CachedScene>> cache_;
+};
+
+}  // namespace cpvs::worker
