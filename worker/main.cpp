@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cctype>
 #include <csignal>
 #include <cstdlib>
 #include <thread>
@@ -46,6 +47,9 @@ int main(int argc, char** argv) {
   }
   if (config.server.token.empty())
     if (const char* t = std::getenv("CPVS_TOKEN")) config.server.token = t;
+  // Tokens often come from files or secrets with a trailing newline.
+  while (!config.server.token.empty() && std::isspace(static_cast<unsigned char>(config.server.token.back())))
+    config.server.token.pop_back();
   spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [worker] [%l] %v");
   try {
     cpvs::worker::TileWorker worker(config);

@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cstring>
 #include <numeric>
-#include <unordered_set>
 
 #include "node_order.h"
 
@@ -146,18 +145,18 @@ Dag compressBottomUp(const Dag& in) {
   return out;
 }
 
-// Subtree equality of node a and node b of one level, confirmed down to the leaves
-// (memoized per level: in a DAG the same pair is reached along many paths).
+// Subtree equality of node a and node b of one level, confirmed down to the leaves.
+// Confirmed classes are kept as a union-find per level: in a DAG the same pair is reached
+// along many paths, and a flat parent array is far cheaper than a set of pairs.
 class SubtreeEquality {
  public:
-  explicit SubtreeEquality(const Dag& dag) : dag_(dag), memo_(dag.levels.size() + 1) {}
+  explicit SubtreeEquality(const Dag& dag) : dag_(dag), parent_(dag.levels.size()) {}
 
   bool equal(int level, uint32_t a, uint32_t b) {
     if (a == b) return true;
     if (level < 0) return dag_.leaves[a] == dag_.leaves[b];
-    uint64_t key = a < b ? (uint64_t(a) << 32 | b) : (uint64_t(b) << 32 | a);
-    auto& memo = memo_[level + 1];
-    if (memo.count(key)) return true;
+    uint32_t ra = find(level, a), rb = find(level, b);
+    if (ra == rb) return true;
     const InternalLevel& lv = dag_.levels[level];
     if (lv.codes[a] != lv.codes[b]) return false;
     const auto& below = level == 0 ? dag_.leafHashes : dag_.levelHashes[level - 1];
@@ -166,13 +165,26 @@ class SubtreeEquality {
       uint32_t ca = lv.children[ka + k], cb = lv.children[kb + k];
       if (below[ca] != below[cb] || !equal(level - 1, ca, cb)) return false;
     }
-    memo.insert(key);
+    parent_[size_t(level)][rb] = ra;
     return true;
   }
 
  private:
+  uint32_t find(int level, uint32_t a) {
+    auto& p = parent_[size_t(level)];
+    if (p.empty()) {
+      p.resize(dag_.levels[size_t(level)].size());
+      std::iota(p.begin(), p.end(), 0u);
+    }
+    while (p[a] != a) {
+      p[a] = p[p[a]];  // path halving
+      a = p[a];
+    }
+    return a;
+  }
+
   const Dag& dag_;
-  std::vector<std::unordered_set<uint64_t>> memo_;
+  std::vector<std::vector<uint32_t>> parent_;
 };
 
 Dag compressTopDown(const Dag& in) {
@@ -188,12 +200,12 @@ Dag compressTopDown(const Dag& in) {
   for (int l = levels - 1; l >= -1; --l) {
     size_t count = l < 0 ? in.leaves.size() : in.levels[l].size();
     const auto& hashes = l < 0 ? in.leafHashes : in.levelHashes[l];
-    std::sort(current.begin(), current.end());
-    current.erase(std::unique(current.begin(), current.end()), current.end());
+    // One sort by (hash, index) groups equal hashes and makes repeated indices adjacent.
     tbb::parallel_sort(current.begin(), current.end(), [&](uint32_t a, uint32_t b) {
       if (hashes[a] != hashes[b]) return hashes[a] < hashes[b];
       return a < b;
     });
+    current.erase(std::unique(current.begin(), current.end()), current.end());
     auto& rp = rep[l + 1];
     rp.assign(count, UINT32_MAX);
     auto& sv = survivors[l + 1];

@@ -1,0 +1,91 @@
+#!/usr/bin/env bash
+# Makes the farm's secrets: random bearer tokens for the three roles and, with --tls, a
+# test certificate authority and a server certificate signed by it.
+#
+#   bash deploy/make-secrets.sh [--dir DIR] [--tls NAME[,NAME...]] [--days N] [--force]
+#
+# Writes into DIR (default deploy/secrets/, which git ignores):
+#   tokens        the coordinator's --tokens file: lines "ROLE TOKEN" (client, worker, admin)
+#   worker.env    CPVS_TOKEN=<worker token>, for docker compose's env_file
+#   client.token  worker.token  admin.token   one token each (clients, plain worker processes)
+#   with --tls:   ca.crt ca.key tls.crt tls.key  (the server certificate names every NAME:
+#                 DNS names, or IP addresses when NAME is one; coordinator, cpvs-coordinator
+#                 and localhost/127.0.0.1 are always added)
+#
+# Existing files are kept unless --force. The directory is made 0700; the files in it are
+# 0644 so that the containers' non-root user can read them through compose's bind mounts
+# (nobody else on the host can reach them through the 0700 directory). ca.key stays 0600.
+set -euo pipefail
+
+dir="$(cd "$(dirname "$0")" && pwd)/secrets"
+tls_names=""
+days=365
+force=0
+
+usage() { sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; }
+
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --dir) dir="${2:?--dir needs a directory}"; shift 2 ;;
+    --tls) tls_names="${2:?--tls needs NAME[,NAME...]}"; shift 2 ;;
+    --days) days="${2:?--days needs a number}"; shift 2 ;;
+    --force) force=1; shift ;;
+    -h|--help) usage; exit 0 ;;
+    *) echo "make-secrets: unknown argument '$1' (see --help)" >&2; exit 2 ;;
+  esac
+done
+
+mkdir -p "$dir"
+chmod 0700 "$dir"
+
+token() { head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \n'; }
+
+writable() {  # writable FILE: true when FILE may be (re)written
+  if [ -e "$1" ] && [ "$force" -eq 0 ]; then
+    echo "make-secrets: keeping existing $1 (--force to replace)"
+    return 1
+  fi
+  return 0
+}
+
+if writable "$dir/tokens"; then
+  client="$(token)"; worker="$(token)"; admin="$(token)"
+  umask 077
+  printf 'client %s\nworker %s\nadmin %s\n' "$client" "$worker" "$admin" >"$dir/tokens"
+  printf 'CPVS_TOKEN=%s\n' "$worker" >"$dir/worker.env"
+  printf '%s\n' "$client" >"$dir/client.token"
+  printf '%s\n' "$worker" >"$dir/worker.token"
+  printf '%s\n' "$admin" >"$dir/admin.token"
+  chmod 0644 "$dir/tokens" "$dir/worker.env" "$dir/client.token" "$dir/worker.token" "$dir/admin.token"
+  echo "make-secrets: wrote $dir/tokens, worker.env, client.token, worker.token, admin.token"
+fi
+
+if [ -n "$tls_names" ]; then
+  command -v openssl >/dev/null || { echo "make-secrets: --tls needs openssl" >&2; exit 2; }
+  if writable "$dir/tls.crt"; then
+    san="DNS:coordinator,DNS:cpvs-coordinator,DNS:localhost,IP:127.0.0.1"
+    IFS=',' read -r -a names <<<"$tls_names"
+    for n in "${names[@]}"; do
+      [ -n "$n" ] || continue
+      if [[ "$n" =~ ^[0-9.]+$ || "$n" == *:* ]]; then san="$san,IP:$n"; else san="$san,DNS:$n"; fi
+    done
+    tmp="$(mktemp -d)"
+    trap 'rm -rf "$tmp"' EXIT
+    umask 077
+    openssl req -x509 -newkey rsa:3072 -nodes -days "$days" -subj "/CN=cpvs test CA" \
+      -keyout "$dir/ca.key" -out "$dir/ca.crt" \
+      -addext "basicConstraints=critical,CA:TRUE" -addext "keyUsage=critical,keyCertSign,cRLSign" \
+      2>/dev/null
+    openssl req -newkey rsa:3072 -nodes -subj "/CN=${names[0]:-coordinator}" \
+      -keyout "$dir/tls.key" -out "$tmp/tls.csr" 2>/dev/null
+    printf 'subjectAltName=%s\nbasicConstraints=CA:FALSE\nkeyUsage=critical,digitalSignature,keyEncipherment\nextendedKeyUsage=serverAuth\n' \
+      "$san" >"$tmp/ext.cnf"
+    openssl x509 -req -in "$tmp/tls.csr" -CA "$dir/ca.crt" -CAkey "$dir/ca.key" -CAcreateserial \
+      -days "$days" -extfile "$tmp/ext.cnf" -out "$dir/tls.crt" 2>/dev/null
+    rm -f "$dir/ca.srl"
+    chmod 0644 "$dir/ca.crt" "$dir/tls.crt" "$dir/tls.key"
+    chmod 0600 "$dir/ca.key"
+    openssl verify -CAfile "$dir/ca.crt" "$dir/tls.crt" >/dev/null
+    echo "make-secrets: wrote $dir/ca.crt, tls.crt, tls.key (names: $san), valid $days days"
+  fi
+fi
