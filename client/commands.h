@@ -15,4 +15,14 @@ void addQueryCommand(CLI::App& app, int& status);
 void addVerifyCommand(CLI::App& app, int& status);
 void addRenderCommand(CLI::App& app, int& status);
 
+/// The bake farm's subcommands (farm_commands.cpp). Each takes --server HOST:PORT,
+/// --token (default $CPVS_TOKEN) and --ca FILE (TLS). Exit status: 0 success, 1 the job
+/// failed or was cancelled, 2 bad input or a request the farm refused (bad argument,
+/// unknown job, authentication, quota), 4 the farm could not be reached or failed.
+void addSubmitCommand(CLI::App& app, int& status);
+void addJobsCommand(CLI::App& app, int& status);
+void addWatchCommand(CLI::App& app, int& status);
+void addCancelCommand(CLI::App& app, int& status);
+void addDownloadCommand(CLI::App& app, int& status);
+
 }  // namespace cpvs::cli

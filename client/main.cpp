@@ -1,4 +1,5 @@
-// `cpvs`: bake, inspect, query, verify and render compact precomputed voxelized shadows.
+// `cpvs`: bake, inspect, query, verify and render compact precomputed voxelized shadows,
+// in this process or on a bake farm (submit, jobs, watch, cancel, download).
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
@@ -11,7 +12,8 @@
 int main(int argc, char** argv) {
   CLI::App app{
       "cpvs: compact precomputed voxelized shadows.\n"
-      "Bakes the sun's binary visibility of every voxel of a scene into a small DAG, and queries it."};
+      "Bakes the sun's binary visibility of every voxel of a scene into a small DAG, and queries it.\n"
+      "Bakes run in this process (bake) or on a bake farm (submit, jobs, watch, cancel, download)."};
   app.require_subcommand(1);
   int status = 0;
   cpvs::cli::addBakeCommand(app, status);
@@ -19,6 +21,11 @@ int main(int argc, char** argv) {
   cpvs::cli::addQueryCommand(app, status);
   cpvs::cli::addVerifyCommand(app, status);
   cpvs::cli::addRenderCommand(app, status);
+  cpvs::cli::addSubmitCommand(app, status);
+  cpvs::cli::addJobsCommand(app, status);
+  cpvs::cli::addWatchCommand(app, status);
+  cpvs::cli::addCancelCommand(app, status);
+  cpvs::cli::addDownloadCommand(app, status);
   spdlog::set_pattern("[%H:%M:%S] %v");
   try {
     app.parse(argc, argv);

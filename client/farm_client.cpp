@@ -1,0 +1,316 @@
+#include "farm_client.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <optional>
+#include <random>
+
+#include "cpvs/cpvs_file.h"
+#include "farm_convert.h"
+
+namespace cpvs::cli {
+
+namespace {
+
+/// Deadline of the unary calls. Streams (uploads, watches, downloads) take as long as
+/// their data or the job takes, and have none.
+constexpr double kCallSeconds = 60;
+
+/// A file opened for appending, written with write(2) so that it can be fsync'ed before
+/// it is renamed into place. Errors are InputError naming the file.
+class AppendFile {
+ public:
+  explicit AppendFile(const std::string& path) : path_(path) {
+    fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (fd_ < 0) fail();
+  }
+  ~AppendFile() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  AppendFile(const AppendFile&) = delete;
+  AppendFile& operator=(const AppendFile&) = delete;
+
+  void write(const std::string& data) {
+    size_t done = 0;
+    while (done < data.size()) {
+      ssize_t n = ::write(fd_, data.data() + done, data.size() - done);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        fail();
+      }
+      done += size_t(n);
+    }
+  }
+
+  /// Flushes the data to disk and closes the file.
+  void syncAndClose() {
+    int fd = fd_;
+    fd_ = -1;
+    if (::fsync(fd) != 0) {
+      int e = errno;
+      ::close(fd);
+      errno = e;
+      fail();
+    }
+    if (::close(fd) != 0) fail();
+  }
+
+ private:
+  [[noreturn]] void fail() const { throw InputError("cannot write " + path_ + ": " + std::strerror(errno)); }
+
+  std::string path_;
+  int fd_ = -1;
+};
+
+/// Size of the file at `path`, 0 when there is none.
+uint64_t fileSizeOrZero(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 ? uint64_t(st.st_size) : 0;
+}
+
+void check(const grpc::Status& s) {
+  if (!s.ok()) throw FarmCallError(s);
+}
+
+}  // namespace
+
+// --- FarmCallError ----------------------------------------------------------------------
+
+FarmCallError::FarmCallError(grpc::Status status)
+    : std::runtime_error(farm::describe(status)), status_(std::move(status)) {}
+
+int FarmCallError::exitCode() const {
+  switch (status_.error_code()) {
+    case grpc::StatusCode::INVALID_ARGUMENT:
+    case grpc::StatusCode::NOT_FOUND:
+    case grpc::StatusCode::ALREADY_EXISTS:
+    case grpc::StatusCode::OUT_OF_RANGE:
+    case grpc::StatusCode::UNAUTHENTICATED:
+    case grpc::StatusCode::PERMISSION_DENIED:
+    case grpc::StatusCode::FAILED_PRECONDITION:
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return 2;
+    default: return 4;
+  }
+}
+
+bool isFinalState(pb::JobState s) { return s == pb::JOB_DONE || s == pb::JOB_FAILED || s == pb::JOB_CANCELLED; }
+
+std::string randomRequestId() {
+  std::random_device rd;
+  auto word = [&] { return uint64_t(rd()) << 32 | uint64_t(rd()); };
+  Hash128 id{word(), word()};
+  return id.hex();
+}
+
+// --- FarmClient -------------------------------------------------------------------------
+
+FarmClient::FarmClient(farm::Connection connection)
+    : connection_(std::move(connection)),
+      channel_(farm::makeChannel(connection_)),
+      stub_(pb::Farm::NewStub(channel_)) {}
+
+FarmClient::UploadResult FarmClient::uploadScene(const std::string& path) {
+  std::vector<uint8_t> bytes = readFile(path);
+  if (bytes.empty()) throw InputError("the scene file " + path + " is empty");
+  UploadResult result;
+  result.sceneHash = farm::contentHash(bytes.data(), bytes.size()).hex();
+  const std::string fileName = std::filesystem::path(path).filename().string();
+
+  pb::SceneRef ref;
+  ref.set_scene_hash(result.sceneHash);
+  pb::UploadStatus status;
+  {
+    grpc::ClientContext ctx;
+    farm::prepare(ctx, connection_, kCallSeconds);
+    check(stub_->GetUploadStatus(&ctx, ref, &status));
+  }
+  if (status.complete()) {
+    result.alreadyThere = true;
+    return result;
+  }
+  // Resume an interrupted upload of the same bytes; anything inconsistent starts over.
+  uint64_t offset = 0;
+  if (status.known() && status.total_size() == bytes.size() && status.received() <= bytes.size())
+    offset = status.received();
+  pb::UploadSceneReply reply;
+  try {
+    reply = sendScene(bytes, result.sceneHash, fileName, offset);
+  } catch (const FarmCallError& e) {
+    // The server restarts an upload announced under another file name, and then wants
+    // it from byte 0.
+    if (offset == 0 || e.status().error_code() != grpc::StatusCode::FAILED_PRECONDITION) throw;
+    offset = 0;
+    reply = sendScene(bytes, result.sceneHash, fileName, offset);
+  }
+  if (!reply.complete())
+    throw FarmCallError(grpc::Status(grpc::StatusCode::DATA_LOSS,
+                                     "the server holds " + std::to_string(reply.received()) + " of " +
+                                         std::to_string(bytes.size()) + " bytes of " + fileName +
+                                         " after the upload; upload it again"));
+  result.resumedFrom = offset;
+  result.bytesSent = bytes.size() - offset;
+  result.triangles = reply.triangles();
+  return result;
+}
+
+pb::UploadSceneReply FarmClient::sendScene(const std::vector<uint8_t>& bytes, const std::string& hash,
+                                           const std::string& fileName, uint64_t offset) {
+  grpc::ClientContext ctx;
+  farm::prepare(ctx, connection_);
+  pb::UploadSceneReply reply;
+  auto writer = stub_->UploadScene(&ctx, &reply);
+  const uint64_t size = bytes.size();
+  bool first = true;
+  // At least one message, even when the server already holds every byte: the stream's
+  // end is what makes it check and import the file.
+  do {
+    pb::UploadSceneChunk chunk;
+    if (first) {
+      chunk.set_scene_hash(hash);
+      chunk.set_file_name(fileName);
+      chunk.set_total_size(size);
+      first = false;
+    }
+    uint64_t n = std::min<uint64_t>(farm::kChunkBytes, size - offset);
+    chunk.set_offset(offset);
+    chunk.set_data(reinterpret_cast<const char*>(bytes.data()) + offset, n);
+    if (!writer->Write(chunk)) break;  // the server ended the call; Finish says why
+    offset += n;
+  } while (offset < size);
+  writer->WritesDone();
+  check(writer->Finish());
+  return reply;
+}
+
+pb::JobStatus FarmClient::submit(const std::string& requestId, const pb::BakeSpec& spec) {
+  pb::SubmitBakeRequest request;
+  request.set_request_id(requestId);
+  *request.mutable_spec() = spec;
+  pb::JobStatus status;
+  grpc::ClientContext ctx;
+  farm::prepare(ctx, connection_, kCallSeconds);
+  check(stub_->SubmitBake(&ctx, request, &status));
+  return status;
+}
+
+pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<void(const pb::JobStatus&)>& onUpdate) {
+  pb::JobRef ref;
+  ref.set_job_id(jobId);
+  grpc::ClientContext ctx;
+  farm::prepare(ctx, connection_);
+  auto reader = stub_->WatchJob(&ctx, ref);
+  pb::JobStatus status, last;
+  bool any = false;
+  while (reader->Read(&status)) {
+    last = status;
+    any = true;
+    if (onUpdate) onUpdate(last);
+  }
+  check(reader->Finish());
+  if (!any || !isFinalState(last.state()))
+    throw FarmCallError(grpc::Status(grpc::StatusCode::UNKNOWN,
+                                     "the server ended the watch of job " + jobId + " before the job ended"));
+  return last;
+}
+
+pb::JobStatus FarmClient::cancel(const std::string& jobId) {
+  pb::JobRef ref;
+  ref.set_job_id(jobId);
+  pb::JobStatus status;
+  grpc::ClientContext ctx;
+  farm::prepare(ctx, connection_, kCallSeconds);
+  check(stub_->CancelJob(&ctx, ref, &status));
+  return status;
+}
+
+std::vector<pb::JobStatus> FarmClient::list(bool includeFinished) {
+  pb::ListJobsRequest request;
+  request.set_include_finished(includeFinished);
+  pb::ListJobsReply reply;
+  grpc::ClientContext ctx;
+  farm::prepare(ctx, connection_, kCallSeconds);
+  check(stub_->ListJobs(&ctx, request, &reply));
+  return {reply.jobs().begin(), reply.jobs().end()};
+}
+
+void FarmClient::receiveArtifact(const std::string& jobId, const std::string& part, uint64_t offset, uint64_t& total,
+                                 std::string& checksum) {
+  pb::DownloadRequest request;
+  request.set_job_id(jobId);
+  request.set_offset(offset);
+  grpc::ClientContext ctx;
+  farm::prepare(ctx, connection_);
+  auto reader = stub_->DownloadArtifact(&ctx, request);
+  // A stream that contradicts itself is the server's fault: end the call and report it.
+  auto broken = [&](const std::string& what) {
+    ctx.TryCancel();
+    (void)reader->Finish();
+    throw FarmCallError(grpc::Status(grpc::StatusCode::DATA_LOSS, "the download of job " + jobId + " " + what));
+  };
+  // Opened at the first chunk, so that a refused request leaves no empty .part behind.
+  std::optional<AppendFile> out;
+  pb::ArtifactChunk chunk;
+  bool first = true;
+  while (reader->Read(&chunk)) {
+    if (first) {
+      total = chunk.total_size();
+      checksum = chunk.checksum();
+      first = false;
+      out.emplace(part);
+    } else if (chunk.total_size() != total || chunk.checksum() != checksum) {
+      broken("changed its size or checksum midway");
+    }
+    if (chunk.offset() != offset)
+      broken("sent a chunk at byte " + std::to_string(chunk.offset()) + " after " + std::to_string(offset) + " bytes");
+    if (chunk.data().size() > total - std::min(total, offset))
+      broken("runs past its announced size of " + std::to_string(total) + " bytes");
+    out->write(chunk.data());
+    offset += chunk.data().size();
+  }
+  grpc::Status status = reader->Finish();
+  if (out) out->syncAndClose();
+  check(status);
+  if (first) throw FarmCallError(grpc::Status(grpc::StatusCode::DATA_LOSS, "the download of job " + jobId + " sent no data"));
+  if (offset != total)
+    throw FarmCallError(grpc::Status(grpc::StatusCode::DATA_LOSS, "the download of job " + jobId + " ended after " +
+                                                                      std::to_string(offset) + " of " +
+                                                                      std::to_string(total) + " bytes"));
+}
+
+FarmClient::DownloadResult FarmClient::download(const std::string& jobId, const std::string& outPath) {
+  const std::string part = outPath + ".part";
+  DownloadResult result;
+  result.resumedFrom = fileSizeOrZero(part);
+  try {
+    receiveArtifact(jobId, part, result.resumedFrom, result.bytes, result.checksum);
+  } catch (const FarmCallError& e) {
+    // A .part longer than the artifact belongs to something else: start over.
+    if (result.resumedFrom == 0 || e.status().error_code() != grpc::StatusCode::OUT_OF_RANGE) throw;
+    if (::unlink(part.c_str()) != 0) throw InputError("cannot remove " + part + ": " + std::strerror(errno));
+    result.resumedFrom = 0;
+    receiveArtifact(jobId, part, 0, result.bytes, result.checksum);
+  }
+  std::vector<uint8_t> bytes = readFile(part);
+  std::string got = farm::contentHash(bytes.data(), bytes.size()).hex();
+  if (got != result.checksum) {
+    ::unlink(part.c_str());
+    std::string why = result.resumedFrom > 0 ? " (it resumed an earlier " + part + " of " +
+                                                   std::to_string(result.resumedFrom) +
+                                                   " bytes, which may belong to another file)"
+                                             : "";
+    throw InputError("the download of job " + jobId + " to " + outPath + " does not match its checksum: got " + got +
+                     ", the server announced " + result.checksum + why + "; removed " + part +
+                     ", download again");
+  }
+  if (::rename(part.c_str(), outPath.c_str()) != 0)
+    throw InputError("cannot rename " + part + " to " + outPath + ": " + std::strerror(errno));
+  return result;
+}
+
+}  // namespace cpvs::cli

@@ -1,0 +1,232 @@
+// The farm end to end, as separate processes on loopback: a coordinator, workers and the
+// `cpvs` client. The same job baked locally, by one worker and by three gives the same
+// bytes; a worker killed with SIGKILL mid-job and a coordinator killed and restarted on
+// its data folder still give the same bytes, and acknowledged tiles are not rebuilt.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <sqlite3.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <regex>
+#include <set>
+
+#include "cpvs/cpvs_file.h"
+#include "cpvs/scene.h"
+#include "cpvs/v1/farm.grpc.pb.h"
+#include "farm_channel.h"
+#include "process_testing.h"
+
+namespace cpvs {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using testing::ChildProcess;
+
+const std::string kClientToken = "client-token-0123456789";
+const std::string kWorkerToken = "worker-token-0123456789";
+const std::string kAdminToken = "admin-token-01234567890";
+
+struct Ran {
+  int status = -1;
+  std::string out;
+};
+
+Ran runCli(const std::string& args) {
+  std::string cmd = "timeout 300 '" CPVS_CLI "' " + args + " 2>&1";
+  Ran r;
+  FILE* p = popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  int raw = pclose(p);
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  return r;
+}
+
+std::vector<uint8_t> bytesOf(const std::string& path) { return fs::exists(path) ? readFile(path) : std::vector<uint8_t>{}; }
+
+class FarmTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("cpvs_farm_test_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+    // A scene file that every process reads the same way: the city, written as OBJ.
+    Scene city = openScene("city:3:5");
+    std::ofstream obj(path("city.obj"));
+    char line[160];
+    for (const Vec3& p : city.positions) {
+      std::snprintf(line, sizeof line, "v %.9g %.9g %.9g\n", p.x, p.y, p.z);
+      obj << line;
+    }
+    for (size_t t = 0; t < city.triangleCount(); ++t)
+      obj << "f " << city.indices[3 * t] + 1 << ' ' << city.indices[3 * t + 1] + 1 << ' ' << city.indices[3 * t + 2] + 1
+          << '\n';
+    obj.close();
+    std::ofstream(path("tokens")) << "client " << kClientToken << "\nworker " << kWorkerToken << "\nadmin "
+                                  << kAdminToken << "\n";
+    Ran local = runCli("bake " + path("city.obj") + kSpec + " -q -o " + path("local.cpvs"));
+    ASSERT_EQ(local.status, 0) << local.out;
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+  static std::string path(const std::string& name) { return (dir_ / name).string(); }
+
+  /// Starts a coordinator on `data`; returns its address.
+  std::string startServer(const std::string& name, const std::string& listen = "127.0.0.1:0",
+                          const std::vector<std::string>& extra = {}) {
+    std::string addressFile = path(name + ".address");
+    fs::remove(addressFile);
+    std::vector<std::string> argv{CPVS_SERVER, "--listen", listen, "--data", path(name + ".data"), "--address-file",
+                                  addressFile, "--tokens", path("tokens")};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    servers_.push_back(std::make_unique<ChildProcess>(argv, path(name + ".log")));
+    std::string address = testing::waitForFile(addressFile, 30);
+    EXPECT_FALSE(address.empty()) << servers_.back()->log();
+    return address;
+  }
+
+  ChildProcess& startWorker(const std::string& address, const std::string& name) {
+    workers_.push_back(std::make_unique<ChildProcess>(
+        std::vector<std::string>{CPVS_WORKER, "--server", address, "--token", kWorkerToken, "--cache",
+                                 path(name + ".cache"), "--id", name},
+        path(name + ".log")));
+    return *workers_.back();
+  }
+
+  Ran submit(const std::string& address, const std::string& out, const std::string& requestId) {
+    return runCli("submit --server " + address + " --token " + kClientToken + " " + path("city.obj") + kSpec +
+                  " --request-id " + requestId + " --wait --json --out " + out);
+  }
+
+  /// The jobs the coordinator holds, through the client API.
+  std::vector<v1::JobStatus> jobs(const std::string& address) {
+    farm::Connection c{address, kClientToken, ""};
+    auto stub = v1::Farm::NewStub(farm::makeChannel(c));
+    grpc::ClientContext ctx;
+    farm::prepare(ctx, c, 5);
+    v1::ListJobsRequest req;
+    req.set_include_finished(true);
+    v1::ListJobsReply reply;
+    if (!stub->ListJobs(&ctx, req, &reply).ok()) return {};
+    return {reply.jobs().begin(), reply.jobs().end()};
+  }
+
+  /// Waits until some job has at least `tiles` tiles done; false after `seconds`.
+  bool waitForTiles(const std::string& address, uint64_t tiles, double seconds) {
+    auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (std::chrono::steady_clock::now() < end) {
+      for (const auto& j : jobs(address))
+        if (j.tiles_done() >= tiles) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return false;
+  }
+
+  void TearDown() override {
+    for (auto& w : workers_) w->stop(SIGKILL);
+    for (auto& s : servers_) s->stop(SIGTERM);
+  }
+
+  // 1024^3 in 128-texel tiles: 64 tiles, a few seconds on two cores.
+  static constexpr const char* kSpec = " --sun-dir 0.3,-1,0.2 --resolution 1024 --tile-size 128";
+  static fs::path dir_;
+  std::vector<std::unique_ptr<ChildProcess>> servers_, workers_;
+};
+fs::path FarmTest::dir_;
+
+TEST_F(FarmTest, OneAndThreeWorkersGiveTheLocalBytes) {
+  std::string address = startServer("s1");
+  startWorker(address, "w1");
+  Ran one = submit(address, path("one.cpvs"), "one-worker");
+  ASSERT_EQ(one.status, 0) << one.out << servers_[0]->log();
+  json j = json::parse(one.out.substr(one.out.find('{')));
+  EXPECT_EQ(j["state"], "done");
+  EXPECT_EQ(j["tiles"], 64);
+  EXPECT_GT(j["peak_merge_bytes"].get<uint64_t>(), 0u);
+  EXPECT_EQ(bytesOf(path("one.cpvs")), bytesOf(path("local.cpvs")));
+
+  startWorker(address, "w2");
+  startWorker(address, "w3");
+  Ran three = submit(address, path("three.cpvs"), "three-workers");
+  ASSERT_EQ(three.status, 0) << three.out;
+  EXPECT_EQ(bytesOf(path("three.cpvs")), bytesOf(path("local.cpvs")));
+  // Every worker took part (they pull as fast as they can).
+  for (int w = 0; w < 3; ++w)
+    EXPECT_NE(workers_[size_t(w)]->log().find("returned"), std::string::npos) << "worker " << w + 1;
+
+  // Submitting again with a known request id returns the same job, without a new bake.
+  Ran again = submit(address, path("again.cpvs"), "three-workers");
+  ASSERT_EQ(again.status, 0) << again.out;
+  EXPECT_EQ(bytesOf(path("again.cpvs")), bytesOf(path("local.cpvs")));
+  EXPECT_EQ(jobs(address).size(), 2u);
+}
+
+TEST_F(FarmTest, WorkerKilledMidJobStillGivesTheLocalBytes) {
+  std::string address = startServer("s2", "127.0.0.1:0", {"--lease-seconds", "1"});
+  ChildProcess& doomed = startWorker(address, "doomed");
+  auto result = std::async(std::launch::async, [&] { return submit(address, path("killed.cpvs"), "kill-worker"); });
+  ASSERT_TRUE(waitForTiles(address, 3, 60)) << servers_[0]->log();
+  EXPECT_EQ(doomed.stop(SIGKILL), -SIGKILL);
+  startWorker(address, "rescuer");
+  Ran r = result.get();
+  ASSERT_EQ(r.status, 0) << r.out << servers_[0]->log();
+  EXPECT_EQ(bytesOf(path("killed.cpvs")), bytesOf(path("local.cpvs")));
+}
+
+/// Tiles of job `jobId` acknowledged in the coordinator's database.
+std::set<uint64_t> acknowledgedTiles(const std::string& db) {
+  std::set<uint64_t> out;
+  sqlite3* h = nullptr;
+  if (sqlite3_open_v2(db.c_str(), &h, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) return out;
+  sqlite3_stmt* st = nullptr;
+  sqlite3_prepare_v2(h, "SELECT idx FROM tiles WHERE state = 2", -1, &st, nullptr);
+  while (sqlite3_step(st) == SQLITE_ROW) out.insert(uint64_t(sqlite3_column_int64(st, 0)));
+  sqlite3_finalize(st);
+  sqlite3_close(h);
+  return out;
+}
+
+TEST_F(FarmTest, CoordinatorKilledAndRestartedResumesWithoutRebuilding) {
+  // Short leases: the tile in flight at the kill returns to the queue soon after.
+  const std::vector<std::string> shortLeases{"--lease-seconds", "2"};
+  std::string address = startServer("s3", "127.0.0.1:0", shortLeases);
+  ChildProcess& worker = startWorker(address, "steady");
+  auto first = std::async(std::launch::async, [&] { return submit(address, path("unused.cpvs"), "kill-server"); });
+  ASSERT_TRUE(waitForTiles(address, 10, 60)) << servers_[0]->log();
+  EXPECT_EQ(servers_[0]->stop(SIGKILL), -SIGKILL);
+  first.get();  // the client loses its server; it is not asked to survive that
+
+  std::set<uint64_t> acked = acknowledgedTiles(path("s3.data") + "/farm.sqlite");
+  EXPECT_GE(acked.size(), 10u);
+  size_t logBefore = worker.log().size();
+  startServer("s3", address, shortLeases);  // same data folder, same port: the worker reconnects
+  auto all = jobs(address);
+  ASSERT_EQ(all.size(), 1u);
+  std::string job = all[0].job_id();
+  Ran watched = runCli("watch --server " + address + " --token " + kClientToken + " " + job);
+  ASSERT_EQ(watched.status, 0) << watched.out << servers_[1]->log();
+  Ran got = runCli("download --server " + address + " --token " + kClientToken + " " + job + " --out " +
+                   path("resumed.cpvs"));
+  ASSERT_EQ(got.status, 0) << got.out;
+  EXPECT_EQ(bytesOf(path("resumed.cpvs")), bytesOf(path("local.cpvs")));
+
+  // Tiles baked after the restart are only those that were not acknowledged before it.
+  std::string after = worker.log().substr(logBefore);
+  std::regex baking("tile ([0-9]+) \\([0-9]+, [0-9]+\\) of job [^:]+: baking");
+  size_t rebaked = 0;
+  for (std::sregex_iterator it(after.begin(), after.end(), baking), end; it != end; ++it) {
+    uint64_t tile = std::stoull((*it)[1]);
+    EXPECT_EQ(acked.count(tile), 0u) << "acknowledged tile " << tile << " was built again";
+    ++rebaked;
+  }
+  EXPECT_LE(rebaked, 64 - acked.size());
+  EXPECT_NE(servers_[1]->log().find("resuming 1 unfinished job"), std::string::npos) << servers_[1]->log();
+}
+
+}  // namespace
+}  // namespace cpvs
