@@ -72,6 +72,8 @@ class ChildProcess {
     return status_;
   }
 
+  pid_t pid() const { return pid_; }
+
   bool running() {
     if (pid_ <= 0) return false;
     int raw = 0;
