@@ -159,6 +159,12 @@ TEST_F(FarmTest, OneAndThreeWorkersGiveTheLocalBytes) {
   for (int w = 0; w < 3; ++w)
     EXPECT_NE(workers_[size_t(w)]->log().find("returned"), std::string::npos) << "worker " << w + 1;
 
+  // The worker built the scene's BVH once, not once per tile or per job.
+  std::string w1 = workers_[0]->log();
+  size_t builds = 0;
+  for (size_t at = w1.find("BVH of scene"); at != std::string::npos; at = w1.find("BVH of scene", at + 1)) ++builds;
+  EXPECT_EQ(builds, 1u) << w1;
+
   // Submitting again with a known request id returns the same job, without a new bake.
   Ran again = submit(address, path("again.cpvs"), "three-workers");
   ASSERT_EQ(again.status, 0) << again.out;
@@ -176,6 +182,35 @@ TEST_F(FarmTest, WorkerKilledMidJobStillGivesTheLocalBytes) {
   Ran r = result.get();
   ASSERT_EQ(r.status, 0) << r.out << servers_[0]->log();
   EXPECT_EQ(bytesOf(path("killed.cpvs")), bytesOf(path("local.cpvs")));
+}
+
+TEST_F(FarmTest, WorkerStoppedWithSigtermFinishesItsTileAndLeaves) {
+  std::string address = startServer("s4");
+  ChildProcess& leaving = startWorker(address, "leaving");
+  auto result = std::async(std::launch::async, [&] { return submit(address, path("sigterm.cpvs"), "sigterm"); });
+  ASSERT_TRUE(waitForTiles(address, 3, 60)) << servers_[0]->log();
+  EXPECT_EQ(leaving.stop(SIGTERM), 0) << leaving.log();
+  EXPECT_NE(leaving.log().find("stopped after"), std::string::npos) << leaving.log();
+  startWorker(address, "staying");
+  Ran r = result.get();
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(bytesOf(path("sigterm.cpvs")), bytesOf(path("local.cpvs")));
+}
+
+TEST_F(FarmTest, JobFileInJsonFormWithFlagsOverridingIt) {
+  std::string address = startServer("s5");
+  startWorker(address, "w5");
+  // The spec of kSpec, but at 512 in the file: the --resolution flag overrides it.
+  std::ofstream(path("job.json")) << R"({"sun_direction": {"x": 0.3, "y": -1, "z": 0.2}, "resolution": "512",
+                                        "options": {"tile_size": 128}, "name": "from a file", "priority": 3})";
+  Ran r = runCli("submit --server " + address + " --token " + kClientToken + " " + path("city.obj") + " --job " +
+                 path("job.json") + " --resolution 1024 --wait --json --out " + path("job.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(bytesOf(path("job.cpvs")), bytesOf(path("local.cpvs")));
+  auto all = jobs(address);
+  ASSERT_EQ(all.size(), 1u);
+  EXPECT_EQ(all[0].spec().name(), "from a file");
+  EXPECT_EQ(all[0].spec().priority(), 3);
 }
 
 /// Tiles of job `jobId` acknowledged in the coordinator's database.
