@@ -8,7 +8,7 @@ PACKAGES=(
   libembree-dev libopenexr-dev libspdlog-dev libgtest-dev libgmock-dev libbenchmark-dev
   libtbb-dev libxxhash-dev libzstd-dev libassimp-dev libcli11-dev libsqlite3-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
-  libpng-dev assimp-testmodels nlohmann-json3-dev python3-yaml
+  libpng-dev assimp-testmodels nlohmann-json3-dev python3-yaml clang
 )
 
 missing=()

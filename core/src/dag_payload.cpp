@@ -83,14 +83,14 @@ void readDagLevels(ByteReader& h, bool zstd, int expectedLevels, Dag& dag) {
 
   ByteReader p(payload, payloadSize, h.source());
   dag.leaves.resize(leafCount);
-  std::memcpy(dag.leaves.data(), p.take(leafCount * 8, "leaves"), leafCount * 8);
+  p.copy(dag.leaves.data(), leafCount * 8, "leaves");
   for (uint32_t l = 0; l < levels; ++l) {
     InternalLevel& lv = dag.levels[l];
     lv.codes.resize(nodeCounts[l]);
-    std::memcpy(lv.codes.data(), p.take(nodeCounts[l] * 2, "node codes"), nodeCounts[l] * 2);
+    p.copy(lv.codes.data(), nodeCounts[l] * 2, "node codes");
     if (nodeCounts[l] % 2) p.take(2, "node codes");
     lv.children.resize(childCounts[l]);
-    std::memcpy(lv.children.data(), p.take(childCounts[l] * 4, "child indices"), childCounts[l] * 4);
+    p.copy(lv.children.data(), childCounts[l] * 4, "child indices");
     // Codes and child indices are checked against the level below before any use.
     uint64_t below = l == 0 ? leafCount : nodeCounts[l - 1];
     lv.childBegin.resize(nodeCounts[l] + 1);

@@ -60,6 +60,11 @@ class ByteReader {
     pos_ += n;
     return p;
   }
+  /// Copies n bytes into `out` (which may be null when n is 0).
+  void copy(void* out, size_t n, const char* what) {
+    const uint8_t* src = take(n, what);
+    if (n) std::memcpy(out, src, n);
+  }
   size_t pos() const { return pos_; }
   const std::string& source() const { return source_; }
   size_t remaining() const { return size_ - pos_; }

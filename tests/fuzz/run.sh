@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Builds the fuzz targets with clang (libFuzzer + ASan + UBSan) into build/fuzz and runs
+# each for SECONDS (default 15). Seeds: small .cpvs files and sub-DAGs made by the main
+# build's `cpvs`, when it exists. A crash or sanitizer report fails the run and leaves the
+# input in build/fuzz/artifacts/.
+#   bash tests/fuzz/run.sh 15      # the bounded run of the test suite
+#   bash tests/fuzz/run.sh 3600    # a longer run
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+seconds="${1:-15}"
+out=build/fuzz
+if ! command -v clang++ >/dev/null; then
+  echo "fuzz: clang++ is missing (deploy/setup.sh installs it)" >&2
+  exit 1
+fi
+if [ ! -f "$out/build.ninja" ]; then
+  CXX=clang++ cmake -S tests/fuzz -B "$out" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+fi
+ninja -C "$out" -j "${CPVS_JOBS:-2}" >/dev/null
+mkdir -p "$out/corpus-cpvs" "$out/corpus-scene" "$out/artifacts"
+if [ -x build/client/cpvs ] && [ -z "$(ls -A "$out/corpus-cpvs")" ]; then
+  build/client/cpvs bake city:1 --sun-dir 0.3,-1,0.2 -r 64 --tile-size 64 -q -o "$out/corpus-cpvs/city64.cpvs" >/dev/null
+  build/client/cpvs bake city:1 --sun-dir 0,-1,0 -r 32 --no-zstd -q -o "$out/corpus-cpvs/city32-raw.cpvs" >/dev/null
+fi
+for target in fuzz_cpvs_reader fuzz_scene_input; do
+  corpus="$out/corpus-${target#fuzz_}"
+  [ "$target" = fuzz_cpvs_reader ] && corpus="$out/corpus-cpvs"
+  [ "$target" = fuzz_scene_input ] && corpus="$out/corpus-scene"
+  echo "fuzz: $target for ${seconds}s"
+  "$out/$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=65536 \
+    -artifact_prefix="$out/artifacts/" -print_final_stats=0 "$corpus" 2>"$out/$target.log" || {
+    echo "fuzz: $target FAILED; last lines of $out/$target.log:" >&2
+    tail -40 "$out/$target.log" >&2
+    exit 1
+  }
+  grep -E "^(#[0-9]+ +DONE|Done)" "$out/$target.log" | tail -1 || true
+done
+echo "fuzz: no crash, no sanitizer report"
