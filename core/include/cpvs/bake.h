@@ -56,8 +56,9 @@ Dag bakeTile(const RayScene& rays, const Grid& grid, uint64_t tileX, uint64_t ti
              const BakeOptions& options, StageTimes* times = nullptr);
 
 /// Bakes the whole grid: every tile (bakeTile), merged as they complete (StreamingMerger),
-/// then the levels above the tile roots. `threads` tiles run at once (0 = automatic).
-/// Throws Cancelled when `progress` returns false.
+/// then the levels above the tile roots. Tiles run one after another, each stage inside
+/// parallel (two tiles at once were measured slower on two cores: 6.6 s against 5.2 s for
+/// the city at 8K). Throws Cancelled when `progress` returns false.
 Dag bakeGrid(const RayScene& rays, const Grid& grid, const BakeOptions& options,
              StageTimes* times = nullptr, const ProgressFn& progress = nullptr);
 
