@@ -193,7 +193,13 @@ pb::UploadSceneReply Coordinator::endUpload(const std::string& hash) {
   } catch (const InputError& e) {
     fs::remove(final);
     store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false});
-    throw FarmError(ErrorKind::InvalidArgument, std::string("the scene does not import: ") + e.what());
+    // The importer names the stored file: the caller is told its own file name instead,
+    // not where the data folder is.
+    std::string why = e.what();
+    const std::string stored = final.string();
+    for (size_t at = why.find(stored); at != std::string::npos; at = why.find(stored, at + r->fileName.size()))
+      why.replace(at, stored.size(), r->fileName);
+    throw FarmError(ErrorKind::InvalidArgument, "the scene does not import: " + why);
   }
   r->complete = true;
   store_.putScene(*r);
@@ -248,12 +254,16 @@ pb::JobStatus Coordinator::submit(const pb::SubmitBakeRequest& request) {
   const pb::BakeSpec& spec = request.spec();
   if (request.request_id().empty() || request.request_id().size() > 128)
     throw FarmError(ErrorKind::InvalidArgument, "request_id must be 1..128 characters");
-  if (auto existing = store_.jobByRequest(request.request_id())) {
+  // The job this request id already names, if any: the same spec is a retry.
+  auto known = [&]() -> std::optional<pb::JobStatus> {
+    auto existing = store_.jobByRequest(request.request_id());
+    if (!existing) return std::nullopt;
     if (existing->spec != spec.SerializeAsString())
       throw FarmError(ErrorKind::AlreadyExists,
                       "request_id " + request.request_id() + " was used for a different job (" + existing->id + ")");
     return toStatus(*existing);
-  }
+  };
+  if (auto existing = known()) return *existing;
   if (spec.name().size() > 256) throw FarmError(ErrorKind::InvalidArgument, "name is longer than 256 characters");
   if (std::abs(spec.priority()) > 1000) throw FarmError(ErrorKind::InvalidArgument, "priority must be in -1000..1000");
   JobRecord j;
@@ -271,9 +281,12 @@ pb::JobStatus Coordinator::submit(const pb::SubmitBakeRequest& request) {
     throw FarmError(ErrorKind::InvalidArgument, "resolution " + spec.resolution() + " is outside this farm's limits (" +
                                                     std::to_string(1ull << config_.minLog2Resolution) + " .. " +
                                                     std::to_string(1ull << config_.maxLog2Resolution) + ")");
-  if (store_.activeJobCount() >= config_.maxActiveJobs)
-    throw FarmError(ErrorKind::ResourceExhausted,
-                    "the farm already holds " + std::to_string(config_.maxActiveJobs) + " unfinished jobs");
+  auto checkRoom = [&] {
+    if (store_.activeJobCount() >= config_.maxActiveJobs)
+      throw FarmError(ErrorKind::ResourceExhausted,
+                      "the farm already holds " + std::to_string(config_.maxActiveJobs) + " unfinished jobs");
+  };
+  checkRoom();  // before loading the scene, which may take long
   std::string path = scenePath(spec.scene_hash(), nullptr);
   Scene scene = loadScene(path);
   Grid grid;
@@ -294,8 +307,17 @@ pb::JobStatus Coordinator::submit(const pb::SubmitBakeRequest& request) {
   j.resolution = grid.resolution();
   j.tilesPerSide = tilesPerSide(log2R, options.log2TileSize);
   j.tilesTotal = j.tilesPerSide * j.tilesPerSide;
-  store_.createJob(j);
-  fs::create_directories(fs::path(config_.dataDir) / "tiles" / j.id);
+  {
+    // Checked again and created under one lock: a retry that arrives while its first call
+    // is still loading the scene gets the same job (not a unique-key error), and calls
+    // submitted at once cannot together exceed the job limit. The tile folder exists
+    // before a worker can lease a tile of the job.
+    std::lock_guard lock(submitMutex_);
+    if (auto existing = known()) return *existing;
+    checkRoom();
+    fs::create_directories(fs::path(config_.dataDir) / "tiles" / j.id);
+    store_.createJob(j);
+  }
   spdlog::info("job {} submitted: scene {}, {}^3, {} tiles", j.id, j.sceneHash, j.resolution, j.tilesTotal);
   notify();
   return status(j.id);
@@ -401,6 +423,13 @@ bool Coordinator::completeTile(const std::string& leaseId, const std::string& en
     throw FarmError(ErrorKind::InvalidArgument, std::string("rejected result: ") + e.what());
   }
   // The file first, then the acknowledgement: a tile marked done always has its bytes.
+  // Both under one lock, and only for a tile still waiting for its result: a declined
+  // result (a late or duplicate lease) must not replace the file of the one taken, which
+  // the merge, and a restart's merge, read; and two results for one tile must not write
+  // the same temporary file at once.
+  std::lock_guard resultLock(resultMutex_);
+  auto state = store_.tileState(l->jobId, l->tile);
+  if (!state || (*state != TileState::Queued && *state != TileState::Leased)) return false;
   std::vector<uint8_t> bytes(encoded.begin(), encoded.end());
   writeFileAtomic(tilePath(l->jobId, l->tile), bytes);
   if (!store_.completeTile(l->jobId, l->tile)) return false;

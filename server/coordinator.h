@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -92,6 +93,8 @@ class Coordinator {
   CoordinatorConfig config_;
   FarmStore store_;
   std::mutex uploadMutex_;
+  std::mutex submitMutex_;  // a request id's check and its job's creation, see submit
+  std::mutex resultMutex_;  // one tile result decided and written at a time, see completeTile
 
   std::mutex changeMutex_;
   std::condition_variable changed_;

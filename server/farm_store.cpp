@@ -325,6 +325,14 @@ bool FarmStore::renewLease(const std::string& leaseId, int64_t deadlineMs) {
   return sqlite3_changes(db_) > 0;
 }
 
+std::optional<TileState> FarmStore::tileState(const std::string& jobId, uint64_t tile) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT state FROM tiles WHERE job_id = ? AND idx = ?");
+  s.text(1, jobId).bind(2, int64_t(tile));
+  if (!s.step()) return std::nullopt;
+  return TileState(s.i64(0));
+}
+
 bool FarmStore::completeTile(const std::string& jobId, uint64_t tile) {
   std::lock_guard lock(mutex_);
   Statement s(db_, "UPDATE tiles SET state = 2, lease_id = NULL WHERE job_id = ? AND idx = ? AND state IN (0, 1)");

@@ -80,6 +80,8 @@ class FarmStore {
   std::optional<LeaseRecord> lease(const std::string& leaseId);
   /// Extends a lease that is still the tile's current one; false otherwise.
   bool renewLease(const std::string& leaseId, int64_t deadlineMs);
+  /// The tile's state; nullopt for a tile the job does not have.
+  std::optional<TileState> tileState(const std::string& jobId, uint64_t tile);
   /// Marks the tile done unless it already is; returns whether this call did.
   bool completeTile(const std::string& jobId, uint64_t tile);
   /// Returns an expired or failed tile to the queue; returns its attempts so far.
