@@ -14,6 +14,8 @@ void addInspectCommand(CLI::App& app, int& status);
 void addQueryCommand(CLI::App& app, int& status);
 void addVerifyCommand(CLI::App& app, int& status);
 void addRenderCommand(CLI::App& app, int& status);
+/// `accuracy` (accuracy_command.cpp): bakes at several resolutions and measures them.
+void addAccuracyCommand(CLI::App& app, int& status);
 
 /// The bake farm's subcommands (farm_commands.cpp). Each takes --server HOST:PORT,
 /// --token (default $CPVS_TOKEN) and --ca FILE (TLS). Exit status: 0 success, 1 the job

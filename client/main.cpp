@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   cpvs::cli::addQueryCommand(app, status);
   cpvs::cli::addVerifyCommand(app, status);
   cpvs::cli::addRenderCommand(app, status);
+  cpvs::cli::addAccuracyCommand(app, status);
   cpvs::cli::addSubmitCommand(app, status);
   cpvs::cli::addJobsCommand(app, status);
   cpvs::cli::addWatchCommand(app, status);

@@ -1,0 +1,438 @@
+// The accuracy measurements: the plain shadow-map baseline against a brute-force reference,
+// the distance-to-boundary estimate on a case with a known answer, mismatch rates that
+// fall with resolution, and `cpvs accuracy`'s files and its refusals of bad input.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cpvs/accuracy.h"
+#include "cpvs/accuracy_report.h"
+#include "cpvs/shadow_map.h"
+#include "cpvs/verify.h"
+
+namespace cpvs {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A closed axis-aligned box as 12 outward-facing triangles.
+void addBox(Scene& s, const Vec3& lo, const Vec3& hi) {
+  const uint32_t b = uint32_t(s.positions.size());
+  for (int i = 0; i < 8; ++i)
+    s.positions.push_back({(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z});
+  const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& q : quads)
+    for (uint32_t t : {q[0], q[1], q[2], q[0], q[2], q[3]}) s.indices.push_back(b + t);
+}
+
+// A ground slab from -10 to 10 in x and z, top at y = 0, and a box floating above it over
+// [-1, 1] x [1, 3] x [-1, 1]: under a light straight down, its shadow on the ground is the
+// square |x|, |z| <= 1 with crisp edges.
+Scene floatingBox() {
+  Scene s;
+  s.name = "floating box";
+  addBox(s, {-10, -1, -10}, {10, 0, 10});
+  addBox(s, {-1, 1, -1}, {1, 3, 1});
+  finalizeScene(s);
+  return s;
+}
+
+// Nearest hit of a ray against every triangle, in double precision; `ambiguous` when the
+// ray passes within a hair of a triangle's edge (float and double may then disagree).
+double bruteForceHit(const Scene& scene, const Vec3& from, const Vec3& dir, bool& ambiguous) {
+  double best = std::numeric_limits<double>::infinity();
+  ambiguous = false;
+  for (size_t t = 0; t < scene.triangleCount(); ++t) {
+    const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+    const Vec3 e1 = b - a, e2 = c - a, p = cross(dir, e2);
+    const double det = dot(e1, p);
+    if (std::abs(det) < 1e-300) continue;
+    const Vec3 s = from - a;
+    const double u = dot(s, p) / det;
+    const Vec3 q = cross(s, e1);
+    const double v = dot(dir, q) / det, w = 1 - u - v, dist = dot(e2, q) / det;
+    const double m = std::min({u, v, w});
+    if (dist > 0 && std::abs(m) < 1e-5) ambiguous = true;
+    if (m >= 0 && dist > 0) best = std::min(best, dist);
+  }
+  return best;
+}
+
+// Every texel of the packet-rendered map equals the double-precision brute force, up to
+// one 16-bit step, except for rays that graze an edge; any side, not only multiples of 8.
+TEST(ShadowMap, DepthsMatchBruteForce) {
+  const Scene scene = makeProceduralCity(2, 5);
+  const Grid grid = makeGrid(scene, LightFrame::fromElevationAzimuth(40, 25), 6);
+  RayScene rays(scene, grid.origin);
+  for (uint32_t side : {64u, 45u}) {
+    const ShadowMap map = renderShadowMap(rays, grid, side);
+    EXPECT_EQ(map.bytes(), uint64_t(side) * side * 2);
+    uint64_t bad = 0, ambiguousTexels = 0, hits = 0;
+    for (uint32_t y = 0; y < side; ++y)
+      for (uint32_t x = 0; x < side; ++x) {
+        const Vec3 from = map.toWorld({x + 0.5, y + 0.5, 0.0});
+        bool ambiguous = false;
+        const double t = bruteForceHit(scene, from, grid.frame.dir, ambiguous);
+        const uint16_t want = std::isinf(t) ? ShadowMap::kEmpty : ShadowMap::quantize(t, grid.depthExtent);
+        hits += !std::isinf(t);
+        if (ambiguous) {
+          ++ambiguousTexels;
+          continue;
+        }
+        bad += std::abs(int(map.at(x, y)) - int(want)) > 1;
+      }
+    EXPECT_EQ(bad, 0u) << "side " << side;
+    EXPECT_GT(hits, uint64_t(side) * side / 2) << "the city fills most of its grid";
+    EXPECT_LT(ambiguousTexels, uint64_t(side) * side / 20);
+  }
+}
+
+// The map's binary answer equals an exact shadow ray from the same offset point wherever
+// the exact answer does not change within two of the map's texels.
+TEST(ShadowMap, BinaryLookupsAreExactAwayFromBoundaries) {
+  const Scene scene = makeProceduralCity(3, 2);
+  const LightFrame frame = LightFrame::fromElevationAzimuth(35, 20);
+  const Grid grid = makeGrid(scene, frame, 8);
+  RayScene rays(scene, grid.origin);
+  const auto samples = sampleSurfaces(scene, rays, ClosedMode::Auto, frame.dir, 4000, 3);
+  for (uint32_t side : {256u, 300u}) {
+    const ShadowMap map = renderShadowMap(rays, grid, side);
+    uint64_t compared = 0, far = 0, wrong = 0, mismatches = 0;
+    for (const SurfaceSample& s : samples) {
+      const Vec3 q = map.offsetPoint(s.point, s.normal, 1);
+      if (rays.closedNesting(q, -frame.dir, 1e6, ClosedMode::Auto) > 0) continue;
+      ++compared;
+      const bool lit = exactlyLit(rays, grid, q);
+      const bool got = map.filtered(s.point, s.normal, 1) > 0.5f;
+      mismatches += got != lit;
+      const double d = boundaryDistance(rays, grid, q, s.normal, lit, map.texelSize() / 16, grid.extent / 16);
+      if (d <= 2 * map.texelSize()) continue;
+      ++far;
+      wrong += got != lit;
+    }
+    EXPECT_EQ(wrong, 0u) << "side " << side << ": " << far << " points away from boundaries";
+    EXPECT_GT(far, compared / 2);
+    EXPECT_GT(mismatches, 0u) << "near boundaries a map of " << side << " texels must err somewhere";
+  }
+}
+
+TEST(ShadowMap, RejectsBadArguments) {
+  const Scene scene = floatingBox();
+  const Grid grid = makeGrid(scene, LightFrame::fromDirection({0, -1, 0}), 6);
+  EXPECT_THROW(ShadowMap(grid, 0), InputError);
+  ShadowMap map(grid, 16);
+  EXPECT_THROW(map.filteredAt(grid.origin, 4), InputError);
+  EXPECT_THROW(map.filteredAt(grid.origin, 11), InputError);
+  std::vector<float> out;
+  EXPECT_THROW(map.batch({grid.origin}, {Vec3{}, Vec3{}}, 1, out), InputError);
+  // Nothing rendered: every texel is empty, so everything is lit.
+  EXPECT_EQ(map.filteredAt(grid.origin, 9), 1.0f);
+}
+
+// A point on the ground at a known distance d from the box's shadow edge (along u, which
+// is x for a light straight down): the estimate is the first probe radius r0 * 2^k >= d.
+TEST(BoundaryDistance, KnownDistanceToAShadowEdge) {
+  const Scene scene = floatingBox();
+  const LightFrame frame = LightFrame::fromDirection({0, -1, 0});
+  ASSERT_NEAR(std::abs(frame.u.x), 1.0, 1e-12);
+  const Grid grid = makeGrid(scene, frame, 8);
+  RayScene rays(scene, grid.origin);
+  const double r0 = 0.01, rMax = 5;
+  struct Case {
+    Vec3 point;
+    bool lit;
+    double want;
+  };
+  const double inf = std::numeric_limits<double>::infinity();
+  const Case cases[] = {
+      {{1.3, 0.01, 0.0}, true, 0.32},    // lit, 0.3 beyond the edge at x = 1
+      {{1.15, 0.01, 0.3}, true, 0.16},   // lit, 0.15 beyond it
+      {{1.005, 0.01, 0.0}, true, 0.01},  // lit, within the first radius
+      {{0.8, 0.01, 0.0}, false, 0.32},   // shadowed, 0.2 inside the edge
+      {{0.0, 0.01, -0.55}, false, 0.64}, // shadowed, 0.45 inside the edge at z = -1
+      {{6.0, 0.01, 6.0}, true, inf},     // lit, 7.07 from the shadow's corner: beyond rMax
+  };
+  for (const Case& c : cases) {
+    ASSERT_EQ(exactlyLit(rays, grid, c.point), c.lit) << c.point.x << ", " << c.point.z;
+    const double got = boundaryDistance(rays, grid, c.point, {0, 1, 0}, c.lit, r0, rMax);
+    if (std::isinf(c.want)) {
+      EXPECT_TRUE(std::isinf(got)) << got;
+    } else {
+      EXPECT_NEAR(got, c.want, 1e-12) << "point " << c.point.x << ", " << c.point.z;
+    }
+  }
+  // Towards the light a point under the box stays shadowed until it leaves the box's top.
+  EXPECT_TRUE(std::isinf(boundaryDistance(rays, grid, {0, 0.01, 0}, {0, 1, 0}, false, 0.01, 0.5)));
+  // Bins in texels, (a, b] with a hair of tolerance at the edges.
+  EXPECT_EQ(distanceBin(0.5, 1.0), 0);
+  EXPECT_EQ(distanceBin(1.0, 1.0), 0);
+  EXPECT_EQ(distanceBin(1.5, 1.0), 1);
+  EXPECT_EQ(distanceBin(2.0, 1.0), 1);
+  EXPECT_EQ(distanceBin(4.0, 1.0), 2);
+  EXPECT_EQ(distanceBin(8.0, 1.0), 3);
+  EXPECT_EQ(distanceBin(8.1, 1.0), 4);
+  EXPECT_EQ(distanceBin(inf, 1.0), 4);
+}
+
+// On a sloped receiver the probes follow the receiver's plane: the estimate is the
+// distance to the box's shadow edge, not to the ramp the point lies just above, which
+// probes at the point's own depth would meet within a few hundredths.
+TEST(BoundaryDistance, FollowsASlopedReceiver) {
+  Scene scene;
+  scene.name = "box over a ramp";
+  addBox(scene, {-1, 1, -1}, {1, 3, 1});
+  const auto ramp = [](double x, double z) { return Vec3{x, 0.3 * x - 4, z}; };
+  for (const Vec3& p : {ramp(-10, -10), ramp(10, -10), ramp(10, 10), ramp(-10, 10)}) scene.positions.push_back(p);
+  for (uint32_t t : {8u, 10u, 9u, 8u, 11u, 10u}) scene.indices.push_back(t);  // facing up
+  finalizeScene(scene);
+  const LightFrame frame = LightFrame::fromDirection({0, -1, 0});
+  const Grid grid = makeGrid(scene, frame, 8);
+  RayScene rays(scene, grid.origin);
+  const Vec3 n = normalize(Vec3{-0.3, 1, 0});
+  const Vec3 q = ramp(1.3, 0) + n * 0.02;  // lit, about 0.294 across the light from the edge at x = 1
+  ASSERT_TRUE(exactlyLit(rays, grid, q));
+  EXPECT_NEAR(boundaryDistance(rays, grid, q, n, true, 0.01, 5), 0.32, 1e-12);
+  // At q's own depth the ramp rises 0.3 per unit in +x and is met at about 0.07.
+  EXPECT_NEAR(boundaryDistance(rays, grid, q, {}, true, 0.01, 5), 0.08, 1e-12);
+}
+
+// The exact footprint fraction over a known shadow edge: a 3x3 footprint straddling the
+// edge of the box's shadow sees the lit column of texels only.
+TEST(BoundaryDistance, ExactFootprintOverAnEdge) {
+  const Scene scene = floatingBox();
+  const Grid grid = makeGrid(scene, LightFrame::fromDirection({0, -1, 0}), 8);
+  RayScene rays(scene, grid.origin);
+  // The point on the edge x = 1 lies in texel k; the footprint's centres k - 1/2, k + 1/2
+  // and k + 3/2 (in u) fall on both sides of the edge whichever way u points, so one or two
+  // of the three columns are lit.
+  const uint32_t side = 256;
+  const double f = exactFootprintLit(rays, grid, side, {1.0, 0.01, 0.0}, 3);
+  EXPECT_TRUE(std::abs(f - 1.0 / 3) < 1e-12 || std::abs(f - 2.0 / 3) < 1e-12) << f;
+  // With 4 x 4 rays per texel the area average is finer than thirds but still in (0, 1).
+  const double area = exactFootprintLit(rays, grid, side, {1.0, 0.01, 0.0}, 3, 4);
+  EXPECT_GT(area, 0.0);
+  EXPECT_LT(area, 1.0);
+  // Far from the box, all lit; in the middle of its shadow, all dark.
+  EXPECT_EQ(exactFootprintLit(rays, grid, side, {5, 0.01, 5}, 9, 4), 1.0);
+  EXPECT_EQ(exactFootprintLit(rays, grid, side, {0, 0.01, 0}, 9, 4), 0.0);
+}
+
+// On the city, finer grids answer no worse: every method's binary mismatch rate at 1024
+// is at most its rate at 256, CPVS mismatches all lie within 4 texels of a boundary, and
+// the equal-bytes map has the DAG's bytes.
+TEST(Accuracy, MismatchFallsWithResolutionOnTheCity) {
+  const Scene scene = makeProceduralCity(4, 7);
+  AccuracyOptions opt;
+  opt.log2Resolutions = {10, 8};
+  opt.samples = 6000;
+  opt.pcfSamples = 600;
+  opt.minTimingSeconds = 0.005;
+  const AccuracyReport rep = measureAccuracy(scene, LightFrame::fromElevationAzimuth(35, 20), opt);
+  ASSERT_EQ(rep.rows.size(), 2u * kAccuracyMethods);
+  EXPECT_EQ(rep.samples, 6000u);
+  EXPECT_EQ(rep.pcfSamples, 600u);
+  for (int m = 0; m < kAccuracyMethods; ++m) {
+    const AccuracyRow& coarse = rep.rows[m];
+    const AccuracyRow& fine = rep.rows[kAccuracyMethods + m];
+    ASSERT_EQ(int(coarse.method), m);
+    EXPECT_EQ(coarse.log2Resolution, 8);
+    EXPECT_EQ(fine.log2Resolution, 10);
+    EXPECT_FALSE(fine.skipped);
+    EXPECT_GT(coarse.samples, 4000u);  // faces hidden where buildings stand on the slab are skipped
+    EXPECT_GT(coarse.mismatches, 0u) << accuracyMethodName(AccuracyMethod(m));
+    EXPECT_LE(fine.mismatchRate(), coarse.mismatchRate()) << accuracyMethodName(AccuracyMethod(m));
+    uint64_t binned = 0;
+    for (int b = 0; b < kDistanceBins; ++b) binned += fine.binSamples[b];
+    EXPECT_EQ(binned, fine.samples);
+    for (const PcfAccuracy& p : fine.pcfArea) {
+      EXPECT_GT(p.samples, 500u);
+      EXPECT_GE(p.p99AbsError, p.meanAbsError);
+      EXPECT_LE(p.p99AbsError, 1.0);
+    }
+    EXPECT_GT(fine.nsPerQuery, 0.0);
+  }
+  for (const AccuracyRow* r : {&rep.rows[0], &rep.rows[kAccuracyMethods]}) {
+    ASSERT_EQ(r->method, AccuracyMethod::Cpvs);
+    EXPECT_EQ(r->binMismatches[3] + r->binMismatches[4], 0u) << "CPVS mismatch beyond 4 texels at R " << r->resolution();
+    EXPECT_GT(r->ratioToShadowMap(), 1.0);
+    EXPECT_GT(r->stageSeconds.count("render"), 0u);
+    const AccuracyRow& eq = r[1];
+    EXPECT_EQ(eq.side, uint64_t(std::floor(std::sqrt(double(r->bytes) / 2))));
+    EXPECT_LE(eq.bytes, r->bytes);
+    // The full-resolution map has the CPVS's texels and offset points: the same samples.
+    const AccuracyRow& full = r[3];
+    EXPECT_EQ(full.side, r->resolution());
+    EXPECT_EQ(full.samples, r->samples);
+  }
+  // The area-average PCF error falls with resolution for the CPVS.
+  EXPECT_LT(rep.rows[kAccuracyMethods].pcfArea[0].meanAbsError, rep.rows[0].pcfArea[0].meanAbsError);
+  // A full map over the byte limit is skipped, and says so.
+  opt.log2Resolutions = {8};
+  opt.samples = 300;
+  opt.pcfSamples = 50;
+  opt.maxFullShadowMapBytes = 1000;
+  const AccuracyReport small = measureAccuracy(scene, LightFrame::fromElevationAzimuth(35, 20), opt);
+  EXPECT_TRUE(small.rows[3].skipped);
+  EXPECT_NE(small.rows[3].note.find("skipped"), std::string::npos);
+  EXPECT_NE(accuracyCsv(small).find("skipped"), std::string::npos);
+  opt.log2Resolutions.clear();
+  EXPECT_THROW(measureAccuracy(scene, LightFrame::fromElevationAzimuth(35, 20), opt), InputError);
+}
+
+struct CliRun {
+  int status = -1;
+  std::string out;  // stdout and stderr together
+};
+
+CliRun cpvs(const std::string& args, bool withStderr = true) {
+  std::string cmd = "timeout 120 '" CPVS_CLI "' " + args + (withStderr ? " 2>&1" : " 2>/dev/null");
+  CliRun r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  int raw = pclose(p);
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  return r;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Splits one CSV line, honouring double quotes.
+std::vector<std::string> csvFields(const std::string& line) {
+  std::vector<std::string> out(1);
+  bool quoted = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    char c = line[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') out.back() += '"', ++i;
+      else if (c == '"') quoted = false;
+      else out.back() += c;
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      out.emplace_back();
+    } else {
+      out.back() += c;
+    }
+  }
+  return out;
+}
+
+// Every element opened is closed, in order; returns the first problem or "".
+std::string checkTags(const std::string& xml) {
+  std::vector<std::string> stack;
+  size_t i = 0;
+  while ((i = xml.find('<', i)) != std::string::npos) {
+    size_t e = xml.find('>', i);
+    if (e == std::string::npos) return "unterminated tag";
+    std::string tag = xml.substr(i + 1, e - i - 1);
+    i = e + 1;
+    if (tag.empty() || tag[0] == '?' || tag[0] == '!') continue;
+    if (tag[0] == '/') {
+      std::string name = tag.substr(1);
+      if (stack.empty() || stack.back() != name) return "</" + name + "> closes " + (stack.empty() ? "nothing" : stack.back());
+      stack.pop_back();
+    } else if (tag.back() != '/') {
+      stack.push_back(tag.substr(0, tag.find_first_of(" \n\t")));
+    }
+  }
+  return stack.empty() ? "" : "<" + stack.back() + "> never closed";
+}
+
+class AccuracyCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("cpvs_accuracy_test_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(AccuracyCli, WritesTablesCsvAndPlot) {
+  const fs::path out = dir_ / "out" / "nested";
+  CliRun r = cpvs("accuracy city:3 --sun-elevation 35 --sun-azimuth 20 --resolutions 256,512 --samples 2000 "
+                  "--pcf-samples 300 --timing-seconds 0.005 --out " + out.string(), false);
+  ASSERT_EQ(r.status, 0) << r.out;
+  // stdout: the Markdown table, one row per method and resolution.
+  EXPECT_EQ(r.out.rfind("| method | R |", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find("| CPVS | 512 |"), std::string::npos) << r.out;
+
+  const std::string md = slurp(out / "accuracy.md");
+  EXPECT_NE(md.find("| shadow map, full resolution | 256 |"), std::string::npos);
+  EXPECT_NE(md.find("## How it is measured"), std::string::npos);
+
+  std::istringstream csv(slurp(out / "accuracy.csv"));
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  const auto header = csvFields(line);
+  EXPECT_EQ(header[0], "scene");
+  EXPECT_EQ(header.back(), "note");
+  size_t rows = 0;
+  int methodCol = -1, rateCol = -1;
+  for (size_t i = 0; i < header.size(); ++i) {
+    if (header[i] == "method") methodCol = int(i);
+    if (header[i] == "mismatch_rate") rateCol = int(i);
+  }
+  ASSERT_GE(methodCol, 0);
+  ASSERT_GE(rateCol, 0);
+  while (std::getline(csv, line)) {
+    const auto f = csvFields(line);
+    ASSERT_EQ(f.size(), header.size()) << line;
+    const double rate = std::stod(f[rateCol]);
+    EXPECT_GE(rate, 0.0);
+    EXPECT_LE(rate, 1.0);
+    ++rows;
+  }
+  EXPECT_EQ(rows, 2u * kAccuracyMethods);
+
+  const std::string svg = slurp(out / "accuracy.svg");
+  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
+  EXPECT_EQ(checkTags(svg), "");
+  EXPECT_NE(svg.find("<polyline"), std::string::npos);
+  EXPECT_NE(svg.find("shadow map, equal bytes"), std::string::npos);
+}
+
+TEST_F(AccuracyCli, RefusesBadInputWithExitStatus2) {
+  const std::string base = "accuracy city:2 --sun-elevation 35 --samples 200 --out " + (dir_ / "o").string();
+  struct Bad {
+    std::string args, message;
+  };
+  std::ofstream(dir_ / "file") << "x";
+  const Bad cases[] = {
+      {base + " --resolutions 1K,3K", "3K"},
+      {base + " --resolutions 256,,512", "--resolutions"},
+      {base + " --resolutions 4", "outside"},
+      {"accuracy city:2 --sun-elevation 35 --samples 99 --out " + (dir_ / "o").string(), "--samples"},
+      {"accuracy city:2 --sun-elevation 35 --out " + (dir_ / "file" / "sub").string(), "--out"},
+      {"accuracy city:2 --out " + (dir_ / "o").string(), "--sun-dir"},
+      {base + " --sun-dir 0,-1,0", "not both"},
+      {base + " --tile-size 100", "--tile-size"},
+      {"accuracy no-such-scene.obj --sun-elevation 35 --out " + (dir_ / "o").string(), "no-such-scene.obj"},
+  };
+  for (const Bad& b : cases) {
+    CliRun r = cpvs(b.args);
+    EXPECT_EQ(r.status, 2) << b.args << "\n" << r.out;
+    EXPECT_NE(r.out.find(b.message), std::string::npos) << b.args << "\n" << r.out;
+  }
+}
+
+}  // namespace
+}  // namespace cpvs
