@@ -221,6 +221,37 @@ TEST_P(ScenePipeline, LookupsAgreeWithShadowRaysAwayFromBoundaries) {
   }
 }
 
+// A filtered lookup (one walk per 8x8 leaf slice it touches) counts exactly the lit
+// voxels of its footprint, voxel by voxel, including footprints that hang over the
+// grid's sides, its near end (lit) and its far end (the last slice).
+TEST_P(ScenePipeline, FilteredLookupsCountTheirFootprintVoxelByVoxel) {
+  CpvsArtifact art;
+  art.grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 7);
+  RayScene rays(scene_, art.grid.origin);
+  art.dag = bakeGrid(rays, art.grid, art.options);
+  ShadowQuery query(art);
+  const int64_t R = int64_t(art.grid.resolution());
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> coord(-0.1 * double(R), 1.1 * double(R));
+  std::normal_distribution<double> normal;
+  uint64_t differ = 0, partial = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const Vec3 p = art.grid.toWorld({coord(rng), coord(rng), coord(rng)});
+    const Vec3 n = i % 4 == 0 ? Vec3{} : Vec3{normal(rng), normal(rng), normal(rng)};
+    for (int pcf : {1, 3, 5, 9}) {
+      const VoxelCoord v = query.lookupVoxel(p, n, pcf);
+      int lit = 0;
+      for (int dy = -pcf / 2; dy <= pcf / 2; ++dy)
+        for (int dx = -pcf / 2; dx <= pcf / 2; ++dx) lit += !query.voxelShadowed({v.x + dx, v.y + dy, v.z});
+      const float want = float(lit) / float(pcf * pcf);
+      differ += query.filtered(p, n, pcf) != want;
+      partial += want > 0 && want < 1;
+    }
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(partial, 0u) << "no footprint straddled a shadow boundary: the test saw nothing";
+}
+
 // The same bake twice gives the same file bytes (threads do not leak into results).
 TEST_P(ScenePipeline, BakesAreDeterministic) {
   CpvsArtifact a, b;

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <string>
 
@@ -48,11 +49,26 @@ float ShadowQuery::filtered(const Vec3& p, const Vec3& n, int pcf) const {
   if (pcf < 1 || pcf > kMaxPcfWidth || pcf % 2 == 0)
     throw InputError("PCF width " + std::to_string(pcf) + " must be odd and between 1 and " +
                      std::to_string(kMaxPcfWidth));
-  VoxelCoord v = lookupVoxel(p, n, pcf);
-  int r = pcf / 2, lit = 0;
-  for (int dy = -r; dy <= r; ++dy)
-    for (int dx = -r; dx <= r; ++dx) lit += !voxelShadowed({v.x + dx, v.y + dy, v.z});
-  return float(lit) / float(pcf * pcf);
+  const VoxelCoord v = lookupVoxel(p, n, pcf);
+  const int64_t r = pcf / 2, texels = int64_t(pcf) * pcf;
+  // Outside the grid is lit (as in voxelShadowed); beyond its far end is its last slice.
+  if (v.z < 0) return 1.0f;
+  const uint64_t z = uint64_t(std::min(v.z, R_ - 1));
+  const int64_t x0 = std::max<int64_t>(v.x - r, 0), x1 = std::min<int64_t>(v.x + r, R_ - 1);
+  const int64_t y0 = std::max<int64_t>(v.y - r, 0), y1 = std::min<int64_t>(v.y + r, R_ - 1);
+  int64_t shadowed = 0;
+  // One walk per 8x8 leaf slice the footprint touches, counting its footprint bits.
+  for (int64_t by = y0 >> 3; by <= y1 >> 3; ++by) {
+    const int64_t rowLo = std::max(y0, by * 8) - by * 8, rowHi = std::min(y1, by * 8 + 7) - by * 8;
+    for (int64_t bx = x0 >> 3; bx <= x1 >> 3; ++bx) {
+      const int64_t colLo = std::max(x0, bx * 8) - bx * 8, colHi = std::min(x1, bx * 8 + 7) - bx * 8;
+      const uint64_t row = ((uint64_t{1} << (colHi - colLo + 1)) - 1) << colLo;
+      uint64_t footprint = 0;
+      for (int64_t ty = rowLo; ty <= rowHi; ++ty) footprint |= row << (ty * 8);
+      shadowed += std::popcount(cpvs::leafSliceMask(a_.dag, uint64_t(bx) * 8, uint64_t(by) * 8, z) & footprint);
+    }
+  }
+  return float(texels - shadowed) / float(texels);
 }
 
 void ShadowQuery::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
