@@ -64,6 +64,13 @@ Coordinator::Coordinator(CoordinatorConfig config)
     ++resumed;
   }
   if (resumed) spdlog::info("resuming {} unfinished job(s), {} acknowledged tile(s) to merge", resumed, mergeQueue_.size());
+  // Tile results of jobs that ended (cancelled or failed) while the coordinator was down
+  // before the merge thread removed them.
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(fs::path(config_.dataDir) / "tiles", ec)) {
+    auto j = store_.job(entry.path().filename().string());
+    if (!j || isFinal(j->state)) fs::remove_all(entry.path(), ec);
+  }
   reaper_ = std::thread([this] { reaperLoop(); });
   mergeThread_ = std::thread([this] { mergeLoop(); });
 }
@@ -338,13 +345,7 @@ std::vector<pb::JobStatus> Coordinator::list(bool includeFinished) {
 pb::JobStatus Coordinator::cancel(const std::string& jobId) {
   auto j = store_.job(jobId);
   if (!j) throw FarmError(ErrorKind::NotFound, "no job " + jobId);
-  if (!isFinal(j->state)) {
-    store_.setJobState(jobId, JobState::Cancelled, "cancelled", nowMs());
-    store_.cancelTiles(jobId);
-    spdlog::info("job {} cancelled", jobId);
-    notify();
-    mergeWake_.notify_all();
-  }
+  if (endJob(jobId, JobState::Cancelled, "cancelled")) spdlog::info("job {} cancelled", jobId);
   return status(jobId);
 }
 
@@ -359,10 +360,28 @@ std::string Coordinator::artifactPath(const std::string& jobId, std::string* che
 }
 
 void Coordinator::failJob(const std::string& jobId, const std::string& error) {
-  store_.setJobState(jobId, JobState::Failed, error, nowMs());
-  store_.cancelTiles(jobId);
-  spdlog::warn("job {} failed: {}", jobId, error);
+  if (endJob(jobId, JobState::Failed, error)) spdlog::warn("job {} failed: {}", jobId, error);
+}
+
+bool Coordinator::endJob(const std::string& jobId, JobState state, const std::string& why) {
+  {
+    // Under the result lock, so that no result of the job is written after its tiles are
+    // cancelled: completeTile takes only tiles still waiting for one.
+    std::lock_guard resultLock(resultMutex_);
+    auto j = store_.job(jobId);
+    if (!j || isFinal(j->state)) return false;  // the first end stands (cancel vs a late failure)
+    store_.setJobState(jobId, state, why, nowMs());
+    store_.cancelTiles(jobId);
+  }
+  {
+    // Its tile results are removed by the merge thread, after any merge of them queued
+    // before: the merge never finds a file gone under it.
+    std::lock_guard lock(mergeMutex_);
+    mergeQueue_.emplace_back(jobId, kRemoveTiles);
+  }
+  mergeWake_.notify_all();
   notify();
+  return true;
 }
 
 // --- workers --------------------------------------------------------------------------
@@ -431,7 +450,13 @@ bool Coordinator::completeTile(const std::string& leaseId, const std::string& en
   auto state = store_.tileState(l->jobId, l->tile);
   if (!state || (*state != TileState::Queued && *state != TileState::Leased)) return false;
   std::vector<uint8_t> bytes(encoded.begin(), encoded.end());
-  writeFileAtomic(tilePath(l->jobId, l->tile), bytes);
+  try {
+    writeFileAtomic(tilePath(l->jobId, l->tile), bytes);
+  } catch (const InputError& e) {
+    // The coordinator's own disk (full, read-only): not the worker's fault, and the tile
+    // stays leased, so the worker's report or the lease's expiry puts it back in the queue.
+    throw FarmError(ErrorKind::Internal, std::string("the coordinator cannot store the result: ") + e.what());
+  }
   if (!store_.completeTile(l->jobId, l->tile)) return false;
   store_.addStageSeconds(l->jobId, stages);
   auto after = store_.job(l->jobId);
@@ -495,6 +520,12 @@ void Coordinator::mergeLoop() {
 
 void Coordinator::mergeOne(const std::string& jobId, uint64_t tile) {
   auto j = store_.job(jobId);
+  if (tile == kRemoveTiles) {
+    merges_.erase(jobId);
+    std::error_code ec;
+    fs::remove_all(fs::path(config_.dataDir) / "tiles" / jobId, ec);
+    return;
+  }
   if (!j || isFinal(j->state)) {
     merges_.erase(jobId);
     return;

@@ -85,6 +85,8 @@ class Coordinator {
   std::string artifactFile(const std::string& jobId) const;
   void notify();
   void failJob(const std::string& jobId, const std::string& error);
+  /// Ends an unfinished job as cancelled or failed; false when it had already ended.
+  bool endJob(const std::string& jobId, JobState state, const std::string& why);
   void reaperLoop();
   void mergeLoop();
   void mergeOne(const std::string& jobId, uint64_t tile);
@@ -102,7 +104,9 @@ class Coordinator {
 
   std::mutex mergeMutex_;
   std::condition_variable mergeWake_;
+  /// (job, tile) to merge, or (job, kRemoveTiles): the job ended, remove its tile results.
   std::deque<std::pair<std::string, uint64_t>> mergeQueue_;
+  static constexpr uint64_t kRemoveTiles = ~uint64_t{0};
   std::map<std::string, MergeState> merges_;  // touched by the merge thread only
 
   bool stopping_ = false;

@@ -586,8 +586,17 @@ TEST_F(FarmSecurityTest, MalformedRequestsGetTheirStatusAndChangeNothing) {
        [&] { return submitWith([&](auto& r) { sunDir(r, 0, 0, 0); }); }},
       {"SubmitBake: sun_direction (inf, -1, 0)", StatusCode::INVALID_ARGUMENT,
        [&] { return submitWith([&](auto& r) { sunDir(r, inf, -1, 0); }); }},
-      {"SubmitBake: sun_direction whose length overflows (1e308, -1e308, 1e308)", StatusCode::INVALID_ARGUMENT,
-       [&] { return submitWith([&](auto& r) { sunDir(r, 1e308, -1e308, 1e308); }); }},
+      {"SubmitBake: sun_direction whose length overflows (1e308, -1e308, 1e308) is still a direction", StatusCode::OK,
+       [&] {
+         pb::SubmitBakeRequest r = s_->request("huge-direction", 32);
+         sunDir(r, 1e308, -1e308, 1e308);
+         pb::JobStatus job;
+         grpc::Status s = f.submit(kClientToken, r, &job);
+         if (s.ok()) {
+           EXPECT_TRUE(f.cancel(kClientToken, job.job_id()).ok());  // gives its place back
+         }
+         return s;
+       }},
       {"SubmitBake: sun elevation -5", StatusCode::INVALID_ARGUMENT,
        [&] { return submitWith([&](auto& r) { sunAngles(r, -5, 0); }); }},
       {"SubmitBake: sun elevation 91", StatusCode::INVALID_ARGUMENT,
@@ -1103,6 +1112,35 @@ TEST_F(FarmLeaseRulesTest, TileFailedMaxAttemptsTimesFailsItsJob) {
   EXPECT_TRUE(f.fail(kWorkerToken, lease.lease_id(), "again").ok());
   EXPECT_EQ(f.job(job).error(), st.error());
   EXPECT_EQ(f.download(kClientToken, job, 0).error_code(), StatusCode::FAILED_PRECONDITION);
+}
+
+// A cancelled job's acknowledged tile results are removed from the data folder (they
+// would never be merged), and a later failure of one of its leases does not turn the
+// cancellation into a failure.
+TEST_F(FarmLeaseRulesTest, CancelledJobLeavesNoTileResultsAndStaysCancelled) {
+  FarmUnderTest& f = *s_->farm;
+  const std::string job = submit("cancelled-with-results", 32, 0);  // 4 tiles
+  pb::TileLease done, pending;
+  ASSERT_TRUE(f.lease(kWorkerToken, "cancel-worker", &done).ok());
+  ASSERT_TRUE(f.lease(kWorkerToken, "cancel-worker", &pending).ok());
+  ASSERT_TRUE(done.granted() && pending.granted());
+  pb::CompleteReply reply;
+  ASSERT_TRUE(f.complete(kWorkerToken, resultChunks(done.lease_id(), s_->bake(done, done.tile_x(), done.tile_y())), &reply).ok());
+  ASSERT_TRUE(reply.accepted());
+  const fs::path tiles = f.dataDir() / "tiles" / job;
+  ASSERT_TRUE(fs::exists(tiles / (std::to_string(done.tile_index()) + ".cpvt")));
+
+  ASSERT_TRUE(f.cancel(kClientToken, job).ok());
+  bool removed = false;
+  for (int i = 0; i < 100 && !removed; ++i) {
+    removed = !fs::exists(tiles);
+    if (!removed) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_TRUE(removed) << tiles << " still exists 5 s after the cancel";
+  EXPECT_TRUE(f.fail(kWorkerToken, pending.lease_id(), "late failure").ok());
+  pb::JobStatus st = f.job(job);
+  EXPECT_EQ(st.state(), pb::JOB_CANCELLED);
+  EXPECT_EQ(st.error(), "cancelled");
 }
 
 TEST_F(FarmLeaseRulesTest, HigherPriorityJobIsLeasedFirst) {

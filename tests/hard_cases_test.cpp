@@ -65,6 +65,30 @@ TEST(HardCases, AxisAlignedAndNearlyAxisAlignedSuns) {
   }
 }
 
+// A light vector is only a direction: components near the ends of the double range
+// give the same frame as ordinary ones instead of overflowing to "not finite" or
+// underflowing to the zero vector; the zero vector and NaN are refused by name.
+TEST(HardCases, LightVectorsOfAnyMagnitude) {
+  const LightFrame want = LightFrame::fromDirection({0.3, -1, 0.2});
+  for (double scale : {1e300, 1e-300, 4.9e-322}) {
+    const LightFrame f = LightFrame::fromDirection(Vec3{0.3, -1, 0.2} * scale);
+    EXPECT_NEAR(length(f.dir - want.dir), 0, 1e-2) << "scale " << scale;  // subnormals keep few digits
+    if (scale >= 1e-300) {
+      EXPECT_NEAR(length(f.dir - want.dir), 0, 1e-15) << "scale " << scale;
+    }
+    EXPECT_NEAR(length(f.dir), 1, 1e-15);
+  }
+  const LightFrame huge = LightFrame::fromDirection({1e308, -1e308, 1e308});
+  EXPECT_NEAR(huge.dir.y, -1 / std::sqrt(3.0), 1e-15);
+  try {
+    LightFrame::fromDirection({0, 0, 0});
+    ADD_FAILURE() << "the zero vector was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("zero vector"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(LightFrame::fromDirection({std::nan(""), -1, 0}), InputError);
+}
+
 // Grazing suns stretch the grid's depth range across the whole city.
 TEST(HardCases, GrazingSuns) {
   Scene city = openScene("city:3:2");

@@ -12,10 +12,13 @@ namespace cpvs {
 
 LightFrame LightFrame::fromDirection(const Vec3& d) {
   if (!isFinite(d)) throw InputError("light direction is not finite");
-  double len = length(d);
-  if (!(len > 0) || !std::isfinite(len)) throw InputError("light direction is the zero vector");
+  // Scaled by its largest component first, so that a direction of huge or tiny (even
+  // subnormal) components normalizes without overflow or underflow.
+  const double m = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+  if (!(m > 0)) throw InputError("light direction is the zero vector");
+  const Vec3 scaled = d / m;
   LightFrame f;
-  f.dir = d / len;
+  f.dir = scaled / length(scaled);
   // Duff, Burgess, Christensen, Hery, Kensler, Liani, Villemin: "Building an Orthonormal
   // Basis, Revisited" (JCGT 2017). Continuous except at the sign flip, exact everywhere.
   const Vec3& n = f.dir;
