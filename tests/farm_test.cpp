@@ -90,11 +90,12 @@ class FarmTest : public ::testing::Test {
     return address;
   }
 
-  ChildProcess& startWorker(const std::string& address, const std::string& name) {
-    workers_.push_back(std::make_unique<ChildProcess>(
-        std::vector<std::string>{CPVS_WORKER, "--server", address, "--token", kWorkerToken, "--cache",
-                                 path(name + ".cache"), "--id", name},
-        path(name + ".log")));
+  ChildProcess& startWorker(const std::string& address, const std::string& name,
+                            const std::vector<std::string>& flags = {}) {
+    std::vector<std::string> argv{CPVS_WORKER, "--server", address,      "--token", kWorkerToken,
+                                  "--cache",   path(name + ".cache"), "--id",    name};
+    argv.insert(argv.end(), flags.begin(), flags.end());
+    workers_.push_back(std::make_unique<ChildProcess>(argv, path(name + ".log")));
     return *workers_.back();
   }
 
@@ -150,14 +151,16 @@ TEST_F(FarmTest, OneAndThreeWorkersGiveTheLocalBytes) {
   EXPECT_GT(j["peak_merge_bytes"].get<uint64_t>(), 0u);
   EXPECT_EQ(bytesOf(path("one.cpvs")), bytesOf(path("local.cpvs")));
 
-  startWorker(address, "w2");
-  startWorker(address, "w3");
+  // Two of them limited to one thread each, as workers sharing a machine are.
+  startWorker(address, "w2", {"--threads", "1"});
+  startWorker(address, "w3", {"--threads", "1"});
   Ran three = submit(address, path("three.cpvs"), "three-workers");
   ASSERT_EQ(three.status, 0) << three.out;
   EXPECT_EQ(bytesOf(path("three.cpvs")), bytesOf(path("local.cpvs")));
   // Every worker took part (they pull as fast as they can).
   for (int w = 0; w < 3; ++w)
     EXPECT_NE(workers_[size_t(w)]->log().find("returned"), std::string::npos) << "worker " << w + 1;
+  EXPECT_NE(workers_[1]->log().find("1 slot(s), 1 thread(s)"), std::string::npos) << workers_[1]->log();
 
   // The worker built the scene's BVH once, not once per tile or per job.
   std::string w1 = workers_[0]->log();

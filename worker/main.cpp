@@ -1,12 +1,14 @@
 // `cpvs-worker`: bakes tiles for a CPVS bake farm.
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cctype>
 #include <csignal>
 #include <cstdlib>
+#include <memory>
 #include <thread>
 
 #include "cpvs/types.h"
@@ -40,6 +42,10 @@ int main(int argc, char** argv) {
   app.add_option("--ca", config.server.caFile, "PEM roots to trust: use TLS");
   app.add_option("--id", config.workerId, "Name in the coordinator's logs")->capture_default_str();
   app.add_option("--max-tiles", config.maxTiles, "Stop after this many tiles (0 = run until stopped)");
+  app.add_option("--threads,-j", config.threads,
+                 "Threads for all the slots' bakes together, for a worker sharing its machine (0 = all cores)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 4096));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -51,12 +57,16 @@ int main(int argc, char** argv) {
   while (!config.server.token.empty() && std::isspace(static_cast<unsigned char>(config.server.token.back())))
     config.server.token.pop_back();
   spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [worker] [%l] %v");
+  std::unique_ptr<tbb::global_control> threadLimit;
+  if (config.threads > 0)
+    threadLimit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, config.threads);
   try {
     cpvs::worker::TileWorker worker(config);
     gWorker = &worker;
     std::signal(SIGTERM, onSignal);
     std::signal(SIGINT, onSignal);
-    spdlog::info("{} pulling tiles from {} with {} slot(s)", config.workerId, config.server.address, config.slots);
+    spdlog::info("{} pulling tiles from {} with {} slot(s), {} thread(s)", config.workerId, config.server.address,
+                 config.slots, config.threads > 0 ? std::to_string(config.threads) : std::string("all"));
     worker.run();
     spdlog::info("stopped after {} tile(s)", worker.tilesDone());
     return 0;

@@ -227,7 +227,7 @@ std::shared_ptr<RayScene> TileWorker::rayScene(const std::string& sceneHash, con
   auto& bvh = cached->bvhs[key];
   if (!bvh) {
     auto start = std::chrono::steady_clock::now();
-    bvh = std::make_shared<RayScene>(cached->scene, origin);
+    bvh = std::make_shared<RayScene>(cached->scene, origin, config_.threads);
     spdlog::info("BVH of scene {} built in {:.2f} s", sceneHash, secondsSince(start));
   }
   return bvh;

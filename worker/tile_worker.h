@@ -24,6 +24,7 @@ struct WorkerConfig {
   std::string cacheDir;    // fetched scene files
   std::string workerId;    // for the coordinator's logs
   int maxTiles = 0;        // stop after this many tiles (0 = never; for tests)
+  int threads = 0;         // threads per bake, Embree's and the DAG construction's (0 = all cores)
 };
 
 class TileWorker {
