@@ -5,7 +5,6 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -19,6 +18,7 @@
 #include "cpvs/accuracy_report.h"
 #include "cpvs/shadow_map.h"
 #include "cpvs/verify.h"
+#include "process_testing.h"
 
 namespace cpvs {
 namespace {
@@ -289,22 +289,10 @@ TEST(Accuracy, MismatchFallsWithResolutionOnTheCity) {
   EXPECT_THROW(measureAccuracy(scene, LightFrame::fromElevationAzimuth(35, 20), opt), InputError);
 }
 
-struct CliRun {
-  int status = -1;
-  std::string out;  // stdout and stderr together
-};
+using CliRun = testing::CommandResult;
 
 CliRun cpvs(const std::string& args, bool withStderr = true) {
-  std::string cmd = "timeout 120 '" CPVS_CLI "' " + args + (withStderr ? " 2>&1" : " 2>/dev/null");
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  int raw = pclose(p);
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  return r;
+  return testing::runShell("timeout 120 '" CPVS_CLI "' " + args + (withStderr ? " 2>&1" : " 2>/dev/null"));
 }
 
 std::string slurp(const fs::path& p) {

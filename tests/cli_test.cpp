@@ -4,13 +4,13 @@
 #include <nlohmann/json.hpp>
 #include <sys/wait.h>
 
-#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
 #include "cpvs/cpvs_file.h"
+#include "process_testing.h"
 #include "cpvs/image.h"
 
 namespace cpvs {
@@ -19,24 +19,10 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-struct CliRun {
-  int status = -1;
-  std::string out;  // stdout and stderr together
-};
+using CliRun = testing::CommandResult;
 
 /// Runs `cpvs ARGS` through the shell, bounded by coreutils' timeout.
-CliRun cpvs(const std::string& args) {
-  std::string cmd = "timeout 120 '" CPVS_CLI "' " + args + " 2>&1";
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  int raw = pclose(p);
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  return r;
-}
+CliRun cpvs(const std::string& args) { return testing::runShell("timeout 120 '" CPVS_CLI "' " + args + " 2>&1"); }
 
 /// JSON printed on stdout (the commands print nothing else with --json and -q).
 json parse(const CliRun& r) {

@@ -6,7 +6,6 @@
 #include <nlohmann/json.hpp>
 #include <sqlite3.h>
 
-#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -31,22 +30,9 @@ const std::string kClientToken = "client-token-0123456789";
 const std::string kWorkerToken = "worker-token-0123456789";
 const std::string kAdminToken = "admin-token-01234567890";
 
-struct Ran {
-  int status = -1;
-  std::string out;
-};
+using Ran = testing::CommandResult;
 
-Ran runCli(const std::string& args) {
-  std::string cmd = "timeout 300 '" CPVS_CLI "' " + args + " 2>&1";
-  Ran r;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  int raw = pclose(p);
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  return r;
-}
+Ran runCli(const std::string& args) { return testing::runShell("timeout 300 '" CPVS_CLI "' " + args + " 2>&1"); }
 
 std::vector<uint8_t> bytesOf(const std::string& path) { return fs::exists(path) ? readFile(path) : std::vector<uint8_t>{}; }
 

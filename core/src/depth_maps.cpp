@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <stdexcept>
+#include "embree_packet.h"
 
 namespace cpvs {
 
@@ -158,19 +159,7 @@ void renderTexelDepths(const RayScene& rays, const Grid& grid, ClosedMode closed
           double lu = grid.u0 + (double(gx) + 0.5) * ts, lv = grid.v0 + (double(gy) + 0.5) * ts;
           Vec3 o = local0 + u * lu + v * lv + d * grid.d0;
           valid[l] = -1;
-          rh.ray.org_x[l] = float(o.x);
-          rh.ray.org_y[l] = float(o.y);
-          rh.ray.org_z[l] = float(o.z);
-          rh.ray.dir_x[l] = float(d.x);
-          rh.ray.dir_y[l] = float(d.y);
-          rh.ray.dir_z[l] = float(d.z);
-          rh.ray.tnear[l] = 0.0f;
-          rh.ray.tfar[l] = float(grid.depthExtent * 1.0001);
-          rh.ray.time[l] = 0.0f;
-          rh.ray.mask[l] = 0xFFFFFFFFu;
-          rh.ray.id[l] = unsigned(l);
-          rh.ray.flags[l] = 0;
-          rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+          setPacketRay(rh, int(l), o, d, float(grid.depthExtent * 1.0001));
           lanes[l].count = 0;
           lanes[l].overflow = false;
         }

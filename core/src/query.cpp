@@ -1,11 +1,11 @@
 #include "cpvs/query.h"
 
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <string>
+
+#include "batch_lookup.h"
 
 namespace cpvs {
 
@@ -72,15 +72,8 @@ float ShadowQuery::filtered(const Vec3& p, const Vec3& n, int pcf) const {
 }
 
 void ShadowQuery::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
-                        std::vector<float>& out) const {
-  if (!normals.empty() && normals.size() != points.size())
-    throw InputError("batch query: " + std::to_string(normals.size()) + " normals for " +
-                     std::to_string(points.size()) + " points");
-  out.resize(points.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 1024), [&](const auto& range) {
-    for (size_t i = range.begin(); i != range.end(); ++i)
-      out[i] = filtered(points[i], normals.empty() ? Vec3{} : normals[i], pcf);
-  });
+                       std::vector<float>& out) const {
+  batchLookups(*this, points, normals, pcf, out);
 }
 
 }  // namespace cpvs

@@ -9,6 +9,9 @@
 
 #include "cpvs/query.h"
 
+#include "batch_lookup.h"
+#include "embree_packet.h"
+
 namespace cpvs {
 
 namespace {
@@ -78,16 +81,9 @@ float ShadowMap::filteredAt(const Vec3& q, int pcf) const {
 }
 
 void ShadowMap::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
-                      std::vector<float>& out) const {
+                     std::vector<float>& out) const {
   checkPcf(pcf);
-  if (!normals.empty() && normals.size() != points.size())
-    throw InputError("batch query: " + std::to_string(normals.size()) + " normals for " +
-                     std::to_string(points.size()) + " points");
-  out.resize(points.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 1024), [&](const auto& range) {
-    for (size_t i = range.begin(); i != range.end(); ++i)
-      out[i] = filtered(points[i], normals.empty() ? Vec3{} : normals[i], pcf);
-  });
+  batchLookups(*this, points, normals, pcf, out);
 }
 
 void ShadowMap::batchAt(const std::vector<Vec3>& offsetPoints, int pcf, std::vector<float>& out) const {
@@ -117,19 +113,7 @@ ShadowMap renderShadowMap(const RayScene& rays, const Grid& grid, uint32_t side)
           const double lu = grid.u0 + (double(std::min(x, side - 1)) + 0.5) * ts;
           const double lv = grid.v0 + (double(std::min(y, side - 1)) + 0.5) * ts;
           const Vec3 o = local0 + u * lu + v * lv + d * grid.d0;
-          rh.ray.org_x[l] = float(o.x);
-          rh.ray.org_y[l] = float(o.y);
-          rh.ray.org_z[l] = float(o.z);
-          rh.ray.dir_x[l] = float(d.x);
-          rh.ray.dir_y[l] = float(d.y);
-          rh.ray.dir_z[l] = float(d.z);
-          rh.ray.tnear[l] = 0.0f;
-          rh.ray.tfar[l] = tfar;
-          rh.ray.time[l] = 0.0f;
-          rh.ray.mask[l] = 0xFFFFFFFFu;
-          rh.ray.id[l] = l;
-          rh.ray.flags[l] = 0;
-          rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+          setPacketRay(rh, int(l), o, d, tfar);
         }
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -95,6 +96,26 @@ class ChildProcess {
   int status_ = -1;
   std::string log_;
 };
+
+/// What a shell command printed and how it exited (-1: it did not exit normally).
+struct CommandResult {
+  int status = -1;
+  std::string out;
+};
+
+/// Runs a shell command line to its end and collects its standard output (add `2>&1` to
+/// collect its errors too). Bound it with coreutils' `timeout` in the line itself.
+inline CommandResult runShell(const std::string& line) {
+  CommandResult r;
+  FILE* p = popen(line.c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  int raw = pclose(p);
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  return r;
+}
 
 /// Waits until `path` exists and is not empty; "" after `seconds`.
 inline std::string waitForFile(const std::string& path, double seconds) {
