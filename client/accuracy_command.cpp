@@ -26,6 +26,7 @@ struct AccuracyArgs {
   uint64_t samples = 100000, pcfSamples = 10000, seed = 1, maxFullMapMb = 2048;
   double timingSeconds = 0.2;
   int tileSize = 4096, threads = 0;
+  std::vector<std::string> cameras;
   bool quiet = false;
 };
 
@@ -121,6 +122,8 @@ int runAccuracy(const AccuracyArgs& a) {
   prepareOutDir(a.out);
 
   const Scene scene = openScene(a.scene);
+  for (const std::string& c : a.cameras)
+    opt.cameras.push_back(c == "default" ? defaultCamera(scene, frame.dir, opt.cameraAspect) : Camera::parse(c));
   if (!a.quiet)
     std::fprintf(stderr, "%s: %zu triangles, light (%.4f, %.4f, %.4f), resolutions %s, %llu samples (PCF on %llu)\n",
                  scene.name.c_str(), scene.triangleCount(), frame.dir.x, frame.dir.y, frame.dir.z,
@@ -155,6 +158,11 @@ void addAccuracyCommand(CLI::App& app, int& status) {
       ->capture_default_str();
   c->add_option("--samples,-n", a->samples, "Surface points (at least 100), the same for every resolution")
       ->capture_default_str();
+  c->add_option("--camera", a->cameras,
+                "Sample what this camera sees (EX,EY,EZ,TX,TY,TZ[,FOV], 16:9; 'default' = the render's view) "
+                "instead of every surface uniformly by area; repeat for several cameras")
+      ->take_all()
+      ->allow_extra_args(false);
   c->add_option("--pcf-samples", a->pcfSamples, "How many of them get PCF references (shadow rays per footprint texel)")
       ->capture_default_str();
   c->add_option("--seed", a->seed, "Sampling seed")->capture_default_str();

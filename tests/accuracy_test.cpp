@@ -2,6 +2,7 @@
 // the distance-to-boundary estimate on a case with a known answer, mismatch rates that
 // fall with resolution, and `cpvs accuracy`'s files and its refusals of bad input.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -16,6 +17,7 @@
 
 #include "cpvs/accuracy.h"
 #include "cpvs/accuracy_report.h"
+#include "cpvs/render.h"
 #include "cpvs/shadow_map.h"
 #include "cpvs/verify.h"
 #include "process_testing.h"
@@ -230,6 +232,50 @@ TEST(BoundaryDistance, ExactFootprintOverAnEdge) {
 // On the city, finer grids answer no worse: every method's binary mismatch rate at 1024
 // is at most its rate at 256, CPVS mismatches all lie within 4 texels of a boundary, and
 // the equal-bytes map has the DAG's bytes.
+// Camera sampling: every point is the first surface its camera sees (nothing between the
+// eye and it), with the normal of the side the camera sees; the same points for a seed
+// whatever the threads; points spread over the view (not one pixel); a camera looking at
+// the sky gives none.
+TEST(CameraSampling, PointsAreWhatTheCamerasSee) {
+  const Scene scene = makeProceduralCity(3, 5);
+  const Grid grid = makeGrid(scene, LightFrame::fromElevationAzimuth(35, 20), 8);
+  RayScene rays(scene, grid.origin);
+  const std::vector<Camera> cameras{defaultCamera(scene, grid.frame.dir, 16.0 / 9.0),
+                                    Camera::parse("0,60,150,36,0,36,60")};
+  const std::vector<SurfaceSample> a = sampleCameraViews(scene, rays, cameras, 16.0 / 9.0, 4000, 3);
+  EXPECT_GT(a.size(), 3600u) << "the cameras look at the city: few rays see only sky";
+  EXPECT_LE(a.size(), 4000u);
+  Vec3 lo{1e300, 1e300, 1e300}, hi = -lo;
+  for (size_t i = 0; i < a.size(); ++i) {
+    // Dropped samples shift the cameras' turns: find the camera that sees the point.
+    bool seen = false;
+    for (const Camera& c : cameras) {
+      const Vec3 toPoint = a[i].point - c.eye;
+      const double dist = length(toPoint);
+      if (dot(a[i].normal, toPoint) < 0 && !rays.occluded(c.eye, toPoint / dist, 0.0, dist * (1 - 1e-6))) seen = true;
+    }
+    EXPECT_TRUE(seen) << "sample " << i << " is hidden from every camera or seen from its back";
+    EXPECT_NEAR(length(a[i].normal), 1.0, 1e-12);
+    const Vec3& p = a[i].point;
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  EXPECT_GT(hi.x - lo.x, 20.0);
+  EXPECT_GT(hi.z - lo.z, 20.0);
+  std::vector<SurfaceSample> b;
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    b = sampleCameraViews(scene, rays, cameras, 16.0 / 9.0, 4000, 3);
+  }
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].point, b[i].point) << i;
+    EXPECT_EQ(a[i].normal, b[i].normal) << i;
+  }
+  EXPECT_TRUE(sampleCameraViews(scene, rays, {Camera::parse("0,1000,0,0,2000,0")}, 1.0, 100, 1).empty());
+  EXPECT_THROW(sampleCameraViews(scene, rays, {}, 1.0, 100, 1), InputError);
+}
+
 TEST(Accuracy, MismatchFallsWithResolutionOnTheCity) {
   const Scene scene = makeProceduralCity(4, 7);
   AccuracyOptions opt;
@@ -398,6 +444,17 @@ TEST_F(AccuracyCli, WritesTablesCsvAndPlot) {
   EXPECT_NE(svg.find("shadow map, equal bytes"), std::string::npos);
 }
 
+TEST_F(AccuracyCli, SamplesWhatTheCamerasSee) {
+  const fs::path out = dir_ / "cameras";
+  CliRun r = cpvs("accuracy city:3 --sun-elevation 35 --resolutions 256 --samples 500 --pcf-samples 50 "
+                  "--timing-seconds 0.001 --camera default --camera 0,60,150,36,0,36 -q --out " + out.string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  const std::string md = slurp(out / "accuracy.md");
+  EXPECT_NE(md.find("seen by 2 cameras: at ("), std::string::npos) << md.substr(0, 600);
+  EXPECT_NE(md.find("looking at (36, 0, 36), 40°"), std::string::npos) << md.substr(0, 600);
+  EXPECT_NE(md.find("rays through uniformly random points of the cameras' images"), std::string::npos);
+}
+
 TEST_F(AccuracyCli, RefusesBadInputWithExitStatus2) {
   const std::string base = "accuracy city:2 --sun-elevation 35 --samples 200 --out " + (dir_ / "o").string();
   struct Bad {
@@ -414,6 +471,8 @@ TEST_F(AccuracyCli, RefusesBadInputWithExitStatus2) {
       {base + " --sun-dir 0,-1,0", "not both"},
       {base + " --tile-size 100", "--tile-size"},
       {"accuracy no-such-scene.obj --sun-elevation 35 --out " + (dir_ / "o").string(), "no-such-scene.obj"},
+      {base + " --camera 1,2,3", "EX,EY,EZ,TX,TY,TZ"},
+      {base + " --camera 0,1000,0,0,2000,0", "the cameras see no surface"},  // looking up, at the sky
   };
   for (const Bad& b : cases) {
     CliRun r = cpvs(b.args);

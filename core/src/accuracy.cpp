@@ -209,8 +209,13 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
   const Grid finest = makeGrid(scene, frame, resolutions.back());
   RayScene rays(scene, finest.origin);
   const std::vector<SurfaceSample> samples =
-      sampleSurfaces(scene, rays, options.bake.closed, frame.dir, options.samples, options.seed);
-  if (samples.empty()) throw InputError("accuracy: scene '" + scene.name + "' has no surface to sample");
+      options.cameras.empty()
+          ? sampleSurfaces(scene, rays, options.bake.closed, frame.dir, options.samples, options.seed)
+          : sampleCameraViews(scene, rays, options.cameras, options.cameraAspect, options.samples, options.seed);
+  if (samples.empty())
+    throw InputError("accuracy: " + std::string(options.cameras.empty() ? "scene '" + scene.name + "' has no surface"
+                                                                      : "the cameras see no surface of '" + scene.name + "'") +
+                     " to sample");
   const size_t n = samples.size();
   std::vector<Vec3> points(n), normals(n);
   for (size_t i = 0; i < n; ++i) {
@@ -225,6 +230,7 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
   out.samples = n;
   out.pcfSamples = std::min<uint64_t>(options.pcfSamples, n);
   out.seed = options.seed;
+  out.cameras = options.cameras;
   out.extent = finest.extent;
   out.depthExtent = finest.depthExtent;
   out.firstRadius = finest.extent / (16.0 * double(finest.resolution()));

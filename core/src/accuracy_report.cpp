@@ -19,6 +19,18 @@ std::string format(const char* fmt, double v) {
   return buf;
 }
 
+// "camera at (ex, ey, ez) looking at (tx, ty, tz)", joined by "; " for several.
+std::string camerasText(const std::vector<Camera>& cameras) {
+  std::string out = cameras.size() == 1 ? "a camera " : std::to_string(cameras.size()) + " cameras: ";
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    const Camera& c = cameras[i];
+    out += (i ? "; " : "") + std::string("at (") + format("%.4g", c.eye.x) + ", " + format("%.4g", c.eye.y) + ", " +
+           format("%.4g", c.eye.z) + ") looking at (" + format("%.4g", c.target.x) + ", " + format("%.4g", c.target.y) +
+           ", " + format("%.4g", c.target.z) + "), " + format("%.0f", c.fovDeg) + "°";
+  }
+  return out;
+}
+
 // A rate as a percentage with three significant digits; "-" for an empty bin.
 std::string percent(double rate) {
   if (std::isnan(rate)) return "-";
@@ -100,7 +112,8 @@ std::string accuracyMarkdown(const AccuracyReport& rep) {
     << format("%.4f", rep.lightDir.x) << ", " << format("%.4f", rep.lightDir.y) << ", " << format("%.4f", rep.lightDir.z)
     << "); grid " << format("%.6g", rep.extent) << " × " << format("%.6g", rep.extent) << " × "
     << format("%.6g", rep.depthExtent) << " world units (u × v × depth). " << rep.samples
-    << " surface points (seed " << rep.seed << "), the same for every resolution and method; PCF errors on the first "
+    << " surface points (" << (rep.cameras.empty() ? "uniform by area" : "seen by " + camerasText(rep.cameras))
+    << ", seed " << rep.seed << "), the same for every resolution and method; PCF errors on the first "
     << rep.pcfSamples << " of them" << (rep.pcfSamples < rep.samples ? " (a subset, for time)" : "") << ". "
     << rep.threads << " threads; measured in " << format("%.1f", rep.seconds) << " s.\n\n";
   o << accuracyTable(rep) << "\n";
@@ -118,8 +131,12 @@ std::string accuracyMarkdown(const AccuracyReport& rep) {
   o << "\n";
 
   o << "## How it is measured\n\n"
-    << "- **Samples**: points uniform by area over the triangles, with the normal of the side a lookup comes from "
-       "(outward for closed parts, towards the light for open ones), as `cpvs verify` samples them.\n"
+    << (rep.cameras.empty()
+            ? "- **Samples**: points uniform by area over the triangles, with the normal of the side a lookup comes "
+              "from (outward for closed parts, towards the light for open ones), as `cpvs verify` samples them.\n"
+            : "- **Samples**: the first surfaces hit by rays through uniformly random points of the cameras' images "
+              "(taken in turn; a ray that sees nothing is drawn again, up to 16 times), with the normal of the side "
+              "the camera sees: points spread as a viewer's pixels are.\n")
     << "- **Query point**: the surface point offset along its normal by the CPVS rule (`normalOffsetVoxels`: 1.5 "
        "voxels for binary lookups, 1.5 + (w−1)/2 for PCF w×w, measured in voxel space so that the largest component "
        "moves that many). *CPVS* and *shadow map, full resolution* (side R) share the grid's texels and so the same "

@@ -16,6 +16,7 @@
 
 #include "cpvs/scene.h"
 #include "cpvs/types.h"
+#include "split_mix64.h"
 
 namespace cpvs {
 namespace {
@@ -27,25 +28,6 @@ constexpr int kMargin = 10;       // ground around the outer blocks
 constexpr int kGroundThickness = 2;
 constexpr int kMinHeight = 4;
 constexpr int kMaxHeight = 60;
-
-/// splitmix64: a tiny PRNG with the same output on every platform and standard library
-/// (std:: distributions are implementation-defined).
-class SplitMix64 {
- public:
-  explicit SplitMix64(uint64_t seed) : state_(seed) {}
-  uint64_t next() {
-    uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  /// Uniform-enough integer in [lo, hi] (the modulo bias is irrelevant here).
-  int range(int lo, int hi) { return lo + static_cast<int>(next() % static_cast<uint64_t>(hi - lo + 1)); }
-  bool chance(int percent) { return range(0, 99) < percent; }
-
- private:
-  uint64_t state_;
-};
 
 /// An axis-aligned box with integer corners, lo < hi on every axis.
 struct Box {

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "cpvs/verify.h"
+#include "split_mix64.h"
 
 namespace cpvs {
 
@@ -58,6 +60,44 @@ Camera defaultCamera(const Scene& scene, const Vec3& lightDir, double aspect) {
   return c;
 }
 
+namespace {
+
+/// A camera's primary rays: the direction through a point of its image.
+class CameraRays {
+ public:
+  CameraRays(const Camera& camera, double aspect) : eye_(camera.eye), aspect_(aspect) {
+    forward_ = normalize(camera.target - camera.eye);
+    right_ = cross(forward_, camera.up);
+    if (length(right_) < 1e-9) right_ = cross(forward_, Vec3{1, 0, 0});
+    right_ = normalize(right_);
+    up_ = cross(right_, forward_);
+    tanHalf_ = std::tan(camera.fovDeg * 0.5 * std::numbers::pi / 180);
+  }
+  const Vec3& eye() const { return eye_; }
+  /// Through image point (ix, iy), each in [0, 1], (0, 0) at the top left.
+  Vec3 through(double ix, double iy) const {
+    const double sx = (ix * 2 - 1) * tanHalf_ * aspect_, sy = (1 - iy * 2) * tanHalf_;
+    return normalize(forward_ + right_ * sx + up_ * sy);
+  }
+
+ private:
+  Vec3 eye_, forward_, right_, up_;
+  double aspect_, tanHalf_ = 0;
+};
+
+/// The first surface along a ray, with its geometric normal turned towards the ray's origin.
+bool firstSurface(const Scene& scene, const RayScene& rays, const Vec3& from, const Vec3& dir, SurfaceHit& out) {
+  RayHit h;
+  if (!rays.intersect(from, dir, 0.0, std::numeric_limits<double>::infinity(), h)) return false;
+  Vec3 a = scene.vertex(h.triangle, 0), b = scene.vertex(h.triangle, 1), c = scene.vertex(h.triangle, 2);
+  Vec3 n = normalize(cross(b - a, c - a));
+  if (dot(n, dir) > 0) n = -n;
+  out = {true, from + dir * h.t, n};
+  return true;
+}
+
+}  // namespace
+
 CameraHits traceCamera(const Scene& scene, const RayScene& rays, const Camera& camera, int width, int height) {
   if (width < 1 || height < 1 || width > 16384 || height > 16384)
     throw InputError("image size " + std::to_string(width) + "x" + std::to_string(height) +
@@ -66,27 +106,36 @@ CameraHits traceCamera(const Scene& scene, const RayScene& rays, const Camera& c
   out.width = width;
   out.height = height;
   out.pixels.resize(size_t(width) * size_t(height));
-  Vec3 forward = normalize(camera.target - camera.eye);
-  Vec3 right = cross(forward, camera.up);
-  if (length(right) < 1e-9) right = cross(forward, Vec3{1, 0, 0});
-  right = normalize(right);
-  Vec3 up = cross(right, forward);
-  double tanHalf = std::tan(camera.fovDeg * 0.5 * std::numbers::pi / 180);
-  double aspect = double(width) / double(height);
+  const CameraRays view(camera, double(width) / double(height));
   tbb::parallel_for(0, height, [&](int y) {
     for (int x = 0; x < width; ++x) {
-      double sx = ((x + 0.5) / width * 2 - 1) * tanHalf * aspect;
-      double sy = (1 - (y + 0.5) / height * 2) * tanHalf;
-      Vec3 dir = normalize(forward + right * sx + up * sy);
-      RayHit h;
-      SurfaceHit& s = out.pixels[size_t(y) * size_t(width) + size_t(x)];
-      if (!rays.intersect(camera.eye, dir, 0.0, std::numeric_limits<double>::infinity(), h)) continue;
-      Vec3 a = scene.vertex(h.triangle, 0), b = scene.vertex(h.triangle, 1), c = scene.vertex(h.triangle, 2);
-      Vec3 n = normalize(cross(b - a, c - a));
-      if (dot(n, dir) > 0) n = -n;
-      s = {true, camera.eye + dir * h.t, n};
+      const Vec3 dir = view.through((x + 0.5) / width, (y + 0.5) / height);
+      firstSurface(scene, rays, view.eye(), dir, out.pixels[size_t(y) * size_t(width) + size_t(x)]);
     }
   });
+  return out;
+}
+
+std::vector<SurfaceSample> sampleCameraViews(const Scene& scene, const RayScene& rays,
+                                             const std::vector<Camera>& cameras, double aspect, uint64_t count,
+                                             uint64_t seed) {
+  if (cameras.empty()) throw InputError("camera sampling needs at least one camera");
+  if (!(aspect > 0) || !std::isfinite(aspect)) throw InputError("camera sampling: aspect must be positive");
+  std::vector<CameraRays> views;
+  for (const Camera& c : cameras) views.emplace_back(c, aspect);
+  std::vector<SurfaceHit> hits(count);
+  tbb::parallel_for(uint64_t(0), count, [&](uint64_t i) {
+    const CameraRays& view = views[i % views.size()];
+    SplitMix64 rng = SplitMix64::forItem(seed, i);
+    for (int attempt = 0; attempt < kCameraSampleAttempts; ++attempt) {
+      const double ix = rng.uniform01(), iy = rng.uniform01();
+      if (firstSurface(scene, rays, view.eye(), view.through(ix, iy), hits[i])) break;
+    }
+  });
+  std::vector<SurfaceSample> out;
+  out.reserve(count);
+  for (const SurfaceHit& h : hits)
+    if (h.hit) out.push_back({h.point, h.normal});
   return out;
 }
 

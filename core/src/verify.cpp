@@ -6,19 +6,11 @@
 #include <atomic>
 #include <cmath>
 #include <mutex>
+#include "split_mix64.h"
 
 namespace cpvs {
 
 namespace {
-
-uint64_t splitmix64(uint64_t& state) {
-  uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-
-double uniform01(uint64_t& state) { return double(splitmix64(state) >> 11) * 0x1.0p-53; }
 
 // Distance from a point to beyond the grid's near plane along -dir: enough for any ray.
 double rayLength(const Grid& g) { return 2.0 * (g.depthExtent + g.extent) + 1.0; }
@@ -36,12 +28,11 @@ std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& ra
   std::vector<SurfaceSample> out(count);
   if (tris == 0 || !(cdf[tris] > 0)) return {};
   tbb::parallel_for(uint64_t(0), count, [&](uint64_t i) {
-    uint64_t state = seed * 0x9E3779B97F4A7C15ull + i;
-    splitmix64(state);
-    double pick = uniform01(state) * cdf[tris];
+    SplitMix64 rng = SplitMix64::forItem(seed, i);
+    double pick = rng.uniform01() * cdf[tris];
     size_t t = size_t(std::upper_bound(cdf.begin(), cdf.end(), pick) - cdf.begin());
     t = std::clamp<size_t>(t, 1, tris) - 1;
-    double r1 = uniform01(state), r2 = uniform01(state);
+    double r1 = rng.uniform01(), r2 = rng.uniform01();
     if (r1 + r2 > 1) {
       r1 = 1 - r1;
       r2 = 1 - r2;

@@ -11,6 +11,7 @@
 #include "cpvs/bake.h"
 #include "cpvs/light_frame.h"
 #include "cpvs/ray_scene.h"
+#include "cpvs/render.h"
 #include "cpvs/scene.h"
 
 namespace cpvs {
@@ -118,6 +119,10 @@ struct AccuracyRow {
 struct AccuracyOptions {
   std::vector<int> log2Resolutions{10, 11, 12};
   uint64_t samples = 100000;      // surface points, the same for every resolution and method
+  /// Where the points lie: empty = uniform by area over every surface (sampleSurfaces);
+  /// otherwise on what these cameras see (sampleCameraViews, images of cameraAspect).
+  std::vector<Camera> cameras;
+  double cameraAspect = 16.0 / 9.0;
   uint64_t pcfSamples = 10000;    // the first this many of them get PCF references
   uint64_t seed = 1;
   BakeOptions bake;
@@ -130,6 +135,7 @@ struct AccuracyReport {
   uint64_t triangles = 0;
   Vec3 lightDir;
   uint64_t samples = 0, pcfSamples = 0, seed = 1;
+  std::vector<Camera> cameras;  // empty: the points are uniform by area
   double extent = 0, depthExtent = 0;  // the grid's u, v side and depth range (world units)
   double firstRadius = 0, maxRadius = 0;  // boundaryDistance's r0 and rMax
   unsigned threads = 0;                   // worker threads used for timings
@@ -140,7 +146,8 @@ struct AccuracyReport {
 
 /// Bakes the scene at each resolution (bakeGrid, timed per stage), renders the shadow-map
 /// baselines, and measures every structure on the same `samples` surface points
-/// (sampleSurfaces: uniform by area, the side a lookup is made from):
+/// (sampleSurfaces: uniform by area, the side a lookup is made from; or sampleCameraViews
+/// when options.cameras are given: what they see, the side they see):
 ///  - binary: the lookup from the point with its normal against exactlyLit at the point it
 ///    looks up (its offset point), binned by boundaryDistance of that point (with the
 ///    sample's normal), radii r0 = extent / (16 Rmax) doubling up to extent / 16;
@@ -150,7 +157,8 @@ struct AccuracyReport {
 ///  - ns per batched lookup (binary and each PCF width), all threads.
 /// Query points inside closed geometry are skipped and counted. Progress gets stages
 /// named "<R> bake", "<R> shadow maps", "<R> exact", "<R> pcf", "<R> timing"; Cancelled
-/// is thrown when it returns false. InputError for an empty resolution list, samples < 1.
+/// is thrown when it returns false. InputError for an empty resolution list, samples < 1,
+/// or cameras that see no surface.
 AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, const AccuracyOptions& options,
                                const ProgressFn& progress = nullptr);
 

@@ -10,6 +10,7 @@
 #include "cpvs/query.h"
 #include "cpvs/ray_scene.h"
 #include "cpvs/scene.h"
+#include "cpvs/verify.h"
 
 namespace cpvs {
 
@@ -38,6 +39,19 @@ struct CameraHits {
 
 /// Traces one primary ray per pixel centre, multithreaded.
 CameraHits traceCamera(const Scene& scene, const RayScene& rays, const Camera& camera, int width, int height);
+
+/// Rays a camera sample may spend on sky before its point is dropped.
+constexpr int kCameraSampleAttempts = 16;
+
+/// Up to `count` points of the surfaces the cameras see, each with the normal of the side
+/// seen: sample i is the first hit of a ray through a uniformly random point of the image
+/// (of width / height `aspect`) of camera i mod cameras.size(), drawn again up to
+/// kCameraSampleAttempts times while it sees nothing, dropped after that. Deterministic
+/// for a seed (whatever the threads). Points are spread as the images' pixels are: dense
+/// where a camera looks closely, as a player's view is.
+std::vector<SurfaceSample> sampleCameraViews(const Scene& scene, const RayScene& rays,
+                                             const std::vector<Camera>& cameras, double aspect, uint64_t count,
+                                             uint64_t seed);
 
 /// Visibility of the sun per pixel (1 lit, 0 shadowed, fractions with PCF) from the CPVS,
 /// with the lookup's normal offset; pixels without a hit get 1.
