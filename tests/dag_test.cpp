@@ -5,6 +5,7 @@
 #include <random>
 
 #include "cpvs/cpvs_file.h"
+#include "cpvs/packed_dag.h"
 #include "dag_testing.h"
 
 namespace cpvs {
@@ -91,6 +92,26 @@ TEST_P(DagReference, ForcedHashCollisionsStayCorrect) {
                 buildTiled(d, c.log2R, 4, c.rule, false, CompressMode::BottomUp, HashKind::WeakForTests));
 }
 
+// The packed layout the queries walk answers every voxel, and every 8x8 slice, as the
+// reference walk over Dag's levels does.
+TEST_P(DagReference, PackedLayoutAnswersAsTheLevels) {
+  const Case c = GetParam();
+  const uint32_t R = 1u << c.log2R;
+  TexelDepths d = syntheticDepths(R, c.closed, c.seed);
+  const Dag dag = buildTiled(d, c.log2R, c.log2R, c.rule, true, CompressMode::TopDown, HashKind::Xxh3);
+  const PackedDag packed(dag);
+  EXPECT_EQ(packed.bytes(), dag.bytes());
+  uint64_t differ = 0;
+  for (uint64_t z = 0; z < R; ++z)
+    for (uint64_t y = 0; y < R; ++y)
+      for (uint64_t x = 0; x < R; ++x) differ += lookupVoxel(dag, x, y, z) != packed.voxelShadowed(x, y, z);
+  EXPECT_EQ(differ, 0u);
+  for (uint64_t z = 0; z < R; ++z)
+    for (uint64_t y = 0; y < R; y += 8)
+      for (uint64_t x = 0; x < R; x += 8) differ += leafSliceMask(dag, x, y, z) != packed.leafSliceMask(x, y, z);
+  EXPECT_EQ(differ, 0u);
+}
+
 INSTANTIATE_TEST_SUITE_P(Scenes, DagReference,
                          ::testing::Values(Case{6, false, UndefinedRule::New, 1}, Case{6, true, UndefinedRule::New, 2},
                                            Case{6, true, UndefinedRule::Old, 3}, Case{7, true, UndefinedRule::New, 4},
@@ -138,6 +159,21 @@ CpvsArtifact sampleArtifact() {
   art.grid.depthExtent = 5;
   art.sceneHash = Hash128{1, 2};
   return art;
+}
+
+// A DAG whose root is a whole-lit or whole-shadowed code, and one that is not complete.
+TEST(PackedDag, HomogeneousRootsAndIncompleteDags) {
+  for (uint32_t code : {uint32_t(kLit), uint32_t(kShadowed)}) {
+    Dag dag;
+    dag.reset(6, 6);
+    dag.roots.push_back({0, {code, 0}});
+    const PackedDag packed(dag);
+    EXPECT_EQ(packed.voxelShadowed(5, 63, 17), code == kShadowed);
+    EXPECT_EQ(packed.leafSliceMask(0, 0, 0), code == kShadowed ? ~uint64_t{0} : 0);
+  }
+  Dag tile;
+  tile.reset(8, 6);  // 2^6 roots of a 2^8 grid: a tile's sub-DAG
+  EXPECT_THROW(PackedDag{tile}, InputError);
 }
 
 TEST(CpvsFile, RoundTripsWithAndWithoutZstd) {

@@ -9,12 +9,13 @@
 
 namespace cpvs {
 
-ShadowQuery::ShadowQuery(const CpvsArtifact& artifact) : a_(artifact), R_(int64_t(artifact.grid.resolution())) {}
+ShadowQuery::ShadowQuery(const CpvsArtifact& artifact)
+    : a_(artifact), packed_(artifact.dag), R_(int64_t(artifact.grid.resolution())) {}
 
 bool ShadowQuery::voxelShadowed(const VoxelCoord& v) const {
   if (v.x < 0 || v.y < 0 || v.x >= R_ || v.y >= R_ || v.z < 0) return false;
   int64_t z = std::min(v.z, R_ - 1);
-  return cpvs::lookupVoxel(a_.dag, uint64_t(v.x), uint64_t(v.y), uint64_t(z));
+  return packed_.voxelShadowed(uint64_t(v.x), uint64_t(v.y), uint64_t(z));
 }
 
 namespace {
@@ -65,7 +66,7 @@ float ShadowQuery::filtered(const Vec3& p, const Vec3& n, int pcf) const {
       const uint64_t row = ((uint64_t{1} << (colHi - colLo + 1)) - 1) << colLo;
       uint64_t footprint = 0;
       for (int64_t ty = rowLo; ty <= rowHi; ++ty) footprint |= row << (ty * 8);
-      shadowed += std::popcount(cpvs::leafSliceMask(a_.dag, uint64_t(bx) * 8, uint64_t(by) * 8, z) & footprint);
+      shadowed += std::popcount(packed_.leafSliceMask(uint64_t(bx) * 8, uint64_t(by) * 8, z) & footprint);
     }
   }
   return float(texels - shadowed) / float(texels);

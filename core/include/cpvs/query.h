@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "cpvs/cpvs_file.h"
+#include "cpvs/packed_dag.h"
 
 namespace cpvs {
 
@@ -22,7 +23,10 @@ struct VoxelCoord {
   int64_t x = 0, y = 0, z = 0;
 };
 
-/// Answers shadow queries on a complete DAG. Holds a reference to the artifact.
+/// Answers shadow queries on a complete DAG. Holds a reference to the artifact, and walks
+/// a PackedDag copy of its DAG (made once, O(nodes)): binary lookups on the Quake 3 house
+/// at 16K took 409 ns walking Dag's levels, 2026-11 measurement in the README for the
+/// packed walk.
 class ShadowQuery {
  public:
   explicit ShadowQuery(const CpvsArtifact& artifact);
@@ -54,6 +58,7 @@ class ShadowQuery {
 
  private:
   const CpvsArtifact& a_;
+  PackedDag packed_;
   int64_t R_;
 };
 
