@@ -58,16 +58,6 @@ class StageLog {
   double last_ = 0;
 };
 
-LightFrame lightFrame(const AccuracyArgs& a) {
-  if (!a.sunDir.empty()) {
-    if (!std::isnan(a.elevation) || !std::isnan(a.azimuth))
-      throw InputError("give either --sun-dir or --sun-elevation/--sun-azimuth, not both");
-    return LightFrame::fromDirection(parseVec3(a.sunDir, "--sun-dir"));
-  }
-  if (std::isnan(a.elevation)) throw InputError("give the light: --sun-dir X,Y,Z or --sun-elevation DEG");
-  return LightFrame::fromElevationAzimuth(a.elevation, std::isnan(a.azimuth) ? 0.0 : a.azimuth);
-}
-
 std::vector<int> parseResolutions(const std::string& text) {
   std::vector<int> out;
   size_t start = 0;
@@ -107,8 +97,6 @@ int runAccuracy(const AccuracyArgs& a) {
   opt.log2Resolutions = parseResolutions(a.resolutions);
   if (a.samples < 100) throw InputError("--samples " + std::to_string(a.samples) + " must be at least 100");
   if (a.pcfSamples < 1) throw InputError("--pcf-samples must be at least 1");
-  if (a.tileSize < 8 || (a.tileSize & (a.tileSize - 1)) != 0)
-    throw InputError("--tile-size " + std::to_string(a.tileSize) + " must be a power of two, at least 8");
   opt.samples = a.samples;
   opt.pcfSamples = std::min(a.pcfSamples, a.samples);
   opt.seed = a.seed;
@@ -116,9 +104,8 @@ int runAccuracy(const AccuracyArgs& a) {
   if (!(a.timingSeconds >= 0) || a.timingSeconds > 3600)
     throw InputError("--timing-seconds " + std::to_string(a.timingSeconds) + " must be between 0 and 3600");
   opt.minTimingSeconds = a.timingSeconds;
-  opt.bake.log2TileSize = 0;
-  while ((1 << opt.bake.log2TileSize) < a.tileSize) ++opt.bake.log2TileSize;
-  const LightFrame frame = lightFrame(a);
+  opt.bake.log2TileSize = log2TileSize(a.tileSize);
+  const LightFrame frame = lightFromFlags(a.sunDir, a.elevation, a.azimuth);
   prepareOutDir(a.out);
 
   const Scene scene = openScene(a.scene);

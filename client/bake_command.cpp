@@ -109,21 +109,9 @@ int runBake(const BakeArgs& a) {
   opt.compress = a.compress == "bottomup" ? CompressMode::BottomUp
                                            : (a.compress == "none" ? CompressMode::None : CompressMode::TopDown);
   opt.undefinedRule = a.undefinedRule == "old" ? UndefinedRule::Old : UndefinedRule::New;
-  if (a.tileSize < 8 || (a.tileSize & (a.tileSize - 1)) != 0)
-    throw InputError("--tile-size " + std::to_string(a.tileSize) + " must be a power of two, at least 8");
-  opt.log2TileSize = 0;
-  while ((1 << opt.log2TileSize) < a.tileSize) ++opt.log2TileSize;
+  opt.log2TileSize = log2TileSize(a.tileSize);
   int log2R = parseResolution(a.resolution);
-
-  LightFrame frame;
-  if (!a.sunDir.empty()) {
-    if (!std::isnan(a.elevation) || !std::isnan(a.azimuth))
-      throw InputError("give either --sun-dir or --sun-elevation/--sun-azimuth, not both");
-    frame = LightFrame::fromDirection(parseVec3(a.sunDir, "--sun-dir"));
-  } else {
-    if (std::isnan(a.elevation)) throw InputError("give the light: --sun-dir X,Y,Z or --sun-elevation DEG");
-    frame = LightFrame::fromElevationAzimuth(a.elevation, std::isnan(a.azimuth) ? 0.0 : a.azimuth);
-  }
+  const LightFrame frame = lightFromFlags(a.sunDir, a.elevation, a.azimuth);
 
   StageTimes st;
   auto start = std::chrono::steady_clock::now();

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -39,6 +40,22 @@ Vec3 parseVec3(const std::string& text, const std::string& what) {
 const char* closedName(ClosedMode m) {
   return m == ClosedMode::Auto ? "auto" : (m == ClosedMode::On ? "on" : "off");
 }
+LightFrame lightFromFlags(const std::string& sunDir, double elevation, double azimuth) {
+  if (!sunDir.empty()) {
+    if (!std::isnan(elevation) || !std::isnan(azimuth))
+      throw InputError("give either --sun-dir or --sun-elevation/--sun-azimuth, not both");
+    return LightFrame::fromDirection(parseVec3(sunDir, "--sun-dir"));
+  }
+  if (std::isnan(elevation)) throw InputError("give the light: --sun-dir X,Y,Z or --sun-elevation DEG");
+  return LightFrame::fromElevationAzimuth(elevation, std::isnan(azimuth) ? 0.0 : azimuth);
+}
+
+int log2TileSize(int tileSize) {
+  if (tileSize < 8 || (tileSize & (tileSize - 1)) != 0)
+    throw InputError("--tile-size " + std::to_string(tileSize) + " must be a power of two, at least 8");
+  return std::countr_zero(unsigned(tileSize));
+}
+
 const char* exitName(ExitMode m) { return m == ExitMode::Exact ? "exact" : "approx"; }
 const char* compressName(CompressMode m) {
   return m == CompressMode::TopDown ? "topdown" : (m == CompressMode::BottomUp ? "bottomup" : "none");

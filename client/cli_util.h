@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "cpvs/bake.h"
+#include "cpvs/light_frame.h"
 #include "cpvs/types.h"
 
 namespace cpvs::cli {
@@ -14,6 +15,12 @@ namespace cpvs::cli {
 Vec3 parseVec3(const std::string& text, const std::string& what);
 /// Parses comma-separated numbers.
 std::vector<double> parseNumbers(const std::string& text, const std::string& what);
+
+/// The light of --sun-dir (any side) or --sun-elevation/--sun-azimuth (azimuth 0 when
+/// not given; NaN = not given), with an error naming the flags when both or neither are.
+LightFrame lightFromFlags(const std::string& sunDir, double elevation, double azimuth);
+/// log2 of a --tile-size in texels; InputError unless a power of two of at least 8.
+int log2TileSize(int tileSize);
 
 /// Names of the option values, as the command line and JSON spell them.
 const char* closedName(ClosedMode m);

@@ -104,9 +104,6 @@ double AccuracyRow::binRate(int bin) const {
 
 namespace {
 
-// Distance from a point to beyond the grid's near plane: enough for any ray (as verify.cpp).
-double rayLength(const Grid& g) { return 2.0 * (g.depthExtent + g.extent) + 1.0; }
-
 // The samples' query points for one offset rule and what exact rays say about them.
 struct QueryPoints {
   std::vector<Vec3> points;
@@ -237,7 +234,8 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
   out.maxRadius = finest.extent / 16.0;
   out.threads = unsigned(tbb::this_task_arena::max_concurrency());
   out.timingSeconds = options.minTimingSeconds;
-  const double len = rayLength(finest);
+  const double len = shadowRayLength(finest);
+  const Hash128 geometryHash = sceneHash(scene);
   const ClosedMode closed = options.bake.closed;
 
   for (int log2R : resolutions) {
@@ -254,7 +252,7 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
     CpvsArtifact art;
     art.grid = grid;
     art.options = options.bake;
-    art.sceneHash = sceneHash(scene);
+    art.sceneHash = geometryHash;
     {
       StageTimes st;
       const auto start = std::chrono::steady_clock::now();

@@ -67,17 +67,4 @@ bool lookupVoxel(const Dag& dag, uint64_t x, uint64_t y, uint64_t z) {
   return (dag.leaves[ref.index] >> ((y & 7) * 8 + (x & 7))) & 1;
 }
 
-uint64_t leafSliceMask(const Dag& dag, uint64_t x, uint64_t y, uint64_t z) {
-  assert(dag.roots.size() == 1 && dag.log2RootSize == dag.log2Resolution);
-  NodeRef ref = dag.roots.front().ref;
-  for (int level = int(dag.levels.size()) - 1; level >= 0 && ref.code == kRef; --level) {
-    int shift = level + 2;
-    int c = level == 0 ? int(z & 7)
-                       : int(((z >> shift) & 1) << 2 | ((y >> shift) & 1) << 1 | ((x >> shift) & 1));
-    ref = dag.levels[level].child(ref.index, c);
-  }
-  if (ref.code == kRef) return dag.leaves[ref.index];
-  return ref.code == kShadowed ? ~uint64_t{0} : 0;
-}
-
 }  // namespace cpvs

@@ -9,6 +9,12 @@
 
 namespace cpvs {
 
+void checkPcfWidth(int pcf) {
+  if (pcf < 1 || pcf > kMaxPcfWidth || pcf % 2 == 0)
+    throw InputError("PCF width " + std::to_string(pcf) + " must be odd and between 1 and " +
+                     std::to_string(kMaxPcfWidth));
+}
+
 ShadowQuery::ShadowQuery(const CpvsArtifact& artifact)
     : a_(artifact), packed_(artifact.dag), R_(int64_t(artifact.grid.resolution())) {}
 
@@ -47,9 +53,7 @@ Vec3 ShadowQuery::offsetPoint(const Vec3& p, const Vec3& n, int pcf) const {
 }
 
 float ShadowQuery::filtered(const Vec3& p, const Vec3& n, int pcf) const {
-  if (pcf < 1 || pcf > kMaxPcfWidth || pcf % 2 == 0)
-    throw InputError("PCF width " + std::to_string(pcf) + " must be odd and between 1 and " +
-                     std::to_string(kMaxPcfWidth));
+  checkPcfWidth(pcf);
   const VoxelCoord v = lookupVoxel(p, n, pcf);
   const int64_t r = pcf / 2, texels = int64_t(pcf) * pcf;
   // Outside the grid is lit (as in voxelShadowed); beyond its far end is its last slice.

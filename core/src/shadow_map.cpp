@@ -20,12 +20,6 @@ constexpr uint32_t kMaxSide = uint32_t(1) << 20;
 // Packets of 8 coherent rays over 4 x 2 texels, as the CPVS depth renderer uses.
 constexpr uint32_t kPacketW = 4, kPacketH = 2;
 
-void checkPcf(int pcf) {
-  if (pcf < 1 || pcf > kMaxPcfWidth || pcf % 2 == 0)
-    throw InputError("PCF width " + std::to_string(pcf) + " must be odd and between 1 and " +
-                     std::to_string(kMaxPcfWidth));
-}
-
 int64_t floorToInt(double v) { return int64_t(std::floor(std::clamp(v, -1e15, 1e15))); }
 
 }  // namespace
@@ -66,7 +60,7 @@ Vec3 ShadowMap::offsetPoint(const Vec3& p, const Vec3& n, int pcf) const {
 }
 
 float ShadowMap::filteredAt(const Vec3& q, int pcf) const {
-  checkPcf(pcf);
+  checkPcfWidth(pcf);
   const Vec3 t = toTexel(q);
   const uint16_t qd = quantize(dot(q - grid_.origin, grid_.frame.dir) - grid_.d0, grid_.depthExtent);
   const int64_t cx = floorToInt(t.x), cy = floorToInt(t.y), s = int64_t(side_);
@@ -82,16 +76,8 @@ float ShadowMap::filteredAt(const Vec3& q, int pcf) const {
 
 void ShadowMap::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
                      std::vector<float>& out) const {
-  checkPcf(pcf);
+  checkPcfWidth(pcf);
   batchLookups(*this, points, normals, pcf, out);
-}
-
-void ShadowMap::batchAt(const std::vector<Vec3>& offsetPoints, int pcf, std::vector<float>& out) const {
-  checkPcf(pcf);
-  out.resize(offsetPoints.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, offsetPoints.size(), 1024), [&](const auto& range) {
-    for (size_t i = range.begin(); i != range.end(); ++i) out[i] = filteredAt(offsetPoints[i], pcf);
-  });
 }
 
 ShadowMap renderShadowMap(const RayScene& rays, const Grid& grid, uint32_t side) {

@@ -10,13 +10,6 @@
 
 namespace cpvs {
 
-namespace {
-
-// Distance from a point to beyond the grid's near plane along -dir: enough for any ray.
-double rayLength(const Grid& g) { return 2.0 * (g.depthExtent + g.extent) + 1.0; }
-
-}  // namespace
-
 std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                           const Vec3& lightDir, uint64_t count, uint64_t seed) {
   size_t tris = scene.triangleCount();
@@ -45,8 +38,10 @@ std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& ra
   return out;
 }
 
+double shadowRayLength(const Grid& g) { return 2.0 * (g.depthExtent + g.extent) + 1.0; }
+
 bool exactlyLit(const RayScene& rays, const Grid& grid, const Vec3& point) {
-  return !rays.occluded(point, -grid.frame.dir, 0.0, rayLength(grid));
+  return !rays.occluded(point, -grid.frame.dir, 0.0, shadowRayLength(grid));
 }
 
 VerifyResult verifyArtifact(const ShadowQuery& query, const Scene& scene, const RayScene& rays,
@@ -54,7 +49,7 @@ VerifyResult verifyArtifact(const ShadowQuery& query, const Scene& scene, const 
   const Grid& g = query.grid();
   const ClosedMode closed = query.artifact().options.closed;
   auto samples = sampleSurfaces(scene, rays, closed, g.frame.dir, count, seed);
-  const double len = rayLength(g);
+  const double len = shadowRayLength(g);
   const Vec3 toLight = -g.frame.dir;
   // "Within one voxel" of a shadow boundary: the exact visibility is not the same at
   // every point of the 3x3x3 voxel block around the query point, sampled at its corners

@@ -91,12 +91,4 @@ constexpr uint64_t rootKeyZ(uint64_t key) { return key & 0x1FFFFF; }
 /// shadowed. The reference walk that every other lookup is checked against.
 bool lookupVoxel(const Dag& dag, uint64_t x, uint64_t y, uint64_t z);
 
-/// The 8x8 shadow mask (bit ty*8+tx set = shadowed) of the leaf slice that holds voxel
-/// (x, y, z) of a complete DAG; a slice inside an entirely lit or shadowed node comes out
-/// as all zeros or all ones. One walk answers 64 voxels of one depth, which is what a
-/// filtered lookup needs: a 9x9 footprint touches at most 4 slices instead of 81 walks
-/// (PCF 9x9 on the bunny, 1K-16K: 1.4-2.5 us per lookup with one walk per texel,
-/// 0.12-0.28 us with this).
-uint64_t leafSliceMask(const Dag& dag, uint64_t x, uint64_t y, uint64_t z);
-
 }  // namespace cpvs

@@ -25,8 +25,11 @@ class PackedDag {
   int log2Resolution() const { return log2Resolution_; }
   uint64_t bytes() const { return words_.size() * 4 + leaves_.size() * 8; }
 
-  /// As cpvs::leafSliceMask: the 8x8 shadow mask (bit ty*8+tx) of the slice holding
-  /// voxel (x, y, z), each < 2^log2Resolution; all ones or zeros inside a homogeneous node.
+  /// The 8x8 shadow mask (bit ty*8+tx set = shadowed) of the leaf slice holding voxel
+  /// (x, y, z), each < 2^log2Resolution; all ones or zeros inside a homogeneous node. One
+  /// walk answers 64 voxels of one depth, which is what a filtered lookup needs: a 9x9
+  /// footprint touches at most 4 slices instead of 81 walks (PCF 9x9 on the bunny, 1K-16K:
+  /// 1.4-2.5 us per lookup with one walk per texel, 0.14-0.28 us with this).
   uint64_t leafSliceMask(uint64_t x, uint64_t y, uint64_t z) const {
     uint32_t code = rootCode_, at = rootAt_;
     for (int level = internalLevels_ - 1; level >= 0 && code == kRef; --level) {

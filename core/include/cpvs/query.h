@@ -18,6 +18,9 @@ constexpr int kMaxPcfWidth = 9;
 /// that every texel of the footprint clears the receiver.
 inline double normalOffsetVoxels(int pcf) { return 1.5 + 0.5 * (pcf - 1); }
 
+/// InputError unless pcf is an odd filter width in [1, kMaxPcfWidth].
+void checkPcfWidth(int pcf);
+
 /// Integer voxel coordinates; may lie outside the grid.
 struct VoxelCoord {
   int64_t x = 0, y = 0, z = 0;

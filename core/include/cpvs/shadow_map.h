@@ -63,8 +63,6 @@ class ShadowMap {
   /// (no offset).
   void batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
              std::vector<float>& out) const;
-  /// Many lookups at already offset points (filteredAt), multithreaded.
-  void batchAt(const std::vector<Vec3>& offsetPoints, int pcf, std::vector<float>& out) const;
 
  private:
   Grid grid_;

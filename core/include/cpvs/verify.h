@@ -45,5 +45,8 @@ VerifyResult verifyArtifact(const ShadowQuery& query, const Scene& scene, const 
 
 /// Exact visibility of the light from a world point: true = lit.
 bool exactlyLit(const RayScene& rays, const Grid& grid, const Vec3& point);
+/// Length of a shadow ray that leaves any point of the grid's volume towards the light:
+/// past the grid's near plane, whatever the point.
+double shadowRayLength(const Grid& grid);
 
 }  // namespace cpvs
