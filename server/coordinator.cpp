@@ -68,8 +68,9 @@ Coordinator::Coordinator(CoordinatorConfig config)
   // before the merge thread removed them.
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(fs::path(config_.dataDir) / "tiles", ec)) {
-    auto j = store_.job(entry.path().filename().string());
-    if (!j || isFinal(j->state)) fs::remove_all(entry.path(), ec);
+    const std::string jobId = entry.path().filename().string();
+    auto j = store_.job(jobId);
+    if (!j || isFinal(j->state)) removeTileResults(jobId);
   }
   reaper_ = std::thread([this] { reaperLoop(); });
   mergeThread_ = std::thread([this] { mergeLoop(); });
@@ -105,6 +106,11 @@ uint64_t Coordinator::waitForChange(uint64_t seen, int timeoutMs) {
 
 std::string Coordinator::tilePath(const std::string& jobId, uint64_t tile) const {
   return (fs::path(config_.dataDir) / "tiles" / jobId / (std::to_string(tile) + ".cpvt")).string();
+}
+
+void Coordinator::removeTileResults(const std::string& jobId) const {
+  std::error_code ec;  // best effort: a leftover folder costs disk, not correctness
+  fs::remove_all(fs::path(config_.dataDir) / "tiles" / jobId, ec);
 }
 
 std::string Coordinator::artifactFile(const std::string& jobId) const {
@@ -519,13 +525,12 @@ void Coordinator::mergeLoop() {
 }
 
 void Coordinator::mergeOne(const std::string& jobId, uint64_t tile) {
-  auto j = store_.job(jobId);
   if (tile == kRemoveTiles) {
     merges_.erase(jobId);
-    std::error_code ec;
-    fs::remove_all(fs::path(config_.dataDir) / "tiles" / jobId, ec);
+    removeTileResults(jobId);
     return;
   }
+  auto j = store_.job(jobId);
   if (!j || isFinal(j->state)) {
     merges_.erase(jobId);
     return;
@@ -568,8 +573,7 @@ void Coordinator::finishJob(const std::string& jobId, MergeState& m) {
   std::string checksum = farm::contentHash(file.data(), file.size()).hex();
   store_.addStageSeconds(jobId, {{"write", secondsSince(start)}});
   store_.finishJob(jobId, art.dag.bytes(), file.size(), m.peak, checksum, nowMs());
-  std::error_code ec;
-  fs::remove_all(fs::path(config_.dataDir) / "tiles" / jobId, ec);
+  removeTileResults(jobId);
   spdlog::info("job {} done: {} bytes (file {}), peak merge memory {} bytes", jobId, art.dag.bytes(), file.size(),
                m.peak);
   notify();

@@ -83,6 +83,8 @@ class Coordinator {
   pb::JobStatus toStatus(const JobRecord& j) const;
   std::string tilePath(const std::string& jobId, uint64_t tile) const;
   std::string artifactFile(const std::string& jobId) const;
+  /// Removes the folder of a job's tile results (done, cancelled or failed jobs).
+  void removeTileResults(const std::string& jobId) const;
   void notify();
   void failJob(const std::string& jobId, const std::string& error);
   /// Ends an unfinished job as cancelled or failed; false when it had already ended.
