@@ -138,8 +138,10 @@ TEST_F(FarmTest, OneAndThreeWorkersGiveTheLocalBytes) {
   EXPECT_EQ(bytesOf(path("one.cpvs")), bytesOf(path("local.cpvs")));
 
   // Two of them limited to one thread each, as workers sharing a machine are.
-  startWorker(address, "w2", {"--threads", "1"});
-  startWorker(address, "w3", {"--threads", "1"});
+  // They are pulling before the job exists, so that each can take a tile before the
+  // others finish all 64 on a loaded machine.
+  for (const char* name : {"w2", "w3"})
+    ASSERT_TRUE(startWorker(address, name, {"--threads", "1"}).waitForLog("pulling tiles", 30)) << workers_.back()->log();
   Ran three = submit(address, path("three.cpvs"), "three-workers");
   ASSERT_EQ(three.status, 0) << three.out;
   EXPECT_EQ(bytesOf(path("three.cpvs")), bytesOf(path("local.cpvs")));

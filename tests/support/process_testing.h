@@ -91,6 +91,17 @@ class ChildProcess {
     return s.str();
   }
 
+  /// Waits until the log holds `text`; false after `seconds` or when the process ended.
+  bool waitForLog(const std::string& text, double seconds) {
+    auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (std::chrono::steady_clock::now() < end) {
+      if (log().find(text) != std::string::npos) return true;
+      if (!running()) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return false;
+  }
+
  private:
   pid_t pid_ = -1;
   int status_ = -1;
