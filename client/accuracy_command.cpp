@@ -13,8 +13,10 @@
 
 #include "cli_util.h"
 #include "commands.h"
-#include "cpvs/accuracy.h"
-#include "cpvs/accuracy_report.h"
+#include "cpvs/base/error.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/eval/accuracy.h"
+#include "cpvs/eval/accuracy_report.h"
 
 namespace cpvs::cli {
 
@@ -104,7 +106,7 @@ int runAccuracy(const AccuracyArgs& a) {
   if (!(a.timingSeconds >= 0) || a.timingSeconds > 3600)
     throw InputError("--timing-seconds " + std::to_string(a.timingSeconds) + " must be between 0 and 3600");
   opt.minTimingSeconds = a.timingSeconds;
-  opt.bake.log2TileSize = log2TileSize(a.tileSize);
+  opt.bake.log2TileSize = log2TileSizeOf(uint64_t(std::max(a.tileSize, 0)), "--tile-size");
   const LightFrame frame = lightFromFlags(a.sunDir, a.elevation, a.azimuth);
   prepareOutDir(a.out);
 

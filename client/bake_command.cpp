@@ -9,9 +9,11 @@
 
 #include "cli_util.h"
 #include "commands.h"
-#include "cpvs/bake.h"
-#include "cpvs/cpvs_file.h"
-#include "cpvs/scene.h"
+#include "cpvs/bake/tile_plan.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/bake/bake.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/scene/source.h"
 
 namespace cpvs::cli {
 
@@ -34,10 +36,10 @@ std::string summaryJson(const BakeArgs& a, const Scene& scene, const SceneStats&
     << ",\n  \"triangles\": " << ss.triangles << ",\n  \"degenerate_dropped\": " << ss.degenerateDropped
     << ",\n  \"closed_triangles\": " << ss.closedTriangles << ",\n  \"resolution\": " << R
     << ",\n  \"light_dir\": [" << jsonNumber(art.grid.frame.dir.x) << ", " << jsonNumber(art.grid.frame.dir.y) << ", "
-    << jsonNumber(art.grid.frame.dir.z) << "],\n  \"options\": {\"closed\": " << jsonString(closedName(art.options.closed))
-    << ", \"exit\": " << jsonString(exitName(art.options.exit)) << ", \"cull\": " << (art.options.cull ? "true" : "false")
-    << ", \"compress\": " << jsonString(compressName(art.options.compress))
-    << ", \"undefined\": " << jsonString(ruleName(art.options.undefinedRule))
+    << jsonNumber(art.grid.frame.dir.z) << "],\n  \"options\": {\"closed\": " << jsonString(optionName(art.options.closed))
+    << ", \"exit\": " << jsonString(optionName(art.options.exit)) << ", \"cull\": " << (art.options.cull ? "true" : "false")
+    << ", \"compress\": " << jsonString(optionName(art.options.compress))
+    << ", \"undefined\": " << jsonString(optionName(art.options.undefinedRule))
     << ", \"tile_size\": " << (1u << art.options.log2TileSize) << "},\n  \"tiles\": " << tiles
     << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"file_bytes\": " << fileBytes
     << ",\n  \"shadow_map_bytes\": " << R * R * 2
@@ -68,8 +70,8 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
               ss.closedTriangles, static_cast<unsigned long long>(R), static_cast<unsigned long long>(tiles),
               tiles == 1 ? "" : "s");
   std::printf("  options: closed=%s exit=%s cull=%s compress=%s undefined=%s tile=%u\n",
-              closedName(art.options.closed), exitName(art.options.exit), art.options.cull ? "on" : "off",
-              compressName(art.options.compress), ruleName(art.options.undefinedRule), 1u << art.options.log2TileSize);
+              optionName(art.options.closed), optionName(art.options.exit), art.options.cull ? "on" : "off",
+              optionName(art.options.compress), optionName(art.options.undefinedRule), 1u << art.options.log2TileSize);
   std::printf("\n  %-10s %10s\n", "stage", "seconds");
   for (const auto& name : std::vector<std::string>{"load", "render", "masks", "insert", "compress", "merge", "write"}) {
     auto it = st.seconds.find(name);
@@ -103,13 +105,12 @@ int runBake(const BakeArgs& a) {
   if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
 
   BakeOptions opt;
-  opt.closed = a.closed == "on" ? ClosedMode::On : (a.closed == "off" ? ClosedMode::Off : ClosedMode::Auto);
-  opt.exit = a.exit == "approx" ? ExitMode::Approx : ExitMode::Exact;
+  opt.closed = parseOption<ClosedMode>(a.closed, "--closed");
+  opt.exit = parseOption<ExitMode>(a.exit, "--exit");
   opt.cull = a.cull == "on";
-  opt.compress = a.compress == "bottomup" ? CompressMode::BottomUp
-                                           : (a.compress == "none" ? CompressMode::None : CompressMode::TopDown);
-  opt.undefinedRule = a.undefinedRule == "old" ? UndefinedRule::Old : UndefinedRule::New;
-  opt.log2TileSize = log2TileSize(a.tileSize);
+  opt.compress = parseOption<CompressMode>(a.compress, "--compress");
+  opt.undefinedRule = parseOption<UndefinedRule>(a.undefinedRule, "--undefined");
+  opt.log2TileSize = log2TileSizeOf(uint64_t(std::max(a.tileSize, 0)), "--tile-size");
   int log2R = parseResolution(a.resolution);
   const LightFrame frame = lightFromFlags(a.sunDir, a.elevation, a.azimuth);
 
@@ -117,7 +118,7 @@ int runBake(const BakeArgs& a) {
   auto start = std::chrono::steady_clock::now();
   SceneStats ss;
   Scene scene = openScene(a.scene, &ss);
-  Grid grid = makeGrid(scene, frame, log2R);
+  OrthoGrid grid = makeGrid(scene, frame, log2R);
   RayScene rays(scene, grid.origin, a.threads);
   st.add("load", secondsSince(start));
   if (!a.json && !a.quiet)
@@ -140,7 +141,7 @@ int runBake(const BakeArgs& a) {
   writeFileAtomic(a.out, bytes);
   st.add("write", secondsSince(start));
   double total = secondsSince(totalStart);
-  uint64_t tiles = tilesPerSide(log2R, opt.log2TileSize);
+  uint64_t tiles = TilePlan(log2R, opt.log2TileSize).perSide();
   tiles *= tiles;
   if (a.json)
     std::cout << summaryJson(a, scene, ss, art, st, total, tiles, bytes.size());

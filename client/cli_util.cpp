@@ -1,3 +1,4 @@
+#include "cpvs/base/error.h"
 #include "cli_util.h"
 
 #include <spdlog/spdlog.h>
@@ -11,35 +12,6 @@
 
 namespace cpvs::cli {
 
-std::vector<double> parseNumbers(const std::string& text, const std::string& what) {
-  std::vector<double> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    size_t used = 0;
-    double v;
-    try {
-      v = std::stod(item, &used);
-    } catch (...) {
-      throw InputError(what + ": '" + item + "' is not a number");
-    }
-    while (used < item.size() && std::isspace(static_cast<unsigned char>(item[used]))) ++used;
-    if (used != item.size()) throw InputError(what + ": '" + item + "' is not a number");
-    if (!std::isfinite(v)) throw InputError(what + ": '" + item + "' is not finite");
-    out.push_back(v);
-  }
-  return out;
-}
-
-Vec3 parseVec3(const std::string& text, const std::string& what) {
-  auto v = parseNumbers(text, what);
-  if (v.size() != 3) throw InputError(what + ": expected X,Y,Z, got '" + text + "'");
-  return {v[0], v[1], v[2]};
-}
-
-const char* closedName(ClosedMode m) {
-  return m == ClosedMode::Auto ? "auto" : (m == ClosedMode::On ? "on" : "off");
-}
 LightFrame lightFromFlags(const std::string& sunDir, double elevation, double azimuth) {
   if (!sunDir.empty()) {
     if (!std::isnan(elevation) || !std::isnan(azimuth))
@@ -49,18 +21,6 @@ LightFrame lightFromFlags(const std::string& sunDir, double elevation, double az
   if (std::isnan(elevation)) throw InputError("give the light: --sun-dir X,Y,Z or --sun-elevation DEG");
   return LightFrame::fromElevationAzimuth(elevation, std::isnan(azimuth) ? 0.0 : azimuth);
 }
-
-int log2TileSize(int tileSize) {
-  if (tileSize < 8 || (tileSize & (tileSize - 1)) != 0)
-    throw InputError("--tile-size " + std::to_string(tileSize) + " must be a power of two, at least 8");
-  return std::countr_zero(unsigned(tileSize));
-}
-
-const char* exitName(ExitMode m) { return m == ExitMode::Exact ? "exact" : "approx"; }
-const char* compressName(CompressMode m) {
-  return m == CompressMode::TopDown ? "topdown" : (m == CompressMode::BottomUp ? "bottomup" : "none");
-}
-const char* ruleName(UndefinedRule r) { return r == UndefinedRule::New ? "new" : "old"; }
 
 std::string jsonString(const std::string& s) {
   std::string out = "\"";

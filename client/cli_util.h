@@ -5,28 +5,19 @@
 #include <string>
 #include <vector>
 
-#include "cpvs/bake.h"
-#include "cpvs/light_frame.h"
-#include "cpvs/types.h"
+#include "cpvs/bake/options.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/light/frame.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/base/vec3.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/base/error.h"
 
 namespace cpvs::cli {
-
-/// Parses "X,Y,Z" into a finite vector; InputError naming `what` otherwise.
-Vec3 parseVec3(const std::string& text, const std::string& what);
-/// Parses comma-separated numbers.
-std::vector<double> parseNumbers(const std::string& text, const std::string& what);
 
 /// The light of --sun-dir (any side) or --sun-elevation/--sun-azimuth (azimuth 0 when
 /// not given; NaN = not given), with an error naming the flags when both or neither are.
 LightFrame lightFromFlags(const std::string& sunDir, double elevation, double azimuth);
-/// log2 of a --tile-size in texels; InputError unless a power of two of at least 8.
-int log2TileSize(int tileSize);
-
-/// Names of the option values, as the command line and JSON spell them.
-const char* closedName(ClosedMode m);
-const char* exitName(ExitMode m);
-const char* compressName(CompressMode m);
-const char* ruleName(UndefinedRule r);
 
 /// Minimal JSON writing: escaped strings, finite numbers.
 std::string jsonString(const std::string& s);
@@ -53,8 +44,8 @@ class ProgressDisplay {
 
 }  // namespace cpvs::cli
 
-#include "cpvs/cpvs_file.h"
-#include "cpvs/scene.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/scene/source.h"
 
 namespace cpvs::cli {
 

@@ -11,7 +11,9 @@
 #include <optional>
 #include <random>
 
-#include "cpvs/cpvs_file.h"
+#include "cpvs/base/error.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/io/cpvs_file.h"
 #include "farm_convert.h"
 
 namespace cpvs::cli {

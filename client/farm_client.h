@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "cpvs/base/error.h"
+#include "cpvs/scene/import.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "farm_channel.h"
 

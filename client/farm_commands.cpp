@@ -18,9 +18,13 @@
 
 #include "cli_util.h"
 #include "commands.h"
-#include "cpvs/cpvs_file.h"
-#include "cpvs/light_frame.h"
-#include "cpvs/scene.h"
+#include "cpvs/base/error.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/light/frame.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/scene/source.h"
 #include "farm_client.h"
 #include "farm_convert.h"
 
@@ -253,19 +257,15 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
   (void)parseResolution(spec.resolution());
 
   pb::BakeOptions& o = *spec.mutable_options();
-  if (given("--closed"))
-    o.set_closed(a.closed == "on" ? pb::CLOSED_ON : (a.closed == "off" ? pb::CLOSED_OFF : pb::CLOSED_AUTO));
-  if (given("--exit")) o.set_exit(a.exit == "approx" ? pb::EXIT_APPROX : pb::EXIT_EXACT);
+  // The proto's enum values are the core's (static_asserts in farm_convert.cpp).
+  if (given("--closed")) o.set_closed(pb::ClosedMode(parseOption<ClosedMode>(a.closed, "--closed")));
+  if (given("--exit")) o.set_exit(pb::ExitMode(parseOption<ExitMode>(a.exit, "--exit")));
   if (given("--cull")) o.set_no_cull(a.cull == "off");
-  if (given("--compress"))
-    o.set_compress(a.compress == "bottomup" ? pb::COMPRESS_BOTTOMUP
-                                            : (a.compress == "none" ? pb::COMPRESS_NONE : pb::COMPRESS_TOPDOWN));
-  if (given("--undefined")) o.set_undefined_rule(a.undefinedRule == "old" ? pb::UNDEFINED_OLD : pb::UNDEFINED_NEW);
-  if (given("--tile-size")) {
-    if (a.tileSize < 8 || (a.tileSize & (a.tileSize - 1)) != 0)
-      throw InputError("--tile-size " + std::to_string(a.tileSize) + " must be a power of two, at least 8");
-    o.set_tile_size(uint32_t(a.tileSize));
-  }
+  if (given("--compress")) o.set_compress(pb::CompressMode(parseOption<CompressMode>(a.compress, "--compress")));
+  if (given("--undefined"))
+    o.set_undefined_rule(pb::UndefinedRule(parseOption<UndefinedRule>(a.undefinedRule, "--undefined")));
+  if (given("--tile-size"))
+    o.set_tile_size(uint32_t(1) << log2TileSizeOf(uint64_t(std::max(a.tileSize, 0)), "--tile-size"));
   (void)farm::fromProto(o);
 
   if (given("--priority")) spec.set_priority(a.priority);

@@ -6,7 +6,7 @@
 
 #include "cli_util.h"
 #include "commands.h"
-#include "cpvs/cpvs_file.h"
+#include "cpvs/io/cpvs_file.h"
 
 namespace cpvs::cli {
 
@@ -23,7 +23,7 @@ int runInspect(const InspectArgs& a) {
   auto bytes = readFile(a.file);
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   const Dag& dag = art.dag;
-  const Grid& g = art.grid;
+  const OrthoGrid& g = art.grid;
   uint64_t R = g.resolution();
   const BakeOptions& o = art.options;
   if (a.json) {
@@ -35,10 +35,10 @@ int runInspect(const InspectArgs& a) {
       << jsonNumber(g.origin.x) << ", " << jsonNumber(g.origin.y) << ", " << jsonNumber(g.origin.z)
       << "], \"u0\": " << jsonNumber(g.u0) << ", \"v0\": " << jsonNumber(g.v0) << ", \"d0\": " << jsonNumber(g.d0)
       << ", \"extent\": " << jsonNumber(g.extent) << ", \"depth_extent\": " << jsonNumber(g.depthExtent)
-      << "},\n  \"options\": {\"closed\": " << jsonString(closedName(o.closed))
-      << ", \"exit\": " << jsonString(exitName(o.exit)) << ", \"cull\": " << (o.cull ? "true" : "false")
-      << ", \"compress\": " << jsonString(compressName(o.compress))
-      << ", \"undefined\": " << jsonString(ruleName(o.undefinedRule)) << ", \"tile_size\": " << (1u << o.log2TileSize)
+      << "},\n  \"options\": {\"closed\": " << jsonString(optionName(o.closed))
+      << ", \"exit\": " << jsonString(optionName(o.exit)) << ", \"cull\": " << (o.cull ? "true" : "false")
+      << ", \"compress\": " << jsonString(optionName(o.compress))
+      << ", \"undefined\": " << jsonString(optionName(o.undefinedRule)) << ", \"tile_size\": " << (1u << o.log2TileSize)
       << "},\n  \"bytes\": " << dag.bytes() << ",\n  \"nodes\": " << dag.nodeCount()
       << ",\n  \"shadow_map_bytes\": " << R * R * 2 << ",\n  \"levels\": [";
     for (int l = -1; l < int(dag.levels.size()); ++l) {
@@ -57,8 +57,8 @@ int runInspect(const InspectArgs& a) {
   std::printf("  grid origin  (%.6g, %.6g, %.6g), extent %.6g, depth %.6g\n", g.origin.x, g.origin.y, g.origin.z,
               g.extent, g.depthExtent);
   std::printf("  scene hash   %s\n", art.sceneHash.hex().c_str());
-  std::printf("  options      closed=%s exit=%s cull=%s compress=%s undefined=%s tile=%u\n", closedName(o.closed),
-              exitName(o.exit), o.cull ? "on" : "off", compressName(o.compress), ruleName(o.undefinedRule),
+  std::printf("  options      closed=%s exit=%s cull=%s compress=%s undefined=%s tile=%u\n", optionName(o.closed),
+              optionName(o.exit), o.cull ? "on" : "off", optionName(o.compress), optionName(o.undefinedRule),
               1u << o.log2TileSize);
   std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
   for (int l = -1; l < int(dag.levels.size()); ++l) {

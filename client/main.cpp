@@ -7,7 +7,9 @@
 #include <exception>
 
 #include "commands.h"
-#include "cpvs/types.h"
+#include "cpvs/base/vec3.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/base/error.h"
 
 int main(int argc, char** argv) {
   CLI::App app{

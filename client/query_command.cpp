@@ -6,7 +6,8 @@
 
 #include "cli_util.h"
 #include "commands.h"
-#include "cpvs/query.h"
+#include "cpvs/base/error.h"
+#include "cpvs/query/shadow_query.h"
 
 namespace cpvs::cli {
 
@@ -52,12 +53,12 @@ int runQuery(const QueryArgs& a) {
   if (!a.pointsCsv.empty() && !a.normal.empty())
     throw InputError("--normal goes with --point; in --points files put the normal in columns 4-6");
   CpvsArtifact art = readCpvs(a.file);
-  ShadowQuery q(art);
+  ShadowQuery q(art.grid, PackedDag(art.dag));
   if (!a.point.empty()) {
     Vec3 p = parseVec3(a.point, "--point");
     Vec3 n = a.normal.empty() ? Vec3{} : parseVec3(a.normal, "--normal");
     float vis = q.filtered(p, n, a.pcf);
-    VoxelCoord v = q.lookupVoxel(p, n, a.pcf);
+    VoxelCoord v = q.voxelOf(p, n, a.pcf);
     std::printf("%s  visibility %.4g  (voxel %lld, %lld, %lld)\n", vis == 1.0f ? "lit" : (vis == 0.0f ? "shadowed" : "partly lit"),
                 vis, static_cast<long long>(v.x), static_cast<long long>(v.y), static_cast<long long>(v.z));
     return 0;

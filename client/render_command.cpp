@@ -8,7 +8,8 @@
 
 #include "cli_util.h"
 #include "commands.h"
-#include "cpvs/render.h"
+#include "cpvs/base/error.h"
+#include "cpvs/eval/render.h"
 
 namespace cpvs::cli {
 
@@ -55,7 +56,7 @@ int runRender(const RenderArgs& a) {
   CpvsArtifact art = readCpvs(a.file);
   Scene scene = openMatchingScene(a.scene, art);
   RayScene rays(scene, art.grid.origin);
-  ShadowQuery q(art);
+  ShadowQuery q(art.grid, PackedDag(art.dag));
   const Vec3 L = art.grid.frame.dir;
   Camera cam = a.camera.empty() ? defaultCamera(scene, L, double(w) / h) : Camera::parse(a.camera);
   CameraHits hits = traceCamera(scene, rays, cam, w, h);

@@ -8,7 +8,8 @@
 
 #include "cli_util.h"
 #include "commands.h"
-#include "cpvs/verify.h"
+#include "cpvs/base/error.h"
+#include "cpvs/eval/verify.h"
 
 namespace cpvs::cli {
 
@@ -25,8 +26,8 @@ int runVerify(const VerifyArgs& a) {
   CpvsArtifact art = readCpvs(a.file);
   Scene scene = openMatchingScene(a.scene, art);
   RayScene rays(scene, art.grid.origin);
-  ShadowQuery q(art);
-  VerifyResult r = verifyArtifact(q, scene, rays, a.samples, a.seed);
+  ShadowQuery q(art.grid, PackedDag(art.dag));
+  VerifyResult r = verifyArtifact(q, art.options.closed, scene, rays, a.samples, a.seed);
   if (a.json) {
     std::ostringstream s;
     s << "{\n  \"file\": " << jsonString(a.file) << ",\n  \"scene\": " << jsonString(a.scene)

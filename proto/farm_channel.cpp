@@ -4,7 +4,9 @@
 #include <fstream>
 #include <sstream>
 
-#include "cpvs/types.h"
+#include "cpvs/base/vec3.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/base/error.h"
 
 namespace cpvs::farm {
 

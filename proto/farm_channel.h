@@ -1,6 +1,7 @@
 // How a client or worker reaches the coordinator: address, bearer token, TLS trust.
 #pragma once
 
+#include "cpvs/base/error.h"
 #include <grpcpp/grpcpp.h>
 
 #include <memory>

@@ -1,3 +1,4 @@
+#include "cpvs/base/error.h"
 #include "farm_convert.h"
 
 #include <google/protobuf/util/json_util.h>
@@ -17,7 +18,23 @@ pb::Vec3 toProto(const Vec3& v) {
 
 Vec3 fromProto(const pb::Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
+// The proto's enum values are the core's: conversions are casts.
+static_assert(int(ClosedMode::Auto) == pb::CLOSED_AUTO && int(ClosedMode::On) == pb::CLOSED_ON &&
+              int(ClosedMode::Off) == pb::CLOSED_OFF);
+static_assert(int(ExitMode::Exact) == pb::EXIT_EXACT && int(ExitMode::Approx) == pb::EXIT_APPROX);
+static_assert(int(CompressMode::TopDown) == pb::COMPRESS_TOPDOWN && int(CompressMode::BottomUp) == pb::COMPRESS_BOTTOMUP &&
+              int(CompressMode::None) == pb::COMPRESS_NONE);
+static_assert(int(UndefinedRule::New) == pb::UNDEFINED_NEW && int(UndefinedRule::Old) == pb::UNDEFINED_OLD);
+static_assert(pb::ClosedMode_ARRAYSIZE == int(OptionNames<ClosedMode>::kNames.size()) &&
+              pb::ExitMode_ARRAYSIZE == int(OptionNames<ExitMode>::kNames.size()) &&
+              pb::CompressMode_ARRAYSIZE == int(OptionNames<CompressMode>::kNames.size()) &&
+              pb::UndefinedRule_ARRAYSIZE == int(OptionNames<UndefinedRule>::kNames.size()),
+              "every value of an option exists on both sides");
+
 pb::BakeOptions toProto(const BakeOptions& o) {
+  // The farm hashes with XXH3 only: the weak hash is a hook for tests of one process.
+  if (o.hash != HashKind::Xxh3)
+    throw InputError(std::string("options.hash ") + optionName(o.hash) + " is not available on the farm");
   pb::BakeOptions p;
   p.set_closed(pb::ClosedMode(int(o.closed)));
   p.set_exit(pb::ExitMode(int(o.exit)));
@@ -29,27 +46,24 @@ pb::BakeOptions toProto(const BakeOptions& o) {
 }
 
 BakeOptions fromProto(const pb::BakeOptions& p) {
+  auto check = [](bool known, const char* field, int value) {
+    if (!known) throw InputError(std::string("options.") + field + ": unknown value " + std::to_string(value));
+  };
+  check(isOptionValue<ClosedMode>(p.closed()), "closed", p.closed());
+  check(isOptionValue<ExitMode>(p.exit()), "exit", p.exit());
+  check(isOptionValue<CompressMode>(p.compress()), "compress", p.compress());
+  check(isOptionValue<UndefinedRule>(p.undefined_rule()), "undefined_rule", p.undefined_rule());
   BakeOptions o;
-  if (p.closed() < 0 || p.closed() > 2) throw InputError("options.closed: unknown value " + std::to_string(p.closed()));
-  if (p.exit() < 0 || p.exit() > 1) throw InputError("options.exit: unknown value " + std::to_string(p.exit()));
-  if (p.compress() < 0 || p.compress() > 2)
-    throw InputError("options.compress: unknown value " + std::to_string(p.compress()));
-  if (p.undefined_rule() < 0 || p.undefined_rule() > 1)
-    throw InputError("options.undefined_rule: unknown value " + std::to_string(p.undefined_rule()));
   o.closed = ClosedMode(p.closed());
   o.exit = ExitMode(p.exit());
   o.cull = !p.no_cull();
   o.compress = CompressMode(p.compress());
   o.undefinedRule = UndefinedRule(p.undefined_rule());
-  uint32_t t = p.tile_size() == 0 ? 4096 : p.tile_size();
-  if (t < 8 || t > 65536 || (t & (t - 1)) != 0)
-    throw InputError("options.tile_size " + std::to_string(p.tile_size()) + " must be a power of two in 8..65536");
-  o.log2TileSize = 0;
-  while ((1u << o.log2TileSize) < t) ++o.log2TileSize;
+  o.log2TileSize = p.tile_size() == 0 ? kDefaultLog2TileSize : log2TileSizeOf(p.tile_size(), "options.tile_size");
   return o;
 }
 
-pb::GridSpec toProto(const Grid& g) {
+pb::GridSpec toProto(const OrthoGrid& g) {
   pb::GridSpec p;
   *p.mutable_light_dir() = toProto(g.frame.dir);
   *p.mutable_frame_u() = toProto(g.frame.u);
@@ -64,8 +78,8 @@ pb::GridSpec toProto(const Grid& g) {
   return p;
 }
 
-Grid fromProto(const pb::GridSpec& p) {
-  Grid g;
+OrthoGrid fromProto(const pb::GridSpec& p) {
+  OrthoGrid g;
   g.frame.dir = fromProto(p.light_dir());
   g.frame.u = fromProto(p.frame_u());
   g.frame.v = fromProto(p.frame_v());
@@ -75,15 +89,10 @@ Grid fromProto(const pb::GridSpec& p) {
   g.d0 = p.d0();
   g.extent = p.extent();
   g.depthExtent = p.depth_extent();
-  if (p.log2_resolution() < uint32_t(kMinLog2Resolution) || p.log2_resolution() > uint32_t(kMaxLog2Resolution))
+  if (p.log2_resolution() > uint32_t(kMaxLog2Resolution))
     throw InputError("grid.log2_resolution " + std::to_string(p.log2_resolution()) + " is out of range");
   g.log2Resolution = int(p.log2_resolution());
-  for (const Vec3* v : {&g.frame.dir, &g.frame.u, &g.frame.v, &g.origin})
-    if (!isFinite(*v)) throw InputError("grid: the light frame holds a non-finite value");
-  for (double v : {g.u0, g.v0, g.d0, g.extent, g.depthExtent})
-    if (!std::isfinite(v)) throw InputError("grid holds a non-finite value");
-  if (!(g.extent > 0) || !(g.depthExtent > 0)) throw InputError("grid extents must be positive");
-  if (std::abs(length(g.frame.dir) - 1) > 1e-9) throw InputError("grid.light_dir is not a unit vector");
+  checkGrid(g, "grid");
   return g;
 }
 

@@ -4,9 +4,12 @@
 
 #include <string>
 
-#include "cpvs/bake.h"
-#include "cpvs/light_frame.h"
-#include "cpvs/types.h"
+#include "cpvs/bake/options.h"
+#include "cpvs/light/frame.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/base/vec3.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/base/error.h"
 #include "cpvs/v1/farm.pb.h"
 
 namespace cpvs::farm {
@@ -16,14 +19,15 @@ namespace pb = ::cpvs::v1;
 pb::Vec3 toProto(const Vec3& v);
 Vec3 fromProto(const pb::Vec3& v);
 
+/// InputError for a hash other than XXH3 (the farm has no other).
 pb::BakeOptions toProto(const BakeOptions& o);
-/// Validates enum values and the tile size (a power of two, 8 .. 65536; 0 = 4096).
+/// Validates enum values and the tile size (log2TileSizeOf; 0 = the default, 4096).
 /// Throws InputError naming the field.
 BakeOptions fromProto(const pb::BakeOptions& o);
 
-pb::GridSpec toProto(const Grid& g);
-/// Validates finiteness, a unit light direction, positive extents and the resolution.
-Grid fromProto(const pb::GridSpec& g);
+pb::GridSpec toProto(const OrthoGrid& g);
+/// Validates the grid as the file reader does (checkGrid).
+OrthoGrid fromProto(const pb::GridSpec& g);
 
 /// The light of a spec: a finite non-zero direction or a sun above the horizon.
 LightFrame lightOf(const pb::BakeSpec& spec);

@@ -2,6 +2,7 @@
 // administrators may do both.
 #pragma once
 
+#include "cpvs/base/error.h"
 #include <map>
 #include <optional>
 #include <string>

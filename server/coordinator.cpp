@@ -8,9 +8,16 @@
 #include <fstream>
 #include <random>
 
-#include "cpvs/cpvs_file.h"
-#include "cpvs/scene.h"
-#include "cpvs/sub_dag_file.h"
+#include "cpvs/bake/tile_plan.h"
+#include "cpvs/base/error.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/base/progress.h"
+#include "cpvs/dag/merge.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/scene/source.h"
+#include "cpvs/io/sub_dag_file.h"
 #include "farm_convert.h"
 
 namespace cpvs::server {
@@ -302,7 +309,7 @@ pb::JobStatus Coordinator::submit(const pb::SubmitBakeRequest& request) {
   checkRoom();  // before loading the scene, which may take long
   std::string path = scenePath(spec.scene_hash(), nullptr);
   Scene scene = loadScene(path);
-  Grid grid;
+  OrthoGrid grid;
   try {
     grid = makeGrid(scene, frame, log2R);
   } catch (const InputError& e) {
@@ -318,7 +325,7 @@ pb::JobStatus Coordinator::submit(const pb::SubmitBakeRequest& request) {
   j.priority = spec.priority();
   j.createdMs = nowMs();
   j.resolution = grid.resolution();
-  j.tilesPerSide = tilesPerSide(log2R, options.log2TileSize);
+  j.tilesPerSide = TilePlan(log2R, options.log2TileSize).perSide();
   j.tilesTotal = j.tilesPerSide * j.tilesPerSide;
   {
     // Checked again and created under one lock: a retry that arrives while its first call

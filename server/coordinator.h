@@ -14,7 +14,8 @@
 #include <thread>
 #include <vector>
 
-#include "cpvs/dag_merge.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/dag/merge.h"
 #include "cpvs/v1/farm.pb.h"
 #include "farm_error.h"
 #include "farm_store.h"

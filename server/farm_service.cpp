@@ -1,3 +1,5 @@
+#include "cpvs/base/error.h"
+#include "cpvs/scene/import.h"
 #include "farm_service.h"
 
 #include <spdlog/spdlog.h>

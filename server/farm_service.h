@@ -4,6 +4,7 @@
 
 #include "auth.h"
 #include "coordinator.h"
+#include "cpvs/scene/import.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 
 namespace cpvs::server {

@@ -12,7 +12,9 @@
 
 #include "auth.h"
 #include "coordinator.h"
-#include "cpvs/cpvs_file.h"
+#include "cpvs/base/error.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/io/cpvs_file.h"
 #include "farm_channel.h"
 #include "farm_service.h"
 

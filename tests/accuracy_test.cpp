@@ -15,11 +15,13 @@
 #include <string>
 #include <vector>
 
-#include "cpvs/accuracy.h"
-#include "cpvs/accuracy_report.h"
-#include "cpvs/render.h"
-#include "cpvs/shadow_map.h"
-#include "cpvs/verify.h"
+#include "cpvs/base/error.h"
+#include "cpvs/scene/procedural_city.h"
+#include "cpvs/eval/accuracy.h"
+#include "cpvs/eval/accuracy_report.h"
+#include "cpvs/eval/render.h"
+#include "cpvs/eval/shadow_map.h"
+#include "cpvs/eval/verify.h"
 #include "process_testing.h"
 
 namespace cpvs {
@@ -74,7 +76,7 @@ double bruteForceHit(const Scene& scene, const Vec3& from, const Vec3& dir, bool
 // one 16-bit step, except for rays that graze an edge; any side, not only multiples of 8.
 TEST(ShadowMap, DepthsMatchBruteForce) {
   const Scene scene = makeProceduralCity(2, 5);
-  const Grid grid = makeGrid(scene, LightFrame::fromElevationAzimuth(40, 25), 6);
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromElevationAzimuth(40, 25), 6);
   RayScene rays(scene, grid.origin);
   for (uint32_t side : {64u, 45u}) {
     const ShadowMap map = renderShadowMap(rays, grid, side);
@@ -104,7 +106,7 @@ TEST(ShadowMap, DepthsMatchBruteForce) {
 TEST(ShadowMap, BinaryLookupsAreExactAwayFromBoundaries) {
   const Scene scene = makeProceduralCity(3, 2);
   const LightFrame frame = LightFrame::fromElevationAzimuth(35, 20);
-  const Grid grid = makeGrid(scene, frame, 8);
+  const OrthoGrid grid = makeGrid(scene, frame, 8);
   RayScene rays(scene, grid.origin);
   const auto samples = sampleSurfaces(scene, rays, ClosedMode::Auto, frame.dir, 4000, 3);
   for (uint32_t side : {256u, 300u}) {
@@ -130,7 +132,7 @@ TEST(ShadowMap, BinaryLookupsAreExactAwayFromBoundaries) {
 
 TEST(ShadowMap, RejectsBadArguments) {
   const Scene scene = floatingBox();
-  const Grid grid = makeGrid(scene, LightFrame::fromDirection({0, -1, 0}), 6);
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection({0, -1, 0}), 6);
   EXPECT_THROW(ShadowMap(grid, 0), InputError);
   ShadowMap map(grid, 16);
   EXPECT_THROW(map.filteredAt(grid.origin, 4), InputError);
@@ -147,7 +149,7 @@ TEST(BoundaryDistance, KnownDistanceToAShadowEdge) {
   const Scene scene = floatingBox();
   const LightFrame frame = LightFrame::fromDirection({0, -1, 0});
   ASSERT_NEAR(std::abs(frame.u.x), 1.0, 1e-12);
-  const Grid grid = makeGrid(scene, frame, 8);
+  const OrthoGrid grid = makeGrid(scene, frame, 8);
   RayScene rays(scene, grid.origin);
   const double r0 = 0.01, rMax = 5;
   struct Case {
@@ -198,7 +200,7 @@ TEST(BoundaryDistance, FollowsASlopedReceiver) {
   for (uint32_t t : {8u, 10u, 9u, 8u, 11u, 10u}) scene.indices.push_back(t);  // facing up
   finalizeScene(scene);
   const LightFrame frame = LightFrame::fromDirection({0, -1, 0});
-  const Grid grid = makeGrid(scene, frame, 8);
+  const OrthoGrid grid = makeGrid(scene, frame, 8);
   RayScene rays(scene, grid.origin);
   const Vec3 n = normalize(Vec3{-0.3, 1, 0});
   const Vec3 q = ramp(1.3, 0) + n * 0.02;  // lit, about 0.294 across the light from the edge at x = 1
@@ -212,7 +214,7 @@ TEST(BoundaryDistance, FollowsASlopedReceiver) {
 // edge of the box's shadow sees the lit column of texels only.
 TEST(BoundaryDistance, ExactFootprintOverAnEdge) {
   const Scene scene = floatingBox();
-  const Grid grid = makeGrid(scene, LightFrame::fromDirection({0, -1, 0}), 8);
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection({0, -1, 0}), 8);
   RayScene rays(scene, grid.origin);
   // The point on the edge x = 1 lies in texel k; the footprint's centres k - 1/2, k + 1/2
   // and k + 3/2 (in u) fall on both sides of the edge whichever way u points, so one or two
@@ -238,7 +240,7 @@ TEST(BoundaryDistance, ExactFootprintOverAnEdge) {
 // the sky gives none.
 TEST(CameraSampling, PointsAreWhatTheCamerasSee) {
   const Scene scene = makeProceduralCity(3, 5);
-  const Grid grid = makeGrid(scene, LightFrame::fromElevationAzimuth(35, 20), 8);
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromElevationAzimuth(35, 20), 8);
   RayScene rays(scene, grid.origin);
   const std::vector<Camera> cameras{defaultCamera(scene, grid.frame.dir, 16.0 / 9.0),
                                     Camera::parse("0,60,150,36,0,36,60")};

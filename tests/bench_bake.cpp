@@ -22,8 +22,10 @@
 #include <thread>
 #include <vector>
 
-#include "cpvs/bake.h"
-#include "cpvs/scene.h"
+#include "cpvs/base/error.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/bake/bake.h"
+#include "cpvs/scene/source.h"
 
 namespace cpvs {
 namespace {
@@ -213,7 +215,7 @@ struct Measurement {
 
 // Bakes `repeat` times and keeps the fastest run: on a shared machine the minimum is the
 // figure least disturbed by other work.
-Measurement measure(const RayScene& rays, const Grid& grid, const BakeOptions& options, int repeat) {
+Measurement measure(const RayScene& rays, const OrthoGrid& grid, const BakeOptions& options, int repeat) {
   Measurement best;
   for (int r = 0; r < repeat; ++r) {
     Measurement m;
@@ -382,12 +384,12 @@ int run(const Args& args) {
   for (const BenchScene& bs : scenes) {
     // The grid's origin is the scene's bounding-box centre whatever the resolution, so one
     // BVH serves every resolution; it is built (and warmed up) outside the timings.
-    const Grid first = makeGrid(bs.scene, frame, args.log2Resolutions.front());
+    const OrthoGrid first = makeGrid(bs.scene, frame, args.log2Resolutions.front());
     RayScene rays(bs.scene, first.origin);
     (void)bakeGrid(rays, makeGrid(bs.scene, frame, 6), BakeOptions{});  // warm-up: threads, caches, BVH
 
     for (int log2R : args.log2Resolutions) {
-      const Grid grid = makeGrid(bs.scene, frame, log2R);
+      const OrthoGrid grid = makeGrid(bs.scene, frame, log2R);
       if (!(grid.origin == rays.origin())) throw std::logic_error("grid origin depends on the resolution");
       Row row{bs.label, bs.kind, log2R, {}};
       for (int c = 0; c < kConfigCount; ++c) {

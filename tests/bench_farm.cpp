@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "cpvs/cpvs_file.h"
-#include "cpvs/scene.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/scene/source.h"
 #include "process_testing.h"
 
 namespace {

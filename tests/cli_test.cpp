@@ -9,9 +9,9 @@
 #include <fstream>
 #include <string>
 
-#include "cpvs/cpvs_file.h"
+#include "cpvs/io/cpvs_file.h"
 #include "process_testing.h"
-#include "cpvs/image.h"
+#include "cpvs/eval/image.h"
 
 namespace cpvs {
 namespace {

@@ -4,8 +4,9 @@
 #include <algorithm>
 #include <random>
 
-#include "cpvs/cpvs_file.h"
-#include "cpvs/packed_dag.h"
+#include "cpvs/base/error.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/dag/packed_dag.h"
 #include "dag_testing.h"
 
 namespace cpvs {
@@ -104,13 +105,13 @@ TEST_P(DagReference, PackedLayoutAnswersAsTheLevels) {
   uint64_t differ = 0;
   for (uint64_t z = 0; z < R; ++z)
     for (uint64_t y = 0; y < R; ++y)
-      for (uint64_t x = 0; x < R; ++x) differ += lookupVoxel(dag, x, y, z) != packed.voxelShadowed(x, y, z);
+      for (uint64_t x = 0; x < R; ++x) differ += dagVoxelShadowed(dag, x, y, z) != packed.voxelShadowed(x, y, z);
   EXPECT_EQ(differ, 0u);
   for (uint64_t z = 0; z < R; ++z)
     for (uint64_t y = 0; y < R; y += 8)
       for (uint64_t x = 0; x < R; x += 8) {
         uint64_t want = 0;  // the slice assembled voxel by voxel from the reference walk
-        for (uint64_t b = 0; b < 64; ++b) want |= uint64_t(lookupVoxel(dag, x + b % 8, y + b / 8, z)) << b;
+        for (uint64_t b = 0; b < 64; ++b) want |= uint64_t(dagVoxelShadowed(dag, x + b % 8, y + b / 8, z)) << b;
         differ += want != packed.leafSliceMask(x, y, z);
       }
   EXPECT_EQ(differ, 0u);

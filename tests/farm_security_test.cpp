@@ -14,11 +14,12 @@
 #include <limits>
 #include <thread>
 
-#include "cpvs/bake.h"
-#include "cpvs/cpvs_file.h"
-#include "cpvs/ray_scene.h"
-#include "cpvs/scene.h"
-#include "cpvs/sub_dag_file.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/bake/bake.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/raytrace/ray_scene.h"
+#include "cpvs/scene/source.h"
+#include "cpvs/io/sub_dag_file.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "farm_channel.h"
 #include "farm_convert.h"
@@ -372,7 +373,7 @@ struct SuiteState {
   /// not the job's).
   std::string bake(const pb::TileLease& lease, uint64_t tileX, uint64_t tileY, bool otherLight = false) const {
     Scene scene = loadScene(scenePath);
-    Grid grid = farm::fromProto(lease.grid());
+    OrthoGrid grid = farm::fromProto(lease.grid());
     if (otherLight) grid = makeGrid(scene, LightFrame::fromDirection({-0.6, -1, 0.5}), grid.log2Resolution);
     BakeOptions options = farm::fromProto(lease.options());
     RayScene rays(scene, grid.origin);

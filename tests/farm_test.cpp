@@ -13,8 +13,8 @@
 #include <regex>
 #include <set>
 
-#include "cpvs/cpvs_file.h"
-#include "cpvs/scene.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/scene/source.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "farm_channel.h"
 #include "process_testing.h"

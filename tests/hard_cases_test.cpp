@@ -8,9 +8,10 @@
 #include <numbers>
 #include <random>
 
-#include "cpvs/bake.h"
-#include "cpvs/cpvs_file.h"
-#include "cpvs/verify.h"
+#include "cpvs/base/error.h"
+#include "cpvs/bake/bake.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/eval/verify.h"
 
 namespace cpvs {
 namespace {
@@ -30,8 +31,8 @@ Baked bakeAndVerify(const Scene& scene, const Vec3& dir, int log2R, uint64_t sam
   RayScene rays(scene, b.art.grid.origin);
   b.art.dag = bakeGrid(rays, b.art.grid, b.art.options);
   b.art.sceneHash = sceneHash(scene);
-  ShadowQuery q(b.art);
-  b.verify = verifyArtifact(q, scene, rays, samples, 7);
+  ShadowQuery q(b.art.grid, PackedDag(b.art.dag));
+  b.verify = verifyArtifact(q, b.art.options.closed, scene, rays, samples, 7);
   return b;
 }
 
@@ -121,7 +122,7 @@ TEST(HardCases, FarFromTheOrigin) {
     uint64_t differ = 0, R = here.art.grid.resolution();
     for (int i = 0; i < 100000; ++i) {
       uint64_t x = rng() % R, y = rng() % R, z = rng() % R;
-      differ += lookupVoxel(here.art.dag, x, y, z) != lookupVoxel(there.art.dag, x, y, z);
+      differ += dagVoxelShadowed(here.art.dag, x, y, z) != dagVoxelShadowed(there.art.dag, x, y, z);
     }
     EXPECT_EQ(differ, 0u) << "translated by " << t;
   }
@@ -143,7 +144,7 @@ TEST(HardCases, MirroredSceneAndLight) {
   EXPECT_EXACT_AWAY_FROM_BOUNDARIES(a, "original");
   EXPECT_EXACT_AWAY_FROM_BOUNDARIES(b, "mirrored");
   RayScene rays(city, a.art.grid.origin);
-  ShadowQuery qa(a.art), qb(b.art);
+  ShadowQuery qa(a.art.grid, PackedDag(a.art.dag)), qb(b.art.grid, PackedDag(b.art.dag));
   auto samples = sampleSurfaces(city, rays, ClosedMode::Auto, a.art.grid.frame.dir, 20000, 9);
   uint64_t differ = 0;
   for (const auto& s : samples) {
@@ -175,7 +176,7 @@ TEST(HardCases, TinyAndHugeScenes) {
   Baked b = bakeAndVerify(huge, sun, 8);
   EXPECT_EXACT_AWAY_FROM_BOUNDARIES(b, "1e5 across with a sub-voxel needle");
   for (const Vec3& p : {Vec3{1, 2, 3}, Vec3{5e4, 3e4, 5e4}})
-    EXPECT_TRUE(std::isfinite(b.art.grid.toVoxel(p).x) && std::isfinite(b.art.grid.toVoxel(p).z));
+    EXPECT_TRUE(std::isfinite(b.art.grid.voxelFromWorld(p).x) && std::isfinite(b.art.grid.voxelFromWorld(p).z));
 }
 
 // --- awkward geometry ------------------------------------------------------------------------
@@ -226,8 +227,8 @@ TEST(HardCases, SelfIntersectingClosedMeshes) {
     art.options.log2TileSize = 6;
     RayScene rays(s, art.grid.origin);
     art.dag = bakeGrid(rays, art.grid, art.options);
-    ShadowQuery q(art);
-    VerifyResult r = verifyArtifact(q, s, rays, 8000, 3);
+    ShadowQuery q(art.grid, PackedDag(art.dag));
+    VerifyResult r = verifyArtifact(q, art.options.closed, s, rays, 8000, 3);
     EXPECT_EQ(r.mismatchElsewhere, 0u) << "exit " << int(exit);
   }
 }
@@ -251,7 +252,7 @@ TEST(HardCases, OpenMeshesForcedClosed) {
 // Texels on tile borders, at several tile sizes, give the same voxels as an untiled bake.
 TEST(HardCases, TileSeams) {
   Scene city = openScene("city:3:2");
-  Grid grid = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
+  OrthoGrid grid = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
   RayScene rays(city, grid.origin);
   BakeOptions whole;
   whole.log2TileSize = 8;
@@ -266,8 +267,8 @@ TEST(HardCases, TileSeams) {
       for (uint64_t a : {seam - 1, seam})
         for (uint64_t b = 0; b < R; b += 3)
           for (uint64_t z = 0; z < R; z += 5) {
-            differ += lookupVoxel(dag, a, b, z) != lookupVoxel(reference, a, b, z);
-            differ += lookupVoxel(dag, b, a, z) != lookupVoxel(reference, b, a, z);
+            differ += dagVoxelShadowed(dag, a, b, z) != dagVoxelShadowed(reference, a, b, z);
+            differ += dagVoxelShadowed(dag, b, a, z) != dagVoxelShadowed(reference, b, a, z);
           }
     EXPECT_EQ(differ, 0u) << "tile " << T;
     EXPECT_EQ(dag.bytes(), reference.bytes()) << "tile " << T;
@@ -279,10 +280,10 @@ TEST(HardCases, TileSeams) {
 TEST(HardCases, AddressingAtTwoToThe18And20) {
   Scene city = openScene("city:3:2");
   for (int log2R : {18, 20}) {
-    Grid g = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), log2R);
+    OrthoGrid g = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), log2R);
     const double R = double(g.resolution());
     for (Vec3 v : {Vec3{0.5, 0.5, 0.5}, Vec3{R - 0.5, R - 0.5, R - 0.5}, Vec3{R / 3 + 0.25, R / 7 + 0.5, R - 1.5}}) {
-      Vec3 back = g.toVoxel(g.toWorld(v));
+      Vec3 back = g.voxelFromWorld(g.worldFromVoxel(v));
       EXPECT_NEAR(back.x, v.x, 1e-3);
       EXPECT_NEAR(back.y, v.y, 1e-3);
       EXPECT_NEAR(back.z, v.z, 1e-3);
@@ -295,7 +296,7 @@ TEST(HardCases, AddressingAtTwoToThe18And20) {
   }
   // One 512-texel tile column of a 2^18 grid, in the middle of the city, against shadow
   // rays from the centres of a few of its voxels.
-  Grid g = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), 18);
+  OrthoGrid g = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), 18);
   RayScene rays(city, g.origin);
   BakeOptions opt;
   opt.log2TileSize = 9;

@@ -7,10 +7,11 @@
 #include <algorithm>
 #include <random>
 
-#include "cpvs/bake.h"
-#include "cpvs/cpvs_file.h"
-#include "cpvs/dag_merge.h"
-#include "cpvs/verify.h"
+#include "cpvs/bake/tile_plan.h"
+#include "cpvs/bake/bake.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/dag/merge.h"
+#include "cpvs/eval/verify.h"
 #include "dag_testing.h"
 #include "scene_testing.h"
 
@@ -46,7 +47,7 @@ class ScenePipeline : public ::testing::TestWithParam<SceneCase> {
 // rounding and are few.
 TEST_P(ScenePipeline, DepthMapsMatchBruteForce) {
   for (ExitMode exit : {ExitMode::Exact, ExitMode::Approx}) {
-    Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 6);
+    OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 6);
     RayScene rays(scene_, grid.origin);
     const uint64_t R = grid.resolution();
     TexelDepths got, want;
@@ -83,7 +84,7 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
   // The brute force is every ray against every triangle: larger scenes stay at 64.
   for (int log2R : {6, 7}) {
     if (log2R > 6 && scene_.triangleCount() > 10000) break;
-    Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), log2R);
+    OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), log2R);
     RayScene rays(scene_, grid.origin);
     BakeOptions opt;
     opt.log2TileSize = 5;  // several tiles even at small R
@@ -99,7 +100,7 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
         size_t at = y * R + x;
         if (ambiguous[at]) continue;
         for (uint64_t z = 0; z < R; ++z) {
-          bool shadowed = lookupVoxel(dag, x, y, z);
+          bool shadowed = dagVoxelShadowed(dag, x, y, z);
           if (z < want.lo[at]) {
             bad += shadowed;
           } else if (z >= want.hi[at]) {
@@ -111,7 +112,7 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
         // A voxel strictly between the enter and exit slices lies inside: its centre
         // must be inside a closed part by face counting.
         if (want.hi[at] >= want.lo[at] + 3) {
-          Vec3 centre = grid.toWorld(Vec3{x + 0.5, y + 0.5, (want.lo[at] + want.hi[at]) / 2 + 0.5});
+          Vec3 centre = grid.worldFromVoxel(Vec3{x + 0.5, y + 0.5, (want.lo[at] + want.hi[at]) / 2 + 0.5});
           ++undefinedChecked;
           undefinedOutside += rays.closedNesting(centre, -grid.frame.dir, 1e9, ClosedMode::Auto) <= 0;
         }
@@ -126,7 +127,7 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
 // tiles is decided from the merged children exactly as in an untiled build. So not only
 // every defined voxel but every byte agrees.
 TEST_P(ScenePipeline, TileSizesAgreeToTheByte) {
-  Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 9);
+  OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 9);
   RayScene rays(scene_, grid.origin);
   BakeOptions opt;
   opt.log2TileSize = 9;
@@ -141,11 +142,11 @@ TEST_P(ScenePipeline, TileSizesAgreeToTheByte) {
 
 // Sub-DAGs merged in a shuffled order give the same bytes as the in-order merge.
 TEST_P(ScenePipeline, MergeOrderDoesNotChangeBytes) {
-  Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
+  OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
   RayScene rays(scene_, grid.origin);
   BakeOptions opt;
   opt.log2TileSize = 6;
-  const uint64_t n = tilesPerSide(grid.log2Resolution, opt.log2TileSize);
+  const uint64_t n = TilePlan(grid.log2Resolution, opt.log2TileSize).perSide();
   std::vector<Dag> tiles;
   for (uint64_t i = 0; i < n * n; ++i) tiles.push_back(bakeTile(rays, grid, i % n, i / n, opt));
   Dag inOrder = bakeGrid(rays, grid, opt);
@@ -167,7 +168,7 @@ TEST_P(ScenePipeline, MergeOrderDoesNotChangeBytes) {
 // Culled and unculled insertion, top-down and bottom-up compression, and a weak 8-valued
 // hash that collides all the time, compute the same optimal DAG of the same voxels.
 TEST_P(ScenePipeline, ConstructionVariantsAgreeToTheByte) {
-  Grid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
+  OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
   RayScene rays(scene_, grid.origin);
   BakeOptions base;
   base.log2TileSize = 7;
@@ -198,7 +199,7 @@ TEST_P(ScenePipeline, ConstructionVariantsAgreeToTheByte) {
         uint64_t differ = 0;
         for (int i = 0; i < 200000; ++i) {
           uint64_t x = rng() % R, y = rng() % R, z = rng() % R;
-          differ += lookupVoxel(dag, x, y, z) != lookupVoxel(reference, x, y, z);
+          differ += dagVoxelShadowed(dag, x, y, z) != dagVoxelShadowed(reference, x, y, z);
         }
         EXPECT_EQ(differ, 0u);
       }
@@ -213,8 +214,8 @@ TEST_P(ScenePipeline, LookupsAgreeWithShadowRaysAwayFromBoundaries) {
     RayScene rays(scene_, art.grid.origin);
     art.dag = bakeGrid(rays, art.grid, art.options);
     art.sceneHash = sceneHash(scene_);
-    ShadowQuery query(art);
-    VerifyResult r = verifyArtifact(query, scene_, rays, 20000, 5);
+    ShadowQuery query(art.grid, PackedDag(art.dag));
+    VerifyResult r = verifyArtifact(query, art.options.closed, scene_, rays, 20000, 5);
     EXPECT_GT(r.samples, 15000u);
     EXPECT_EQ(r.mismatchElsewhere, 0u) << "R=" << art.grid.resolution();
     EXPECT_LT(r.fractionNearBoundary(), 0.02) << "R=" << art.grid.resolution();
@@ -229,17 +230,17 @@ TEST_P(ScenePipeline, FilteredLookupsCountTheirFootprintVoxelByVoxel) {
   art.grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 7);
   RayScene rays(scene_, art.grid.origin);
   art.dag = bakeGrid(rays, art.grid, art.options);
-  ShadowQuery query(art);
+  ShadowQuery query(art.grid, PackedDag(art.dag));
   const int64_t R = int64_t(art.grid.resolution());
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> coord(-0.1 * double(R), 1.1 * double(R));
   std::normal_distribution<double> normal;
   uint64_t differ = 0, partial = 0;
   for (int i = 0; i < 20000; ++i) {
-    const Vec3 p = art.grid.toWorld({coord(rng), coord(rng), coord(rng)});
+    const Vec3 p = art.grid.worldFromVoxel({coord(rng), coord(rng), coord(rng)});
     const Vec3 n = i % 4 == 0 ? Vec3{} : Vec3{normal(rng), normal(rng), normal(rng)};
     for (int pcf : {1, 3, 5, 9}) {
-      const VoxelCoord v = query.lookupVoxel(p, n, pcf);
+      const VoxelCoord v = query.voxelOf(p, n, pcf);
       int lit = 0;
       for (int dy = -pcf / 2; dy <= pcf / 2; ++dy)
         for (int dx = -pcf / 2; dx <= pcf / 2; ++dx) lit += !query.voxelShadowed({v.x + dx, v.y + dy, v.z});

@@ -17,8 +17,12 @@
 #include <utility>
 #include <vector>
 
-#include "cpvs/scene.h"
-#include "cpvs/types.h"
+#include "cpvs/scene/procedural_city.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/scene/source.h"
+#include "cpvs/base/vec3.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/base/error.h"
 
 namespace cpvs {
 namespace {

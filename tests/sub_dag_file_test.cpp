@@ -2,7 +2,8 @@
 // see is rejected with a message (truncation, bit flips, wrong order, foreign tiles).
 #include <gtest/gtest.h>
 
-#include "cpvs/sub_dag_file.h"
+#include "cpvs/base/error.h"
+#include "cpvs/io/sub_dag_file.h"
 #include "dag_testing.h"
 
 namespace cpvs {

@@ -11,7 +11,9 @@
 #include <memory>
 #include <thread>
 
-#include "cpvs/types.h"
+#include "cpvs/base/vec3.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/base/error.h"
 #include "tile_worker.h"
 
 namespace {

@@ -9,9 +9,10 @@
 #include <thread>
 #include <vector>
 
-#include "cpvs/bake.h"
-#include "cpvs/cpvs_file.h"
-#include "cpvs/sub_dag_file.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/bake/bake.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/io/sub_dag_file.h"
 #include "farm_convert.h"
 
 namespace cpvs::worker {
@@ -110,7 +111,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     renewer.join();
   };
   try {
-    Grid grid = farm::fromProto(lease.grid());
+    OrthoGrid grid = farm::fromProto(lease.grid());
     BakeOptions options = farm::fromProto(lease.options());
     auto rays = rayScene(lease.scene_hash(), grid.origin);
     StageTimes times;

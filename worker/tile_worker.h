@@ -9,8 +9,8 @@
 #include <mutex>
 #include <string>
 
-#include "cpvs/ray_scene.h"
-#include "cpvs/scene.h"
+#include "cpvs/raytrace/ray_scene.h"
+#include "cpvs/scene/source.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "farm_channel.h"
 

@@ -8,9 +8,10 @@
 #include <cstring>
 #include <vector>
 
-#include "cpvs/cpvs_file.h"
-#include "cpvs/packed_dag.h"
-#include "cpvs/sub_dag_file.h"
+#include "cpvs/base/error.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/dag/packed_dag.h"
+#include "cpvs/io/sub_dag_file.h"
 
 namespace {
 
@@ -24,7 +25,7 @@ void walk(const cpvs::Dag& dag) {
   for (uint64_t x = 0; x < R; x += step)
     for (uint64_t y = 0; y < R; y += step)
       for (uint64_t z = 0; z < R; z += step)
-        if (cpvs::lookupVoxel(dag, x, y, z) != packed.voxelShadowed(x, y, z)) __builtin_trap();
+        if (cpvs::dagVoxelShadowed(dag, x, y, z) != packed.voxelShadowed(x, y, z)) __builtin_trap();
 }
 
 void tryDecode(const uint8_t* data, size_t size) {

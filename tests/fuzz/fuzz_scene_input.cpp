@@ -6,8 +6,11 @@
 #include <cstring>
 #include <string>
 
-#include "cpvs/light_frame.h"
-#include "cpvs/scene.h"
+#include "cpvs/base/error.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/light/frame.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/scene/scene.h"
 
 namespace {
 
@@ -60,8 +63,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     (void)cpvs::sceneHash(scene);
     cpvs::LightFrame f = cpvs::LightFrame::fromDirection({dir[0], dir[1], dir[2]});
     (void)cpvs::LightFrame::fromElevationAzimuth(angles[0], angles[1]);
-    cpvs::Grid g = cpvs::makeGrid(scene, f, 3 + int(mode / 2) % 18);
-    (void)g.toVoxel({1, 2, 3});
+    cpvs::OrthoGrid g = cpvs::makeGrid(scene, f, 3 + int(mode / 2) % 18);
+    (void)g.voxelFromWorld({1, 2, 3});
   } catch (const cpvs::InputError&) {
   }
   return 0;

@@ -8,12 +8,12 @@
 #include <random>
 #include <vector>
 
-#include "cpvs/bake.h"
-#include "cpvs/dag.h"
-#include "cpvs/dag_builder.h"
-#include "cpvs/dag_compress.h"
-#include "cpvs/dag_merge.h"
-#include "cpvs/tile_masks.h"
+#include "cpvs/bake/bake.h"
+#include "cpvs/dag/dag.h"
+#include "cpvs/bake/insert_tile.h"
+#include "cpvs/dag/compress.h"
+#include "cpvs/dag/merge.h"
+#include "cpvs/bake/column_masks.h"
 
 namespace cpvs::testing {
 
@@ -107,7 +107,7 @@ inline uint64_t countReferenceMismatches(const Dag& dag, const TexelDepths& d, u
     for (uint32_t x = 0; x < R; ++x) {
       size_t at = size_t(y) * R + x;
       for (uint32_t z = 0; z < R; ++z) {
-        bool shadowed = lookupVoxel(dag, x, y, z);
+        bool shadowed = dagVoxelShadowed(dag, x, y, z);
         if (z < d.lo[at]) {
           bad += shadowed;
         } else if (z >= std::max(d.lo[at], d.hi[at])) {

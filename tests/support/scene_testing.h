@@ -10,10 +10,11 @@
 #include <string>
 #include <vector>
 
-#include "cpvs/depth_maps.h"
-#include "cpvs/light_frame.h"
-#include "cpvs/ray_scene.h"
-#include "cpvs/scene.h"
+#include "cpvs/bake/texel_slices.h"
+#include "cpvs/light/frame.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/raytrace/ray_scene.h"
+#include "cpvs/scene/source.h"
 
 namespace cpvs::testing {
 
@@ -36,9 +37,9 @@ inline std::string sharedScenesDir() {
 /// precision, classified by the same rule as the renderer. `ambiguous` is set when the
 /// ray passes within a hair of a triangle's edge, or a hit lies within a hair of a slice
 /// boundary: there float and double arithmetic may legitimately disagree.
-inline void bruteForceTexel(const Scene& scene, const Grid& grid, ClosedMode closed, ExitMode exit, uint64_t x,
+inline void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit, uint64_t x,
                             uint64_t y, uint32_t& lo, uint32_t& hi, bool& ambiguous) {
-  const Vec3 from = grid.toWorld(Vec3{double(x) + 0.5, double(y) + 0.5, 0.0});
+  const Vec3 from = grid.worldFromVoxel(Vec3{double(x) + 0.5, double(y) + 0.5, 0.0});
   const Vec3 dir = grid.frame.dir;
   const uint32_t R = uint32_t(grid.resolution());
   const double slicesPerUnit = double(R) / grid.depthExtent;
@@ -75,11 +76,11 @@ inline void bruteForceTexel(const Scene& scene, const Grid& grid, ClosedMode clo
       }
     hits = kept;
   }
-  classifyTexel(hits.data(), int(hits.size()), exit == ExitMode::Exact, slicesPerUnit, R, lo, hi);
+  classifyTexel(hits.data(), int(hits.size()), exit == ExitMode::Exact, grid, lo, hi);
 }
 
 /// Brute-force depths of the whole grid; `ambiguous` marks texels to leave out.
-inline void bruteForceDepths(const Scene& scene, const Grid& grid, ClosedMode closed, ExitMode exit,
+inline void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
                              TexelDepths& out, std::vector<uint8_t>& ambiguous) {
   const uint64_t R = grid.resolution();
   out.lo.assign(R * R, 0);

@@ -1,0 +1,36 @@
+// Visibility masks of 8x8-texel columns (§3.4).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "cpvs/bake/options.h"
+#include "cpvs/bake/texel_slices.h"
+
+namespace cpvs {
+
+/// The resolved voxels of a block of 8x8-texel columns. Each column is a monotone
+/// sequence of 64-bit masks along depth: all lit (mask 0) before its first transition,
+/// then each transition (slice, mask) replaces the mask from that slice on; bits only ever
+/// turn on (shadowed). Bit (ty * 8 + tx) is texel (8 cx + tx, 8 cy + ty).
+/// firstShadow is the first transition's slice (R if none) and fullShadow the slice from
+/// which the mask is all ones (R if never).
+struct ColumnMasks {
+  uint32_t columnsX = 0, columnsY = 0;
+  uint32_t resolution = 0;                  // R
+  std::vector<uint32_t> begin;              // columnsX * columnsY + 1, into slice/mask
+  std::vector<uint32_t> slice;
+  std::vector<uint64_t> mask;
+  std::vector<uint32_t> firstShadow, fullShadow;
+
+  size_t column(uint32_t cx, uint32_t cy) const { return size_t(cy) * columnsX + cx; }
+};
+
+/// Resolves the texel depths of a width x height block (multiples of 8) into column masks.
+/// Every voxel's value satisfies its texel's classification: lit where it must be lit,
+/// shadowed where it must be shadowed, and a choice by `rule` where it is undefined.
+/// Depends only on each column's own texels, so the result is independent of tiling.
+void buildColumnMasks(const TexelDepths& depths, uint32_t width, uint32_t height, uint32_t R,
+                      UndefinedRule rule, ColumnMasks& out);
+
+}  // namespace cpvs

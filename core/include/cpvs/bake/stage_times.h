@@ -1,0 +1,30 @@
+// The stages of a bake and the time spent in each.
+#pragma once
+
+#include <array>
+#include <map>
+#include <string>
+#include <string_view>
+
+#include "cpvs/bake/insert_tile.h"
+
+namespace cpvs {
+
+/// Every stage any process reports, in pipeline order: the one list that stage times,
+/// summaries and reports are keyed by. "load" (scene and BVH) and "write" belong to the
+/// command line, "encode" (a tile's sub-DAG bytes) to a farm worker.
+inline constexpr std::array<const char*, 8> kStageNames{"load",   "render", "masks", "insert",
+                                                        "compress", "encode", "merge", "write"};
+
+/// True when `name` is in kStageNames.
+bool isStageName(std::string_view name);
+
+/// Wall-clock seconds spent per stage (summed over tiles), and insertion counters.
+struct StageTimes {
+  std::map<std::string, double> seconds;
+  InsertStats insert;
+  /// Adds `s` seconds to a stage of kStageNames (an unknown name is a bug: CPVS_CHECK).
+  void add(const std::string& stage, double s);
+};
+
+}  // namespace cpvs

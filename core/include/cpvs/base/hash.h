@@ -1,0 +1,22 @@
+// 128-bit content hashes: nodes, scenes and jobs are named by what they hold.
+#pragma once
+
+#include <compare>
+#include <cstdint>
+#include <string>
+
+namespace cpvs {
+
+/// A 128-bit content hash (XXH3-128 in production). Ordered so that DAG levels can be
+/// sorted by it.
+struct Hash128 {
+  uint64_t lo = 0, hi = 0;
+  constexpr auto operator<=>(const Hash128& o) const {
+    if (auto c = hi <=> o.hi; c != 0) return c;
+    return lo <=> o.lo;
+  }
+  constexpr bool operator==(const Hash128&) const = default;
+  std::string hex() const;
+};
+
+}  // namespace cpvs

@@ -1,0 +1,25 @@
+// Parsing of user-given text: numbers, vectors, lists, resolutions. Every function
+// throws InputError naming `what` (a flag or field) and the text it could not read.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "cpvs/base/vec3.h"
+
+namespace cpvs {
+
+/// Splits on commas, trimming spaces; empty items are dropped.
+std::vector<std::string> splitList(const std::string& text);
+
+/// Comma-separated finite numbers ("1, 2.5,-3").
+std::vector<double> parseNumbers(const std::string& text, const std::string& what);
+
+/// "X,Y,Z" into a finite vector.
+Vec3 parseVec3(const std::string& text, const std::string& what);
+
+/// "4096", "4K", "16k", "256K" into log2 of a power of two in [kMinLog2Resolution,
+/// kMaxLog2Resolution] (base/limits.h).
+int parseResolution(const std::string& text);
+
+}  // namespace cpvs

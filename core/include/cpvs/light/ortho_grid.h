@@ -1,0 +1,62 @@
+// The voxel grid of a directional light: an orthographic LightGrid.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "cpvs/base/limits.h"
+#include "cpvs/light/frame.h"
+#include "cpvs/light/grid.h"
+
+namespace cpvs {
+
+struct Scene;
+
+/// The grid of a directional light over a scene. Every mapping is done in double
+/// precision relative to `origin` (the scene's bounding-box centre), and voxel indices
+/// are 64-bit. The fields are what files and messages store; the mapping is LightGrid's.
+class OrthoGrid final : public LightGrid {
+ public:
+  LightFrame frame;
+  int log2Resolution = 0;
+  Vec3 origin;             // world point at light coordinates (0, 0, 0)
+  double u0 = 0, v0 = 0;   // light coordinates of the grid corner, relative to origin
+  double d0 = 0;           // light depth of the near plane, relative to origin
+  double extent = 1;       // side of the grid in u and v (world units)
+  double depthExtent = 1;  // depth range (world units)
+
+  uint64_t resolution() const { return uint64_t(1) << log2Resolution; }
+  /// World size of one texel and one slice of side() cells.
+  double texelSize() const { return extent / cells(); }
+  double sliceSize() const { return depthExtent / cells(); }
+
+  /// The same volume cut into `side` cells a side (any side in [1, 2^20], not only a
+  /// power of two): the grid of a shadow map of that side. Its side() is `side`; the
+  /// stored fields and resolution() are unchanged.
+  OrthoGrid withSide(uint64_t side) const;
+
+  uint64_t side() const override { return side_ != 0 ? side_ : resolution(); }
+  Vec3 voxelFromWorld(const Vec3& world) const override;
+  Vec3 worldFromVoxel(const Vec3& voxel) const override;
+  TexelRay texelRay(uint64_t x, uint64_t y, const Vec3& relativeTo) const override;
+  uint32_t sliceOfDepth(double t) const override;
+  double depthOf(const Vec3& world) const override;
+  Vec3 offsetVoxel(const Vec3& world, const Vec3& normal, double voxels) const override;
+  /// A world-space direction in voxel units per world unit along each axis.
+  Vec3 directionToVoxel(const Vec3& worldDir) const;
+
+ private:
+  double cells() const { return double(side()); }
+  uint64_t side_ = 0;  // 0: resolution()
+};
+
+/// Fits a grid of resolution 2^log2Resolution to the scene as seen along `frame.dir`: the
+/// projected bounds, padded by a small margin, made square in u and v. Throws InputError
+/// for an empty scene or a resolution outside [kMinLog2Resolution, kMaxLog2Resolution].
+OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resolution);
+
+/// InputError naming `source` unless the grid's fields can be mapped with: a resolution
+/// in range, finite values, positive extents, a unit light direction and frame.
+void checkGrid(const OrthoGrid& grid, const std::string& source);
+
+}  // namespace cpvs

@@ -1,0 +1,45 @@
+// What a lookup does before it reads the DAG: the filter width, validated once, and the
+// normal offset that moves a receiver's point off its own surface.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+namespace cpvs {
+
+/// Largest supported PCF filter width in texels (odd widths 1, 3, ..., 9).
+constexpr int kMaxPcfWidth = 9;
+
+/// InputError unless pcf is an odd filter width in [1, kMaxPcfWidth].
+void checkPcfWidth(int pcf);
+
+/// A filter width known to be valid: built from an int (checkPcfWidth, so InputError at
+/// the boundary), then passed into hot loops that no longer check it.
+class PcfWidth {
+ public:
+  PcfWidth(int width) : width_(width) { checkPcfWidth(width); }  // NOLINT: implicit by design
+  constexpr int width() const { return width_; }
+  constexpr int radius() const { return width_ / 2; }
+  constexpr int texels() const { return width_ * width_; }
+
+ private:
+  int width_;
+};
+
+/// Normal offset, in voxels, applied before a lookup with a filter of width `pcf`: the
+/// offset point's voxel then lies entirely in front of a plane through the original point
+/// (any normal needs more than 1.366 voxels; 1.5 is used), plus half the filter width so
+/// that every texel of the footprint clears the receiver.
+constexpr double normalOffsetVoxels(int pcf) { return 1.5 + 0.5 * (pcf - 1); }
+
+/// Integer voxel coordinates; may lie outside the grid.
+struct VoxelCoord {
+  int64_t x = 0, y = 0, z = 0;
+};
+
+/// floor(v) as an integer, clamped far outside any grid so that the conversion stays
+/// defined for any finite or infinite input (NaN gives the lower clamp).
+inline int64_t floorToVoxel(double v) { return int64_t(std::floor(std::clamp(v, -1e15, 1e15))); }
+
+}  // namespace cpvs

@@ -1,0 +1,56 @@
+// CPU shadow queries on a complete DAG: the reference every other lookup is checked against.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "cpvs/base/vec3.h"
+#include "cpvs/dag/packed_dag.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/query/normal_offset.h"
+
+namespace cpvs {
+
+/// Answers shadow queries on a complete DAG. Owns what it walks: the grid and the packed
+/// DAG, moved in (build one from an artifact with ShadowQuery(art.grid, PackedDag(art.dag))).
+/// Walking the packed form instead of Dag's levels: batched binary lookups on the Quake 3
+/// house took 409 ns at 16K and 276 ns at 8K walking Dag's levels, 235 ns and 206 ns
+/// walking the packed copy (same machine, same day, `cpvs accuracy`); small DAGs that stay
+/// in cache gain nothing measurable. Thread-safe for lookups.
+class ShadowQuery {
+ public:
+  /// InputError when the DAG's resolution is not the grid's.
+  ShadowQuery(OrthoGrid grid, PackedDag dag);
+
+  const OrthoGrid& grid() const { return grid_; }
+  const PackedDag& dag() const { return dag_; }
+
+  /// True when the voxel is shadowed. Outside the grid in x or y, or in front of it, is
+  /// lit (nothing casts there); behind it answers as the last slice.
+  bool voxelShadowed(const VoxelCoord& v) const;
+
+  /// The voxel a query at world point p with normal n (need not be normalized; zero =
+  /// no offset) and filter width pcf lands in: p offset by normalOffsetVoxels(pcf) along
+  /// the normal (LightGrid::offsetVoxel), then floored to integers.
+  VoxelCoord voxelOf(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
+  /// The world position of the offset query point (before flooring), for references.
+  Vec3 offsetPoint(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
+
+  /// Binary visibility: 1 = lit, 0 = shadowed.
+  float visibility(const Vec3& p, const Vec3& n = {}) const { return filtered(p, n, kBinary); }
+  /// Fraction of the pcf x pcf texels around the lookup voxel (same slice) that are lit.
+  float filtered(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
+
+  /// Many queries at once, multithreaded; normals may be empty (no offset). InputError
+  /// for an invalid pcf or a normal count that is neither 0 nor the point count.
+  void batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
+             std::vector<float>& out) const;
+
+ private:
+  static inline const PcfWidth kBinary{1};
+  OrthoGrid grid_;
+  PackedDag dag_;
+  int64_t R_;
+};
+
+}  // namespace cpvs

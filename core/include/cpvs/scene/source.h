@@ -1,0 +1,16 @@
+// A scene by name: a generator or a file.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "cpvs/scene/scene.h"
+
+namespace cpvs {
+
+/// Opens a scene by name: "city", "city:BLOCKS" or "city:BLOCKS:SEED" generates the
+/// procedural city (12 blocks, seed 1 by default); anything else is a file for loadScene.
+/// The command line and the farm accept the same names.
+Scene openScene(const std::string& spec, SceneStats* stats = nullptr);
+
+}  // namespace cpvs

@@ -1,0 +1,76 @@
+#include "cpvs/bake/bake.h"
+
+#include <algorithm>
+#include <mutex>
+
+#include "cpvs/bake/column_masks.h"
+#include "cpvs/bake/insert_tile.h"
+#include "cpvs/bake/min_max_pyramid.h"
+#include "cpvs/bake/texel_slices.h"
+#include "cpvs/base/error.h"
+#include "cpvs/dag/compress.h"
+#include "cpvs/dag/merge.h"
+
+namespace cpvs {
+
+Dag bakeTile(const RayScene& rays, const OrthoGrid& grid, uint64_t tileX, uint64_t tileY,
+             const BakeOptions& options, StageTimes* times) {
+  StageTimes local;
+  StageTimes& st = times ? *times : local;
+  const int t = TilePlan(grid.log2Resolution, options.log2TileSize).log2TileSize();
+  const uint32_t T = uint32_t(1) << t;
+  const uint32_t R = uint32_t(grid.resolution());
+
+  auto start = std::chrono::steady_clock::now();
+  TexelDepths depths;
+  renderTexelDepths(rays, grid, options.closed, options.exit, tileX * T, tileY * T, T, T, depths);
+  st.add("render", secondsSince(start));
+
+  start = std::chrono::steady_clock::now();
+  ColumnMasks masks;
+  buildColumnMasks(depths, T, T, R, options.undefinedRule, masks);
+  depths = TexelDepths{};
+  MinMaxPyramid pyramid;
+  buildMinMaxPyramid(masks, pyramid);
+  st.add("masks", secondsSince(start));
+
+  start = std::chrono::steady_clock::now();
+  Dag dag;
+  insertTile(masks, pyramid, grid.log2Resolution, t, tileX, tileY, options.cull, dag, &st.insert);
+  st.add("insert", secondsSince(start));
+
+  start = std::chrono::steady_clock::now();
+  if (options.compress != CompressMode::None) {
+    computeHashes(dag, options.hash);
+    dag = compressDag(std::move(dag), options.compress);
+  }
+  st.add("compress", secondsSince(start));
+  return dag;
+}
+
+Dag bakeGrid(const RayScene& rays, const OrthoGrid& grid, const BakeOptions& options, StageTimes* times,
+             const ProgressFn& progress) {
+  StageTimes local;
+  StageTimes& st = times ? *times : local;
+  const TilePlan plan(grid.log2Resolution, options.log2TileSize);
+  const uint64_t total = plan.count();
+  StreamingMerger merger(options.compress);
+  if (progress && !progress("bake", 0, total)) throw Cancelled();
+  // Tiles run one after another; each stage inside a tile is parallel. Merges happen as
+  // tiles complete, so at most ~log2(tiles) partial DAGs are held.
+  for (uint64_t i = 0; i < total; ++i) {
+    const TileCoord tile = plan.tile(i);
+    Dag sub = bakeTile(rays, grid, tile.x, tile.y, options, &st);
+    auto start = std::chrono::steady_clock::now();
+    merger.add(std::move(sub));
+    st.add("merge", secondsSince(start));
+    if (progress && !progress("bake", i + 1, total)) throw Cancelled();
+  }
+  auto start = std::chrono::steady_clock::now();
+  Dag merged = *merger.finish();
+  Dag result = assembleRoots(std::move(merged), options.hash, options.compress);
+  st.add("merge", secondsSince(start));
+  return result;
+}
+
+}  // namespace cpvs

@@ -1,0 +1,95 @@
+#include "cpvs/bake/column_masks.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace cpvs {
+
+namespace {
+
+constexpr uint64_t kAll = ~uint64_t(0);
+
+// Appends the transitions of one 8x8 column. The new rule (§3.4) starts shadowing only
+// where some texel must be shadowed (the smallest hi), then shadows every texel that may be
+// shadowed (lo <= k) and keeps that mask until a lit texel must turn (the next smallest hi
+// among the lit bits). The old rule shadows every texel as soon as it may be, once the
+// column can no longer be all lit.
+void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, UndefinedRule rule,
+                       std::vector<uint32_t>& slices, std::vector<uint64_t>& masks,
+                       uint32_t& firstShadow, uint32_t& fullShadow) {
+  firstShadow = fullShadow = R;
+  uint64_t mask = 0;
+  uint32_t k = R;
+  for (int t = 0; t < 64; ++t) k = std::min(k, hi[t]);
+  while (k < R) {
+    uint64_t m = 0;
+    for (int t = 0; t < 64; ++t)
+      if (lo[t] <= k) m |= uint64_t(1) << t;
+    if (m != mask) {
+      if (mask == 0) firstShadow = k;
+      slices.push_back(k);
+      masks.push_back(m);
+      mask = m;
+    }
+    if (mask == kAll) {
+      fullShadow = k;
+      return;
+    }
+    uint32_t next = R;
+    for (int t = 0; t < 64; ++t)
+      if (!(mask >> t & 1)) next = std::min(next, rule == UndefinedRule::New ? hi[t] : lo[t]);
+    k = next;
+  }
+}
+
+}  // namespace
+
+void buildColumnMasks(const TexelDepths& depths, uint32_t width, uint32_t height, uint32_t R,
+                      UndefinedRule rule, ColumnMasks& out) {
+  if (width % 8 || height % 8) throw std::invalid_argument("buildColumnMasks: size not a multiple of 8");
+  out.columnsX = width / 8;
+  out.columnsY = height / 8;
+  out.resolution = R;
+  size_t n = size_t(out.columnsX) * out.columnsY;
+  out.firstShadow.assign(n, R);
+  out.fullShadow.assign(n, R);
+  // Columns of one row are resolved together, then rows are concatenated in order.
+  std::vector<std::vector<uint32_t>> rowSlices(out.columnsY), rowCounts(out.columnsY);
+  std::vector<std::vector<uint64_t>> rowMasks(out.columnsY);
+  tbb::parallel_for(uint32_t(0), out.columnsY, [&](uint32_t cy) {
+    uint32_t lo[64], hi[64];
+    auto& counts = rowCounts[cy];
+    counts.resize(out.columnsX);
+    for (uint32_t cx = 0; cx < out.columnsX; ++cx) {
+      for (int ty = 0; ty < 8; ++ty)
+        for (int tx = 0; tx < 8; ++tx) {
+          size_t at = size_t(cy * 8 + ty) * width + cx * 8 + tx;
+          lo[ty * 8 + tx] = depths.lo[at];
+          hi[ty * 8 + tx] = std::max(depths.lo[at], depths.hi[at]);
+        }
+      size_t before = rowSlices[cy].size();
+      size_t c = out.column(cx, cy);
+      columnTransitions(lo, hi, R, rule, rowSlices[cy], rowMasks[cy], out.firstShadow[c], out.fullShadow[c]);
+      counts[cx] = uint32_t(rowSlices[cy].size() - before);
+    }
+  });
+  out.begin.assign(n + 1, 0);
+  size_t total = 0;
+  for (uint32_t cy = 0; cy < out.columnsY; ++cy)
+    for (uint32_t cx = 0; cx < out.columnsX; ++cx) {
+      out.begin[out.column(cx, cy)] = uint32_t(total);
+      total += rowCounts[cy][cx];
+    }
+  out.begin[n] = uint32_t(total);
+  out.slice.resize(total);
+  out.mask.resize(total);
+  for (uint32_t cy = 0; cy < out.columnsY; ++cy) {
+    size_t at = out.begin[out.column(0, cy)];
+    std::copy(rowSlices[cy].begin(), rowSlices[cy].end(), out.slice.begin() + at);
+    std::copy(rowMasks[cy].begin(), rowMasks[cy].end(), out.mask.begin() + at);
+  }
+}
+
+}  // namespace cpvs

@@ -1,0 +1,161 @@
+#include "cpvs/bake/texel_slices.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+
+#include "cpvs/base/error.h"
+
+namespace cpvs {
+
+namespace {
+
+// Rays travel in packets of 8 covering 4 x 2 texels; blocks are aligned to global texel
+// coordinates so a texel always shares its packet with the same neighbours.
+constexpr int kPacketW = 4, kPacketH = 2;
+static_assert(kPacketW * kPacketH == kPacketLanes);
+
+}  // namespace
+
+int orderCrossings(RayHit* hits, int count, double tieDistance) {
+  std::sort(hits, hits + count, [](const RayHit& a, const RayHit& b) {
+    if (a.t != b.t) return a.t < b.t;
+    if (a.front != b.front) return a.front;
+    return a.triangle < b.triangle;
+  });
+  // Surfaces that coincide (a box standing on another) are computed from different
+  // triangles and land a few ulps apart in either order; within a run of crossings closer
+  // than tieDistance, enters go first so that the count never touches zero between them.
+  for (int i = 0; i < count;) {
+    int j = i + 1;
+    while (j < count && hits[j].t - hits[j - 1].t <= tieDistance) ++j;
+    std::stable_partition(hits + i, hits + j, [](const RayHit& h) { return h.front; });
+    i = j;
+  }
+  // A ray through a shared edge or vertex reports each triangle around it: crossings of
+  // the same kind within tieDistance are one crossing.
+  int n = 0;
+  for (int i = 0; i < count; ++i) {
+    bool dup = false;
+    for (int j = n - 1; j >= 0 && std::abs(hits[i].t - hits[j].t) <= tieDistance; --j)
+      if (hits[j].front == hits[i].front && hits[j].closed == hits[i].closed) {
+        dup = true;
+        break;
+      }
+    if (!dup) hits[n++] = hits[i];
+  }
+  return n;
+}
+
+void classifyTexel(const RayHit* hits, int count, bool exact, const LightGrid& grid, uint32_t& lo, uint32_t& hi) {
+  const uint32_t R = uint32_t(grid.side());
+  if (count == 0) {
+    lo = hi = R;
+    return;
+  }
+  const RayHit& enter = hits[0];
+  lo = hi = grid.sliceOfDepth(enter.t);
+  // Only a closed surface entered from its front side opens an interior.
+  if (!enter.closed || !enter.front) return;
+  if (!exact) {
+    for (int i = 1; i < count; ++i)
+      if (hits[i].closed && !hits[i].front) {
+        hi = std::max(lo, grid.sliceOfDepth(hits[i].t));
+        return;
+      }
+    return;
+  }
+  int depth = 0;
+  for (int i = 0; i < count; ++i) {
+    if (!hits[i].closed) continue;
+    depth += hits[i].front ? 1 : -1;
+    if (depth < 0) return;  // inconsistent orientation: no interior is trusted
+    if (depth == 0) {
+      hi = std::max(lo, grid.sliceOfDepth(hits[i].t));
+      return;
+    }
+  }
+  // Never left the interior (open geometry forced closed): keep the column defined.
+}
+
+void renderTexelDepths(const RayScene& rays, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
+                       uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
+                       TexelDepths& out) {
+  CPVS_CHECK(width % 8 == 0 && height % 8 == 0);
+  const uint32_t R = static_cast<uint32_t>(grid.resolution());
+  out.lo.assign(size_t(width) * height, R);
+  out.hi.assign(size_t(width) * height, R);
+  // Crossings closer than this are one crossing seen twice (Embree's robust mode reports
+  // a ray through a shared edge on both triangles).
+  const double dedupT = grid.depthExtent * 1e-6;
+  const bool exact = exit == ExitMode::Exact;
+
+  const uint32_t rowsOfPackets = height / kPacketH;
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, rowsOfPackets, 4), [&](const auto& range) {
+    std::array<RayCrossings, kPacketLanes> lanes;
+    std::array<RayHit, kMaxHitsPerRay> sorted;
+    std::array<RayHit, kPacketLanes> first, back;
+    std::array<bool, kPacketLanes> found, foundBack;
+    RayPacket packet;
+    for (uint32_t pr = range.begin(); pr != range.end(); ++pr) {
+      for (uint32_t px = 0; px < width; px += kPacketW) {
+        for (int l = 0; l < kPacketLanes; ++l) {
+          const uint64_t gx = x0 + px + (l % kPacketW), gy = y0 + uint64_t(pr) * kPacketH + (l / kPacketW);
+          const TexelRay ray = grid.texelRay(gx, gy, rays.origin());
+          packet.origin[size_t(l)] = ray.origin;
+          packet.dir = ray.dir;
+          packet.tNear[size_t(l)] = 0.0f;
+          packet.tFar[size_t(l)] = float(ray.tMax);
+          packet.active[size_t(l)] = true;
+        }
+        if (exact) {
+          rays.allCrossings(packet, closed, lanes);
+        } else {
+          // Each lane's closest hit; lanes entering a closed front face get a second
+          // pass for the first back face behind it.
+          rays.firstHits(packet, closed, first, found);
+          bool second = false;
+          for (size_t l = 0; l < size_t(kPacketLanes); ++l) {
+            lanes[l].count = found[l] ? 1 : 0;
+            lanes[l].overflow = false;
+            if (found[l]) lanes[l].hits[0] = first[l];
+            packet.active[l] = found[l] && first[l].closed && first[l].front;
+            packet.tNear[l] = found[l] ? float(first[l].t) : 0.0f;
+            second = second || packet.active[l];
+          }
+          if (second) {
+            rays.firstClosedBackFaces(packet, closed, back, foundBack);
+            for (size_t l = 0; l < size_t(kPacketLanes); ++l)
+              if (foundBack[l]) {
+                lanes[l].hits[1] = back[l];
+                lanes[l].count = 2;
+              }
+          }
+        }
+
+        for (int l = 0; l < kPacketLanes; ++l) {
+          RayCrossings& lh = lanes[size_t(l)];
+          int n = 0;
+          if (!lh.overflow) {
+            std::copy(lh.hits.begin(), lh.hits.begin() + lh.count, sorted.begin());
+            n = orderCrossings(sorted.data(), lh.count, dedupT);
+          } else {
+            sorted[0] = lh.hits[0];  // too many crossings: keep the enter depth only
+            for (int i = 1; i < lh.count; ++i)
+              if (lh.hits[i].t < sorted[0].t) sorted[0] = lh.hits[i];
+            sorted[0].closed = false;
+            n = 1;
+          }
+          const uint32_t lx = px + (l % kPacketW), ly = pr * kPacketH + (l / kPacketW);
+          const size_t at = size_t(ly) * width + lx;
+          classifyTexel(sorted.data(), n, exact, grid, out.lo[at], out.hi[at]);
+        }
+      }
+    }
+  });
+}
+
+}  // namespace cpvs

@@ -1,0 +1,84 @@
+#include "cpvs/base/file.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "cpvs/base/error.h"
+
+namespace cpvs {
+
+namespace {
+
+[[noreturn]] void fail(const std::string& what, const std::string& path, int error) {
+  throw InputError("cannot " + what + " " + path + ": " + std::strerror(error));
+}
+
+// A name unique to this write: process, then a counter shared by the process's threads.
+std::string temporaryName(const std::string& path) {
+  static std::atomic<uint64_t> counter{0};
+  return path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1));
+}
+
+}  // namespace
+
+void syncParentFolder(const std::string& path) {
+  std::string folder = std::filesystem::path(path).parent_path().string();
+  if (folder.empty()) folder = ".";
+  int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY);
+  if (fd < 0) fail("open folder", folder, errno);
+  if (::fsync(fd) != 0) {
+    int e = errno;
+    ::close(fd);
+    fail("sync folder", folder, e);
+  }
+  ::close(fd);
+}
+
+void writeFileAtomic(const std::string& path, const std::vector<uint8_t>& bytes) {
+  const std::string tmp = temporaryName(path);
+  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd < 0) fail("write", path, errno);
+  size_t done = 0;
+  while (done < bytes.size()) {
+    ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      int e = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      fail("write", path, e);
+    }
+    done += size_t(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    int e = errno;
+    ::unlink(tmp.c_str());
+    fail("write", path, e);
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    int e = errno;
+    ::unlink(tmp.c_str());
+    fail("write", path, e);
+  }
+  syncParentFolder(path);
+}
+
+std::vector<uint8_t> readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("open", path, errno);
+  in.seekg(0, std::ios::end);
+  std::streamoff n = in.tellg();
+  if (n < 0) throw InputError("cannot read " + path);
+  in.seekg(0);
+  std::vector<uint8_t> bytes(static_cast<size_t>(n));
+  if (n > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), n)) throw InputError("cannot read " + path);
+  return bytes;
+}
+
+}  // namespace cpvs

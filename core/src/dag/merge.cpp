@@ -1,0 +1,273 @@
+#include "cpvs/dag/merge.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "cpvs/dag/node_order.h"
+
+namespace cpvs {
+
+namespace {
+
+void checkShapes(const Dag& a, const Dag& b) {
+  if (a.log2Resolution != b.log2Resolution || a.log2RootSize != b.log2RootSize ||
+      a.levels.size() != b.levels.size())
+    throw std::invalid_argument("mergeDags: sub-DAGs of different shapes (resolution 2^" +
+                                std::to_string(a.log2Resolution) + " vs 2^" +
+                                std::to_string(b.log2Resolution) + ", roots 2^" +
+                                std::to_string(a.log2RootSize) + " vs 2^" +
+                                std::to_string(b.log2RootSize) + ")");
+}
+
+std::vector<Dag::Root> mergeRoots(const Dag& a, const std::vector<uint32_t>& mapA, const Dag& b,
+                                  const std::vector<uint32_t>& mapB) {
+  auto mapped = [](const Dag::Root& r, const std::vector<uint32_t>& m) {
+    return Dag::Root{r.key, r.ref.code == kRef ? NodeRef{kRef, m[r.ref.index]} : r.ref};
+  };
+  std::vector<Dag::Root> out;
+  out.reserve(a.roots.size() + b.roots.size());
+  size_t i = 0, j = 0;
+  while (i < a.roots.size() || j < b.roots.size()) {
+    if (j == b.roots.size() || (i < a.roots.size() && a.roots[i].key < b.roots[j].key)) {
+      out.push_back(mapped(a.roots[i++], mapA));
+    } else if (i == a.roots.size() || b.roots[j].key < a.roots[i].key) {
+      out.push_back(mapped(b.roots[j++], mapB));
+    } else {
+      throw std::invalid_argument("mergeDags: both sub-DAGs hold the root block (" +
+                                  std::to_string(rootKeyX(a.roots[i].key)) + ", " +
+                                  std::to_string(rootKeyY(a.roots[i].key)) + ", " +
+                                  std::to_string(rootKeyZ(a.roots[i].key)) + ")");
+    }
+  }
+  return out;
+}
+
+Dag concatenate(const Dag& a, const Dag& b) {
+  Dag out = a;
+  size_t leafOffset = a.leaves.size();
+  out.leaves.insert(out.leaves.end(), b.leaves.begin(), b.leaves.end());
+  out.leafHashes.insert(out.leafHashes.end(), b.leafHashes.begin(), b.leafHashes.end());
+  size_t belowOffset = leafOffset;
+  std::vector<uint32_t> mapA, mapB;
+  for (size_t l = 0; l < b.levels.size(); ++l) {
+    InternalLevel& dst = out.levels[l];
+    const InternalLevel& src = b.levels[l];
+    size_t offset = dst.size();
+    for (size_t i = 0; i < src.size(); ++i) {
+      dst.codes.push_back(src.codes[i]);
+      for (uint32_t k = src.childBegin[i]; k < src.childBegin[i + 1]; ++k)
+        dst.children.push_back(uint32_t(src.children[k] + belowOffset));
+      dst.childBegin.push_back(uint32_t(dst.children.size()));
+    }
+    if (l < b.levelHashes.size())
+      out.levelHashes[l].insert(out.levelHashes[l].end(), b.levelHashes[l].begin(), b.levelHashes[l].end());
+    belowOffset = offset;
+  }
+  size_t top = a.levels.empty() ? a.leaves.size() : a.levels.back().size();
+  mapA.resize(top);
+  for (size_t i = 0; i < top; ++i) mapA[i] = uint32_t(i);
+  size_t topB = b.levels.empty() ? b.leaves.size() : b.levels.back().size();
+  mapB.resize(topB);
+  for (size_t i = 0; i < topB; ++i) mapB[i] = uint32_t(i + belowOffset);
+  out.roots = mergeRoots(a, mapA, b, mapB);
+  return out;
+}
+
+}  // namespace
+
+Dag mergeDags(const Dag& a, const Dag& b, CompressMode mode) {
+  checkShapes(a, b);
+  if (mode == CompressMode::None) return concatenate(a, b);
+  Dag out;
+  out.reset(a.log2Resolution, a.log2RootSize);
+  std::vector<uint32_t> childA, childB, mapA, mapB;
+  const int levels = int(a.levels.size());
+  for (int l = -1; l < levels; ++l) {
+    const auto& ha = l < 0 ? a.leafHashes : a.levelHashes[l];
+    const auto& hb = l < 0 ? b.leafHashes : b.levelHashes[l];
+    size_t na = l < 0 ? a.leaves.size() : a.levels[l].size();
+    size_t nb = l < 0 ? b.leaves.size() : b.levels[l].size();
+    mapA.assign(na, 0);
+    mapB.assign(nb, 0);
+    // Content order with children mapped into the merged level below; each input stays
+    // sorted under it because the maps are monotone.
+    auto compare = [&](uint32_t i, uint32_t j) -> int {
+      if (ha[i] != hb[j]) return ha[i] < hb[j] ? -1 : 1;
+      if (l < 0) return compareNodes(a, l, i, b, j);
+      const InternalLevel& la = a.levels[l];
+      const InternalLevel& lb = b.levels[l];
+      if (la.codes[i] != lb.codes[j]) return la.codes[i] < lb.codes[j] ? -1 : 1;
+      uint32_t ka = la.childBegin[i], kb = lb.childBegin[j], n = la.refCount(i);
+      for (uint32_t k = 0; k < n; ++k) {
+        uint32_t ca = childA[la.children[ka + k]], cb = childB[lb.children[kb + k]];
+        if (ca != cb) return ca < cb ? -1 : 1;
+      }
+      return 0;
+    };
+    auto emit = [&](const Dag& src, uint32_t i, const std::vector<uint32_t>& childMap,
+                    const Hash128& h) -> uint32_t {
+      if (l < 0) {
+        out.leaves.push_back(src.leaves[i]);
+        out.leafHashes.push_back(h);
+        return uint32_t(out.leaves.size() - 1);
+      }
+      const InternalLevel& sl = src.levels[l];
+      InternalLevel& dl = out.levels[l];
+      dl.codes.push_back(sl.codes[i]);
+      for (uint32_t k = sl.childBegin[i]; k < sl.childBegin[i + 1]; ++k) dl.children.push_back(childMap[sl.children[k]]);
+      dl.childBegin.push_back(uint32_t(dl.children.size()));
+      out.levelHashes[l].push_back(h);
+      return uint32_t(dl.size() - 1);
+    };
+    if (l >= 0) {
+      out.levels[l].codes.reserve(na + nb);
+      out.levelHashes[l].reserve(na + nb);
+    }
+    size_t i = 0, j = 0;
+    while (i < na || j < nb) {
+      int c = i == na ? 1 : (j == nb ? -1 : compare(uint32_t(i), uint32_t(j)));
+      if (c < 0) {
+        mapA[i] = emit(a, uint32_t(i), childA, ha[i]);
+        ++i;
+      } else if (c > 0) {
+        mapB[j] = emit(b, uint32_t(j), childB, hb[j]);
+        ++j;
+      } else {
+        mapA[i] = mapB[j] = emit(a, uint32_t(i), childA, ha[i]);
+        ++i;
+        ++j;
+      }
+    }
+    childA.swap(mapA);
+    childB.swap(mapB);
+  }
+  out.roots = mergeRoots(a, childA, b, childB);
+  return out;
+}
+
+void StreamingMerger::add(Dag&& subDag) {
+  stack_.emplace_back(0, std::move(subDag));
+  while (stack_.size() >= 2 && stack_[stack_.size() - 1].first == stack_[stack_.size() - 2].first) {
+    auto top = std::move(stack_.back());
+    stack_.pop_back();
+    auto& below = stack_.back();
+    below.second = mergeDags(below.second, top.second, mode_);
+    below.first += 1;
+  }
+}
+
+std::optional<Dag> StreamingMerger::finish() {
+  if (stack_.empty()) return std::nullopt;
+  while (stack_.size() >= 2) {
+    auto top = std::move(stack_.back());
+    stack_.pop_back();
+    stack_.back().second = mergeDags(stack_.back().second, top.second, mode_);
+  }
+  Dag result = std::move(stack_.back().second);
+  stack_.clear();
+  return result;
+}
+
+uint64_t StreamingMerger::heldBytes() const {
+  uint64_t b = 0;
+  for (const auto& [rank, dag] : stack_) b += dag.bytes();
+  return b;
+}
+
+Dag assembleRoots(Dag&& merged, HashKind hash, CompressMode mode) {
+  Dag dag = std::move(merged);
+  const int L = dag.log2Resolution;
+  int t = dag.log2RootSize;
+  struct Entry {
+    uint64_t parentKey;
+    int child;
+    NodeRef ref;
+  };
+  std::vector<Dag::Root> current = dag.roots;
+  dag.levels.resize(Dag::internalLevels(L));
+  dag.levelHashes.resize(Dag::internalLevels(L));
+  while (t < L) {
+    uint64_t blocks = uint64_t(1) << (L - t);
+    if (current.size() != blocks * blocks * blocks)
+      throw std::invalid_argument("assembleRoots: " + std::to_string(current.size()) + " of " +
+                                  std::to_string(blocks * blocks * blocks) + " blocks of size 2^" +
+                                  std::to_string(t) + " present");
+    std::vector<Entry> entries;
+    entries.reserve(current.size());
+    for (const auto& r : current) {
+      uint64_t x = rootKeyX(r.key), y = rootKeyY(r.key), z = rootKeyZ(r.key);
+      entries.push_back({rootKey(x / 2, y / 2, z / 2), octant(x, y, z), r.ref});
+    }
+    std::sort(entries.begin(), entries.end(), [](const Entry& p, const Entry& q) {
+      return p.parentKey != q.parentKey ? p.parentKey < q.parentKey : p.child < q.child;
+    });
+    int level = t + 1 - 3;  // nodes of size 2^(t+1)
+    const auto& belowHashes = dag.levelHashes[level - 1];
+    // DAGs kept uncompressed carry no hashes; their new levels are not deduplicated.
+    const bool haveHashes = belowHashes.size() == dag.levels[level - 1].size();
+    InternalLevel fresh;
+    std::vector<Hash128> freshHashes;
+    std::vector<Dag::Root> parents;
+    for (size_t i = 0; i < entries.size(); i += 8) {
+      uint16_t codes = 0;
+      uint32_t refs[8];
+      Hash128 childHashes[8];
+      int n = 0;
+      bool allLit = true, allShadowed = true;
+      for (int c = 0; c < 8; ++c) {
+        const Entry& e = entries[i + c];
+        if (e.parentKey != entries[i].parentKey || e.child != c)
+          throw std::invalid_argument("assembleRoots: a block is missing or repeated");
+        codes |= uint16_t(e.ref.code << (2 * c));
+        allLit &= e.ref.code == kLit;
+        allShadowed &= e.ref.code == kShadowed;
+        if (e.ref.code == kRef) {
+          childHashes[n] = haveHashes ? belowHashes[e.ref.index] : Hash128{};
+          refs[n++] = e.ref.index;
+        }
+      }
+      NodeRef ref{allLit ? kLit : kShadowed, 0};
+      if (!allLit && !allShadowed) {
+        ref = NodeRef{kRef, fresh.append(codes, refs)};
+        freshHashes.push_back(hashInternal(codes, childHashes, n, hash));
+      }
+      parents.push_back({entries[i].parentKey, ref});
+    }
+    // Deduplicate the new level: sort by (hash, content), keep the first of equal runs.
+    std::vector<uint32_t> order(fresh.size()), map(fresh.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = uint32_t(i);
+    Dag tmp;
+    tmp.levels.resize(level + 1);
+    tmp.levels[level] = std::move(fresh);
+    if (mode != CompressMode::None)
+      std::sort(order.begin(), order.end(), [&](uint32_t p, uint32_t q) {
+        if (freshHashes[p] != freshHashes[q]) return freshHashes[p] < freshHashes[q];
+        return compareNodes(tmp, level, p, tmp, q) < 0;
+      });
+    InternalLevel& dst = dag.levels[level];
+    dst.clear();
+    dag.levelHashes[level].clear();
+    for (size_t k = 0; k < order.size(); ++k) {
+      uint32_t o = order[k];
+      if (mode != CompressMode::None && k > 0 && freshHashes[order[k - 1]] == freshHashes[o] &&
+          compareNodes(tmp, level, order[k - 1], tmp, o) == 0) {
+        map[o] = map[order[k - 1]];
+        continue;
+      }
+      const InternalLevel& src = tmp.levels[level];
+      map[o] = dst.append(src.codes[o], &src.children[src.childBegin[o]]);
+      dag.levelHashes[level].push_back(freshHashes[o]);
+    }
+    for (auto& p : parents)
+      if (p.ref.code == kRef) p.ref.index = map[p.ref.index];
+    current.swap(parents);
+    ++t;
+  }
+  if (current.size() != 1) throw std::invalid_argument("assembleRoots: no single root");
+  dag.roots = current;
+  dag.log2RootSize = L;
+  return dag;
+}
+
+}  // namespace cpvs

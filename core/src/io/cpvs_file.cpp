@@ -1,0 +1,129 @@
+#include "cpvs/io/cpvs_file.h"
+
+#include "cpvs/base/error.h"
+
+#include "io/level_section.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+#include <xxhash.h>
+#include <zstd.h>
+
+#include <bit>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <limits>
+
+namespace cpvs {
+
+namespace {
+
+constexpr char kMagic[4] = {'C', 'P', 'V', 'S'};
+constexpr uint32_t kFlagZstd = 1;
+
+}  // namespace
+
+std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
+  const Dag& dag = a.dag;
+  CPVS_CHECK(dag.roots.size() == 1 && dag.log2RootSize == dag.log2Resolution);
+  ByteWriter w;
+  w.raw(kMagic, 4);
+  w.put<uint32_t>(kCpvsFormatVersion);
+  w.put<uint32_t>(zstd ? kFlagZstd : 0);
+  const OrthoGrid& g = a.grid;
+  w.putVec(g.frame.dir);
+  w.putVec(g.frame.u);
+  w.putVec(g.frame.v);
+  w.putVec(g.origin);
+  w.put(g.u0);
+  w.put(g.v0);
+  w.put(g.d0);
+  w.put(g.extent);
+  w.put(g.depthExtent);
+  w.put<int32_t>(g.log2Resolution);
+  const BakeOptions& o = a.options;
+  w.put<uint8_t>(uint8_t(o.closed));
+  w.put<uint8_t>(uint8_t(o.exit));
+  w.put<uint8_t>(o.cull ? 1 : 0);
+  w.put<uint8_t>(uint8_t(o.compress));
+  w.put<uint8_t>(uint8_t(o.undefinedRule));
+  w.put<uint8_t>(uint8_t(o.hash));
+  w.put<uint16_t>(0);
+  w.put<int32_t>(o.log2TileSize);
+  w.put(a.sceneHash.lo);
+  w.put(a.sceneHash.hi);
+  w.put<uint32_t>(dag.roots[0].ref.code);
+  w.put<uint32_t>(dag.roots[0].ref.index);
+  writeDagLevels(dag, zstd, w);
+  w.put<uint64_t>(XXH3_64bits(w.bytes.data(), w.bytes.size()));
+  return std::move(w.bytes);
+}
+
+CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& source) {
+  ByteReader r(data, size, source);
+  const uint8_t* magic = r.take(4, "magic number");
+  if (std::memcmp(magic, kMagic, 4) != 0) r.fail("not a .cpvs file (bad magic number)");
+  uint32_t version = r.get<uint32_t>("header");
+  if (version != kCpvsFormatVersion)
+    r.fail("format version " + std::to_string(version) + " is not supported (this build reads version " +
+           std::to_string(kCpvsFormatVersion) + ")");
+  // Checksum first: every later check then reports real damage, not a random bit flip.
+  if (size < 8 + r.pos()) r.fail("truncated: no room for the checksum");
+  uint64_t stored;
+  std::memcpy(&stored, data + size - 8, 8);
+  if (XXH3_64bits(data, size - 8) != stored)
+    r.fail("checksum mismatch: the file is corrupted or truncated");
+  ByteReader h(data, size - 8, source);
+  h.take(8, "header");
+  uint32_t flags = h.get<uint32_t>("header");
+  if (flags & ~kFlagZstd) h.fail("unknown flags " + std::to_string(flags));
+
+  CpvsArtifact a;
+  OrthoGrid& g = a.grid;
+  g.frame.dir = h.getVec("header");
+  g.frame.u = h.getVec("header");
+  g.frame.v = h.getVec("header");
+  g.origin = h.getVec("header");
+  g.u0 = h.get<double>("header");
+  g.v0 = h.get<double>("header");
+  g.d0 = h.get<double>("header");
+  g.extent = h.get<double>("header");
+  g.depthExtent = h.get<double>("header");
+  g.log2Resolution = h.get<int32_t>("header");
+  checkGrid(g, source);
+
+  BakeOptions& o = a.options;
+  uint8_t opt[6];
+  for (auto& b : opt) b = h.get<uint8_t>("options");
+  if (!isOptionValue<ClosedMode>(opt[0]) || !isOptionValue<ExitMode>(opt[1]) || opt[2] > 1 ||
+      !isOptionValue<CompressMode>(opt[3]) || !isOptionValue<UndefinedRule>(opt[4]) || !isOptionValue<HashKind>(opt[5]))
+    h.fail("options hold an unknown value");
+  o.closed = ClosedMode(opt[0]);
+  o.exit = ExitMode(opt[1]);
+  o.cull = opt[2] != 0;
+  o.compress = CompressMode(opt[3]);
+  o.undefinedRule = UndefinedRule(opt[4]);
+  o.hash = HashKind(opt[5]);
+  h.get<uint16_t>("options");
+  o.log2TileSize = h.get<int32_t>("options");
+  if (o.log2TileSize < kMinLog2TileSize || o.log2TileSize > kMaxLog2TileSize)
+    h.fail("tile size 2^" + std::to_string(o.log2TileSize) + " is out of range");
+  a.sceneHash.lo = h.get<uint64_t>("header");
+  a.sceneHash.hi = h.get<uint64_t>("header");
+
+  Dag& dag = a.dag;
+  NodeRef root;
+  root.code = h.get<uint32_t>("root");
+  root.index = h.get<uint32_t>("root");
+  const int levels = Dag::internalLevels(g.log2Resolution);
+  dag.reset(g.log2Resolution, g.log2Resolution);
+  readDagLevels(h, (flags & kFlagZstd) != 0, levels, dag);
+  if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");
+  uint64_t top = levels == 0 ? dag.leaves.size() : dag.levels[levels - 1].size();
+  if (root.code > kRef || (root.code == kRef && root.index >= top)) h.fail("root reference is invalid");
+  dag.roots.push_back(Dag::Root{0, root});
+  return a;
+}
+
+}  // namespace cpvs

@@ -1,0 +1,116 @@
+#include "cpvs/light/ortho_grid.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "cpvs/base/error.h"
+#include "cpvs/scene/scene.h"
+
+namespace cpvs {
+
+OrthoGrid OrthoGrid::withSide(uint64_t side) const {
+  if (side < 1 || side > (uint64_t(1) << kMaxLog2Resolution))
+    throw InputError("grid side " + std::to_string(side) + " is outside [1, " +
+                     std::to_string(uint64_t(1) << kMaxLog2Resolution) + "]");
+  OrthoGrid g = *this;
+  g.side_ = side;
+  return g;
+}
+
+Vec3 OrthoGrid::voxelFromWorld(const Vec3& world) const {
+  const Vec3 p = world - origin;
+  const double r = cells();
+  return {(dot(p, frame.u) - u0) / extent * r, (dot(p, frame.v) - v0) / extent * r,
+          (dot(p, frame.dir) - d0) / depthExtent * r};
+}
+
+Vec3 OrthoGrid::worldFromVoxel(const Vec3& voxel) const {
+  const double r = cells();
+  const double lu = u0 + voxel.x / r * extent, lv = v0 + voxel.y / r * extent;
+  const double ld = d0 + voxel.z / r * depthExtent;
+  return origin + frame.u * lu + frame.v * lv + frame.dir * ld;
+}
+
+Vec3 OrthoGrid::directionToVoxel(const Vec3& w) const {
+  const double r = cells();
+  return {dot(w, frame.u) / extent * r, dot(w, frame.v) / extent * r, dot(w, frame.dir) / depthExtent * r};
+}
+
+TexelRay OrthoGrid::texelRay(uint64_t x, uint64_t y, const Vec3& relativeTo) const {
+  const double ts = texelSize();
+  const double lu = u0 + (double(x) + 0.5) * ts, lv = v0 + (double(y) + 0.5) * ts;
+  const Vec3 local0 = origin - relativeTo;
+  // The far end lies a hair beyond the grid so that a surface on its last slice is hit.
+  return {local0 + frame.u * lu + frame.v * lv + frame.dir * d0, frame.dir, depthExtent * 1.0001};
+}
+
+uint32_t OrthoGrid::sliceOfDepth(double t) const {
+  const double s = std::floor(t * (cells() / depthExtent));
+  if (!(s >= 0)) return 0;
+  if (s >= cells()) return uint32_t(side());
+  return static_cast<uint32_t>(s);
+}
+
+double OrthoGrid::depthOf(const Vec3& world) const { return dot(world - origin, frame.dir) - d0; }
+
+Vec3 OrthoGrid::offsetVoxel(const Vec3& world, const Vec3& normal, double voxels) const {
+  const Vec3 c = voxelFromWorld(world);
+  if (normal == Vec3{}) return c;
+  const Vec3 nv = directionToVoxel(normal);
+  const double m = std::max({std::abs(nv.x), std::abs(nv.y), std::abs(nv.z)});
+  if (!(m > 0) || !std::isfinite(m)) return c;
+  return c + nv * (voxels / m);
+}
+
+void checkGrid(const OrthoGrid& g, const std::string& source) {
+  auto fail = [&](const std::string& what) { throw InputError(source + ": " + what); };
+  if (g.log2Resolution < kMinLog2Resolution || g.log2Resolution > kMaxLog2Resolution)
+    fail("resolution 2^" + std::to_string(g.log2Resolution) + " is out of range");
+  for (double v : {g.u0, g.v0, g.d0, g.extent, g.depthExtent})
+    if (!std::isfinite(v)) fail("the grid holds a non-finite value");
+  if (!(g.extent > 0) || !(g.depthExtent > 0)) fail("the grid's extents are not positive");
+  for (const Vec3* v : {&g.frame.dir, &g.frame.u, &g.frame.v, &g.origin})
+    if (!isFinite(*v)) fail("the light frame holds a non-finite value");
+  if (std::abs(length(g.frame.dir) - 1) > kUnitDirectionTolerance) fail("the light direction is not a unit vector");
+}
+
+OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resolution) {
+  if (log2Resolution < kMinLog2Resolution || log2Resolution > kMaxLog2Resolution)
+    throw InputError("resolution 2^" + std::to_string(log2Resolution) + " is outside [2^" +
+                     std::to_string(kMinLog2Resolution) + ", 2^" +
+                     std::to_string(kMaxLog2Resolution) + "]");
+  if (scene.triangleCount() == 0) throw InputError("scene '" + scene.name + "' has no triangles");
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  OrthoGrid g;
+  g.frame = frame;
+  g.log2Resolution = log2Resolution;
+  g.origin = (lo + hi) * 0.5;
+  double mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
+  const Vec3 axes[3] = {frame.u, frame.v, frame.dir};
+  for (uint32_t idx : scene.indices) {
+    Vec3 p = scene.positions[idx] - g.origin;
+    for (int a = 0; a < 3; ++a) {
+      double c = dot(p, axes[a]);
+      mn[a] = std::min(mn[a], c);
+      mx[a] = std::max(mx[a], c);
+    }
+  }
+  // A margin keeps every surface strictly inside the grid (no hit on the near plane, no
+  // texel centre on the outermost vertex); relative to the largest extent so that a flat
+  // scene still gets a non-degenerate depth range.
+  double span = std::max({mx[0] - mn[0], mx[1] - mn[1], mx[2] - mn[2]});
+  if (!(span > 0)) span = std::max(1.0, length(hi - lo));
+  double margin = span * 1e-3;
+  double side = std::max(mx[0] - mn[0], mx[1] - mn[1]) + 2 * margin;
+  double cu = 0.5 * (mn[0] + mx[0]), cv = 0.5 * (mn[1] + mx[1]);
+  g.extent = side;
+  g.u0 = cu - 0.5 * side;
+  g.v0 = cv - 0.5 * side;
+  g.d0 = mn[2] - margin;
+  g.depthExtent = (mx[2] - mn[2]) + 2 * margin;
+  return g;
+}
+
+}  // namespace cpvs

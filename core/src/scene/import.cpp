@@ -1,0 +1,191 @@
+// loadScene: any file assimp reads, flattened into one world-space triangle mesh.
+//
+// The node hierarchy is walked here rather than with aiProcess_PreTransformVertices: that
+// step multiplies in single precision, and far from the origin (city tiles, CAD parts
+// placed in millimetres) the float rounding of composed transforms becomes visible at
+// R = 2^18. Node matrices are converted to double and composed in double; every vertex
+// of every mesh instance is transformed once, in double.
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <assimp/Importer.hpp>
+#include <assimp/config.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include "cpvs/scene/import.h"
+#include "cpvs/base/vec3.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/base/error.h"
+
+namespace cpvs {
+namespace {
+
+/// Row-major affine transform in double, the same layout as aiMatrix4x4 (a1..a4 is the
+/// first row; the translation is the fourth column).
+struct Mat4d {
+  std::array<double, 16> m{};
+
+  static Mat4d identity() {
+    Mat4d r;
+    r.m[0] = r.m[5] = r.m[10] = r.m[15] = 1.0;
+    return r;
+  }
+
+  static Mat4d fromAssimp(const aiMatrix4x4& a) {
+    Mat4d r;
+    for (int i = 0; i < 4; ++i)  // a[i] is row i
+      for (int j = 0; j < 4; ++j) r.m[4 * i + j] = static_cast<double>(a[i][j]);
+    return r;
+  }
+
+  Mat4d operator*(const Mat4d& o) const {
+    Mat4d r;
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) {
+        double s = 0;
+        for (int k = 0; k < 4; ++k) s += m[4 * i + k] * o.m[4 * k + j];
+        r.m[4 * i + j] = s;
+      }
+    return r;
+  }
+
+  /// Determinant of the linear part (upper-left 3x3).
+  double determinant3() const {
+    return m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) +
+           m[2] * (m[4] * m[9] - m[5] * m[8]);
+  }
+
+  /// Transforms a point. Node transforms are affine, so the bottom row is ignored
+  /// rather than dividing by w (a projective node matrix is not a meaningful scene).
+  Vec3 transformPoint(double x, double y, double z) const {
+    return {m[0] * x + m[1] * y + m[2] * z + m[3], m[4] * x + m[5] * y + m[6] * z + m[7],
+            m[8] * x + m[9] * y + m[10] * z + m[11]};
+  }
+};
+
+std::string formatVec(const Vec3& v) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "(%g, %g, %g)", v.x, v.y, v.z);
+  return buf;
+}
+
+/// "vertex 17 of mesh 2 'hull'", for error messages.
+std::string describeVertex(const aiMesh& mesh, unsigned meshIndex, unsigned vertex) {
+  std::string s = "vertex " + std::to_string(vertex) + " of mesh " + std::to_string(meshIndex);
+  if (mesh.mName.length > 0) s += std::string(" '") + mesh.mName.C_Str() + "'";
+  return s;
+}
+
+/// Appends one instance of `mesh` under `world` to `scene`: every vertex (so that indices
+/// stay valid) and every face with exactly three indices. Throws InputError for a
+/// vertex that is not finite in world space.
+void appendInstance(const std::string& path, const aiMesh& mesh, unsigned meshIndex,
+                    const Mat4d& world, Scene& scene) {
+  const size_t base = scene.positions.size();
+  if (base + mesh.mNumVertices > std::numeric_limits<uint32_t>::max())
+    throw InputError(path + ": more than 2^32 vertices after instancing");
+  scene.positions.reserve(base + mesh.mNumVertices);
+  for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+    const aiVector3D& p = mesh.mVertices[v];
+    const Vec3 w = world.transformPoint(p.x, p.y, p.z);
+    if (!isFinite(w)) {
+      throw InputError(path + ": " + describeVertex(mesh, meshIndex, v) +
+                       " is not finite in world space " + formatVec(w));
+    }
+    scene.positions.push_back(w);
+  }
+  // A mirroring transform (negative determinant) reverses the winding of what it places;
+  // the front side stays the front side (glTF states this rule, and it is the only one
+  // under which a mirrored closed mesh stays outward-facing), so such instances are
+  // written with two corners swapped.
+  const bool mirrored = world.determinant3() < 0;
+  for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
+    const aiFace& face = mesh.mFaces[f];
+    if (face.mNumIndices != 3) continue;  // points and lines carry no shadow
+    for (int c = 0; c < 3; ++c) {
+      const unsigned idx = face.mIndices[mirrored && c > 0 ? 3 - c : c];
+      // assimp validates only when asked to; an out-of-range index is a broken file.
+      if (idx >= mesh.mNumVertices)
+        throw InputError(path + ": face " + std::to_string(f) + " of mesh " +
+                         std::to_string(meshIndex) + " indexes vertex " + std::to_string(idx) +
+                         " of " + std::to_string(mesh.mNumVertices));
+      scene.indices.push_back(static_cast<uint32_t>(base + idx));
+    }
+  }
+}
+
+}  // namespace
+
+Scene loadScene(const std::string& path, SceneStats* stats) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw InputError(path + ": no such file");
+
+  Assimp::Importer importer;
+  // Points and lines are removed by SortByPType rather than skipped later so that the
+  // remaining meshes are pure triangle meshes.
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  const aiScene* ai = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_SortByPType);
+  if (ai == nullptr) {
+    throw InputError(path + ": assimp cannot read it: " + importer.GetErrorString());
+  }
+  // Positions are checked before JoinIdenticalVertices: that step compares positions
+  // with NaN-unaware ordering and was seen to merge a NaN vertex silently into a finite
+  // one (an OBJ line `v nan 0 0` became (0, 0, 0)).
+  for (unsigned m = 0; m < ai->mNumMeshes; ++m) {
+    const aiMesh& mesh = *ai->mMeshes[m];
+    for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+      const aiVector3D& p = mesh.mVertices[v];
+      const Vec3 local{p.x, p.y, p.z};
+      if (!isFinite(local))
+        throw InputError(path + ": " + describeVertex(mesh, m, v) + " is not finite " + formatVec(local));
+    }
+  }
+  ai = importer.ApplyPostProcessing(aiProcess_JoinIdenticalVertices);
+  if (ai == nullptr) {
+    throw InputError(path + ": assimp failed to post-process it: " + importer.GetErrorString());
+  }
+
+  Scene scene;
+  scene.name = std::filesystem::path(path).filename().string();
+
+  if (ai->mRootNode != nullptr) {
+    // Explicit stack: CAD files nest deeply and a recursion depth set by the file is
+    // not worth the risk.
+    std::vector<std::pair<const aiNode*, Mat4d>> stack;
+    stack.emplace_back(ai->mRootNode, Mat4d::fromAssimp(ai->mRootNode->mTransformation));
+    while (!stack.empty()) {
+      auto [node, world] = stack.back();
+      stack.pop_back();
+      for (unsigned i = 0; i < node->mNumMeshes; ++i) {
+        const unsigned meshIndex = node->mMeshes[i];
+        if (meshIndex >= ai->mNumMeshes || ai->mMeshes[meshIndex] == nullptr)
+          throw InputError(path + ": node '" + node->mName.C_Str() + "' references missing mesh " +
+                           std::to_string(meshIndex));
+        appendInstance(path, *ai->mMeshes[meshIndex], meshIndex, world, scene);
+      }
+      // Children pushed in reverse so that they are visited in file order, which keeps
+      // vertex order (and so the scene hash) independent of the stack discipline.
+      for (unsigned c = node->mNumChildren; c-- > 0;) {
+        const aiNode* child = node->mChildren[c];
+        stack.emplace_back(child, world * Mat4d::fromAssimp(child->mTransformation));
+      }
+    }
+  }
+
+  if (scene.indices.empty()) throw InputError(path + ": holds no triangles");
+
+  SceneStats s = finalizeScene(scene);
+  if (scene.indices.empty()) throw InputError(path + ": holds no triangles (all have zero area)");
+  if (stats != nullptr) *stats = s;
+  return scene;
+}
+
+}  // namespace cpvs

@@ -1,0 +1,52 @@
+// Verification of a bake against exact ray-traced visibility at points on the scene.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "cpvs/query/shadow_query.h"
+#include "cpvs/raytrace/ray_scene.h"
+#include "cpvs/scene/source.h"
+
+namespace cpvs {
+
+/// A point on a surface with the normal of the side a lookup is made from.
+struct SurfaceSample {
+  Vec3 point, normal;
+};
+
+/// `count` points sampled uniformly by area over the scene's triangles (deterministic for
+/// a seed). The normal is the outward one for closed geometry, and for open geometry the
+/// side facing the light (`lightDir` points from the light into the scene).
+std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
+                                          const Vec3& lightDir, uint64_t count, uint64_t seed);
+
+struct VerifyResult {
+  uint64_t samples = 0;              // points compared
+  uint64_t insideClosed = 0;         // offset points inside closed geometry: never queried, skipped
+  uint64_t nearBoundary = 0;         // points whose exact visibility changes within one voxel
+  uint64_t mismatchNearBoundary = 0;
+  uint64_t mismatchElsewhere = 0;
+  std::vector<SurfaceSample> elsewhereExamples;  // up to 16, for diagnosis
+
+  double fractionNearBoundary() const { return samples ? double(mismatchNearBoundary) / double(samples) : 0; }
+  double fractionElsewhere() const { return samples ? double(mismatchElsewhere) / double(samples) : 0; }
+};
+
+/// Compares binary CPVS lookups with exact Embree shadow rays from the same offset points
+/// (the lookup's own normal offset). A point counts as near a shadow boundary when the
+/// exact visibility is not constant within one voxel of it: it differs at one of the 124
+/// points offset by -1, -1/2, 0, 1/2 or 1 voxel along u, v and the light direction.
+/// A mismatching point also counts as near when one of those points lies inside closed
+/// geometry: the undefined voxels there may be resolved either way. Offset points inside
+/// closed geometry (where no lookup can come from) are skipped.
+VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
+                            uint64_t count, uint64_t seed);
+
+/// Exact visibility of the light from a world point: true = lit.
+bool exactlyLit(const RayScene& rays, const OrthoGrid& grid, const Vec3& point);
+/// Length of a shadow ray that leaves any point of the grid's volume towards the light:
+/// past the grid's near plane, whatever the point.
+double shadowRayLength(const OrthoGrid& grid);
+
+}  // namespace cpvs

@@ -1,0 +1,404 @@
+#include "cpvs/eval/accuracy.h"
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/query/shadow_query.h"
+#include "cpvs/eval/shadow_map.h"
+#include "cpvs/eval/verify.h"
+
+namespace cpvs {
+
+const std::array<const char*, kDistanceBins>& distanceBinLabels() {
+  static const std::array<const char*, kDistanceBins> labels{"<=1", "1-2", "2-4", "4-8", ">8"};
+  return labels;
+}
+
+int distanceBin(double distance, double texel) {
+  const double t = distance / texel;
+  // Radii are powers of two times texel / 16, so they land exactly on the bin edges; a
+  // hair of tolerance keeps rounding in the division from moving one up a bin.
+  const double tol = 1e-9;
+  if (t <= 1 + tol) return 0;
+  if (t <= 2 + tol) return 1;
+  if (t <= 4 + tol) return 2;
+  if (t <= 8 + tol) return 3;
+  return 4;
+}
+
+double boundaryDistance(const RayScene& rays, const OrthoGrid& grid, const Vec3& q, const Vec3& n, bool lit, double r0,
+                        double rMax) {
+  const Vec3& dir = grid.frame.dir;
+  const double nl = length(n);
+  const double cosL = nl > 0 ? dot(n, dir) / nl : 0.0;
+  const bool follow = std::abs(cosL) >= kFollowReceiverMinCos;
+  // Offsets per unit radius: across the light (sliding along it to stay on the receiver's
+  // plane), then towards the light.
+  std::array<Vec3, kBoundaryProbeDirections> steps;
+  for (int k = 0; k < 12; ++k) {
+    const double a = k * std::numbers::pi / 6.0;
+    const Vec3 across = grid.frame.u * std::cos(a) + grid.frame.v * std::sin(a);
+    steps[k] = follow ? across - dir * (dot(across, n) / nl / cosL) : across;
+  }
+  steps[12] = -dir;
+  for (double r = r0; r <= rMax * (1 + 1e-12); r *= 2)
+    for (const Vec3& d : steps)
+      if (exactlyLit(rays, grid, q + d * r) != lit) return r;
+  return std::numeric_limits<double>::infinity();
+}
+
+double exactFootprintLit(const RayScene& rays, const OrthoGrid& grid, uint32_t side, const Vec3& q, int pcf,
+                         int perTexel) {
+  // Points spread evenly over each texel of the footprint, at q's own depth.
+  const OrthoGrid cells = grid.withSide(side);
+  const Vec3 qv = cells.voxelFromWorld(q);
+  const double tx = std::floor(qv.x), ty = std::floor(qv.y);
+  const int r = pcf / 2, k = std::max(1, perTexel);
+  int lit = 0;
+  for (int dy = -r; dy <= r; ++dy)
+    for (int dx = -r; dx <= r; ++dx)
+      for (int b = 0; b < k; ++b)
+        for (int a = 0; a < k; ++a)
+          lit += exactlyLit(rays, grid, cells.worldFromVoxel({tx + dx + (a + 0.5) / k, ty + dy + (b + 0.5) / k, qv.z}));
+  return double(lit) / double(pcf * pcf * k * k);
+}
+
+const char* accuracyMethodName(AccuracyMethod m) {
+  switch (m) {
+    case AccuracyMethod::Cpvs: return "CPVS";
+    case AccuracyMethod::ShadowMapEqualBytes: return "shadow map, equal bytes";
+    case AccuracyMethod::ShadowMapEqualBytesCpvsOffset: return "shadow map, equal bytes, CPVS offset";
+    case AccuracyMethod::ShadowMapFull: return "shadow map, full resolution";
+  }
+  return "?";
+}
+
+const char* accuracyMethodKey(AccuracyMethod m) {
+  switch (m) {
+    case AccuracyMethod::Cpvs: return "cpvs";
+    case AccuracyMethod::ShadowMapEqualBytes: return "sm_equal_bytes";
+    case AccuracyMethod::ShadowMapEqualBytesCpvsOffset: return "sm_equal_bytes_cpvs_offset";
+    case AccuracyMethod::ShadowMapFull: return "sm_full";
+  }
+  return "?";
+}
+
+std::string resolutionLabel(uint64_t r) {
+  return r >= 1024 && r % 1024 == 0 ? std::to_string(r / 1024) + "K" : std::to_string(r);
+}
+
+double AccuracyRow::binRate(int bin) const {
+  return binSamples[bin] ? double(binMismatches[bin]) / double(binSamples[bin]) : std::nan("");
+}
+
+namespace {
+
+// The samples' query points for one offset rule and what exact rays say about them.
+struct QueryPoints {
+  std::vector<Vec3> points;
+  std::vector<uint8_t> inside, lit;
+  std::vector<double> distance;
+};
+
+class Reporter {
+ public:
+  explicit Reporter(const ProgressFn& fn) : fn_(fn) {}
+  void operator()(const std::string& stage, uint64_t done, uint64_t total) const {
+    if (fn_ && !fn_(stage, done, total)) throw Cancelled();
+  }
+  const ProgressFn& fn() const { return fn_; }
+
+ private:
+  const ProgressFn& fn_;
+};
+
+// Runs body(i) for i in [0, n) in parallel, in chunks so that progress is reported from
+// the calling thread between them.
+template <class Body>
+void forChunks(size_t n, const std::string& stage, const Reporter& report, Body&& body) {
+  constexpr size_t kChunk = 8192;
+  report(stage, 0, n);
+  for (size_t b = 0; b < n; b += kChunk) {
+    const size_t e = std::min(n, b + kChunk);
+    tbb::parallel_for(tbb::blocked_range<size_t>(b, e, 64), [&](const auto& range) {
+      for (size_t i = range.begin(); i != range.end(); ++i) body(i);
+    });
+    report(stage, e, n);
+  }
+}
+
+void tally(AccuracyRow& row, const QueryPoints& qp, const std::vector<uint8_t>& answerLit, double texel) {
+  for (size_t i = 0; i < qp.points.size(); ++i) {
+    if (qp.inside[i]) {
+      ++row.skippedInside;
+      continue;
+    }
+    const int bin = distanceBin(qp.distance[i], texel);
+    const bool bad = answerLit[i] != qp.lit[i];
+    ++row.samples;
+    ++row.binSamples[bin];
+    row.mismatches += bad;
+    row.binMismatches[bin] += bad;
+  }
+}
+
+// |lookup - exact| where the lookup is a float count / (w^2) and the exact fraction a count
+// / (w^2 k^2): snapped to a multiple of 1 / (w^2 k^2) so that float rounding reads as 0.
+double pcfError(double lookup, double exact, int pcf, int perTexel) {
+  const double d = double(pcf * pcf * perTexel * perTexel);
+  return std::round(std::abs(lookup - exact) * d) / d;
+}
+
+void summarize(PcfAccuracy& out, int width, std::vector<double>& errors) {
+  out.width = width;
+  out.samples = errors.size();
+  if (errors.empty()) return;
+  double sum = 0;
+  for (double e : errors) sum += e;
+  out.meanAbsError = sum / double(errors.size());
+  const size_t k = size_t(std::ceil(0.99 * double(errors.size()))) - 1;
+  std::nth_element(errors.begin(), errors.begin() + k, errors.end());
+  out.p99AbsError = errors[k];
+}
+
+// Nanoseconds per query of a batched lookup over n points: one warm-up call, then repeats
+// until at least minSeconds have passed.
+template <class Fn>
+double nsPerQuery(size_t n, double minSeconds, Fn&& fn) {
+  if (n == 0) return 0;
+  fn();
+  uint64_t reps = 0;
+  const auto start = std::chrono::steady_clock::now();
+  double s = 0;
+  do {
+    fn();
+    ++reps;
+    s = secondsSince(start);
+  } while (s < minSeconds);
+  return s / double(reps) / double(n) * 1e9;
+}
+
+}  // namespace
+
+AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, const AccuracyOptions& options,
+                               const ProgressFn& progress) {
+  if (options.log2Resolutions.empty()) throw InputError("accuracy: no resolution to measure");
+  if (options.samples < 1) throw InputError("accuracy: samples must be at least 1");
+  const auto totalStart = std::chrono::steady_clock::now();
+  const Reporter report(progress);
+  std::vector<int> resolutions = options.log2Resolutions;
+  std::sort(resolutions.begin(), resolutions.end());
+  resolutions.erase(std::unique(resolutions.begin(), resolutions.end()), resolutions.end());
+
+  // The grid's origin and extents depend only on the scene and the light, not on R: one
+  // BVH and one set of samples serve every resolution.
+  const OrthoGrid finest = makeGrid(scene, frame, resolutions.back());
+  RayScene rays(scene, finest.origin);
+  const std::vector<SurfaceSample> samples =
+      options.cameras.empty()
+          ? sampleSurfaces(scene, rays, options.bake.closed, frame.dir, options.samples, options.seed)
+          : sampleCameraViews(scene, rays, options.cameras, options.cameraAspect, options.samples, options.seed);
+  if (samples.empty())
+    throw InputError("accuracy: " + std::string(options.cameras.empty() ? "scene '" + scene.name + "' has no surface"
+                                                                      : "the cameras see no surface of '" + scene.name + "'") +
+                     " to sample");
+  const size_t n = samples.size();
+  std::vector<Vec3> points(n), normals(n);
+  for (size_t i = 0; i < n; ++i) {
+    points[i] = samples[i].point;
+    normals[i] = samples[i].normal;
+  }
+
+  AccuracyReport out;
+  out.scene = scene.name;
+  out.triangles = scene.triangleCount();
+  out.lightDir = frame.dir;
+  out.samples = n;
+  out.pcfSamples = std::min<uint64_t>(options.pcfSamples, n);
+  out.seed = options.seed;
+  out.cameras = options.cameras;
+  out.extent = finest.extent;
+  out.depthExtent = finest.depthExtent;
+  out.firstRadius = finest.extent / (16.0 * double(finest.resolution()));
+  out.maxRadius = finest.extent / 16.0;
+  out.threads = unsigned(tbb::this_task_arena::max_concurrency());
+  out.timingSeconds = options.minTimingSeconds;
+  const double len = shadowRayLength(finest);
+  const Hash128 geometryHash = sceneHash(scene);
+  const ClosedMode closed = options.bake.closed;
+
+  for (int log2R : resolutions) {
+    const uint64_t R = uint64_t(1) << log2R;
+    const std::string label = resolutionLabel(R);
+    const OrthoGrid grid = makeGrid(scene, frame, log2R);
+    const double texel = grid.texelSize();
+
+    // The CPVS, timed per stage.
+    AccuracyRow cpvsRow;
+    cpvsRow.method = AccuracyMethod::Cpvs;
+    cpvsRow.log2Resolution = log2R;
+    cpvsRow.side = R;
+    CpvsArtifact art;
+    art.grid = grid;
+    art.options = options.bake;
+    art.sceneHash = geometryHash;
+    {
+      StageTimes st;
+      const auto start = std::chrono::steady_clock::now();
+      art.dag = bakeGrid(rays, grid, options.bake, &st, [&](const std::string&, uint64_t d, uint64_t t) {
+        return !progress || progress(label + " bake", d, t);
+      });
+      cpvsRow.bakeSeconds = secondsSince(start);
+      cpvsRow.stageSeconds = st.seconds;
+    }
+    cpvsRow.bytes = art.dag.bytes();
+    const ShadowQuery query(art.grid, PackedDag(art.dag));
+
+    // The shadow maps: one with the DAG's bytes, one with the CPVS's texels.
+    const bool full = R * R * 2 <= options.maxFullShadowMapBytes;
+    report(label + " shadow maps", 0, full ? 2 : 1);
+    const uint32_t equalSide = uint32_t(std::max<double>(1.0, std::floor(std::sqrt(double(cpvsRow.bytes) / 2.0))));
+    AccuracyRow eqRow, eqOffRow, fullRow;
+    eqRow.method = AccuracyMethod::ShadowMapEqualBytes;
+    eqOffRow.method = AccuracyMethod::ShadowMapEqualBytesCpvsOffset;
+    fullRow.method = AccuracyMethod::ShadowMapFull;
+    for (AccuracyRow* r : {&eqRow, &eqOffRow, &fullRow}) r->log2Resolution = log2R;
+    auto start = std::chrono::steady_clock::now();
+    const ShadowMap eq = renderShadowMap(rays, grid, equalSide);
+    eqRow.bakeSeconds = eqOffRow.bakeSeconds = secondsSince(start);
+    eqRow.side = eqOffRow.side = equalSide;
+    eqRow.bytes = eqOffRow.bytes = eq.bytes();
+    eqOffRow.note = "the map above, looked up at the CPVS's offset point";
+    report(label + " shadow maps", 1, full ? 2 : 1);
+    ShadowMap fullMap;
+    fullRow.side = R;
+    fullRow.bytes = R * R * 2;
+    if (full) {
+      start = std::chrono::steady_clock::now();
+      fullMap = renderShadowMap(rays, grid, uint32_t(R));
+      fullRow.bakeSeconds = secondsSince(start);
+      report(label + " shadow maps", 2, 2);
+    } else {
+      fullRow.skipped = true;
+      fullRow.note = "skipped: " + std::to_string(R * R * 2) + " bytes is over the limit of " +
+                     std::to_string(options.maxFullShadowMapBytes);
+    }
+
+    // Query points under the two offset rules (the CPVS's, which the full map shares, and
+    // the equal-bytes map's own), their exact visibility and distance to a boundary.
+    QueryPoints atR, atS;
+    for (QueryPoints* qp : {&atR, &atS}) {
+      qp->points.resize(n);
+      qp->inside.assign(n, 0);
+      qp->lit.assign(n, 0);
+      qp->distance.assign(n, 0);
+    }
+    forChunks(2 * n, label + " exact", report, [&](size_t k) {
+      const size_t i = k % n;
+      QueryPoints& qp = k < n ? atR : atS;
+      const Vec3 q = k < n ? query.offsetPoint(points[i], normals[i], 1) : eq.offsetPoint(points[i], normals[i], 1);
+      qp.points[i] = q;
+      if (rays.closedNesting(q, -grid.frame.dir, len, closed) > 0) {
+        qp.inside[i] = 1;
+        return;
+      }
+      const bool lit = exactlyLit(rays, grid, q);
+      qp.lit[i] = lit;
+      qp.distance[i] = boundaryDistance(rays, grid, q, normals[i], lit, out.firstRadius, out.maxRadius);
+    });
+
+    // Binary lookups.
+    std::vector<uint8_t> answer(n);
+    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = query.visibility(points[i], normals[i]) > 0.5f; });
+    tally(cpvsRow, atR, answer, texel);
+    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = eq.filteredAt(atS.points[i], 1) > 0.5f; });
+    tally(eqRow, atS, answer, texel);
+    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = eq.filteredAt(atR.points[i], 1) > 0.5f; });
+    tally(eqOffRow, atR, answer, texel);
+    if (full) {
+      tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = fullMap.filteredAt(atR.points[i], 1) > 0.5f; });
+      tally(fullRow, atR, answer, texel);
+    }
+
+    // PCF against the exact fraction over each lookup's own footprint.
+    const size_t m = size_t(out.pcfSamples);
+    for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) {
+      const int pcf = kAccuracyPcfWidths[w];
+      constexpr double kNone = -1;  // not compared (inside closed geometry, or no full map)
+      constexpr int kArea = kAreaRaysPerTexelSide;
+      // Per method, the errors against texel-centre rays [0] and against the area average [1].
+      std::array<std::vector<double>, 2> eCpvs, eEq, eEqOff, eFull;
+      for (auto* e : {&eCpvs, &eEq, &eEqOff, &eFull})
+        for (auto& v : *e) v.assign(m, kNone);
+      forChunks(m, label + " pcf " + std::to_string(pcf), report, [&](size_t i) {
+        if (!atR.inside[i]) {
+          const Vec3 q = query.offsetPoint(points[i], normals[i], pcf);
+          const double cpvs = query.filtered(points[i], normals[i], pcf);
+          const double fullLookup = full ? double(fullMap.filteredAt(q, pcf)) : 0.0;
+          const double eqLookup = eq.filteredAt(q, pcf);
+          for (int ref = 0; ref < 2; ++ref) {
+            const int per = ref == 0 ? 1 : kArea;
+            const double exactR = exactFootprintLit(rays, grid, uint32_t(R), q, pcf, per);
+            eCpvs[ref][i] = pcfError(cpvs, exactR, pcf, per);
+            if (full) eFull[ref][i] = pcfError(fullLookup, exactR, pcf, per);
+            eEqOff[ref][i] = pcfError(eqLookup, exactFootprintLit(rays, grid, equalSide, q, pcf, per), pcf, per);
+          }
+        }
+        if (!atS.inside[i]) {
+          const Vec3 q = eq.offsetPoint(points[i], normals[i], pcf);
+          const double eqLookup = eq.filteredAt(q, pcf);
+          for (int ref = 0; ref < 2; ++ref) {
+            const int per = ref == 0 ? 1 : kArea;
+            eEq[ref][i] = pcfError(eqLookup, exactFootprintLit(rays, grid, equalSide, q, pcf, per), pcf, per);
+          }
+        }
+      });
+      auto summarizeBoth = [&](AccuracyRow& row, std::array<std::vector<double>, 2>& errors) {
+        for (int ref = 0; ref < 2; ++ref) {
+          std::vector<double> kept;
+          for (double e : errors[ref])
+            if (e != kNone) kept.push_back(e);
+          summarize((ref == 0 ? row.pcf : row.pcfArea)[w], pcf, kept);
+        }
+      };
+      summarizeBoth(cpvsRow, eCpvs);
+      summarizeBoth(eqRow, eEq);
+      summarizeBoth(eqOffRow, eEqOff);
+      summarizeBoth(fullRow, eFull);
+    }
+
+    // Lookup times: the whole batch of surface points, offsets included.
+    report(label + " timing", 0, 1);
+    std::vector<float> vis;
+    const double minT = options.minTimingSeconds;
+    cpvsRow.nsPerQuery = nsPerQuery(n, minT, [&] { query.batch(points, normals, 1, vis); });
+    eqRow.nsPerQuery = nsPerQuery(n, minT, [&] { eq.batch(points, normals, 1, vis); });
+    if (full) fullRow.nsPerQuery = nsPerQuery(n, minT, [&] { fullMap.batch(points, normals, 1, vis); });
+    for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) {
+      const int pcf = kAccuracyPcfWidths[w];
+      cpvsRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { query.batch(points, normals, pcf, vis); });
+      eqRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { eq.batch(points, normals, pcf, vis); });
+      if (full) fullRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { fullMap.batch(points, normals, pcf, vis); });
+    }
+    // The CPVS-offset row looks up the same map the same way, from another point.
+    eqOffRow.nsPerQuery = eqRow.nsPerQuery;
+    for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) eqOffRow.pcf[w].nsPerQuery = eqRow.pcf[w].nsPerQuery;
+    report(label + " timing", 1, 1);
+
+    out.rows.push_back(std::move(cpvsRow));
+    out.rows.push_back(std::move(eqRow));
+    out.rows.push_back(std::move(eqOffRow));
+    out.rows.push_back(std::move(fullRow));
+  }
+  out.seconds = secondsSince(totalStart);
+  return out;
+}
+
+}  // namespace cpvs
