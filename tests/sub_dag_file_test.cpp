@@ -26,8 +26,8 @@ std::string messageOf(const std::vector<uint8_t>& bytes, bool canonical = true) 
 TEST(SubDagFile, RoundTripsWithHashes) {
   for (bool zstd : {true, false}) {
     Dag tile = sampleTile(1, 0);
-    Dag back = decodeSubDag(encodeSubDag(tile, zstd).data(), encodeSubDag(tile, zstd).size(), "tile", true,
-                            HashKind::Xxh3);
+    const std::vector<uint8_t> bytes = encodeSubDag(tile, zstd);
+    Dag back = decodeSubDag(bytes.data(), bytes.size(), "tile", true, HashKind::Xxh3);
     testing::expectSameDag(tile, back);
     EXPECT_EQ(back.leafHashes, tile.leafHashes);
     EXPECT_EQ(back.levelHashes, tile.levelHashes);
@@ -42,7 +42,8 @@ TEST(SubDagFile, RejectsTruncationAndEveryFlippedByte) {
     std::vector<uint8_t> cut(bytes.begin(), bytes.begin() + std::ptrdiff_t(n));
     EXPECT_NE(messageOf(cut), "") << "truncated to " << n;
   }
-  for (size_t i = 0; i < bytes.size(); i += 7) {
+  // The checksum catches each of these; io/must_fail_test reaches the checks behind it.
+  for (size_t i = 0; i < bytes.size(); ++i) {
     std::vector<uint8_t> bad = bytes;
     bad[i] ^= 0x10;
     EXPECT_NE(messageOf(bad), "") << "byte " << i;

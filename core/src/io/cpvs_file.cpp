@@ -2,25 +2,17 @@
 
 #include "cpvs/base/error.h"
 
+#include "io/container.h"
 #include "io/level_section.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-#include <xxhash.h>
-#include <zstd.h>
-
-#include <bit>
-#include <cerrno>
-#include <cstring>
-#include <fstream>
-#include <limits>
+#include <cmath>
+#include <string>
 
 namespace cpvs {
 
 namespace {
 
-constexpr char kMagic[4] = {'C', 'P', 'V', 'S'};
-constexpr uint32_t kFlagZstd = 1;
+constexpr ContainerKind kCpvsKind{{'C', 'P', 'V', 'S'}, kCpvsFormatVersion, ".cpvs file"};
 
 }  // namespace
 
@@ -28,9 +20,7 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   const Dag& dag = a.dag;
   CPVS_CHECK(dag.roots.size() == 1 && dag.log2RootSize == dag.log2Resolution);
   ByteWriter w;
-  w.raw(kMagic, 4);
-  w.put<uint32_t>(kCpvsFormatVersion);
-  w.put<uint32_t>(zstd ? kFlagZstd : 0);
+  beginContainer(w, kCpvsKind, zstd ? kContainerZstd : 0);
   const OrthoGrid& g = a.grid;
   w.putVec(g.frame.dir);
   w.putVec(g.frame.u);
@@ -56,28 +46,12 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   w.put<uint32_t>(dag.roots[0].ref.code);
   w.put<uint32_t>(dag.roots[0].ref.index);
   writeDagLevels(dag, zstd, w);
-  w.put<uint64_t>(XXH3_64bits(w.bytes.data(), w.bytes.size()));
-  return std::move(w.bytes);
+  return sealContainer(std::move(w));
 }
 
 CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& source) {
-  ByteReader r(data, size, source);
-  const uint8_t* magic = r.take(4, "magic number");
-  if (std::memcmp(magic, kMagic, 4) != 0) r.fail("not a .cpvs file (bad magic number)");
-  uint32_t version = r.get<uint32_t>("header");
-  if (version != kCpvsFormatVersion)
-    r.fail("format version " + std::to_string(version) + " is not supported (this build reads version " +
-           std::to_string(kCpvsFormatVersion) + ")");
-  // Checksum first: every later check then reports real damage, not a random bit flip.
-  if (size < 8 + r.pos()) r.fail("truncated: no room for the checksum");
-  uint64_t stored;
-  std::memcpy(&stored, data + size - 8, 8);
-  if (XXH3_64bits(data, size - 8) != stored)
-    r.fail("checksum mismatch: the file is corrupted or truncated");
-  ByteReader h(data, size - 8, source);
-  h.take(8, "header");
-  uint32_t flags = h.get<uint32_t>("header");
-  if (flags & ~kFlagZstd) h.fail("unknown flags " + std::to_string(flags));
+  uint32_t flags = 0;
+  ByteReader h = openContainer(data, size, source, kCpvsKind, kContainerZstd, flags);
 
   CpvsArtifact a;
   OrthoGrid& g = a.grid;
@@ -91,7 +65,11 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
   g.extent = h.get<double>("header");
   g.depthExtent = h.get<double>("header");
   g.log2Resolution = h.get<int32_t>("header");
-  checkGrid(g, source);
+  try {
+    checkGrid(g, source);
+  } catch (const InputError& e) {
+    throw FormatError(e.what());  // bad bytes, not a bad argument
+  }
 
   BakeOptions& o = a.options;
   uint8_t opt[6];
@@ -118,7 +96,7 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
   root.index = h.get<uint32_t>("root");
   const int levels = Dag::internalLevels(g.log2Resolution);
   dag.reset(g.log2Resolution, g.log2Resolution);
-  readDagLevels(h, (flags & kFlagZstd) != 0, levels, dag);
+  readDagLevels(h, (flags & kContainerZstd) != 0, levels, dag);
   if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");
   uint64_t top = levels == 0 ? dag.leaves.size() : dag.levels[levels - 1].size();
   if (root.code > kRef || (root.code == kRef && root.index >= top)) h.fail("root reference is invalid");

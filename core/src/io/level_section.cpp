@@ -1,6 +1,6 @@
 #include "io/level_section.h"
 
-#include <zstd.h>
+#include "io/container.h"
 
 #include <bit>
 #include <limits>
@@ -27,18 +27,7 @@ void writeDagLevels(const Dag& dag, bool zstd, ByteWriter& w) {
     w.put<uint64_t>(lv.size());
     w.put<uint64_t>(lv.children.size());
   }
-  w.put<uint64_t>(payload.bytes.size());
-  if (zstd) {
-    std::vector<uint8_t> packed(ZSTD_compressBound(payload.bytes.size()));
-    size_t n = ZSTD_compress(packed.data(), packed.size(), payload.bytes.data(), payload.bytes.size(), 9);
-    if (ZSTD_isError(n)) throw std::runtime_error(std::string("zstd: ") + ZSTD_getErrorName(n));
-    packed.resize(n);
-    w.put<uint64_t>(packed.size());
-    w.raw(packed.data(), packed.size());
-  } else {
-    w.put<uint64_t>(payload.bytes.size());
-    w.raw(payload.bytes.data(), payload.bytes.size());
-  }
+  writeSection(w, payload.bytes, zstd);
 }
 
 void readDagLevels(ByteReader& h, bool zstd, int expectedLevels, Dag& dag) {
@@ -58,30 +47,9 @@ void readDagLevels(ByteReader& h, bool zstd, int expectedLevels, Dag& dag) {
       h.fail("level " + std::to_string(l) + " sizes are out of range");
     expected += pad4(nodeCounts[l] * 2) + childCounts[l] * 4;
   }
-  uint64_t payloadSize = h.get<uint64_t>("level table");
-  uint64_t storedSize = h.get<uint64_t>("level table");
-  if (payloadSize != expected)
-    h.fail("payload size " + std::to_string(payloadSize) + " does not match the level table (" +
-           std::to_string(expected) + ")");
-  if (storedSize > h.remaining())
-    h.fail("payload is " + std::to_string(h.remaining()) + " bytes, the header says " + std::to_string(storedSize));
-  const uint8_t* stored = h.take(storedSize, "payload");
-
   std::vector<uint8_t> unpacked;
-  const uint8_t* payload = stored;
-  if (zstd) {
-    unsigned long long content = ZSTD_getFrameContentSize(stored, storedSize);
-    if (content == ZSTD_CONTENTSIZE_ERROR || content == ZSTD_CONTENTSIZE_UNKNOWN || content != payloadSize)
-      h.fail("compressed payload is damaged");
-    unpacked.resize(payloadSize);
-    size_t n = ZSTD_decompress(unpacked.data(), unpacked.size(), stored, storedSize);
-    if (ZSTD_isError(n) || n != payloadSize) h.fail("compressed payload is damaged");
-    payload = unpacked.data();
-  } else if (storedSize != payloadSize) {
-    h.fail("payload size does not match");
-  }
-
-  ByteReader p(payload, payloadSize, h.source());
+  const uint8_t* payload = readSection(h, zstd, expected, "payload", unpacked);
+  ByteReader p(payload, expected, h.source());
   dag.leaves.resize(leafCount);
   p.copy(dag.leaves.data(), leafCount * 8, "leaves");
   for (uint32_t l = 0; l < levels; ++l) {

@@ -1,9 +1,8 @@
 #include "cpvs/io/sub_dag_file.h"
 
-#include <xxhash.h>
-
 #include "cpvs/light/frame.h"
 #include "cpvs/light/ortho_grid.h"
+#include "io/container.h"
 #include "io/level_section.h"
 #include "cpvs/dag/node_order.h"
 
@@ -11,17 +10,13 @@ namespace cpvs {
 
 namespace {
 
-constexpr char kMagic[4] = {'C', 'P', 'V', 'T'};
-constexpr uint32_t kVersion = 1;
-constexpr uint32_t kFlagZstd = 1;
+constexpr ContainerKind kSubDagKind{{'C', 'P', 'V', 'T'}, 1, "sub-DAG"};
 
 }  // namespace
 
 std::vector<uint8_t> encodeSubDag(const Dag& dag, bool zstd) {
   ByteWriter w;
-  w.raw(kMagic, 4);
-  w.put<uint32_t>(kVersion);
-  w.put<uint32_t>(zstd ? kFlagZstd : 0);
+  beginContainer(w, kSubDagKind, zstd ? kContainerZstd : 0);
   w.put<int32_t>(dag.log2Resolution);
   w.put<int32_t>(dag.log2RootSize);
   w.put<uint64_t>(dag.roots.size());
@@ -31,24 +26,12 @@ std::vector<uint8_t> encodeSubDag(const Dag& dag, bool zstd) {
     w.put<uint32_t>(r.ref.index);
   }
   writeDagLevels(dag, zstd, w);
-  w.put<uint64_t>(XXH3_64bits(w.bytes.data(), w.bytes.size()));
-  return std::move(w.bytes);
+  return sealContainer(std::move(w));
 }
 
 Dag decodeSubDag(const uint8_t* data, size_t size, const std::string& source, bool canonical, HashKind hash) {
-  ByteReader r(data, size, source);
-  if (std::memcmp(r.take(4, "magic number"), kMagic, 4) != 0) r.fail("not a sub-DAG (bad magic number)");
-  uint32_t version = r.get<uint32_t>("header");
-  if (version != kVersion) r.fail("sub-DAG format version " + std::to_string(version) + " is not supported");
-  if (size < r.pos() + 8) r.fail("truncated: no room for the checksum");
-  uint64_t stored;
-  std::memcpy(&stored, data + size - 8, 8);
-  if (XXH3_64bits(data, size - 8) != stored) r.fail("checksum mismatch: the sub-DAG is corrupted or truncated");
-
-  ByteReader h(data, size - 8, source);
-  h.take(8, "header");
-  uint32_t flags = h.get<uint32_t>("header");
-  if (flags & ~kFlagZstd) h.fail("unknown flags " + std::to_string(flags));
+  uint32_t flags = 0;
+  ByteReader h = openContainer(data, size, source, kSubDagKind, kContainerZstd, flags);
   int log2R = h.get<int32_t>("header"), log2Root = h.get<int32_t>("header");
   if (log2R < kMinLog2Resolution || log2R > kMaxLog2Resolution || log2Root < 3 || log2Root > log2R)
     h.fail("resolution 2^" + std::to_string(log2R) + " with roots of 2^" + std::to_string(log2Root) +
@@ -64,7 +47,7 @@ Dag decodeSubDag(const uint8_t* data, size_t size, const std::string& source, bo
     root.ref.index = h.get<uint32_t>("roots");
   }
   const int levels = Dag::internalLevels(log2Root);
-  readDagLevels(h, (flags & kFlagZstd) != 0, levels, dag);
+  readDagLevels(h, (flags & kContainerZstd) != 0, levels, dag);
   if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");
 
   const uint64_t blocks = uint64_t(1) << (log2R - log2Root);

@@ -1,0 +1,78 @@
+#include "io/container.h"
+
+#include <xxhash.h>
+#include <zstd.h>
+
+namespace cpvs {
+
+void beginContainer(ByteWriter& w, const ContainerKind& kind, uint32_t flags) {
+  w.raw(kind.magic, 4);
+  w.put<uint32_t>(kind.version);
+  w.put<uint32_t>(flags);
+}
+
+std::vector<uint8_t> sealContainer(ByteWriter&& w) {
+  w.put<uint64_t>(XXH3_64bits(w.bytes.data(), w.bytes.size()));
+  return std::move(w.bytes);
+}
+
+ByteReader openContainer(const uint8_t* data, size_t size, const std::string& source, const ContainerKind& kind,
+                         uint32_t knownFlags, uint32_t& flags) {
+  const std::string noun = kind.noun;
+  ByteReader r(data, size, source);
+  if (std::memcmp(r.take(4, "magic number"), kind.magic, 4) != 0) r.fail("not a " + noun + " (bad magic number)");
+  const uint32_t version = r.get<uint32_t>("header");
+  if (version != kind.version)
+    r.fail(noun + " format version " + std::to_string(version) + " is not supported (this build reads version " +
+           std::to_string(kind.version) + ")");
+  if (size < r.pos() + 8) r.fail("truncated: no room for the checksum");
+  uint64_t stored;
+  std::memcpy(&stored, data + size - 8, 8);
+  if (XXH3_64bits(data, size - 8) != stored) r.fail("checksum mismatch: the " + noun + " is corrupted or truncated");
+  ByteReader body(data, size - 8, source);
+  body.take(8, "header");
+  flags = body.get<uint32_t>("header");
+  if (flags & ~knownFlags) body.fail("unknown flags " + std::to_string(flags));
+  return body;
+}
+
+void writeSection(ByteWriter& w, const std::vector<uint8_t>& bytes, bool zstd) {
+  w.put<uint64_t>(bytes.size());
+  if (!zstd) {
+    w.put<uint64_t>(bytes.size());
+    w.raw(bytes.data(), bytes.size());
+    return;
+  }
+  std::vector<uint8_t> packed(ZSTD_compressBound(bytes.size()));
+  const size_t n = ZSTD_compress(packed.data(), packed.size(), bytes.data(), bytes.size(), 9);
+  CPVS_CHECK(!ZSTD_isError(n));
+  w.put<uint64_t>(n);
+  w.raw(packed.data(), n);
+}
+
+const uint8_t* readSection(ByteReader& r, bool zstd, uint64_t expectedSize, const char* what,
+                           std::vector<uint8_t>& storage) {
+  const std::string name = what;
+  const uint64_t size = r.get<uint64_t>(what);
+  const uint64_t storedSize = r.get<uint64_t>(what);
+  if (size != expectedSize)
+    r.fail(name + " size " + std::to_string(size) + " does not match the counts before it (" +
+           std::to_string(expectedSize) + ")");
+  if (storedSize > r.remaining())
+    r.fail(name + " is " + std::to_string(r.remaining()) + " bytes, the header says " + std::to_string(storedSize));
+  const uint8_t* stored = r.take(storedSize, what);
+  if (!zstd) {
+    if (storedSize != size) r.fail(name + " size does not match");
+    return stored;
+  }
+  // The frame must declare the size the counts allow before anything is allocated.
+  const unsigned long long content = ZSTD_getFrameContentSize(stored, storedSize);
+  if (content == ZSTD_CONTENTSIZE_ERROR || content == ZSTD_CONTENTSIZE_UNKNOWN || content != size)
+    r.fail("compressed " + name + " is damaged");
+  storage.resize(size);
+  const size_t n = ZSTD_decompress(storage.data(), storage.size(), stored, storedSize);
+  if (ZSTD_isError(n) || n != size) r.fail("compressed " + name + " is damaged");
+  return storage.data();
+}
+
+}  // namespace cpvs
