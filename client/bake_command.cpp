@@ -73,10 +73,8 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
               optionName(art.options.closed), optionName(art.options.exit), art.options.cull ? "on" : "off",
               optionName(art.options.compress), optionName(art.options.undefinedRule), 1u << art.options.log2TileSize);
   std::printf("\n  %-10s %10s\n", "stage", "seconds");
-  for (const auto& name : std::vector<std::string>{"load", "render", "masks", "insert", "compress", "merge", "write"}) {
-    auto it = st.seconds.find(name);
-    std::printf("  %-10s %10.3f\n", name.c_str(), it == st.seconds.end() ? 0.0 : it->second);
-  }
+  for (const char* name : kStageNames)
+    if (auto it = st.seconds.find(name); it != st.seconds.end()) std::printf("  %-10s %10.3f\n", name, it->second);
   std::printf("  %-10s %10.3f\n", "total", total);
   std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
   for (int l = -1; l < int(dag.levels.size()); ++l) {

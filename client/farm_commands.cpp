@@ -20,6 +20,7 @@
 #include "commands.h"
 #include "cpvs/base/error.h"
 #include "cpvs/scene/import.h"
+#include "cpvs/bake/stage_times.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/light/frame.h"
@@ -88,7 +89,7 @@ std::vector<std::pair<std::string, double>> stagesOf(const pb::JobStatus& s) {
   std::map<std::string, double> sum;
   for (const auto& st : s.stages()) sum[st.stage()] += st.seconds();
   std::vector<std::pair<std::string, double>> out;
-  for (const char* name : {"load", "render", "masks", "insert", "compress", "merge", "write"}) {
+  for (const char* name : kStageNames) {
     auto it = sum.find(name);
     if (it == sum.end()) continue;
     out.emplace_back(*it);

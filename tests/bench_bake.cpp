@@ -25,6 +25,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/bake/bake.h"
+#include "cpvs/base/parse.h"
 #include "cpvs/scene/source.h"
 
 namespace cpvs {
@@ -58,7 +59,7 @@ std::array<Config, kConfigCount> configurations() {
 }
 
 // The stages bakeGrid reports, in pipeline order ("write" belongs to the CLI, not here).
-constexpr std::array<const char*, 5> kStages{"render", "masks", "insert", "compress", "merge"};
+constexpr auto kStages = kBakeGridStages;
 
 // ---------------------------------------------------------------------------------------
 // Command line
@@ -91,18 +92,6 @@ const char* kUsage =
     "  --repeat N          bake each configuration N times, keep the fastest (default 1)\n"
     "  --threads N         worker threads (default: all cores)\n"
     "  --help              this text\n";
-
-std::vector<std::string> splitList(const std::string& text) {
-  std::vector<std::string> out;
-  size_t begin = 0;
-  while (begin <= text.size()) {
-    size_t end = text.find(',', begin);
-    if (end == std::string::npos) end = text.size();
-    if (end > begin) out.push_back(text.substr(begin, end - begin));
-    begin = end + 1;
-  }
-  return out;
-}
 
 double parseDouble(const std::string& text, const std::string& what) {
   double v = 0;

@@ -16,7 +16,7 @@ using testing::buildTiled;
 using testing::countReferenceMismatches;
 using testing::expectOptimal;
 using testing::expectSameDag;
-using testing::syntheticDepths;
+using testing::syntheticSlices;
 
 struct Case {
   int log2R;
@@ -32,7 +32,7 @@ class DagReference : public ::testing::TestWithParam<Case> {};
 TEST_P(DagReference, EveryDefinedVoxelMatchesAndVariantsAgree) {
   const Case c = GetParam();
   const uint32_t R = 1u << c.log2R;
-  TexelDepths d = syntheticDepths(R, c.closed, c.seed);
+  TexelSlices d = syntheticSlices(R, c.closed, c.seed);
   Dag culledTopDown = buildTiled(d, c.log2R, c.log2R, c.rule, true, CompressMode::TopDown, HashKind::Xxh3);
   EXPECT_EQ(countReferenceMismatches(culledTopDown, d, R), 0u);
   expectOptimal(culledTopDown);
@@ -58,7 +58,7 @@ TEST_P(DagReference, EveryDefinedVoxelMatchesAndVariantsAgree) {
 TEST_P(DagReference, TiledBuildsMatchUntiledInAnyMergeOrder) {
   const Case c = GetParam();
   const uint32_t R = 1u << c.log2R;
-  TexelDepths d = syntheticDepths(R, c.closed, c.seed);
+  TexelSlices d = syntheticSlices(R, c.closed, c.seed);
   Dag whole = buildTiled(d, c.log2R, c.log2R, c.rule, true, CompressMode::TopDown, HashKind::Xxh3);
   for (int log2T : {3, 4, 5}) {
     uint32_t n = 1u << (c.log2R - log2T);
@@ -79,7 +79,7 @@ TEST_P(DagReference, TiledBuildsMatchUntiledInAnyMergeOrder) {
 TEST_P(DagReference, ForcedHashCollisionsStayCorrect) {
   const Case c = GetParam();
   const uint32_t R = 1u << c.log2R;
-  TexelDepths d = syntheticDepths(R, c.closed, c.seed);
+  TexelSlices d = syntheticSlices(R, c.closed, c.seed);
   Dag strong = buildTiled(d, c.log2R, c.log2R, c.rule, true, CompressMode::TopDown, HashKind::Xxh3);
   for (CompressMode mode : {CompressMode::TopDown, CompressMode::BottomUp}) {
     Dag weak = buildTiled(d, c.log2R, 4, c.rule, true, mode, HashKind::WeakForTests);
@@ -98,7 +98,7 @@ TEST_P(DagReference, ForcedHashCollisionsStayCorrect) {
 TEST_P(DagReference, PackedLayoutAnswersAsTheLevels) {
   const Case c = GetParam();
   const uint32_t R = 1u << c.log2R;
-  TexelDepths d = syntheticDepths(R, c.closed, c.seed);
+  TexelSlices d = syntheticSlices(R, c.closed, c.seed);
   const Dag dag = buildTiled(d, c.log2R, c.log2R, c.rule, true, CompressMode::TopDown, HashKind::Xxh3);
   const PackedDag packed(dag);
   EXPECT_EQ(packed.bytes(), dag.bytes());
@@ -126,17 +126,17 @@ INSTANTIATE_TEST_SUITE_P(Scenes, DagReference,
 // vary (sloped roofs standing on one ground) and something thin above them forces an early
 // first transition (wires): from there it holds one mask down to the common exit, where
 // the old rule follows every enter depth. It is a local heuristic,
-// not a theorem: with random exits (syntheticDepths) either rule can be smaller, so the
+// not a theorem: with random exits (syntheticSlices) either rule can be smaller, so the
 // benchmark measures both on real scenes.
 TEST(DagRules, NewRuleFollowsSharedExitsOldRuleFollowsEnters) {
   const uint32_t R = 128;
-  TexelDepths d;
-  d.lo.resize(R * R);
-  d.hi.assign(R * R, R - 8);
+  TexelSlices d;
+  d.firstUndefined.resize(R * R);
+  d.firstShadowed.assign(R * R, R - 8);
   for (uint32_t y = 0; y < R; ++y)
     for (uint32_t x = 0; x < R; ++x) {
-      d.lo[y * R + x] = (3 * x + 5 * y + (x * y) % 7) % (R - 16);
-      if (x % 16 == 5) d.lo[y * R + x] = d.hi[y * R + x] = 2;  // thin open wires above the roofs
+      d.firstUndefined[y * R + x] = (3 * x + 5 * y + (x * y) % 7) % (R - 16);
+      if (x % 16 == 5) d.firstUndefined[y * R + x] = d.firstShadowed[y * R + x] = 2;  // thin open wires above the roofs
     }
   Dag fresh = buildTiled(d, 7, 7, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
   Dag old = buildTiled(d, 7, 7, UndefinedRule::Old, true, CompressMode::TopDown, HashKind::Xxh3);
@@ -147,7 +147,7 @@ TEST(DagRules, NewRuleFollowsSharedExitsOldRuleFollowsEnters) {
 
 // Merging the same sub-DAGs in either argument order gives the same bytes.
 TEST(DagMerge, IsSymmetric) {
-  TexelDepths d = syntheticDepths(64, true, 7);
+  TexelSlices d = syntheticSlices(64, true, 7);
   Dag a = testing::buildTile(d, 6, 5, 0, 0, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
   Dag b = testing::buildTile(d, 6, 5, 1, 1, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
   expectSameDag(mergeDags(a, b), mergeDags(b, a));
@@ -155,7 +155,7 @@ TEST(DagMerge, IsSymmetric) {
 }
 
 CpvsArtifact sampleArtifact() {
-  TexelDepths d = syntheticDepths(64, true, 9);
+  TexelSlices d = syntheticSlices(64, true, 9);
   CpvsArtifact art;
   art.dag = buildTiled(d, 6, 6, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
   art.grid.frame = LightFrame::fromDirection({0.3, -1, 0.2});

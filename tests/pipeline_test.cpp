@@ -50,22 +50,22 @@ TEST_P(ScenePipeline, DepthMapsMatchBruteForce) {
     OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 6);
     RayScene rays(scene_, grid.origin);
     const uint64_t R = grid.resolution();
-    TexelDepths got, want;
+    TexelSlices got, want;
     std::vector<uint8_t> ambiguous;
-    renderTexelDepths(rays, grid, ClosedMode::Auto, exit, 0, 0, uint32_t(R), uint32_t(R), got);
+    renderTexelSlices(rays, grid, ClosedMode::Auto, exit, 0, 0, uint32_t(R), uint32_t(R), got);
     bruteForceDepths(scene_, grid, ClosedMode::Auto, exit, want, ambiguous);
     uint64_t bad = 0, skipped = 0, hitTexels = 0, interiorTexels = 0;
     for (uint64_t i = 0; i < R * R; ++i) {
-      hitTexels += want.lo[i] < R;
-      interiorTexels += want.hi[i] > want.lo[i];
+      hitTexels += want.firstUndefined[i] < R;
+      interiorTexels += want.firstShadowed[i] > want.firstUndefined[i];
       if (ambiguous[i]) {
         ++skipped;
         continue;
       }
-      if (got.lo[i] != want.lo[i] || got.hi[i] != want.hi[i]) {
+      if (got.firstUndefined[i] != want.firstUndefined[i] || got.firstShadowed[i] != want.firstShadowed[i]) {
         if (++bad <= 5)
-          ADD_FAILURE() << "texel " << i % R << "," << i / R << ": renderer lo/hi " << got.lo[i] << "/" << got.hi[i]
-                        << ", brute force " << want.lo[i] << "/" << want.hi[i];
+          ADD_FAILURE() << "texel " << i % R << "," << i / R << ": renderer lo/hi " << got.firstUndefined[i] << "/" << got.firstShadowed[i]
+                        << ", brute force " << want.firstUndefined[i] << "/" << want.firstShadowed[i];
       }
     }
     EXPECT_EQ(bad, 0u);
@@ -91,7 +91,7 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
     Dag dag = bakeGrid(rays, grid, opt);
     expectOptimal(dag);
     const uint64_t R = grid.resolution();
-    TexelDepths want;
+    TexelSlices want;
     std::vector<uint8_t> ambiguous;
     bruteForceDepths(scene_, grid, ClosedMode::Auto, ExitMode::Exact, want, ambiguous);
     uint64_t bad = 0, undefinedVoxels = 0, undefinedChecked = 0, undefinedOutside = 0;
@@ -101,9 +101,9 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
         if (ambiguous[at]) continue;
         for (uint64_t z = 0; z < R; ++z) {
           bool shadowed = dagVoxelShadowed(dag, x, y, z);
-          if (z < want.lo[at]) {
+          if (z < want.firstUndefined[at]) {
             bad += shadowed;
-          } else if (z >= want.hi[at]) {
+          } else if (z >= want.firstShadowed[at]) {
             bad += !shadowed;
           } else {
             ++undefinedVoxels;
@@ -111,8 +111,8 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
         }
         // A voxel strictly between the enter and exit slices lies inside: its centre
         // must be inside a closed part by face counting.
-        if (want.hi[at] >= want.lo[at] + 3) {
-          Vec3 centre = grid.worldFromVoxel(Vec3{x + 0.5, y + 0.5, (want.lo[at] + want.hi[at]) / 2 + 0.5});
+        if (want.firstShadowed[at] >= want.firstUndefined[at] + 3) {
+          Vec3 centre = grid.worldFromVoxel(Vec3{x + 0.5, y + 0.5, (want.firstUndefined[at] + want.firstShadowed[at]) / 2 + 0.5});
           ++undefinedChecked;
           undefinedOutside += rays.closedNesting(centre, -grid.frame.dir, 1e9, ClosedMode::Auto) <= 0;
         }

@@ -10,7 +10,7 @@ namespace cpvs {
 namespace {
 
 Dag sampleTile(uint32_t tx, uint32_t ty, CompressMode mode = CompressMode::TopDown) {
-  TexelDepths d = testing::syntheticDepths(64, true, 5);
+  TexelSlices d = testing::syntheticSlices(64, true, 5);
   return testing::buildTile(d, 6, 5, tx, ty, UndefinedRule::New, true, mode, HashKind::Xxh3);
 }
 

@@ -16,11 +16,6 @@
 
 namespace cpvs {
 
-const std::array<const char*, kDistanceBins>& distanceBinLabels() {
-  static const std::array<const char*, kDistanceBins> labels{"<=1", "1-2", "2-4", "4-8", ">8"};
-  return labels;
-}
-
 int distanceBin(double distance, double texel) {
   const double t = distance / texel;
   // Radii are powers of two times texel / 16, so they land exactly on the bin edges; a

@@ -7,6 +7,7 @@
 #include <sstream>
 #include <system_error>
 
+#include "cpvs/bake/stage_times.h"
 #include "cpvs/io/cpvs_file.h"
 
 namespace cpvs {
@@ -83,10 +84,17 @@ std::string resolutionCell(const AccuracyRow& r) { return resolutionLabel(r.reso
 
 }  // namespace
 
+// "≤1 texel | 1–2 | ... | >8 | ": the distance bins as table columns.
+std::string binHeader() {
+  std::string h;
+  for (const auto& b : kDistanceBinNames) h += std::string(b.table) + " | ";
+  return h;
+}
+
 std::string accuracyTable(const AccuracyReport& rep) {
   std::ostringstream o;
-  o << "| method | R | texels a side | bytes | R² map / bytes | bake s | mismatch | ≤1 texel | 1–2 | 2–4 | 4–8 | >8 "
-       "| PCF 3 mean | PCF 3 p99 | PCF 5 mean | PCF 5 p99 | PCF 9 mean | PCF 9 p99 | ns/lookup | ns/lookup PCF 9 |\n";
+  o << "| method | R | texels a side | bytes | R² map / bytes | bake s | mismatch | " << binHeader()
+    << "PCF 3 mean | PCF 3 p99 | PCF 5 mean | PCF 5 p99 | PCF 9 mean | PCF 9 p99 | ns/lookup | ns/lookup PCF 9 |\n";
   o << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const AccuracyRow& r : rep.rows) {
     o << "| " << accuracyMethodName(r.method) << " | " << resolutionCell(r) << " | ";
@@ -201,7 +209,7 @@ std::string accuracyMarkdown(const AccuracyReport& rep) {
   }
 
   o << "\n## Samples per distance bin\n\nBins in texels of R; one texel of R is extent / R world units.\n\n"
-       "| R | texel (world units) | query point | compared | ≤1 texel | 1–2 | 2–4 | 4–8 | >8 | skipped "
+       "| R | texel (world units) | query point | compared | " << binHeader() << "skipped "
        "(inside closed) |\n|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const AccuracyRow& r : rep.rows) {
     if (r.method != AccuracyMethod::Cpvs && r.method != AccuracyMethod::ShadowMapEqualBytes) continue;
@@ -223,7 +231,7 @@ std::string accuracyCsv(const AccuracyReport& rep) {
   std::ostringstream o;
   o << "scene,method,resolution,side,texel_world,bytes,ratio_to_shadow_map,skipped,bake_seconds,render_s,masks_s,insert_s,"
        "compress_s,merge_s,samples,skipped_inside,mismatches,mismatch_rate";
-  for (const char* b : {"le1", "1_2", "2_4", "4_8", "gt8"}) o << ",samples_" << b << ",mismatch_rate_" << b;
+  for (const auto& b : kDistanceBinNames) o << ",samples_" << b.csv << ",mismatch_rate_" << b.csv;
   o << ",pcf_samples";
   for (int w : kAccuracyPcfWidths) o << ",pcf" << w << "_mean_abs_error,pcf" << w << "_p99_abs_error";
   for (int w : kAccuracyPcfWidths) o << ",pcf" << w << "_area_mean_abs_error,pcf" << w << "_area_p99_abs_error";
@@ -239,7 +247,7 @@ std::string accuracyCsv(const AccuracyReport& rep) {
       for (int i = 0; i < empty; ++i) o << ",";
     } else {
       o << "," << csvNumber(r.bakeSeconds);
-      for (const char* s : {"render", "masks", "insert", "compress", "merge"}) {
+      for (const char* s : kBakeGridStages) {
         auto it = r.stageSeconds.find(s);
         o << "," << (it == r.stageSeconds.end() ? std::string() : csvNumber(it->second));
       }

@@ -65,7 +65,7 @@ void expectEveryCaseRejected(const Bytes& valid, const std::vector<Case>& cases,
 }
 
 CpvsArtifact sampleArtifact() {
-  TexelDepths d = testing::syntheticDepths(64, true, 9);
+  TexelSlices d = testing::syntheticSlices(64, true, 9);
   CpvsArtifact art;
   art.dag = testing::buildTiled(d, 6, 6, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
   art.grid.frame = LightFrame::fromDirection({0.3, -1, 0.2});
@@ -123,7 +123,7 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
 constexpr size_t kSubLog2R = 12, kSubLog2Root = 16, kRootCount = 20, kRoots = 28;
 
 TEST(MustFail, SubDagFieldsDamagedBehindAValidChecksum) {
-  TexelDepths d = testing::syntheticDepths(64, true, 5);
+  TexelSlices d = testing::syntheticSlices(64, true, 5);
   const Dag tile = testing::buildTile(d, 6, 5, 0, 1, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
   ASSERT_EQ(tile.roots.size(), 2u);
   ASSERT_GE(tile.leaves.size(), 2u);

@@ -20,13 +20,13 @@ namespace cpvs::testing {
 /// Texel depths of a synthetic scene: axis-aligned boxes over a floor, seen from above.
 /// Closed boxes get an interior (hi > lo); open ones do not. Some boxes overlap and some
 /// are one texel wide, so masks, transitions and culling all get exercised.
-inline TexelDepths syntheticDepths(uint32_t R, bool closed, uint32_t seed) {
+inline TexelSlices syntheticSlices(uint32_t R, bool closed, uint32_t seed) {
   std::mt19937 rng(seed);
-  TexelDepths d;
+  TexelSlices d;
   size_t n = size_t(R) * R;
   uint32_t floor = R - R / 8;
-  d.lo.assign(n, floor);
-  d.hi.assign(n, closed ? R - 2 : floor);
+  d.firstUndefined.assign(n, floor);
+  d.firstShadowed.assign(n, closed ? R - 2 : floor);
   int boxes = 6 + int(rng() % 10);
   for (int b = 0; b < boxes; ++b) {
     uint32_t w = 1 + rng() % (R / 3), h = 1 + rng() % (R / 3);
@@ -35,44 +35,44 @@ inline TexelDepths syntheticDepths(uint32_t R, bool closed, uint32_t seed) {
     for (uint32_t y = y0; y < y0 + h; ++y)
       for (uint32_t x = x0; x < x0 + w; ++x) {
         size_t at = size_t(y) * R + x;
-        if (top < d.lo[at]) {
-          d.lo[at] = top;
-          d.hi[at] = closed ? std::max(top, bottom) : top;
+        if (top < d.firstUndefined[at]) {
+          d.firstUndefined[at] = top;
+          d.firstShadowed[at] = closed ? std::max(top, bottom) : top;
         }
       }
   }
   // A few texels with no geometry at all, and a sloped ramp.
   for (int i = 0; i < 20; ++i) {
     size_t at = rng() % n;
-    d.lo[at] = d.hi[at] = R;
+    d.firstUndefined[at] = d.firstShadowed[at] = R;
   }
   for (uint32_t y = 0; y < R / 4; ++y)
     for (uint32_t x = R / 2; x < R / 2 + R / 4; ++x) {
       size_t at = size_t(y) * R + x;
       uint32_t z = (x + y) % R;
-      if (z < d.lo[at]) d.lo[at] = d.hi[at] = z;
+      if (z < d.firstUndefined[at]) d.firstUndefined[at] = d.firstShadowed[at] = z;
     }
   return d;
 }
 
 /// The sub-block [x0, x0+T) x [y0, y0+T) of row-major depths of width R.
-inline TexelDepths cropDepths(const TexelDepths& d, uint32_t R, uint32_t x0, uint32_t y0, uint32_t T) {
-  TexelDepths out;
-  out.lo.resize(size_t(T) * T);
-  out.hi.resize(size_t(T) * T);
+inline TexelSlices cropSlices(const TexelSlices& d, uint32_t R, uint32_t x0, uint32_t y0, uint32_t T) {
+  TexelSlices out;
+  out.firstUndefined.resize(size_t(T) * T);
+  out.firstShadowed.resize(size_t(T) * T);
   for (uint32_t y = 0; y < T; ++y)
     for (uint32_t x = 0; x < T; ++x) {
-      out.lo[size_t(y) * T + x] = d.lo[size_t(y0 + y) * R + x0 + x];
-      out.hi[size_t(y) * T + x] = d.hi[size_t(y0 + y) * R + x0 + x];
+      out.firstUndefined[size_t(y) * T + x] = d.firstUndefined[size_t(y0 + y) * R + x0 + x];
+      out.firstShadowed[size_t(y) * T + x] = d.firstShadowed[size_t(y0 + y) * R + x0 + x];
     }
   return out;
 }
 
 /// Inserts (and compresses) one tile of the depths.
-inline Dag buildTile(const TexelDepths& all, int log2R, int log2T, uint32_t tx, uint32_t ty,
+inline Dag buildTile(const TexelSlices& all, int log2R, int log2T, uint32_t tx, uint32_t ty,
                      UndefinedRule rule, bool cull, CompressMode mode, HashKind hash) {
   uint32_t R = 1u << log2R, T = 1u << std::min(log2T, log2R);
-  TexelDepths tile = cropDepths(all, R, tx * T, ty * T, T);
+  TexelSlices tile = cropSlices(all, R, tx * T, ty * T, T);
   ColumnMasks masks;
   buildColumnMasks(tile, T, T, R, rule, masks);
   MinMaxPyramid pyramid;
@@ -87,7 +87,7 @@ inline Dag buildTile(const TexelDepths& all, int log2R, int log2T, uint32_t tx, 
 }
 
 /// Whole-grid DAG of the depths built from tiles of 2^log2T, merged in `order`.
-inline Dag buildTiled(const TexelDepths& all, int log2R, int log2T, UndefinedRule rule, bool cull,
+inline Dag buildTiled(const TexelSlices& all, int log2R, int log2T, UndefinedRule rule, bool cull,
                       CompressMode mode, HashKind hash, const std::vector<uint32_t>* order = nullptr) {
   uint32_t n = log2T >= log2R ? 1 : 1u << (log2R - log2T);
   StreamingMerger merger(mode);
@@ -100,7 +100,7 @@ inline Dag buildTiled(const TexelDepths& all, int log2R, int log2T, UndefinedRul
 
 /// Compares every voxel with the dense reference: lit below lo, shadowed from hi on,
 /// either inside [lo, hi). Returns the number of mismatching defined voxels.
-inline uint64_t countReferenceMismatches(const Dag& dag, const TexelDepths& d, uint32_t R,
+inline uint64_t countReferenceMismatches(const Dag& dag, const TexelSlices& d, uint32_t R,
                                          uint64_t* undefinedShadowed = nullptr) {
   uint64_t bad = 0;
   for (uint32_t y = 0; y < R; ++y)
@@ -108,9 +108,9 @@ inline uint64_t countReferenceMismatches(const Dag& dag, const TexelDepths& d, u
       size_t at = size_t(y) * R + x;
       for (uint32_t z = 0; z < R; ++z) {
         bool shadowed = dagVoxelShadowed(dag, x, y, z);
-        if (z < d.lo[at]) {
+        if (z < d.firstUndefined[at]) {
           bad += shadowed;
-        } else if (z >= std::max(d.lo[at], d.hi[at])) {
+        } else if (z >= std::max(d.firstUndefined[at], d.firstShadowed[at])) {
           bad += !shadowed;
         } else if (undefinedShadowed) {
           *undefinedShadowed += shadowed;

@@ -81,15 +81,15 @@ inline void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMod
 
 /// Brute-force depths of the whole grid; `ambiguous` marks texels to leave out.
 inline void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
-                             TexelDepths& out, std::vector<uint8_t>& ambiguous) {
+                             TexelSlices& out, std::vector<uint8_t>& ambiguous) {
   const uint64_t R = grid.resolution();
-  out.lo.assign(R * R, 0);
-  out.hi.assign(R * R, 0);
+  out.firstUndefined.assign(R * R, 0);
+  out.firstShadowed.assign(R * R, 0);
   ambiguous.assign(R * R, 0);
   for (uint64_t y = 0; y < R; ++y)
     for (uint64_t x = 0; x < R; ++x) {
       bool amb = false;
-      bruteForceTexel(scene, grid, closed, exit, x, y, out.lo[y * R + x], out.hi[y * R + x], amb);
+      bruteForceTexel(scene, grid, closed, exit, x, y, out.firstUndefined[y * R + x], out.firstShadowed[y * R + x], amb);
       ambiguous[y * R + x] = amb;
     }
 }

@@ -22,14 +22,14 @@ Dag bakeTile(const RayScene& rays, const OrthoGrid& grid, uint64_t tileX, uint64
   const uint32_t R = uint32_t(grid.resolution());
 
   auto start = std::chrono::steady_clock::now();
-  TexelDepths depths;
-  renderTexelDepths(rays, grid, options.closed, options.exit, tileX * T, tileY * T, T, T, depths);
+  TexelSlices depths;
+  renderTexelSlices(rays, grid, options.closed, options.exit, tileX * T, tileY * T, T, T, depths);
   st.add("render", secondsSince(start));
 
   start = std::chrono::steady_clock::now();
   ColumnMasks masks;
   buildColumnMasks(depths, T, T, R, options.undefinedRule, masks);
-  depths = TexelDepths{};
+  depths = TexelSlices{};
   MinMaxPyramid pyramid;
   buildMinMaxPyramid(masks, pyramid);
   st.add("masks", secondsSince(start));

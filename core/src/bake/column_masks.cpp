@@ -46,7 +46,7 @@ void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R,
 
 }  // namespace
 
-void buildColumnMasks(const TexelDepths& depths, uint32_t width, uint32_t height, uint32_t R,
+void buildColumnMasks(const TexelSlices& depths, uint32_t width, uint32_t height, uint32_t R,
                       UndefinedRule rule, ColumnMasks& out) {
   if (width % 8 || height % 8) throw std::invalid_argument("buildColumnMasks: size not a multiple of 8");
   out.columnsX = width / 8;
@@ -66,8 +66,8 @@ void buildColumnMasks(const TexelDepths& depths, uint32_t width, uint32_t height
       for (int ty = 0; ty < 8; ++ty)
         for (int tx = 0; tx < 8; ++tx) {
           size_t at = size_t(cy * 8 + ty) * width + cx * 8 + tx;
-          lo[ty * 8 + tx] = depths.lo[at];
-          hi[ty * 8 + tx] = std::max(depths.lo[at], depths.hi[at]);
+          lo[ty * 8 + tx] = depths.firstUndefined[at];
+          hi[ty * 8 + tx] = std::max(depths.firstUndefined[at], depths.firstShadowed[at]);
         }
       size_t before = rowSlices[cy].size();
       size_t c = out.column(cx, cy);

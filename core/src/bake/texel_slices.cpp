@@ -81,13 +81,13 @@ void classifyTexel(const RayHit* hits, int count, bool exact, const LightGrid& g
   // Never left the interior (open geometry forced closed): keep the column defined.
 }
 
-void renderTexelDepths(const RayScene& rays, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
+void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
                        uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
-                       TexelDepths& out) {
+                       TexelSlices& out) {
   CPVS_CHECK(width % 8 == 0 && height % 8 == 0);
   const uint32_t R = static_cast<uint32_t>(grid.resolution());
-  out.lo.assign(size_t(width) * height, R);
-  out.hi.assign(size_t(width) * height, R);
+  out.firstUndefined.assign(size_t(width) * height, R);
+  out.firstShadowed.assign(size_t(width) * height, R);
   // Crossings closer than this are one crossing seen twice (Embree's robust mode reports
   // a ray through a shared edge on both triangles).
   const double dedupT = grid.depthExtent * 1e-6;
@@ -151,7 +151,7 @@ void renderTexelDepths(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
           }
           const uint32_t lx = px + (l % kPacketW), ly = pr * kPacketH + (l / kPacketW);
           const size_t at = size_t(ly) * width + lx;
-          classifyTexel(sorted.data(), n, exact, grid, out.lo[at], out.hi[at]);
+          classifyTexel(sorted.data(), n, exact, grid, out.firstUndefined[at], out.firstShadowed[at]);
         }
       }
     }

@@ -30,7 +30,7 @@ struct ColumnMasks {
 /// Every voxel's value satisfies its texel's classification: lit where it must be lit,
 /// shadowed where it must be shadowed, and a choice by `rule` where it is undefined.
 /// Depends only on each column's own texels, so the result is independent of tiling.
-void buildColumnMasks(const TexelDepths& depths, uint32_t width, uint32_t height, uint32_t R,
+void buildColumnMasks(const TexelSlices& depths, uint32_t width, uint32_t height, uint32_t R,
                       UndefinedRule rule, ColumnMasks& out);
 
 }  // namespace cpvs

@@ -1,4 +1,5 @@
-// Enter and exit depths of a block of shadow-map texels, reduced to integer voxel slices.
+// What each texel's column of voxels must be: the enter and exit depths of the light's
+// ray through it, as voxel slices.
 #pragma once
 
 #include <cstdint>
@@ -11,35 +12,36 @@
 
 namespace cpvs {
 
-/// Per texel, the classification of its column of R voxels, as two slice indices:
-///   slice k <  lo           lit        (the voxel lies entirely in front of the surface)
-///   lo <= k < hi            undefined  (inside closed geometry: no query lands there)
-///   k >= hi                 shadowed
-/// lo = floor(enter depth in slices); no hit gives lo = hi = R. Open geometry gives
-/// hi = lo. Closed geometry gives hi = floor(exit depth), so the voxel holding the exit
-/// surface stays shadowed (a receiver touching the back of a closed object must not see
-/// light); hi >= lo always.
-struct TexelDepths {
-  std::vector<uint32_t> lo, hi;  // row-major, width * height
+/// Per texel, the classification of its column of R voxels, as two slice indices
+/// (first = firstUndefined, shadowed = firstShadowed):
+///   slice k <  first             lit        (the voxel lies entirely in front of the surface)
+///   first <= k < shadowed        undefined  (inside closed geometry: no query lands there)
+///   k >= shadowed                shadowed
+/// first = floor(enter depth in slices); no hit gives first = shadowed = R. Open geometry
+/// gives shadowed = first. Closed geometry gives shadowed = floor(exit depth), so the
+/// voxel holding the exit surface stays shadowed (a receiver touching the back of a closed
+/// object must not see light); shadowed >= first always.
+struct TexelSlices {
+  std::vector<uint32_t> firstUndefined, firstShadowed;  // row-major, width * height
 };
 
 /// Renders the texels [x0, x0 + width) x [y0, y0 + height) of the grid with packets of 8
 /// coherent orthographic rays, one through each texel centre, multithreaded with TBB.
 /// width and height must be multiples of 8. A texel's result depends only on its global
 /// index, never on the block that rendered it. Closed texels whose exit can't be found
-/// (an open mesh forced closed, more than kMaxHitsPerRay crossings) fall back to hi = lo.
-void renderTexelDepths(const RayScene& rays, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
+/// (an open mesh forced closed, more than kMaxHitsPerRay crossings) fall back to firstShadowed = firstUndefined.
+void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
                        uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
-                       TexelDepths& out);
+                       TexelSlices& out);
 
 /// Puts one ray's crossings in the order the face count reads them and returns how many
 /// remain: sorted by distance; within runs closer than `tieDistance`, enters first
 /// (coinciding surfaces of touching parts); same-kind duplicates within it dropped (a ray
-/// through a shared edge). The shared rule of renderTexelDepths, exposed for tests.
+/// through a shared edge). The shared rule of renderTexelSlices, exposed for tests.
 int orderCrossings(RayHit* hits, int count, double tieDistance);
 
 /// The texel classification of one ray's hits, sorted by distance: the shared rule of
-/// renderTexelDepths, exposed for tests. `t` values are depths along the texel's ray
+/// renderTexelSlices, exposed for tests. `t` values are depths along the texel's ray
 /// (LightGrid::texelRay), which the grid turns into slices.
 void classifyTexel(const RayHit* hits, int count, bool exact, const LightGrid& grid, uint32_t& lo, uint32_t& hi);
 

@@ -23,7 +23,13 @@ std::string resolutionLabel(uint64_t resolution);
 /// Bins of a query point's distance to the exact shadow boundary, in texels of the row's
 /// resolution R (extent / R): (0, 1], (1, 2], (2, 4], (4, 8], more than 8 (or none found).
 constexpr int kDistanceBins = 5;
-const std::array<const char*, kDistanceBins>& distanceBinLabels();
+/// The bins' names in the report's tables and in its CSV columns.
+struct DistanceBinName {
+  const char* table;
+  const char* csv;
+};
+constexpr std::array<DistanceBinName, kDistanceBins> kDistanceBinNames{
+    {{"≤1 texel", "le1"}, {"1–2", "1_2"}, {"2–4", "2_4"}, {"4–8", "4_8"}, {">8", "gt8"}}};
 /// The bin of a distance (world units) measured in texels of size `texel`.
 int distanceBin(double distance, double texel);
 
