@@ -62,18 +62,14 @@ class StageLog {
 
 std::vector<int> parseResolutions(const std::string& text) {
   std::vector<int> out;
-  size_t start = 0;
-  while (true) {
-    const size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+  for (const std::string& item : splitList(text)) {
     try {
       out.push_back(parseResolution(item));
     } catch (const InputError& e) {
       throw InputError("--resolutions '" + text + "': " + e.what());
     }
-    if (comma == std::string::npos) break;
-    start = comma + 1;
   }
+  if (out.empty()) throw InputError("--resolutions '" + text + "': no resolution");
   return out;
 }
 

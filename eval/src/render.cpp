@@ -8,24 +8,13 @@
 #include <numbers>
 
 #include "cpvs/eval/verify.h"
+#include "cpvs/base/parse.h"
 #include "cpvs/base/split_mix64.h"
 
 namespace cpvs {
 
 Camera Camera::parse(const std::string& text) {
-  std::vector<double> v;
-  size_t start = 0;
-  while (start <= text.size()) {
-    size_t comma = text.find(',', start);
-    std::string part = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    char* end = nullptr;
-    double x = std::strtod(part.c_str(), &end);
-    if (part.empty() || end != part.c_str() + part.size() || !std::isfinite(x))
-      throw InputError("camera '" + text + "': '" + part + "' is not a finite number");
-    v.push_back(x);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
+  const std::vector<double> v = parseNumbers(text, "camera '" + text + "'");
   if (v.size() != 6 && v.size() != 7)
     throw InputError("camera '" + text + "': expected EX,EY,EZ,TX,TY,TZ[,FOV], got " + std::to_string(v.size()) +
                      " numbers");

@@ -9,7 +9,8 @@
 
 namespace cpvs {
 
-/// Splits on commas, trimming spaces; empty items are dropped.
+/// Splits on commas, trimming spaces around each item. Empty items are kept (",," is a
+/// typo the caller should report); an empty text gives no items.
 std::vector<std::string> splitList(const std::string& text);
 
 /// Comma-separated finite numbers ("1, 2.5,-3").

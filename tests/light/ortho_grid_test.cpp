@@ -1,0 +1,136 @@
+// The LightGrid mapping of a directional light, against the geometry it stands for: the
+// light frame's axes, the grid corner and extents, written out here by hand once.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "cpvs/base/error.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/scene/scene.h"
+
+namespace cpvs {
+namespace {
+
+OrthoGrid sampleGrid(int log2R = 6) {
+  OrthoGrid g;
+  g.frame = LightFrame::fromDirection({0.3, -1, 0.2});
+  g.log2Resolution = log2R;
+  g.origin = {1e5, -3, 7};  // far from the world origin
+  g.u0 = -4;
+  g.v0 = -5;
+  g.d0 = -6;
+  g.extent = 10;
+  g.depthExtent = 12;
+  return g;
+}
+
+// Light coordinates (relative to the origin) of a world point, by the definition.
+Vec3 light(const OrthoGrid& g, const Vec3& w) {
+  const Vec3 p = w - g.origin;
+  return {dot(p, g.frame.u), dot(p, g.frame.v), dot(p, g.frame.dir)};
+}
+
+TEST(OrthoGrid, VoxelsAreTheLightFrameScaledToTheGrid) {
+  const OrthoGrid g = sampleGrid();
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> any(-20, 20);
+  for (int i = 0; i < 200; ++i) {
+    const Vec3 w = g.origin + Vec3{any(rng), any(rng), any(rng)};
+    const Vec3 v = g.voxelFromWorld(w), l = light(g, w);
+    EXPECT_NEAR(v.x, (l.x - g.u0) / g.extent * 64, 1e-9);
+    EXPECT_NEAR(v.y, (l.y - g.v0) / g.extent * 64, 1e-9);
+    EXPECT_NEAR(v.z, (l.z - g.d0) / g.depthExtent * 64, 1e-9);
+    const Vec3 back = g.worldFromVoxel(v);
+    EXPECT_NEAR(length(back - w), 0, 1e-9);
+    EXPECT_NEAR(g.depthOf(w), l.z - g.d0, 1e-9);
+  }
+}
+
+TEST(OrthoGrid, TexelRaysPassThroughTexelCentresAlongTheLight) {
+  const OrthoGrid g = sampleGrid();
+  const Vec3 local{1e5, 0, 0};
+  for (uint64_t x : {0u, 17u, 63u})
+    for (uint64_t y : {0u, 40u, 63u}) {
+      const TexelRay r = g.texelRay(x, y, local);
+      EXPECT_EQ(r.dir, g.frame.dir);
+      const Vec3 start = g.voxelFromWorld(r.origin + local);
+      EXPECT_NEAR(start.x, double(x) + 0.5, 1e-9);
+      EXPECT_NEAR(start.y, double(y) + 0.5, 1e-9);
+      EXPECT_NEAR(start.z, 0, 1e-9);  // the near plane
+      const Vec3 end = g.voxelFromWorld(r.origin + local + r.dir * r.tMax);
+      EXPECT_GT(end.z, 64.0);  // a hair beyond the far end
+      EXPECT_LT(end.z, 64.1);
+      // Depth along the ray and slices agree with the voxel z of the point reached.
+      for (double t : {0.01, 3.3, 11.9}) {
+        const double z = g.voxelFromWorld(r.origin + local + r.dir * t).z;
+        EXPECT_EQ(g.sliceOfDepth(t), uint32_t(std::floor(z + 1e-12)));
+      }
+    }
+  EXPECT_EQ(g.sliceOfDepth(-1), 0u);
+  EXPECT_EQ(g.sliceOfDepth(std::nan("")), 0u);
+  EXPECT_EQ(g.sliceOfDepth(1e9), 64u);
+}
+
+TEST(OrthoGrid, AnotherSideCutsTheSameVolume) {
+  const OrthoGrid g = sampleGrid();
+  const OrthoGrid map = g.withSide(100);
+  EXPECT_EQ(map.side(), 100u);
+  EXPECT_EQ(map.resolution(), g.resolution());
+  const Vec3 w = g.origin + Vec3{1, 2, 3};
+  const Vec3 a = g.voxelFromWorld(w), b = map.voxelFromWorld(w);
+  EXPECT_NEAR(b.x, a.x * 100 / 64, 1e-9);
+  EXPECT_NEAR(b.z, a.z * 100 / 64, 1e-9);
+  EXPECT_NEAR(map.texelSize() * 100, g.extent, 1e-12);
+  EXPECT_THROW(g.withSide(0), InputError);
+  EXPECT_THROW(g.withSide((uint64_t(1) << 20) + 1), InputError);
+}
+
+TEST(OrthoGrid, NormalOffsetMovesTheLargestVoxelComponentByTheGivenVoxels) {
+  const OrthoGrid g = sampleGrid();
+  const Vec3 w = g.origin + Vec3{1, 2, 3};
+  for (const Vec3& n : {Vec3{0, 1, 0}, Vec3{0.2, 0.3, -0.9}, Vec3{1e-300, 0, 0}}) {
+    const Vec3 d = g.offsetVoxel(w, n, 2.5) - g.voxelFromWorld(w);
+    EXPECT_NEAR(std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)}), 2.5, 1e-9);
+    EXPECT_GT(dot(g.worldFromVoxel(g.offsetVoxel(w, n, 2.5)) - w, n), 0);  // towards the normal
+  }
+  EXPECT_EQ(g.offsetVoxel(w, {}, 2.5), g.voxelFromWorld(w));
+  EXPECT_EQ(g.offsetVoxel(w, {std::nan(""), 0, 0}, 2.5), g.voxelFromWorld(w));
+}
+
+TEST(OrthoGrid, ChecksWhatFilesAndMessagesCarry) {
+  EXPECT_NO_THROW(checkGrid(sampleGrid(), "g"));
+  auto bad = [](auto change) {
+    OrthoGrid g = sampleGrid();
+    change(g);
+    try {
+      checkGrid(g, "grid.bin");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(bad([](OrthoGrid& g) { g.log2Resolution = 21; }).find("grid.bin: resolution"), std::string::npos);
+  EXPECT_NE(bad([](OrthoGrid& g) { g.extent = 0; }).find("not positive"), std::string::npos);
+  EXPECT_NE(bad([](OrthoGrid& g) { g.d0 = INFINITY; }).find("non-finite"), std::string::npos);
+  EXPECT_NE(bad([](OrthoGrid& g) { g.frame.dir = g.frame.dir * (1 + 1e-8); }).find("unit vector"), std::string::npos);
+}
+
+TEST(OrthoGrid, FitsTheSceneWithAMargin) {
+  Scene s;
+  s.positions = {{0, 0, 0}, {10, 0, 0}, {0, 5, 3}};
+  s.indices = {0, 1, 2};
+  const OrthoGrid g = makeGrid(s, LightFrame::fromDirection({0.1, -1, 0.3}), 8);
+  for (const Vec3& p : s.positions) {
+    const Vec3 v = g.voxelFromWorld(p);
+    for (double c : {v.x, v.y, v.z}) {
+      EXPECT_GT(c, 0);
+      EXPECT_LT(c, 256);
+    }
+  }
+  EXPECT_THROW(makeGrid(s, LightFrame::fromDirection({0, -1, 0}), 21), InputError);
+  EXPECT_THROW(makeGrid(Scene{}, LightFrame::fromDirection({0, -1, 0}), 8), InputError);
+}
+
+}  // namespace
+}  // namespace cpvs
