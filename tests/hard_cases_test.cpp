@@ -12,6 +12,7 @@
 #include "cpvs/bake/bake.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/eval/verify.h"
+#include "dag_testing.h"
 
 namespace cpvs {
 namespace {
@@ -304,6 +305,30 @@ TEST(HardCases, AddressingAtTwoToThe18And20) {
   Dag sub = bakeTile(rays, g, tile, tile, opt);
   EXPECT_EQ(sub.roots.size(), uint64_t(1) << 9);
   EXPECT_GT(sub.nodeCount(), 0u);
+  // Voxels of the tile whose exact visibility is the same at their centre and at every
+  // point one voxel away (no shadow boundary near), outside closed solids (undefined
+  // there), must hold that value.
+  const double len = shadowRayLength(g);
+  std::mt19937_64 rng(11);
+  std::uniform_int_distribution<uint64_t> inTile(0, 511), anyZ(0, g.resolution() - 1);
+  int lit = 0, shadowed = 0;
+  for (int i = 0; i < 3000 && (lit < 40 || shadowed < 40); ++i) {
+    const uint64_t x = tile * 512 + inTile(rng), y = tile * 512 + inTile(rng), z = anyZ(rng);
+    const Vec3 centre{double(x) + 0.5, double(y) + 0.5, double(z) + 0.5};
+    const Vec3 p = g.worldFromVoxel(centre);
+    if (rays.closedNesting(p, -g.frame.dir, len, ClosedMode::Auto) > 0) continue;
+    const bool exact = exactlyLit(rays, g, p);
+    bool clear = true;
+    for (int n = 0; n < 27 && clear; ++n)
+      clear = exactlyLit(rays, g, g.worldFromVoxel(centre + Vec3{n % 3 - 1.0, n / 3 % 3 - 1.0, n / 9 - 1.0})) == exact;
+    if (!clear) continue;
+    const std::optional<bool> baked = testing::subDagVoxelShadowed(sub, x, y, z);
+    ASSERT_TRUE(baked.has_value());
+    EXPECT_EQ(!*baked, exact) << "voxel " << x << ", " << y << ", " << z;
+    (exact ? lit : shadowed) += 1;
+  }
+  EXPECT_GE(lit, 40);
+  EXPECT_GE(shadowed, 40);
 }
 
 }  // namespace

@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <optional>
+
 #include <cstdint>
 #include <random>
 #include <vector>
@@ -147,6 +150,21 @@ inline void expectOptimal(const Dag& dag) {
     std::sort(nodes.begin(), nodes.end());
     EXPECT_EQ(std::adjacent_find(nodes.begin(), nodes.end()), nodes.end()) << "duplicate nodes in level " << l;
   }
+}
+
+/// Shadow value of voxel (x, y, z) in a sub-DAG (a tile's: roots of size 2^log2RootSize
+/// keyed by block position); nullopt when no root holds it.
+inline std::optional<bool> subDagVoxelShadowed(const Dag& dag, uint64_t x, uint64_t y, uint64_t z) {
+  const int s = dag.log2RootSize;
+  const uint64_t key = rootKey(x >> s, y >> s, z >> s);
+  auto it = std::lower_bound(dag.roots.begin(), dag.roots.end(), key,
+                             [](const Dag::Root& r, uint64_t k) { return r.key < k; });
+  if (it == dag.roots.end() || it->key != key) return std::nullopt;
+  NodeRef ref = it->ref;
+  for (int level = Dag::internalLevels(s) - 1; level >= 0 && ref.code == kRef; --level)
+    ref = dag.levels[size_t(level)].child(ref.index, childOfVoxel(level, x, y, z));
+  if (ref.code != kRef) return ref.code == kShadowed;
+  return ((dag.leaves[ref.index] >> leafBit(x, y)) & 1) != 0;
 }
 
 }  // namespace cpvs::testing
