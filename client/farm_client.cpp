@@ -14,7 +14,8 @@
 #include "cpvs/base/error.h"
 #include "cpvs/scene/import.h"
 #include "cpvs/io/cpvs_file.h"
-#include "farm_convert.h"
+#include "cpvs/net/chunked_stream.h"
+#include "cpvs/net/convert.h"
 
 namespace cpvs::cli {
 
@@ -23,52 +24,6 @@ namespace {
 /// Deadline of the unary calls. Streams (uploads, watches, downloads) take as long as
 /// their data or the job takes, and have none.
 constexpr double kCallSeconds = 60;
-
-/// A file opened for appending, written with write(2) so that it can be fsync'ed before
-/// it is renamed into place. Errors are InputError naming the file.
-class AppendFile {
- public:
-  explicit AppendFile(const std::string& path) : path_(path) {
-    fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-    if (fd_ < 0) fail();
-  }
-  ~AppendFile() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  AppendFile(const AppendFile&) = delete;
-  AppendFile& operator=(const AppendFile&) = delete;
-
-  void write(const std::string& data) {
-    size_t done = 0;
-    while (done < data.size()) {
-      ssize_t n = ::write(fd_, data.data() + done, data.size() - done);
-      if (n < 0) {
-        if (errno == EINTR) continue;
-        fail();
-      }
-      done += size_t(n);
-    }
-  }
-
-  /// Flushes the data to disk and closes the file.
-  void syncAndClose() {
-    int fd = fd_;
-    fd_ = -1;
-    if (::fsync(fd) != 0) {
-      int e = errno;
-      ::close(fd);
-      errno = e;
-      fail();
-    }
-    if (::close(fd) != 0) fail();
-  }
-
- private:
-  [[noreturn]] void fail() const { throw InputError("cannot write " + path_ + ": " + std::strerror(errno)); }
-
-  std::string path_;
-  int fd_ = -1;
-};
 
 /// Size of the file at `path`, 0 when there is none.
 uint64_t fileSizeOrZero(const std::string& path) {
@@ -85,7 +40,7 @@ void check(const grpc::Status& s) {
 // --- FarmCallError ----------------------------------------------------------------------
 
 FarmCallError::FarmCallError(grpc::Status status)
-    : std::runtime_error(farm::describe(status)), status_(std::move(status)) {}
+    : std::runtime_error(net::describe(status)), status_(std::move(status)) {}
 
 int FarmCallError::exitCode() const {
   switch (status_.error_code()) {
@@ -112,16 +67,16 @@ std::string randomRequestId() {
 
 // --- FarmClient -------------------------------------------------------------------------
 
-FarmClient::FarmClient(farm::Connection connection)
+FarmClient::FarmClient(net::Connection connection)
     : connection_(std::move(connection)),
-      channel_(farm::makeChannel(connection_)),
+      channel_(net::makeChannel(connection_)),
       stub_(pb::Farm::NewStub(channel_)) {}
 
 FarmClient::UploadResult FarmClient::uploadScene(const std::string& path) {
   std::vector<uint8_t> bytes = readFile(path);
   if (bytes.empty()) throw InputError("the scene file " + path + " is empty");
   UploadResult result;
-  result.sceneHash = farm::contentHash(bytes.data(), bytes.size()).hex();
+  result.sceneHash = contentHash(bytes.data(), bytes.size()).hex();
   const std::string fileName = std::filesystem::path(path).filename().string();
 
   pb::SceneRef ref;
@@ -129,7 +84,7 @@ FarmClient::UploadResult FarmClient::uploadScene(const std::string& path) {
   pb::UploadStatus status;
   {
     grpc::ClientContext ctx;
-    farm::prepare(ctx, connection_, kCallSeconds);
+    net::prepare(ctx, connection_, kCallSeconds);
     check(stub_->GetUploadStatus(&ctx, ref, &status));
   }
   if (status.complete()) {
@@ -164,27 +119,19 @@ FarmClient::UploadResult FarmClient::uploadScene(const std::string& path) {
 pb::UploadSceneReply FarmClient::sendScene(const std::vector<uint8_t>& bytes, const std::string& hash,
                                            const std::string& fileName, uint64_t offset) {
   grpc::ClientContext ctx;
-  farm::prepare(ctx, connection_);
+  net::prepare(ctx, connection_);
   pb::UploadSceneReply reply;
   auto writer = stub_->UploadScene(&ctx, &reply);
-  const uint64_t size = bytes.size();
-  bool first = true;
-  // At least one message, even when the server already holds every byte: the stream's
-  // end is what makes it check and import the file.
-  do {
-    pb::UploadSceneChunk chunk;
-    if (first) {
-      chunk.set_scene_hash(hash);
-      chunk.set_file_name(fileName);
-      chunk.set_total_size(size);
-      first = false;
-    }
-    uint64_t n = std::min<uint64_t>(farm::kChunkBytes, size - offset);
-    chunk.set_offset(offset);
-    chunk.set_data(reinterpret_cast<const char*>(bytes.data()) + offset, n);
-    if (!writer->Write(chunk)) break;  // the server ended the call; Finish says why
-    offset += n;
-  } while (offset < size);
+  // When the server ends the call early, Finish says why.
+  net::sendChunks<pb::UploadSceneChunk>(net::ChunkSource::ofBytes(bytes.data(), bytes.size()), offset, *writer,
+                                        [&](pb::UploadSceneChunk& chunk, uint64_t at, bool first) {
+                                          if (first) {
+                                            chunk.set_scene_hash(hash);
+                                            chunk.set_file_name(fileName);
+                                            chunk.set_total_size(bytes.size());
+                                          }
+                                          chunk.set_offset(at);
+                                        });
   writer->WritesDone();
   check(writer->Finish());
   return reply;
@@ -196,7 +143,7 @@ pb::JobStatus FarmClient::submit(const std::string& requestId, const pb::BakeSpe
   *request.mutable_spec() = spec;
   pb::JobStatus status;
   grpc::ClientContext ctx;
-  farm::prepare(ctx, connection_, kCallSeconds);
+  net::prepare(ctx, connection_, kCallSeconds);
   check(stub_->SubmitBake(&ctx, request, &status));
   return status;
 }
@@ -205,7 +152,7 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
   pb::JobRef ref;
   ref.set_job_id(jobId);
   grpc::ClientContext ctx;
-  farm::prepare(ctx, connection_);
+  net::prepare(ctx, connection_);
   auto reader = stub_->WatchJob(&ctx, ref);
   pb::JobStatus status, last;
   bool any = false;
@@ -226,7 +173,7 @@ pb::JobStatus FarmClient::cancel(const std::string& jobId) {
   ref.set_job_id(jobId);
   pb::JobStatus status;
   grpc::ClientContext ctx;
-  farm::prepare(ctx, connection_, kCallSeconds);
+  net::prepare(ctx, connection_, kCallSeconds);
   check(stub_->CancelJob(&ctx, ref, &status));
   return status;
 }
@@ -236,7 +183,7 @@ std::vector<pb::JobStatus> FarmClient::list(bool includeFinished) {
   request.set_include_finished(includeFinished);
   pb::ListJobsReply reply;
   grpc::ClientContext ctx;
-  farm::prepare(ctx, connection_, kCallSeconds);
+  net::prepare(ctx, connection_, kCallSeconds);
   check(stub_->ListJobs(&ctx, request, &reply));
   return {reply.jobs().begin(), reply.jobs().end()};
 }
@@ -247,42 +194,40 @@ void FarmClient::receiveArtifact(const std::string& jobId, const std::string& pa
   request.set_job_id(jobId);
   request.set_offset(offset);
   grpc::ClientContext ctx;
-  farm::prepare(ctx, connection_);
+  net::prepare(ctx, connection_);
   auto reader = stub_->DownloadArtifact(&ctx, request);
   // A stream that contradicts itself is the server's fault: end the call and report it.
-  auto broken = [&](const std::string& what) {
-    ctx.TryCancel();
-    (void)reader->Finish();
-    throw FarmCallError(grpc::Status(grpc::StatusCode::DATA_LOSS, "the download of job " + jobId + " " + what));
-  };
+  net::ChunkReceiver receiver(offset, UINT64_MAX, net::ErrorKind::DataLoss, "the download of job " + jobId);
   // Opened at the first chunk, so that a refused request leaves no empty .part behind.
   std::optional<AppendFile> out;
   pb::ArtifactChunk chunk;
   bool first = true;
-  while (reader->Read(&chunk)) {
-    if (first) {
-      total = chunk.total_size();
-      checksum = chunk.checksum();
+  try {
+    while (reader->Read(&chunk)) {
+      if (first) {
+        checksum = chunk.checksum();
+        out.emplace(part);
+      } else if (chunk.checksum() != checksum) {
+        throw net::FarmError(net::ErrorKind::DataLoss, "the download of job " + jobId + " changed its checksum midway");
+      }
       first = false;
-      out.emplace(part);
-    } else if (chunk.total_size() != total || chunk.checksum() != checksum) {
-      broken("changed its size or checksum midway");
+      receiver.accept(chunk.total_size(), chunk.offset(), chunk.data().size());
+      out->write(chunk.data().data(), chunk.data().size());
     }
-    if (chunk.offset() != offset)
-      broken("sent a chunk at byte " + std::to_string(chunk.offset()) + " after " + std::to_string(offset) + " bytes");
-    if (chunk.data().size() > total - std::min(total, offset))
-      broken("runs past its announced size of " + std::to_string(total) + " bytes");
-    out->write(chunk.data());
-    offset += chunk.data().size();
+  } catch (const net::FarmError& e) {
+    ctx.TryCancel();
+    (void)reader->Finish();
+    throw FarmCallError(grpc::Status(net::toGrpcStatus(e)));
   }
   grpc::Status status = reader->Finish();
   if (out) out->syncAndClose();
   check(status);
-  if (first) throw FarmCallError(grpc::Status(grpc::StatusCode::DATA_LOSS, "the download of job " + jobId + " sent no data"));
-  if (offset != total)
-    throw FarmCallError(grpc::Status(grpc::StatusCode::DATA_LOSS, "the download of job " + jobId + " ended after " +
-                                                                      std::to_string(offset) + " of " +
-                                                                      std::to_string(total) + " bytes"));
+  try {
+    receiver.finish();
+  } catch (const net::FarmError& e) {
+    throw FarmCallError(net::toGrpcStatus(e));
+  }
+  total = receiver.total();
 }
 
 FarmClient::DownloadResult FarmClient::download(const std::string& jobId, const std::string& outPath) {
@@ -299,7 +244,7 @@ FarmClient::DownloadResult FarmClient::download(const std::string& jobId, const 
     receiveArtifact(jobId, part, 0, result.bytes, result.checksum);
   }
   std::vector<uint8_t> bytes = readFile(part);
-  std::string got = farm::contentHash(bytes.data(), bytes.size()).hex();
+  std::string got = contentHash(bytes.data(), bytes.size()).hex();
   if (got != result.checksum) {
     ::unlink(part.c_str());
     std::string why = result.resumedFrom > 0 ? " (it resumed an earlier " + part + " of " +

@@ -15,14 +15,15 @@
 #include "cpvs/base/error.h"
 #include "cpvs/scene/import.h"
 #include "cpvs/v1/farm.grpc.pb.h"
-#include "farm_channel.h"
+#include "cpvs/net/channel.h"
+#include "cpvs/net/status.h"
 
 namespace cpvs::cli {
 
 namespace pb = ::cpvs::v1;
 
 /// A call to the coordinator that failed, with the gRPC status it failed with. what() is
-/// farm::describe(status), e.g. "NOT_FOUND: no job 42".
+/// net::describe(status), e.g. "NOT_FOUND: no job 42".
 class FarmCallError : public std::runtime_error {
  public:
   explicit FarmCallError(grpc::Status status);
@@ -52,7 +53,7 @@ class FarmClient {
  public:
   /// Throws InputError when the CA file of `connection` cannot be read. Connecting is
   /// lazy: an unreachable server shows at the first call, as UNAVAILABLE.
-  explicit FarmClient(farm::Connection connection);
+  explicit FarmClient(net::Connection connection);
 
   struct UploadResult {
     std::string sceneHash;   // XXH3-128 of the file, 32 hex digits: BakeSpec.scene_hash
@@ -109,7 +110,7 @@ class FarmClient {
   void receiveArtifact(const std::string& jobId, const std::string& part, uint64_t offset, uint64_t& total,
                        std::string& checksum);
 
-  farm::Connection connection_;
+  net::Connection connection_;
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<pb::Farm::Stub> stub_;
 };

@@ -27,7 +27,7 @@
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/scene/source.h"
 #include "farm_client.h"
-#include "farm_convert.h"
+#include "cpvs/net/convert.h"
 
 namespace cpvs::cli {
 
@@ -47,8 +47,8 @@ void addConnectionOptions(CLI::App* c, ConnectionArgs& a) {
   c->add_option("--ca", a.ca, "PEM roots to trust: connect with TLS (plaintext without)");
 }
 
-farm::Connection connectionOf(const ConnectionArgs& a) {
-  farm::Connection c{a.server, a.token, a.ca};
+net::Connection connectionOf(const ConnectionArgs& a) {
+  net::Connection c{a.server, a.token, a.ca};
   if (c.token.empty())
     if (const char* t = std::getenv("CPVS_TOKEN")) c.token = t;
   // Tokens often come from files or secrets with a trailing newline.
@@ -109,7 +109,7 @@ std::string statusJson(const pb::JobStatus& s, const std::string& indent, bool w
     << in << "\"request_id\": " << jsonString(s.request_id()) << ",\n"
     << in << "\"name\": " << jsonString(s.spec().name()) << ",\n"
     << in << "\"scene_hash\": " << jsonString(s.spec().scene_hash()) << ",\n"
-    << in << "\"state\": " << jsonString(farm::jobStateName(s.state())) << ",\n"
+    << in << "\"state\": " << jsonString(net::jobStateName(s.state())) << ",\n"
     << in << "\"priority\": " << s.spec().priority() << ",\n"
     << in << "\"resolution\": " << s.resolution() << ",\n"
     << in << "\"tiles\": " << s.tiles_total() << ",\n"
@@ -136,7 +136,7 @@ std::string statusJson(const pb::JobStatus& s, const std::string& indent, bool w
 pb::JobStatus followJob(FarmClient& client, const std::string& jobId, bool show) {
   ProgressDisplay progress(show);
   pb::JobStatus final = client.watch(jobId, [&](const pb::JobStatus& s) {
-    progress.update(farm::jobStateName(s.state()), s.tiles_done(), s.tiles_total());
+    progress.update(net::jobStateName(s.state()), s.tiles_done(), s.tiles_total());
   });
   progress.finish();
   return final;
@@ -233,14 +233,14 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
   pb::BakeSpec spec;
   if (!a.jobFile.empty()) {
     std::vector<uint8_t> bytes = readFile(a.jobFile);
-    spec = farm::specFromJson(std::string(bytes.begin(), bytes.end()), a.jobFile);
+    spec = net::specFromJson(std::string(bytes.begin(), bytes.end()), a.jobFile);
   }
 
   const bool dir = given("--sun-dir"), elevation = given("--sun-elevation"), azimuth = given("--sun-azimuth");
   if (dir && (elevation || azimuth))
     throw InputError("give either --sun-dir or --sun-elevation/--sun-azimuth, not both");
   if (dir) {
-    *spec.mutable_sun_direction() = farm::toProto(parseVec3(a.sunDir, "--sun-dir"));
+    *spec.mutable_sun_direction() = net::toProto(parseVec3(a.sunDir, "--sun-dir"));
   } else if (elevation || azimuth) {
     if (!elevation && spec.sun_case() != pb::BakeSpec::kSunAngles)
       throw InputError("--sun-azimuth needs --sun-elevation (or sun_angles in the job file)");
@@ -252,7 +252,7 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
   if (spec.sun_case() == pb::BakeSpec::SUN_NOT_SET)
     throw InputError(std::string("give the light: --sun-dir X,Y,Z or --sun-elevation DEG") +
                      (a.jobFile.empty() ? "" : " (or sun_direction or sun_angles in " + a.jobFile + ")"));
-  (void)farm::lightOf(spec);
+  (void)net::lightOf(spec);
 
   if (given("--resolution") || spec.resolution().empty()) spec.set_resolution(a.resolution);
   (void)parseResolution(spec.resolution());
@@ -267,7 +267,7 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
     o.set_undefined_rule(pb::UndefinedRule(parseOption<UndefinedRule>(a.undefinedRule, "--undefined")));
   if (given("--tile-size"))
     o.set_tile_size(uint32_t(1) << log2TileSizeOf(uint64_t(std::max(a.tileSize, 0)), "--tile-size"));
-  (void)farm::fromProto(o);
+  (void)net::fromProto(o);
 
   if (given("--priority")) spec.set_priority(a.priority);
   if (given("--name")) spec.set_name(a.name);
@@ -352,7 +352,7 @@ int runJobs(const JobsArgs& a) {
   std::printf("%-*s  %-9s  %13s  %10s  %8s  %s\n", idWidth, "JOB", "STATE", "TILES", "RESOLUTION", "ELAPSED", "NAME");
   for (const auto& j : jobs) {
     std::string tiles = std::to_string(j.tiles_done()) + "/" + std::to_string(j.tiles_total());
-    std::printf("%-*s  %-9s  %13s  %10llu  %8s  %s\n", idWidth, j.job_id().c_str(), farm::jobStateName(j.state()),
+    std::printf("%-*s  %-9s  %13s  %10llu  %8s  %s\n", idWidth, j.job_id().c_str(), net::jobStateName(j.state()),
                 tiles.c_str(), static_cast<unsigned long long>(j.resolution()),
                 formatSeconds(j.seconds_elapsed()).c_str(), j.spec().name().c_str());
   }
@@ -383,7 +383,7 @@ struct CancelArgs {
 int runCancel(const CancelArgs& a) {
   FarmClient client(connectionOf(a.conn));
   pb::JobStatus s = client.cancel(a.job);
-  std::printf("%s\n", farm::jobStateName(s.state()));
+  std::printf("%s\n", net::jobStateName(s.state()));
   return 0;
 }
 

@@ -18,7 +18,7 @@
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/scene/source.h"
 #include "cpvs/io/sub_dag_file.h"
-#include "farm_convert.h"
+#include "cpvs/net/convert.h"
 
 namespace cpvs::server {
 
@@ -52,7 +52,7 @@ std::string safeExtension(const std::string& fileName) {
 
 void checkHashText(const std::string& hash, const char* what) {
   try {
-    farm::parseHashHex(hash, what);
+    parseHashHex(hash, what);
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
   }
@@ -197,7 +197,7 @@ pb::UploadSceneReply Coordinator::endUpload(const std::string& hash) {
   if (r->received < r->totalSize) return reply;  // resumable later
   fs::path part = fs::path(config_.dataDir) / "scenes" / (hash + ".part");
   std::vector<uint8_t> bytes = readFile(part.string());
-  std::string got = farm::contentHash(bytes.data(), bytes.size()).hex();
+  std::string got = contentHash(bytes.data(), bytes.size()).hex();
   if (got != hash) {
     fs::remove(part);
     store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false});
@@ -291,8 +291,8 @@ pb::JobStatus Coordinator::submit(const pb::SubmitBakeRequest& request) {
   BakeOptions options;
   int log2R = 0;
   try {
-    frame = farm::lightOf(spec);
-    options = farm::fromProto(spec.options());
+    frame = net::lightOf(spec);
+    options = net::fromProto(spec.options());
     log2R = parseResolution(spec.resolution());
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
@@ -320,8 +320,8 @@ pb::JobStatus Coordinator::submit(const pb::SubmitBakeRequest& request) {
   j.sceneHash = spec.scene_hash();
   j.geometryHash = sceneHash(scene).hex();
   j.spec = spec.SerializeAsString();
-  j.grid = farm::toProto(grid).SerializeAsString();
-  j.options = farm::toProto(options).SerializeAsString();
+  j.grid = net::toProto(grid).SerializeAsString();
+  j.options = net::toProto(options).SerializeAsString();
   j.priority = spec.priority();
   j.createdMs = nowMs();
   j.resolution = grid.resolution();
@@ -367,7 +367,7 @@ std::string Coordinator::artifactPath(const std::string& jobId, std::string* che
   if (!j) throw FarmError(ErrorKind::NotFound, "no job " + jobId);
   if (j->state != JobState::Done)
     throw FarmError(ErrorKind::FailedPrecondition,
-                    "job " + jobId + " is " + farm::jobStateName(pb::JobState(int(j->state))) + ", not done");
+                    "job " + jobId + " is " + net::jobStateName(pb::JobState(int(j->state))) + ", not done");
   if (checksum) *checksum = j->artifactChecksum;
   return artifactFile(jobId);
 }
@@ -442,7 +442,7 @@ bool Coordinator::completeTile(const std::string& leaseId, const std::string& en
   if (!j || isFinal(j->state)) return false;
   pb::BakeOptions po;
   po.ParseFromString(j->options);
-  BakeOptions options = farm::fromProto(po);
+  BakeOptions options = net::fromProto(po);
   std::string source = "tile " + std::to_string(l->tile) + " of job " + l->jobId;
   try {
     Dag dag = decodeSubDag(reinterpret_cast<const uint8_t*>(encoded.data()), encoded.size(), source,
@@ -544,7 +544,7 @@ void Coordinator::mergeOne(const std::string& jobId, uint64_t tile) {
   }
   pb::BakeOptions po;
   po.ParseFromString(j->options);
-  BakeOptions options = farm::fromProto(po);
+  BakeOptions options = net::fromProto(po);
   MergeState& m = merges_[jobId];
   if (!m.merger) m.merger = std::make_unique<StreamingMerger>(options.compress);
   auto start = std::chrono::steady_clock::now();
@@ -569,15 +569,15 @@ void Coordinator::finishJob(const std::string& jobId, MergeState& m) {
   pg.ParseFromString(j->grid);
   auto start = std::chrono::steady_clock::now();
   CpvsArtifact art;
-  art.grid = farm::fromProto(pg);
-  art.options = farm::fromProto(po);
-  art.sceneHash = farm::parseHashHex(j->geometryHash, "geometry hash");
+  art.grid = net::fromProto(pg);
+  art.options = net::fromProto(po);
+  art.sceneHash = parseHashHex(j->geometryHash, "geometry hash");
   art.dag = assembleRoots(*m.merger->finish(), art.options.hash, art.options.compress);
   store_.addStageSeconds(jobId, {{"merge", secondsSince(start)}});
   start = std::chrono::steady_clock::now();
   std::vector<uint8_t> file = encodeCpvs(art, true);
   writeFileAtomic(artifactFile(jobId), file);
-  std::string checksum = farm::contentHash(file.data(), file.size()).hex();
+  std::string checksum = contentHash(file.data(), file.size()).hex();
   store_.addStageSeconds(jobId, {{"write", secondsSince(start)}});
   store_.finishJob(jobId, art.dag.bytes(), file.size(), m.peak, checksum, nowMs());
   removeTileResults(jobId);

@@ -17,12 +17,14 @@
 #include "cpvs/scene/import.h"
 #include "cpvs/dag/merge.h"
 #include "cpvs/v1/farm.pb.h"
-#include "farm_error.h"
+#include "cpvs/net/status.h"
 #include "farm_store.h"
 
 namespace cpvs::server {
 
 namespace pb = ::cpvs::v1;
+using net::ErrorKind;
+using net::FarmError;
 
 struct CoordinatorConfig {
   std::string dataDir;                         // SQLite database, scenes, tile results, artifacts

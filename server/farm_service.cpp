@@ -4,10 +4,12 @@
 
 #include <spdlog/spdlog.h>
 
-#include <fstream>
+#include <optional>
 
-#include "farm_channel.h"
-#include "farm_convert.h"
+#include "cpvs/net/channel.h"
+#include "cpvs/net/chunked_stream.h"
+#include "cpvs/net/status.h"
+#include "cpvs/net/convert.h"
 
 namespace cpvs::server {
 
@@ -15,21 +17,6 @@ namespace {
 
 /// Largest sub-DAG a worker may send (a 4K tile of a dense scene is tens of MB).
 constexpr uint64_t kMaxTileResultBytes = uint64_t(2) << 30;
-
-grpc::Status toStatus(const FarmError& e) {
-  using grpc::StatusCode;
-  StatusCode code = StatusCode::INTERNAL;
-  switch (e.kind) {
-    case ErrorKind::InvalidArgument: code = StatusCode::INVALID_ARGUMENT; break;
-    case ErrorKind::NotFound: code = StatusCode::NOT_FOUND; break;
-    case ErrorKind::FailedPrecondition: code = StatusCode::FAILED_PRECONDITION; break;
-    case ErrorKind::AlreadyExists: code = StatusCode::ALREADY_EXISTS; break;
-    case ErrorKind::ResourceExhausted: code = StatusCode::RESOURCE_EXHAUSTED; break;
-    case ErrorKind::DataLoss: code = StatusCode::DATA_LOSS; break;
-    case ErrorKind::Internal: code = StatusCode::INTERNAL; break;
-  }
-  return grpc::Status(code, e.what());
-}
 
 /// Checks the caller's bearer token against the role an RPC needs.
 grpc::Status authorize(const grpc::ServerContext* ctx, const TokenTable& tokens, Role needed) {
@@ -59,7 +46,7 @@ grpc::Status guarded(const grpc::ServerContext* ctx, const TokenTable& tokens, R
     return body();
   } catch (const FarmError& e) {
     if (e.kind == ErrorKind::Internal) spdlog::error("{}: {}", rpc, e.what());
-    return toStatus(e);
+    return net::toGrpcStatus(e);
   } catch (const InputError& e) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
   } catch (const std::exception& e) {
@@ -68,32 +55,16 @@ grpc::Status guarded(const grpc::ServerContext* ctx, const TokenTable& tokens, R
   }
 }
 
-/// Streams a file from `offset` in chunks; `fill` completes each message.
+/// Streams a stored file from `offset`; `fill` completes each message.
 template <class Msg, class Fill>
-grpc::Status streamFile(grpc::ServerContext* ctx, const std::string& path, uint64_t offset,
-                        grpc::ServerWriter<Msg>* writer, Fill&& fill) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return grpc::Status(grpc::StatusCode::INTERNAL, "cannot read " + path);
-  in.seekg(0, std::ios::end);
-  uint64_t size = uint64_t(in.tellg());
-  if (offset > size)
-    return grpc::Status(grpc::StatusCode::OUT_OF_RANGE,
-                        "offset " + std::to_string(offset) + " is past the end (" + std::to_string(size) + " bytes)");
-  in.seekg(std::streamoff(offset));
-  std::string buf(farm::kChunkBytes, '\0');
-  do {
-    if (ctx->IsCancelled()) return grpc::Status(grpc::StatusCode::CANCELLED, "cancelled by the caller");
-    uint64_t n = std::min<uint64_t>(farm::kChunkBytes, size - offset);
-    in.read(buf.data(), std::streamsize(n));
-    Msg m;
-    m.set_offset(offset);
-    m.set_data(buf.data(), n);
-    m.set_total_size(size);
+grpc::Status streamFile(const std::string& path, uint64_t offset, grpc::ServerWriter<Msg>* writer, Fill&& fill) {
+  const net::ChunkSource src = net::ChunkSource::ofFile(path);
+  const bool sent = net::sendChunks<Msg>(src, offset, *writer, [&](Msg& m, uint64_t at, bool) {
+    m.set_offset(at);
+    m.set_total_size(src.size());
     fill(m);
-    if (!writer->Write(m)) return grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away");
-    offset += n;
-  } while (offset < size);
-  return grpc::Status::OK;
+  });
+  return sent ? grpc::Status::OK : grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away");
 }
 
 }  // namespace
@@ -114,19 +85,16 @@ grpc::Status FarmService::UploadScene(grpc::ServerContext* ctx, grpc::ServerRead
     if (!reader->Read(&chunk)) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "empty upload stream");
     const std::string hash = chunk.scene_hash();
     c_.beginUpload(chunk);
-    uint64_t offset = chunk.offset();
+    // The coordinator checked the size and the resume offset; the stream must continue them.
+    net::ChunkReceiver receiver(chunk.offset(), chunk.total_size(), ErrorKind::InvalidArgument, "the upload");
+    bool first = true;
     do {
-      if (chunk.data().size() > farm::kChunkBytes)
-        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                            "chunk of " + std::to_string(chunk.data().size()) + " bytes; the limit is " +
-                                std::to_string(farm::kChunkBytes));
       if (!chunk.scene_hash().empty() && chunk.scene_hash() != hash)
         return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "one upload stream carries one scene");
-      if (chunk.offset() != offset)
-        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                            "chunk at byte " + std::to_string(chunk.offset()) + ", expected " + std::to_string(offset));
-      if (!chunk.data().empty()) c_.appendUpload(hash, offset, chunk.data());
-      offset += chunk.data().size();
+      const uint64_t at = receiver.accept(first ? std::optional<uint64_t>(chunk.total_size()) : std::nullopt,
+                                          chunk.offset(), chunk.data().size());
+      first = false;
+      if (!chunk.data().empty()) c_.appendUpload(hash, at, chunk.data());
     } while (reader->Read(&chunk));
     *out = c_.endUpload(hash);
     return grpc::Status::OK;
@@ -176,7 +144,7 @@ grpc::Status FarmService::DownloadArtifact(grpc::ServerContext* ctx, const pb::D
   return guarded(ctx, tokens_, Role::Client, "DownloadArtifact", [&] {
     std::string checksum;
     std::string path = c_.artifactPath(req->job_id(), &checksum);
-    return streamFile(ctx, path, req->offset(), writer, [&](pb::ArtifactChunk& m) { m.set_checksum(checksum); });
+    return streamFile(path, req->offset(), writer, [&](pb::ArtifactChunk& m) { m.set_checksum(checksum); });
   });
 }
 
@@ -201,7 +169,7 @@ grpc::Status WorkerService::FetchScene(grpc::ServerContext* ctx, const pb::Fetch
   return guarded(ctx, tokens_, Role::Worker, "FetchScene", [&] {
     std::string fileName;
     std::string path = c_.scenePath(req->scene_hash(), &fileName);
-    return streamFile(ctx, path, req->offset(), writer, [&](pb::SceneChunk& m) { m.set_file_name(fileName); });
+    return streamFile(path, req->offset(), writer, [&](pb::SceneChunk& m) { m.set_file_name(fileName); });
   });
 }
 
@@ -213,26 +181,25 @@ grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerR
     const std::string leaseId = chunk.lease_id();
     const uint64_t total = chunk.total_size();
     const std::string checksum = chunk.checksum();
-    if (total == 0 || total > kMaxTileResultBytes)
-      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "result size " + std::to_string(total) + " is out of range");
+    if (total == 0) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "result size 0 is out of range");
     std::map<std::string, double> stages;
     for (const auto& s : chunk.stages()) {
       if (!(s.seconds() >= 0 && s.seconds() < 1e7) || s.stage().empty() || s.stage().size() > 32)
         return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "invalid stage time");
       stages[s.stage()] += s.seconds();
     }
+    net::ChunkReceiver receiver(0, kMaxTileResultBytes, ErrorKind::InvalidArgument, "the result");
     std::string data;
+    bool first = true;
     do {
-      if (chunk.data().size() > farm::kChunkBytes)
-        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "chunk larger than " + std::to_string(farm::kChunkBytes));
-      if (data.size() + chunk.data().size() > total)
-        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "the result runs past its announced size");
+      receiver.accept(first ? std::optional<uint64_t>(total) : std::nullopt, std::nullopt, chunk.data().size());
+      first = false;
       data += chunk.data();
     } while (reader->Read(&chunk));
-    if (data.size() != total)
+    if (receiver.received() != total)
       return grpc::Status(grpc::StatusCode::DATA_LOSS, "result truncated: " + std::to_string(data.size()) + " of " +
                                                            std::to_string(total) + " bytes");
-    if (farm::contentHash(data.data(), data.size()).hex() != checksum)
+    if (contentHash(data.data(), data.size()).hex() != checksum)
       return grpc::Status(grpc::StatusCode::DATA_LOSS, "result does not match its checksum");
     out->set_accepted(c_.completeTile(leaseId, data, stages));
     return grpc::Status::OK;

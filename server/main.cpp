@@ -15,7 +15,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/io/cpvs_file.h"
-#include "farm_channel.h"
+#include "cpvs/net/channel.h"
 #include "farm_service.h"
 
 namespace {
@@ -83,8 +83,8 @@ int main(int argc, char** argv) {
     grpc::ServerBuilder builder;
     int port = 0;
     builder.AddListeningPort(listen, creds, &port);
-    builder.SetMaxReceiveMessageSize(cpvs::farm::kMaxMessageBytes);
-    builder.SetMaxSendMessageSize(cpvs::farm::kMaxMessageBytes);
+    builder.SetMaxReceiveMessageSize(cpvs::net::kMaxMessageBytes);
+    builder.SetMaxSendMessageSize(cpvs::net::kMaxMessageBytes);
     builder.RegisterService(&farm);
     builder.RegisterService(&workers);
     std::unique_ptr<grpc::Server> server = builder.BuildAndStart();

@@ -21,8 +21,9 @@
 #include "cpvs/scene/source.h"
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/v1/farm.grpc.pb.h"
-#include "farm_channel.h"
-#include "farm_convert.h"
+#include "cpvs/net/channel.h"
+#include "cpvs/net/status.h"
+#include "cpvs/net/convert.h"
 #include "process_testing.h"
 
 namespace cpvs {
@@ -42,11 +43,11 @@ const std::string kWrongToken = "wrong-token-security-01234";  // a token's shap
 constexpr double kRpcSeconds = 10;
 
 std::string codeName(StatusCode code) {
-  std::string s = farm::describe(grpc::Status(code, ""));
+  std::string s = net::describe(grpc::Status(code, ""));
   return s.substr(0, s.find(':'));
 }
 
-std::string hashOf(const std::string& bytes) { return farm::contentHash(bytes.data(), bytes.size()).hex(); }
+std::string hashOf(const std::string& bytes) { return contentHash(bytes.data(), bytes.size()).hex(); }
 
 std::string fileText(const fs::path& path) {
   if (!fs::exists(path)) return "";
@@ -96,7 +97,7 @@ std::vector<pb::UploadSceneChunk> uploadChunks(const std::string& hash, const st
       c.set_file_name(fileName);
       c.set_total_size(bytes.size());
     }
-    size_t n = std::min(farm::kChunkBytes, to - at);
+    size_t n = std::min(net::kChunkBytes, to - at);
     c.set_offset(at);
     c.set_data(bytes.substr(at, n));
     out.push_back(std::move(c));
@@ -120,7 +121,7 @@ std::vector<pb::TileResultChunk> resultChunks(const std::string& leaseId, const 
       st->set_stage("render");
       st->set_seconds(0.01);
     }
-    size_t n = std::min(farm::kChunkBytes, bytes.size() - at);
+    size_t n = std::min(net::kChunkBytes, bytes.size() - at);
     c.set_data(bytes.substr(at, n));
     out.push_back(std::move(c));
     at += n;
@@ -140,7 +141,7 @@ class FarmUnderTest {
     argv.insert(argv.end(), flags.begin(), flags.end());
     process_ = std::make_unique<ChildProcess>(argv, (dir / (name + ".log")).string());
     address_ = testing::waitForFile(addressFile, 30);
-    channel_ = farm::makeChannel({address_, "", ""});
+    channel_ = net::makeChannel({address_, "", ""});
     farm_ = pb::Farm::NewStub(channel_);
     workers_ = pb::Workers::NewStub(channel_);
   }
@@ -151,7 +152,7 @@ class FarmUnderTest {
   std::string log() const { return process_->log(); }
 
   void prepare(grpc::ClientContext& ctx, const std::string& token, double seconds = kRpcSeconds) const {
-    farm::prepare(ctx, farm::Connection{address_, token, ""}, seconds);
+    net::prepare(ctx, net::Connection{address_, token, ""}, seconds);
   }
 
   // --- Farm ---
@@ -345,7 +346,7 @@ struct SuiteState {
     pb::UploadSceneReply reply;
     grpc::Status s = farm->upload(kClientToken, uploadChunks(sceneHash, "scene.obj", sceneBytes), &reply);
     if (!s.ok() || !reply.complete() || reply.triangles() != 36)
-      problem = "the scene upload failed: " + farm::describe(s) + "\n" + farm->log();
+      problem = "the scene upload failed: " + net::describe(s) + "\n" + farm->log();
   }
   ~SuiteState() {
     farm.reset();
@@ -373,9 +374,9 @@ struct SuiteState {
   /// not the job's).
   std::string bake(const pb::TileLease& lease, uint64_t tileX, uint64_t tileY, bool otherLight = false) const {
     Scene scene = loadScene(scenePath);
-    OrthoGrid grid = farm::fromProto(lease.grid());
+    OrthoGrid grid = net::fromProto(lease.grid());
     if (otherLight) grid = makeGrid(scene, LightFrame::fromDirection({-0.6, -1, 0.5}), grid.log2Resolution);
-    BakeOptions options = farm::fromProto(lease.options());
+    BakeOptions options = net::fromProto(lease.options());
     RayScene rays(scene, grid.origin);
     std::vector<uint8_t> bytes = encodeSubDag(bakeTile(rays, grid, tileX, tileY, options));
     return std::string(bytes.begin(), bytes.end());
@@ -397,7 +398,7 @@ class FarmSecurityTest : public ::testing::Test {
     grpc::Status a = f.submit(kClientToken, s_->request(kStoredRequest, 32), &stored);
     grpc::Status b = f.submit(kClientToken, s_->request("done-job", 0, 1000), &done);
     if (!a.ok() || !b.ok()) {
-      s_->problem = "submit failed: " + farm::describe(a) + " / " + farm::describe(b);
+      s_->problem = "submit failed: " + net::describe(a) + " / " + net::describe(b);
       return;
     }
     storedJob_ = stored.job_id();
@@ -409,8 +410,8 @@ class FarmSecurityTest : public ::testing::Test {
     grpc::Status w = f.watch(kClientToken, doneJob_, &last, 60);
     int exit = worker.wait(30);
     if (!w.ok() || last.state() != pb::JOB_DONE || exit != 0)
-      s_->problem = "the worker did not finish the tiny job: " + farm::describe(w) + ", state " +
-                    farm::jobStateName(last.state()) + ", worker exit " + std::to_string(exit) + "\n" + worker.log() +
+      s_->problem = "the worker did not finish the tiny job: " + net::describe(w) + ", state " +
+                    net::jobStateName(last.state()) + ", worker exit " + std::to_string(exit) + "\n" + worker.log() +
                     f.log();
   }
   static void TearDownTestSuite() {
@@ -426,7 +427,7 @@ class FarmSecurityTest : public ::testing::Test {
     ASSERT_TRUE(f.running()) << "after " << after << ": the coordinator exited\n" << f.log();
     pb::ListJobsReply jobs;
     grpc::Status s = f.list(kClientToken, true, &jobs);
-    ASSERT_TRUE(s.ok()) << "after " << after << ": ListJobs " << farm::describe(s);
+    ASSERT_TRUE(s.ok()) << "after " << after << ": ListJobs " << net::describe(s);
     bool stored = false, done = false;
     for (const auto& j : jobs.jobs()) {
       if (j.job_id() == storedJob_)
@@ -438,7 +439,7 @@ class FarmSecurityTest : public ::testing::Test {
     pb::UploadStatus st;
     s = f.uploadStatus(kClientToken, s_->sceneHash, &st);
     EXPECT_TRUE(s.ok() && st.complete() && st.received() == s_->sceneBytes.size())
-        << "after " << after << ": the stored scene is no longer complete: " << farm::describe(s);
+        << "after " << after << ": the stored scene is no longer complete: " << net::describe(s);
   }
 
   static constexpr const char* kStoredRequest = "stored-job";
@@ -482,7 +483,7 @@ TEST_F(FarmSecurityTest, EveryRpcUnderEveryToken) {
   for (const auto& rpc : rpcs) {
     for (const auto& [tokenName, who, token] : tokens) {
       grpc::Status s = rpc.call(token);
-      std::string what = std::string(rpc.name) + " with the " + tokenName + ": got " + farm::describe(s);
+      std::string what = std::string(rpc.name) + " with the " + tokenName + ": got " + net::describe(s);
       StatusCode code = s.error_code();
       if (who == Who::None || who == Who::Wrong) {
         EXPECT_EQ(code, StatusCode::UNAUTHENTICATED) << what;
@@ -510,14 +511,14 @@ TEST_F(FarmSecurityTest, MalformedAuthorizationIsUnauthenticated) {
       {"a known token with a suffix", "Bearer " + kClientToken + "x"},
       {"a prefix of a known token", "Bearer " + kClientToken.substr(0, kClientToken.size() - 1)},
   };
-  auto stub = pb::Farm::NewStub(farm::makeChannel({f.address(), "", ""}));
+  auto stub = pb::Farm::NewStub(net::makeChannel({f.address(), "", ""}));
   for (const auto& [what, header] : headers) {
     grpc::ClientContext ctx;
     f.prepare(ctx, "");
     ctx.AddMetadata("authorization", header);
     pb::ListJobsReply reply;
     grpc::Status s = stub->ListJobs(&ctx, {}, &reply);
-    EXPECT_EQ(s.error_code(), StatusCode::UNAUTHENTICATED) << "ListJobs with " << what << ": " << farm::describe(s);
+    EXPECT_EQ(s.error_code(), StatusCode::UNAUTHENTICATED) << "ListJobs with " << what << ": " << net::describe(s);
   }
   expectIntact("malformed authorization headers");
 }
@@ -771,8 +772,8 @@ TEST_F(FarmSecurityTest, MalformedRequestsGetTheirStatusAndChangeNothing) {
        }},
       {"UploadScene: a chunk of kChunkBytes + 1 bytes", StatusCode::INVALID_ARGUMENT,
        [&] {
-         return f.upload(kClientToken, {header(std::string(32, 'b'), "big.obj", farm::kChunkBytes, 0,
-                                               std::string(farm::kChunkBytes + 1, 'v'))});
+         return f.upload(kClientToken, {header(std::string(32, 'b'), "big.obj", net::kChunkBytes, 0,
+                                               std::string(net::kChunkBytes + 1, 'v'))});
        }},
       {"UploadScene: a 2 MiB message, over the server's message limit", StatusCode::RESOURCE_EXHAUSTED,
        [&] {
@@ -922,7 +923,7 @@ TEST_F(FarmSecurityTest, MalformedRequestsGetTheirStatusAndChangeNothing) {
   for (const auto& c : cases) {
     grpc::Status s = c.send();
     EXPECT_EQ(s.error_code(), c.expected)
-        << c.what << ": expected " << codeName(c.expected) << ", got " << farm::describe(s);
+        << c.what << ": expected " << codeName(c.expected) << ", got " << net::describe(s);
     expectIntact(c.what);
     if (::testing::Test::HasFatalFailure()) return;
   }
@@ -930,7 +931,7 @@ TEST_F(FarmSecurityTest, MalformedRequestsGetTheirStatusAndChangeNothing) {
   // The lease outlived every bad result: the real one is taken.
   pb::CompleteReply done;
   grpc::Status s = f.complete(kWorkerToken, resultChunks(lease.lease_id(), good), &done);
-  ASSERT_TRUE(s.ok()) << farm::describe(s);
+  ASSERT_TRUE(s.ok()) << net::describe(s);
   EXPECT_TRUE(done.accepted());
   EXPECT_EQ(f.job(storedJob_).tiles_done(), 1u);
 }
@@ -948,7 +949,7 @@ TEST_F(FarmSecurityTest, ConcurrentRetriesOfOneRequestGiveOneJob) {
     threads.emplace_back([&, i] { statuses[size_t(i)] = f.submit(kClientToken, request, &jobs[size_t(i)]); });
   for (auto& t : threads) t.join();
   for (int i = 0; i < kCalls; ++i) {
-    EXPECT_TRUE(statuses[size_t(i)].ok()) << "call " << i << ": " << farm::describe(statuses[size_t(i)]);
+    EXPECT_TRUE(statuses[size_t(i)].ok()) << "call " << i << ": " << net::describe(statuses[size_t(i)]);
     EXPECT_EQ(jobs[size_t(i)].job_id(), jobs[0].job_id()) << "call " << i;
   }
   pb::ListJobsReply all;
@@ -979,7 +980,7 @@ TEST_F(FarmSecurityTest, ConcurrentSubmitsStayWithinMaxJobs) {
       ++taken;
       EXPECT_TRUE(f.cancel(kClientToken, jobs[i].job_id()).ok());
     } else {
-      EXPECT_EQ(statuses[i].error_code(), StatusCode::RESOURCE_EXHAUSTED) << farm::describe(statuses[i]);
+      EXPECT_EQ(statuses[i].error_code(), StatusCode::RESOURCE_EXHAUSTED) << net::describe(statuses[i]);
     }
   }
   EXPECT_EQ(taken, 2);
@@ -1005,7 +1006,7 @@ class FarmLeaseRulesTest : public ::testing::Test {
   std::string submit(const std::string& requestId, uint32_t tileSize, int priority) {
     pb::JobStatus job;
     grpc::Status s = s_->farm->submit(kClientToken, s_->request(requestId, tileSize, priority), &job);
-    EXPECT_TRUE(s.ok()) << farm::describe(s);
+    EXPECT_TRUE(s.ok()) << net::describe(s);
     jobs_.push_back(job.job_id());
     return job.job_id();
   }
@@ -1043,7 +1044,7 @@ TEST_F(FarmLeaseRulesTest, ExpiredLeaseIsLeasedAgainAndTheFirstResultWins) {
   // The late result of the first lease is taken: no other result was.
   pb::CompleteReply late;
   grpc::Status s = f.complete(kWorkerToken, resultChunks(first[0].lease_id(), mine), &late);
-  ASSERT_TRUE(s.ok()) << farm::describe(s);
+  ASSERT_TRUE(s.ok()) << net::describe(s);
   EXPECT_TRUE(late.accepted());
   EXPECT_EQ(f.job(job).tiles_done(), 1u);
   const fs::path tileFile = f.dataDir() / "tiles" / job / "0.cpvt";
@@ -1052,7 +1053,7 @@ TEST_F(FarmLeaseRulesTest, ExpiredLeaseIsLeasedAgainAndTheFirstResultWins) {
   // The second lease's result is declined, and does not replace the one taken.
   pb::CompleteReply declined;
   s = f.complete(kWorkerToken, resultChunks(second.lease_id(), other), &declined);
-  ASSERT_TRUE(s.ok()) << farm::describe(s);
+  ASSERT_TRUE(s.ok()) << net::describe(s);
   EXPECT_FALSE(declined.accepted());
   EXPECT_EQ(f.job(job).tiles_done(), 1u);
   EXPECT_TRUE(fileText(tileFile) == mine) << "a declined result replaced the accepted tile's file";
@@ -1084,7 +1085,7 @@ TEST_F(FarmLeaseRulesTest, RenewedLeaseOutlivesItsLengthAndEndsWithItsJob) {
   EXPECT_FALSE(r.valid());
   pb::CompleteReply reply;
   grpc::Status s = f.complete(kWorkerToken, resultChunks(lease.lease_id(), s_->bake(lease, 0, 0)), &reply);
-  ASSERT_TRUE(s.ok()) << farm::describe(s);
+  ASSERT_TRUE(s.ok()) << net::describe(s);
   EXPECT_FALSE(reply.accepted());
 }
 
@@ -1097,7 +1098,7 @@ TEST_F(FarmLeaseRulesTest, TileFailedMaxAttemptsTimesFailsItsJob) {
     ASSERT_TRUE(lease.granted()) << "attempt " << attempt;
     EXPECT_EQ(lease.job_id(), job);
     grpc::Status s = f.fail(kWorkerToken, lease.lease_id(), "out of memory on attempt " + std::to_string(attempt));
-    ASSERT_TRUE(s.ok()) << farm::describe(s);
+    ASSERT_TRUE(s.ok()) << net::describe(s);
     pb::JobStatus st = f.job(job);
     EXPECT_EQ(st.state(), attempt < 3 ? pb::JOB_RUNNING : pb::JOB_FAILED) << "after attempt " << attempt;
   }

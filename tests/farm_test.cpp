@@ -16,7 +16,8 @@
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/scene/source.h"
 #include "cpvs/v1/farm.grpc.pb.h"
-#include "farm_channel.h"
+#include "cpvs/net/channel.h"
+#include "cpvs/net/status.h"
 #include "process_testing.h"
 
 namespace cpvs {
@@ -92,10 +93,10 @@ class FarmTest : public ::testing::Test {
 
   /// The jobs the coordinator holds, through the client API.
   std::vector<v1::JobStatus> jobs(const std::string& address) {
-    farm::Connection c{address, kClientToken, ""};
-    auto stub = v1::Farm::NewStub(farm::makeChannel(c));
+    net::Connection c{address, kClientToken, ""};
+    auto stub = v1::Farm::NewStub(net::makeChannel(c));
     grpc::ClientContext ctx;
-    farm::prepare(ctx, c, 5);
+    net::prepare(ctx, c, 5);
     v1::ListJobsRequest req;
     req.set_include_finished(true);
     v1::ListJobsReply reply;

@@ -13,7 +13,9 @@
 #include "cpvs/bake/bake.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/io/sub_dag_file.h"
-#include "farm_convert.h"
+#include "cpvs/net/chunked_stream.h"
+#include "cpvs/net/convert.h"
+#include "cpvs/net/status.h"
 
 namespace cpvs::worker {
 
@@ -29,14 +31,14 @@ struct Unreachable : std::runtime_error {
 void check(const grpc::Status& s, const char* rpc) {
   if (s.ok()) return;
   if (s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED)
-    throw Unreachable(std::string(rpc) + ": " + farm::describe(s));
-  throw std::runtime_error(std::string(rpc) + ": " + farm::describe(s));
+    throw Unreachable(std::string(rpc) + ": " + net::describe(s));
+  throw std::runtime_error(std::string(rpc) + ": " + net::describe(s));
 }
 
 }  // namespace
 
 TileWorker::TileWorker(WorkerConfig config) : config_(std::move(config)) {
-  channel_ = farm::makeChannel(config_.server);
+  channel_ = net::makeChannel(config_.server);
   stub_ = pb::Workers::NewStub(channel_);
   fs::create_directories(config_.cacheDir);
 }
@@ -56,7 +58,7 @@ void TileWorker::slotLoop(int slot) {
       req.set_worker_id(config_.workerId + "/" + std::to_string(slot));
       pb::TileLease lease;
       grpc::ClientContext ctx;
-      farm::prepare(ctx, config_.server, 10);
+      net::prepare(ctx, config_.server, 10);
       check(stub_->LeaseTile(&ctx, req, &lease), "LeaseTile");
       backoffMs = 200;
       if (!lease.granted()) {
@@ -95,7 +97,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
       req.set_lease_id(lease.lease_id());
       pb::RenewReply reply;
       grpc::ClientContext ctx;
-      farm::prepare(ctx, config_.server, 10);
+      net::prepare(ctx, config_.server, 10);
       if (stub_->RenewLease(&ctx, req, &reply).ok() && !reply.valid()) {
         lost = true;  // expired or the job ended: the result will likely be declined
         return;
@@ -111,8 +113,8 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     renewer.join();
   };
   try {
-    OrthoGrid grid = farm::fromProto(lease.grid());
-    BakeOptions options = farm::fromProto(lease.options());
+    OrthoGrid grid = net::fromProto(lease.grid());
+    BakeOptions options = net::fromProto(lease.options());
     auto rays = rayScene(lease.scene_hash(), grid.origin);
     StageTimes times;
     Dag dag = bakeTile(*rays, grid, lease.tile_x(), lease.tile_y(), options, &times);
@@ -140,27 +142,22 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
 void TileWorker::sendResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
                             const std::map<std::string, double>& stages) {
   grpc::ClientContext ctx;
-  farm::prepare(ctx, config_.server, 600);
+  net::prepare(ctx, config_.server, 600);
   pb::CompleteReply reply;
   auto writer = stub_->CompleteTile(&ctx, &reply);
-  size_t offset = 0;
-  do {
-    pb::TileResultChunk chunk;
-    if (offset == 0) {
-      chunk.set_lease_id(lease.lease_id());
-      chunk.set_total_size(encoded.size());
-      chunk.set_checksum(farm::contentHash(encoded.data(), encoded.size()).hex());
-      for (const auto& [stage, seconds] : stages) {
-        auto* s = chunk.add_stages();
-        s->set_stage(stage);
-        s->set_seconds(seconds);
-      }
-    }
-    size_t n = std::min(farm::kChunkBytes, encoded.size() - offset);
-    chunk.set_data(encoded.data() + offset, n);
-    offset += n;
-    if (!writer->Write(chunk)) break;
-  } while (offset < encoded.size());
+  // When the coordinator ends the call early, Finish says why.
+  net::sendChunks<pb::TileResultChunk>(net::ChunkSource::ofBytes(encoded.data(), encoded.size()), 0, *writer,
+                                       [&](pb::TileResultChunk& chunk, uint64_t, bool first) {
+                                         if (!first) return;
+                                         chunk.set_lease_id(lease.lease_id());
+                                         chunk.set_total_size(encoded.size());
+                                         chunk.set_checksum(contentHash(encoded.data(), encoded.size()).hex());
+                                         for (const auto& [stage, seconds] : stages) {
+                                           auto* s = chunk.add_stages();
+                                           s->set_stage(stage);
+                                           s->set_seconds(seconds);
+                                         }
+                                       });
   writer->WritesDone();
   check(writer->Finish(), "CompleteTile");
   spdlog::info("tile {} of job {}: {} bytes returned{}", lease.tile_index(), lease.job_id(), encoded.size(),
@@ -173,9 +170,9 @@ void TileWorker::release(const pb::TileLease& lease, const std::string& reason) 
   req.set_reason(reason);
   pb::FailReply reply;
   grpc::ClientContext ctx;
-  farm::prepare(ctx, config_.server, 10);
+  net::prepare(ctx, config_.server, 10);
   grpc::Status s = stub_->FailTile(&ctx, req, &reply);
-  if (!s.ok()) spdlog::warn("could not release tile {}: {}", lease.tile_index(), farm::describe(s));
+  if (!s.ok()) spdlog::warn("could not release tile {}: {}", lease.tile_index(), net::describe(s));
 }
 
 std::string TileWorker::fetchScene(const std::string& sceneHash) {
@@ -190,26 +187,28 @@ std::string TileWorker::fetchScene(const std::string& sceneHash) {
     req.set_scene_hash(sceneHash);
     req.set_offset(offset);
     grpc::ClientContext ctx;
-    farm::prepare(ctx, config_.server, 600);
+    net::prepare(ctx, config_.server, 600);
     auto reader = stub_->FetchScene(&ctx, req);
-    std::ofstream out(part, std::ios::binary | std::ios::app);
+    net::ChunkReceiver receiver(offset, UINT64_MAX, net::ErrorKind::DataLoss, "the scene " + sceneHash);
+    AppendFile out(part.string());
     pb::SceneChunk chunk;
     while (reader->Read(&chunk)) {
-      if (chunk.offset() != offset) throw std::runtime_error("FetchScene: chunk out of order");
-      out.write(chunk.data().data(), std::streamsize(chunk.data().size()));
-      offset += chunk.data().size();
+      receiver.accept(chunk.total_size(), chunk.offset(), chunk.data().size());
+      out.write(chunk.data().data(), chunk.data().size());
       fileName = chunk.file_name();
     }
-    out.close();
+    out.syncAndClose();
     check(reader->Finish(), "FetchScene");
+    receiver.finish();
   }
   std::vector<uint8_t> bytes = readFile(part.string());
-  if (farm::contentHash(bytes.data(), bytes.size()).hex() != sceneHash) {
+  if (contentHash(bytes.data(), bytes.size()).hex() != sceneHash) {
     fs::remove(part);
     throw std::runtime_error("scene " + sceneHash + " arrived damaged (hash mismatch)");
   }
   fs::path final = fs::path(config_.cacheDir) / (sceneHash + fs::path(fileName).extension().string());
   fs::rename(part, final);
+  syncParentFolder(final.string());
   spdlog::info("scene {} fetched ({} bytes)", sceneHash, bytes.size());
   return final.string();
 }

@@ -12,14 +12,14 @@
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/scene/source.h"
 #include "cpvs/v1/farm.grpc.pb.h"
-#include "farm_channel.h"
+#include "cpvs/net/channel.h"
 
 namespace cpvs::worker {
 
 namespace pb = ::cpvs::v1;
 
 struct WorkerConfig {
-  farm::Connection server;
+  net::Connection server;
   int slots = 1;           // tiles baked at once
   std::string cacheDir;    // fetched scene files
   std::string workerId;    // for the coordinator's logs

@@ -81,4 +81,40 @@ std::vector<uint8_t> readFile(const std::string& path) {
   return bytes;
 }
 
+AppendFile::AppendFile(const std::string& path) : path_(path) {
+  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (fd_ < 0) fail();
+}
+
+AppendFile::~AppendFile() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void AppendFile::write(const void* data, size_t size) {
+  const char* p = static_cast<const char*>(data);
+  size_t done = 0;
+  while (done < size) {
+    const ssize_t n = ::write(fd_, p + done, size - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      fail();
+    }
+    done += size_t(n);
+  }
+}
+
+void AppendFile::syncAndClose() {
+  const int fd = fd_;
+  fd_ = -1;
+  if (::fsync(fd) != 0) {
+    const int e = errno;
+    ::close(fd);
+    errno = e;
+    fail();
+  }
+  if (::close(fd) != 0) fail();
+}
+
+void AppendFile::fail() const { throw InputError("cannot write " + path_ + ": " + std::strerror(errno)); }
+
 }  // namespace cpvs

@@ -1,6 +1,7 @@
 // Whole-file reads and atomic, durable writes.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -19,5 +20,25 @@ std::vector<uint8_t> readFile(const std::string& path);
 /// fsyncs the folder holding `path`, so that a rename or creation in it is durable.
 /// InputError naming the folder on failure.
 void syncParentFolder(const std::string& path);
+
+/// A file opened for appending (created when absent), for transfers that resume: data
+/// goes in with write(2) and is fsync'ed before the file is renamed into place. Errors are
+/// InputError naming the file.
+class AppendFile {
+ public:
+  explicit AppendFile(const std::string& path);
+  ~AppendFile();
+  AppendFile(const AppendFile&) = delete;
+  AppendFile& operator=(const AppendFile&) = delete;
+
+  void write(const void* data, size_t size);
+  /// Flushes the data to disk and closes the file.
+  void syncAndClose();
+
+ private:
+  [[noreturn]] void fail() const;
+  std::string path_;
+  int fd_ = -1;
+};
 
 }  // namespace cpvs

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <compare>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 
@@ -18,5 +19,12 @@ struct Hash128 {
   constexpr bool operator==(const Hash128&) const = default;
   std::string hex() const;
 };
+
+/// XXH3-128 of bytes: the content address of uploaded scenes, tile results and artifacts.
+Hash128 contentHash(const void* data, size_t size);
+
+/// A 32-hex-digit content hash, lower case (what hex() writes); InputError naming `what`
+/// for anything else.
+Hash128 parseHashHex(const std::string& text, const std::string& what);
 
 }  // namespace cpvs

@@ -12,7 +12,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/v1/farm.pb.h"
 
-namespace cpvs::farm {
+namespace cpvs::net {
 
 namespace pb = ::cpvs::v1;
 
@@ -32,15 +32,10 @@ OrthoGrid fromProto(const pb::GridSpec& g);
 /// The light of a spec: a finite non-zero direction or a sun above the horizon.
 LightFrame lightOf(const pb::BakeSpec& spec);
 
-/// A 32-hex-digit content hash, lower case; InputError for anything else.
-Hash128 parseHashHex(const std::string& text, const std::string& what);
-/// XXH3-128 of bytes, the content address of uploaded scenes and downloaded artifacts.
-Hash128 contentHash(const void* data, size_t size);
-
 /// The JSON form of a spec (a job file) and back; InputError with protobuf's message.
 std::string specToJson(const pb::BakeSpec& spec);
 pb::BakeSpec specFromJson(const std::string& json, const std::string& source);
 
 const char* jobStateName(pb::JobState s);
 
-}  // namespace cpvs::farm
+}  // namespace cpvs::net

@@ -1,12 +1,12 @@
 #include "cpvs/base/error.h"
-#include "farm_convert.h"
+#include "cpvs/net/convert.h"
 
 #include <google/protobuf/util/json_util.h>
 #include <xxhash.h>
 
 #include <cmath>
 
-namespace cpvs::farm {
+namespace cpvs::net {
 
 pb::Vec3 toProto(const Vec3& v) {
   pb::Vec3 p;
@@ -105,27 +105,6 @@ LightFrame lightOf(const pb::BakeSpec& spec) {
   }
 }
 
-Hash128 parseHashHex(const std::string& text, const std::string& what) {
-  if (text.size() != 32) throw InputError(what + " '" + text + "' is not 32 hexadecimal digits");
-  Hash128 h;
-  for (int half = 0; half < 2; ++half) {
-    uint64_t v = 0;
-    for (int i = 0; i < 16; ++i) {
-      char c = text[size_t(half * 16 + i)];
-      int d = c >= '0' && c <= '9' ? c - '0' : (c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1);
-      if (d < 0) throw InputError(what + " '" + text + "' is not 32 lower-case hexadecimal digits");
-      v = v << 4 | uint64_t(d);
-    }
-    (half == 0 ? h.hi : h.lo) = v;
-  }
-  return h;
-}
-
-Hash128 contentHash(const void* data, size_t size) {
-  XXH128_hash_t h = XXH3_128bits(data, size);
-  return Hash128{h.low64, h.high64};
-}
-
 std::string specToJson(const pb::BakeSpec& spec) {
   std::string out;
   google::protobuf::util::JsonPrintOptions options;
@@ -154,4 +133,4 @@ const char* jobStateName(pb::JobState s) {
   }
 }
 
-}  // namespace cpvs::farm
+}  // namespace cpvs::net

@@ -1,13 +1,13 @@
-// How a client or worker reaches the coordinator: address, bearer token, TLS trust.
+// How a client or worker reaches the coordinator: address, bearer token, TLS trust, and
+// the message limits both ends agree on.
 #pragma once
 
-#include "cpvs/base/error.h"
 #include <grpcpp/grpcpp.h>
 
 #include <memory>
 #include <string>
 
-namespace cpvs::farm {
+namespace cpvs::net {
 
 /// Chunk size of every streamed transfer (scenes, sub-DAGs, artifacts).
 constexpr size_t kChunkBytes = 1 << 20;
@@ -27,7 +27,4 @@ std::shared_ptr<grpc::Channel> makeChannel(const Connection& c);
 /// Adds the bearer token, and a deadline `seconds` from now when > 0.
 void prepare(grpc::ClientContext& ctx, const Connection& c, double seconds = 0);
 
-/// "UNAVAILABLE: failed to connect ..." for messages.
-std::string describe(const grpc::Status& s);
-
-}  // namespace cpvs::farm
+}  // namespace cpvs::net

@@ -1,14 +1,12 @@
-#include "farm_channel.h"
+#include "cpvs/net/channel.h"
 
 #include <chrono>
 #include <fstream>
 #include <sstream>
 
-#include "cpvs/base/vec3.h"
-#include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
 
-namespace cpvs::farm {
+namespace cpvs::net {
 
 std::shared_ptr<grpc::Channel> makeChannel(const Connection& c) {
   grpc::ChannelArguments args;
@@ -41,14 +39,4 @@ void prepare(grpc::ClientContext& ctx, const Connection& c, double seconds) {
                      std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000)));
 }
 
-std::string describe(const grpc::Status& s) {
-  static const char* names[] = {"OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT", "DEADLINE_EXCEEDED", "NOT_FOUND",
-                                "ALREADY_EXISTS", "PERMISSION_DENIED", "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION",
-                                "ABORTED", "OUT_OF_RANGE", "UNIMPLEMENTED", "INTERNAL", "UNAVAILABLE", "DATA_LOSS",
-                                "UNAUTHENTICATED"};
-  int code = int(s.error_code());
-  std::string name = code >= 0 && code <= 16 ? names[code] : std::to_string(code);
-  return name + ": " + s.error_message();
-}
-
-}  // namespace cpvs::farm
+}  // namespace cpvs::net
