@@ -4,6 +4,8 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "cpvs/net/connection.h"
+
 #include <memory>
 #include <string>
 
@@ -13,12 +15,6 @@ namespace cpvs::net {
 constexpr size_t kChunkBytes = 1 << 20;
 /// Largest message either side accepts: a chunk plus its envelope.
 constexpr int kMaxMessageBytes = int(kChunkBytes) + (64 << 10);
-
-struct Connection {
-  std::string address;  // HOST:PORT
-  std::string token;    // bearer token; empty = none
-  std::string caFile;   // PEM roots to trust: TLS when set, plaintext otherwise
-};
 
 /// A channel to the coordinator (proxies ignored: farms run on private networks).
 /// Throws InputError when the CA file cannot be read.

@@ -1,9 +1,9 @@
-// The client's side of the bake farm: upload a scene, submit a bake, watch, cancel, list
-// and download, over the generated `cpvs::v1::Farm` stub. No command-line code: the
-// subcommands in farm_commands.cpp print and choose exit statuses.
+// The client's side of the bake farm, as a library: upload a scene, submit a bake,
+// watch, cancel, list and download. Its header names no transport type (no gRPC status,
+// channel or stub: those live in src/ over net/), so a runtime or a tool links it without
+// seeing gRPC; jobs are the contract's plain messages (cpvs/v1/farm.pb.h). The command
+// line's farm subcommands (client/cli/farm_commands.cpp) print and choose exit statuses.
 #pragma once
-
-#include <grpcpp/grpcpp.h>
 
 #include <cstdint>
 #include <functional>
@@ -12,32 +12,30 @@
 #include <string>
 #include <vector>
 
-#include "cpvs/base/error.h"
-#include "cpvs/scene/import.h"
-#include "cpvs/v1/farm.grpc.pb.h"
-#include "cpvs/net/channel.h"
-#include "cpvs/net/status.h"
+#include "cpvs/net/connection.h"
+#include "cpvs/net/error_kind.h"
+#include "cpvs/v1/farm.pb.h"
 
-namespace cpvs::cli {
+namespace cpvs::client {
 
 namespace pb = ::cpvs::v1;
 
-/// A call to the coordinator that failed, with the gRPC status it failed with. what() is
-/// net::describe(status), e.g. "NOT_FOUND: no job 42".
+/// A call to the coordinator that failed, with the kind of error it failed with. what()
+/// names the kind as the status code it travelled as, e.g. "NOT_FOUND: no job 42".
 class FarmCallError : public std::runtime_error {
  public:
-  explicit FarmCallError(grpc::Status status);
+  explicit FarmCallError(const net::FarmError& error) : std::runtime_error(error.what()), kind_(error.kind) {}
 
-  const grpc::Status& status() const { return status_; }
+  net::ErrorKind kind() const { return kind_; }
 
-  /// The exit status of the command line: 2 when the request itself was refused and the
-  /// caller can fix it (INVALID_ARGUMENT, NOT_FOUND, ALREADY_EXISTS, OUT_OF_RANGE,
-  /// UNAUTHENTICATED, PERMISSION_DENIED, FAILED_PRECONDITION, RESOURCE_EXHAUSTED), 4 when
-  /// the farm could not be reached or failed (UNAVAILABLE, DEADLINE_EXCEEDED, anything else).
-  int exitCode() const;
+  /// True when the request itself was refused and the caller can fix it (invalid
+  /// argument, not found, already exists, out of range, unauthenticated, permission
+  /// denied, failed precondition, resource exhausted); false when the farm could not be
+  /// reached or failed (unavailable, deadline exceeded, data loss, internal, ...).
+  bool callerCanFix() const;
 
  private:
-  grpc::Status status_;
+  net::ErrorKind kind_;
 };
 
 /// True for the states a job never leaves: DONE, FAILED, CANCELLED.
@@ -54,6 +52,9 @@ class FarmClient {
   /// Throws InputError when the CA file of `connection` cannot be read. Connecting is
   /// lazy: an unreachable server shows at the first call, as UNAVAILABLE.
   explicit FarmClient(net::Connection connection);
+  ~FarmClient();
+  FarmClient(const FarmClient&) = delete;
+  FarmClient& operator=(const FarmClient&) = delete;
 
   struct UploadResult {
     std::string sceneHash;   // XXH3-128 of the file, 32 hex digits: BakeSpec.scene_hash
@@ -102,17 +103,8 @@ class FarmClient {
   DownloadResult download(const std::string& jobId, const std::string& outPath);
 
  private:
-  /// One upload stream starting at `offset`; returns the server's reply.
-  pb::UploadSceneReply sendScene(const std::vector<uint8_t>& bytes, const std::string& hash,
-                                 const std::string& fileName, uint64_t offset);
-  /// One download stream appending to `part`, which holds `offset` bytes; returns the
-  /// announced total size and checksum.
-  void receiveArtifact(const std::string& jobId, const std::string& part, uint64_t offset, uint64_t& total,
-                       std::string& checksum);
-
-  net::Connection connection_;
-  std::shared_ptr<grpc::Channel> channel_;
-  std::unique_ptr<pb::Farm::Stub> stub_;
+  struct Transport;  // channel, stub and the streams over them (src/farm_client.cpp)
+  std::unique_ptr<Transport> transport_;
 };
 
-}  // namespace cpvs::cli
+}  // namespace cpvs::client

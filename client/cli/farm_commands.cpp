@@ -26,10 +26,16 @@
 #include "cpvs/light/frame.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/scene/source.h"
-#include "farm_client.h"
+#include "cpvs/client/farm_client.h"
 #include "cpvs/net/convert.h"
 
 namespace cpvs::cli {
+
+using client::FarmCallError;
+using client::FarmClient;
+using client::isFinalState;
+using client::randomRequestId;
+namespace pb = ::cpvs::v1;
 
 namespace {
 
@@ -57,14 +63,14 @@ net::Connection connectionOf(const ConnectionArgs& a) {
 }
 
 /// Runs a farm command and stores its exit status; a failed RPC prints its status and
-/// exits with FarmCallError::exitCode(). Other errors go on to main().
+/// exits with 2 when the caller can fix the request, 4 otherwise. Other errors go on to main().
 template <class F>
 void runFarmCommand(int& status, F&& body) {
   try {
     status = body();
   } catch (const FarmCallError& e) {
     std::fprintf(stderr, "cpvs: %s\n", e.what());
-    status = e.exitCode();
+    status = e.callerCanFix() ? 2 : 4;
   }
 }
 

@@ -1,4 +1,8 @@
-#include "farm_client.h"
+#include "cpvs/client/farm_client.h"
+
+#include <grpcpp/grpcpp.h>
+
+#include "cpvs/v1/farm.grpc.pb.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -12,12 +16,13 @@
 #include <random>
 
 #include "cpvs/base/error.h"
-#include "cpvs/scene/import.h"
-#include "cpvs/io/cpvs_file.h"
+#include "cpvs/base/file.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/net/channel.h"
 #include "cpvs/net/chunked_stream.h"
-#include "cpvs/net/convert.h"
+#include "cpvs/net/status.h"
 
-namespace cpvs::cli {
+namespace cpvs::client {
 
 namespace {
 
@@ -32,27 +37,30 @@ uint64_t fileSizeOrZero(const std::string& path) {
 }
 
 void check(const grpc::Status& s) {
-  if (!s.ok()) throw FarmCallError(s);
+  if (!s.ok()) throw FarmCallError(net::fromGrpcStatus(s));
+}
+
+/// A failure found on this side, named as the status code it stands for.
+FarmCallError callError(net::ErrorKind kind, const std::string& message) {
+  return FarmCallError(net::FarmError(kind, std::string(net::errorKindName(kind)) + ": " + message));
 }
 
 }  // namespace
 
 // --- FarmCallError ----------------------------------------------------------------------
 
-FarmCallError::FarmCallError(grpc::Status status)
-    : std::runtime_error(net::describe(status)), status_(std::move(status)) {}
-
-int FarmCallError::exitCode() const {
-  switch (status_.error_code()) {
-    case grpc::StatusCode::INVALID_ARGUMENT:
-    case grpc::StatusCode::NOT_FOUND:
-    case grpc::StatusCode::ALREADY_EXISTS:
-    case grpc::StatusCode::OUT_OF_RANGE:
-    case grpc::StatusCode::UNAUTHENTICATED:
-    case grpc::StatusCode::PERMISSION_DENIED:
-    case grpc::StatusCode::FAILED_PRECONDITION:
-    case grpc::StatusCode::RESOURCE_EXHAUSTED: return 2;
-    default: return 4;
+bool FarmCallError::callerCanFix() const {
+  using net::ErrorKind;
+  switch (kind_) {
+    case ErrorKind::InvalidArgument:
+    case ErrorKind::NotFound:
+    case ErrorKind::AlreadyExists:
+    case ErrorKind::OutOfRange:
+    case ErrorKind::Unauthenticated:
+    case ErrorKind::PermissionDenied:
+    case ErrorKind::FailedPrecondition:
+    case ErrorKind::ResourceExhausted: return true;
+    default: return false;
   }
 }
 
@@ -67,10 +75,26 @@ std::string randomRequestId() {
 
 // --- FarmClient -------------------------------------------------------------------------
 
-FarmClient::FarmClient(net::Connection connection)
-    : connection_(std::move(connection)),
-      channel_(net::makeChannel(connection_)),
-      stub_(pb::Farm::NewStub(channel_)) {}
+struct FarmClient::Transport {
+  explicit Transport(net::Connection c)
+      : connection(std::move(c)), channel(net::makeChannel(connection)), stub(pb::Farm::NewStub(channel)) {}
+
+  /// One upload stream starting at `offset`; returns the server's reply.
+  pb::UploadSceneReply sendScene(const std::vector<uint8_t>& bytes, const std::string& hash,
+                                 const std::string& fileName, uint64_t offset);
+  /// One download stream appending to `part`, which holds `offset` bytes; returns the
+  /// announced total size and checksum.
+  void receiveArtifact(const std::string& jobId, const std::string& part, uint64_t offset, uint64_t& total,
+                       std::string& checksum);
+
+  net::Connection connection;
+  std::shared_ptr<grpc::Channel> channel;
+  std::unique_ptr<pb::Farm::Stub> stub;
+};
+
+FarmClient::FarmClient(net::Connection connection) : transport_(std::make_unique<Transport>(std::move(connection))) {}
+
+FarmClient::~FarmClient() = default;
 
 FarmClient::UploadResult FarmClient::uploadScene(const std::string& path) {
   std::vector<uint8_t> bytes = readFile(path);
@@ -84,8 +108,8 @@ FarmClient::UploadResult FarmClient::uploadScene(const std::string& path) {
   pb::UploadStatus status;
   {
     grpc::ClientContext ctx;
-    net::prepare(ctx, connection_, kCallSeconds);
-    check(stub_->GetUploadStatus(&ctx, ref, &status));
+    net::prepare(ctx, transport_->connection, kCallSeconds);
+    check(transport_->stub->GetUploadStatus(&ctx, ref, &status));
   }
   if (status.complete()) {
     result.alreadyThere = true;
@@ -97,31 +121,30 @@ FarmClient::UploadResult FarmClient::uploadScene(const std::string& path) {
     offset = status.received();
   pb::UploadSceneReply reply;
   try {
-    reply = sendScene(bytes, result.sceneHash, fileName, offset);
+    reply = transport_->sendScene(bytes, result.sceneHash, fileName, offset);
   } catch (const FarmCallError& e) {
     // The server restarts an upload announced under another file name, and then wants
     // it from byte 0.
-    if (offset == 0 || e.status().error_code() != grpc::StatusCode::FAILED_PRECONDITION) throw;
+    if (offset == 0 || e.kind() != net::ErrorKind::FailedPrecondition) throw;
     offset = 0;
-    reply = sendScene(bytes, result.sceneHash, fileName, offset);
+    reply = transport_->sendScene(bytes, result.sceneHash, fileName, offset);
   }
   if (!reply.complete())
-    throw FarmCallError(grpc::Status(grpc::StatusCode::DATA_LOSS,
-                                     "the server holds " + std::to_string(reply.received()) + " of " +
+    throw callError(net::ErrorKind::DataLoss, "the server holds " + std::to_string(reply.received()) + " of " +
                                          std::to_string(bytes.size()) + " bytes of " + fileName +
-                                         " after the upload; upload it again"));
+                                         " after the upload; upload it again");
   result.resumedFrom = offset;
   result.bytesSent = bytes.size() - offset;
   result.triangles = reply.triangles();
   return result;
 }
 
-pb::UploadSceneReply FarmClient::sendScene(const std::vector<uint8_t>& bytes, const std::string& hash,
+pb::UploadSceneReply FarmClient::Transport::sendScene(const std::vector<uint8_t>& bytes, const std::string& hash,
                                            const std::string& fileName, uint64_t offset) {
   grpc::ClientContext ctx;
-  net::prepare(ctx, connection_);
+  net::prepare(ctx, connection);
   pb::UploadSceneReply reply;
-  auto writer = stub_->UploadScene(&ctx, &reply);
+  auto writer = stub->UploadScene(&ctx, &reply);
   // When the server ends the call early, Finish says why.
   net::sendChunks<pb::UploadSceneChunk>(net::ChunkSource::ofBytes(bytes.data(), bytes.size()), offset, *writer,
                                         [&](pb::UploadSceneChunk& chunk, uint64_t at, bool first) {
@@ -143,8 +166,8 @@ pb::JobStatus FarmClient::submit(const std::string& requestId, const pb::BakeSpe
   *request.mutable_spec() = spec;
   pb::JobStatus status;
   grpc::ClientContext ctx;
-  net::prepare(ctx, connection_, kCallSeconds);
-  check(stub_->SubmitBake(&ctx, request, &status));
+  net::prepare(ctx, transport_->connection, kCallSeconds);
+  check(transport_->stub->SubmitBake(&ctx, request, &status));
   return status;
 }
 
@@ -152,8 +175,8 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
   pb::JobRef ref;
   ref.set_job_id(jobId);
   grpc::ClientContext ctx;
-  net::prepare(ctx, connection_);
-  auto reader = stub_->WatchJob(&ctx, ref);
+  net::prepare(ctx, transport_->connection);
+  auto reader = transport_->stub->WatchJob(&ctx, ref);
   pb::JobStatus status, last;
   bool any = false;
   while (reader->Read(&status)) {
@@ -163,8 +186,7 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
   }
   check(reader->Finish());
   if (!any || !isFinalState(last.state()))
-    throw FarmCallError(grpc::Status(grpc::StatusCode::UNKNOWN,
-                                     "the server ended the watch of job " + jobId + " before the job ended"));
+    throw callError(net::ErrorKind::Internal, "the server ended the watch of job " + jobId + " before the job ended");
   return last;
 }
 
@@ -173,8 +195,8 @@ pb::JobStatus FarmClient::cancel(const std::string& jobId) {
   ref.set_job_id(jobId);
   pb::JobStatus status;
   grpc::ClientContext ctx;
-  net::prepare(ctx, connection_, kCallSeconds);
-  check(stub_->CancelJob(&ctx, ref, &status));
+  net::prepare(ctx, transport_->connection, kCallSeconds);
+  check(transport_->stub->CancelJob(&ctx, ref, &status));
   return status;
 }
 
@@ -183,19 +205,19 @@ std::vector<pb::JobStatus> FarmClient::list(bool includeFinished) {
   request.set_include_finished(includeFinished);
   pb::ListJobsReply reply;
   grpc::ClientContext ctx;
-  net::prepare(ctx, connection_, kCallSeconds);
-  check(stub_->ListJobs(&ctx, request, &reply));
+  net::prepare(ctx, transport_->connection, kCallSeconds);
+  check(transport_->stub->ListJobs(&ctx, request, &reply));
   return {reply.jobs().begin(), reply.jobs().end()};
 }
 
-void FarmClient::receiveArtifact(const std::string& jobId, const std::string& part, uint64_t offset, uint64_t& total,
+void FarmClient::Transport::receiveArtifact(const std::string& jobId, const std::string& part, uint64_t offset, uint64_t& total,
                                  std::string& checksum) {
   pb::DownloadRequest request;
   request.set_job_id(jobId);
   request.set_offset(offset);
   grpc::ClientContext ctx;
-  net::prepare(ctx, connection_);
-  auto reader = stub_->DownloadArtifact(&ctx, request);
+  net::prepare(ctx, connection);
+  auto reader = stub->DownloadArtifact(&ctx, request);
   // A stream that contradicts itself is the server's fault: end the call and report it.
   net::ChunkReceiver receiver(offset, UINT64_MAX, net::ErrorKind::DataLoss, "the download of job " + jobId);
   // Opened at the first chunk, so that a refused request leaves no empty .part behind.
@@ -217,7 +239,7 @@ void FarmClient::receiveArtifact(const std::string& jobId, const std::string& pa
   } catch (const net::FarmError& e) {
     ctx.TryCancel();
     (void)reader->Finish();
-    throw FarmCallError(grpc::Status(net::toGrpcStatus(e)));
+    throw FarmCallError(e);
   }
   grpc::Status status = reader->Finish();
   if (out) out->syncAndClose();
@@ -225,7 +247,7 @@ void FarmClient::receiveArtifact(const std::string& jobId, const std::string& pa
   try {
     receiver.finish();
   } catch (const net::FarmError& e) {
-    throw FarmCallError(net::toGrpcStatus(e));
+    throw FarmCallError(e);
   }
   total = receiver.total();
 }
@@ -235,13 +257,13 @@ FarmClient::DownloadResult FarmClient::download(const std::string& jobId, const 
   DownloadResult result;
   result.resumedFrom = fileSizeOrZero(part);
   try {
-    receiveArtifact(jobId, part, result.resumedFrom, result.bytes, result.checksum);
+    transport_->receiveArtifact(jobId, part, result.resumedFrom, result.bytes, result.checksum);
   } catch (const FarmCallError& e) {
     // A .part longer than the artifact belongs to something else: start over.
-    if (result.resumedFrom == 0 || e.status().error_code() != grpc::StatusCode::OUT_OF_RANGE) throw;
+    if (result.resumedFrom == 0 || e.kind() != net::ErrorKind::OutOfRange) throw;
     if (::unlink(part.c_str()) != 0) throw InputError("cannot remove " + part + ": " + std::strerror(errno));
     result.resumedFrom = 0;
-    receiveArtifact(jobId, part, 0, result.bytes, result.checksum);
+    transport_->receiveArtifact(jobId, part, 0, result.bytes, result.checksum);
   }
   std::vector<uint8_t> bytes = readFile(part);
   std::string got = contentHash(bytes.data(), bytes.size()).hex();
@@ -260,4 +282,4 @@ FarmClient::DownloadResult FarmClient::download(const std::string& jobId, const 
   return result;
 }
 
-}  // namespace cpvs::cli
+}  // namespace cpvs::client
