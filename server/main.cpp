@@ -1,7 +1,6 @@
 // `cpvs-server`: the bake farm's coordinator.
 #include <CLI/CLI.hpp>
 #include <grpcpp/grpcpp.h>
-#include <grpcpp/health_check_service_interface.h>
 #include <spdlog/spdlog.h>
 
 #include <atomic>
@@ -10,13 +9,12 @@
 #include <sstream>
 #include <thread>
 
-#include "auth.h"
-#include "coordinator.h"
+#include "coordinator/coordinator.h"
 #include "cpvs/base/error.h"
+#include "cpvs/base/file.h"
 #include "cpvs/base/parse.h"
-#include "cpvs/io/cpvs_file.h"
-#include "cpvs/net/channel.h"
-#include "farm_service.h"
+#include "rpc/auth.h"
+#include "rpc/farm_server.h"
 
 namespace {
 
@@ -77,20 +75,8 @@ int main(int argc, char** argv) {
     }
 
     cpvs::server::Coordinator coordinator(config);
-    cpvs::server::FarmService farm(coordinator, tokens);
-    cpvs::server::WorkerService workers(coordinator, tokens);
-    grpc::EnableDefaultHealthCheckService(true);
-    grpc::ServerBuilder builder;
-    int port = 0;
-    builder.AddListeningPort(listen, creds, &port);
-    builder.SetMaxReceiveMessageSize(cpvs::net::kMaxMessageBytes);
-    builder.SetMaxSendMessageSize(cpvs::net::kMaxMessageBytes);
-    builder.RegisterService(&farm);
-    builder.RegisterService(&workers);
-    std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-    if (!server || port == 0) throw cpvs::InputError("cannot listen on " + listen);
-    std::string host = listen.substr(0, listen.rfind(':'));
-    std::string bound = host + ":" + std::to_string(port);
+    cpvs::server::FarmServer server(coordinator, tokens, listen, creds);
+    const std::string bound = server.address();
     if (!addressFile.empty()) {
       std::string text = bound + "\n";
       cpvs::writeFileAtomic(addressFile, std::vector<uint8_t>(text.begin(), text.end()));
@@ -100,7 +86,7 @@ int main(int argc, char** argv) {
     std::signal(SIGINT, onSignal);
     while (!gStop) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     spdlog::info("stopping");
-    server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
+    server.shutdown(5);
     coordinator.stop();
     return 0;
   } catch (const cpvs::InputError& e) {

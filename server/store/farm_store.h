@@ -1,8 +1,8 @@
 // The coordinator's durable state in SQLite (WAL): scenes, jobs, tiles, leases. Every
-// method is one transaction; the store is safe to call from any thread.
+// method is one transaction; the store is safe to call from any thread. A job's grid and
+// options are typed columns, read without parsing anything; SQLite stays behind this
+// class (the handle is only named here).
 #pragma once
-
-#include <sqlite3.h>
 
 #include <cstdint>
 #include <map>
@@ -10,6 +10,11 @@
 #include <optional>
 #include <string>
 #include <vector>
+
+#include "cpvs/bake/options.h"
+#include "cpvs/light/ortho_grid.h"
+
+struct sqlite3;
 
 namespace cpvs::server {
 
@@ -29,9 +34,9 @@ struct SceneRecord {
 
 struct JobRecord {
   std::string id, requestId, sceneHash, geometryHash;
-  std::string spec;     // serialized cpvs.v1.BakeSpec
-  std::string grid;     // serialized cpvs.v1.GridSpec
-  std::string options;  // serialized cpvs.v1.BakeOptions (validated)
+  std::string spec;     // the request's cpvs.v1.BakeSpec as sent, serialized: shown back, compared on retries
+  OrthoGrid grid;       // what the tiles bake, in typed columns
+  BakeOptions options;
   JobState state = JobState::Queued;
   int priority = 0;
   int64_t createdMs = 0, startedMs = 0, finishedMs = 0;
@@ -49,7 +54,8 @@ struct LeaseRecord {
 
 class FarmStore {
  public:
-  /// Opens (creating if needed) the database file. Throws std::runtime_error.
+  /// Opens (creating if needed) the database file. Throws std::runtime_error, also for a
+  /// database of another schema version.
   explicit FarmStore(const std::string& path);
   ~FarmStore();
   FarmStore(const FarmStore&) = delete;

@@ -1,4 +1,4 @@
-#include "auth.h"
+#include "rpc/auth.h"
 
 #include <fstream>
 #include <sstream>

@@ -1,6 +1,7 @@
+#include "rpc/farm_service.h"
+
 #include "cpvs/base/error.h"
-#include "cpvs/scene/import.h"
-#include "farm_service.h"
+#include "cpvs/base/hash.h"
 
 #include <spdlog/spdlog.h>
 
@@ -73,7 +74,7 @@ grpc::Status streamFile(const std::string& path, uint64_t offset, grpc::ServerWr
 
 grpc::Status FarmService::GetUploadStatus(grpc::ServerContext* ctx, const pb::SceneRef* req, pb::UploadStatus* out) {
   return guarded(ctx, tokens_, Role::Client, "GetUploadStatus", [&] {
-    *out = c_.uploadStatus(req->scene_hash());
+    *out = c_.scenes().uploadStatus(req->scene_hash());
     return grpc::Status::OK;
   });
 }
@@ -84,7 +85,7 @@ grpc::Status FarmService::UploadScene(grpc::ServerContext* ctx, grpc::ServerRead
     pb::UploadSceneChunk chunk;
     if (!reader->Read(&chunk)) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "empty upload stream");
     const std::string hash = chunk.scene_hash();
-    c_.beginUpload(chunk);
+    c_.scenes().beginUpload(chunk);
     // The coordinator checked the size and the resume offset; the stream must continue them.
     net::ChunkReceiver receiver(chunk.offset(), chunk.total_size(), ErrorKind::InvalidArgument, "the upload");
     bool first = true;
@@ -94,16 +95,16 @@ grpc::Status FarmService::UploadScene(grpc::ServerContext* ctx, grpc::ServerRead
       const uint64_t at = receiver.accept(first ? std::optional<uint64_t>(chunk.total_size()) : std::nullopt,
                                           chunk.offset(), chunk.data().size());
       first = false;
-      if (!chunk.data().empty()) c_.appendUpload(hash, at, chunk.data());
+      if (!chunk.data().empty()) c_.scenes().appendUpload(hash, at, chunk.data());
     } while (reader->Read(&chunk));
-    *out = c_.endUpload(hash);
+    *out = c_.scenes().endUpload(hash);
     return grpc::Status::OK;
   });
 }
 
 grpc::Status FarmService::SubmitBake(grpc::ServerContext* ctx, const pb::SubmitBakeRequest* req, pb::JobStatus* out) {
   return guarded(ctx, tokens_, Role::Client, "SubmitBake", [&] {
-    *out = c_.submit(*req);
+    *out = c_.jobs().submit(*req);
     return grpc::Status::OK;
   });
 }
@@ -115,7 +116,7 @@ grpc::Status FarmService::WatchJob(grpc::ServerContext* ctx, const pb::JobRef* r
     for (;;) {
       // A message on every change, and at least once a second (elapsed time and ETA move,
       // and the caller learns the stream is alive).
-      pb::JobStatus s = c_.status(req->job_id());
+      pb::JobStatus s = c_.jobs().status(req->job_id());
       if (!writer->Write(s)) return grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away");
       if (s.state() == pb::JOB_DONE || s.state() == pb::JOB_FAILED || s.state() == pb::JOB_CANCELLED)
         return grpc::Status::OK;
@@ -127,14 +128,14 @@ grpc::Status FarmService::WatchJob(grpc::ServerContext* ctx, const pb::JobRef* r
 
 grpc::Status FarmService::CancelJob(grpc::ServerContext* ctx, const pb::JobRef* req, pb::JobStatus* out) {
   return guarded(ctx, tokens_, Role::Client, "CancelJob", [&] {
-    *out = c_.cancel(req->job_id());
+    *out = c_.jobs().cancel(req->job_id());
     return grpc::Status::OK;
   });
 }
 
 grpc::Status FarmService::ListJobs(grpc::ServerContext* ctx, const pb::ListJobsRequest* req, pb::ListJobsReply* out) {
   return guarded(ctx, tokens_, Role::Client, "ListJobs", [&] {
-    for (auto& s : c_.list(req->include_finished())) *out->add_jobs() = std::move(s);
+    for (auto& s : c_.jobs().list(req->include_finished())) *out->add_jobs() = std::move(s);
     return grpc::Status::OK;
   });
 }
@@ -143,7 +144,7 @@ grpc::Status FarmService::DownloadArtifact(grpc::ServerContext* ctx, const pb::D
                                            grpc::ServerWriter<pb::ArtifactChunk>* writer) {
   return guarded(ctx, tokens_, Role::Client, "DownloadArtifact", [&] {
     std::string checksum;
-    std::string path = c_.artifactPath(req->job_id(), &checksum);
+    std::string path = c_.jobs().artifactPath(req->job_id(), &checksum);
     return streamFile(path, req->offset(), writer, [&](pb::ArtifactChunk& m) { m.set_checksum(checksum); });
   });
 }
@@ -152,14 +153,14 @@ grpc::Status FarmService::DownloadArtifact(grpc::ServerContext* ctx, const pb::D
 
 grpc::Status WorkerService::LeaseTile(grpc::ServerContext* ctx, const pb::LeaseRequest* req, pb::TileLease* out) {
   return guarded(ctx, tokens_, Role::Worker, "LeaseTile", [&] {
-    *out = c_.lease(req->worker_id());
+    *out = c_.leases().lease(req->worker_id());
     return grpc::Status::OK;
   });
 }
 
 grpc::Status WorkerService::RenewLease(grpc::ServerContext* ctx, const pb::RenewRequest* req, pb::RenewReply* out) {
   return guarded(ctx, tokens_, Role::Worker, "RenewLease", [&] {
-    *out = c_.renew(req->lease_id());
+    *out = c_.leases().renew(req->lease_id());
     return grpc::Status::OK;
   });
 }
@@ -168,7 +169,7 @@ grpc::Status WorkerService::FetchScene(grpc::ServerContext* ctx, const pb::Fetch
                                        grpc::ServerWriter<pb::SceneChunk>* writer) {
   return guarded(ctx, tokens_, Role::Worker, "FetchScene", [&] {
     std::string fileName;
-    std::string path = c_.scenePath(req->scene_hash(), &fileName);
+    std::string path = c_.scenes().scenePath(req->scene_hash(), &fileName);
     return streamFile(path, req->offset(), writer, [&](pb::SceneChunk& m) { m.set_file_name(fileName); });
   });
 }
@@ -201,14 +202,14 @@ grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerR
                                                            std::to_string(total) + " bytes");
     if (contentHash(data.data(), data.size()).hex() != checksum)
       return grpc::Status(grpc::StatusCode::DATA_LOSS, "result does not match its checksum");
-    out->set_accepted(c_.completeTile(leaseId, data, stages));
+    out->set_accepted(c_.leases().completeTile(leaseId, data, stages));
     return grpc::Status::OK;
   });
 }
 
 grpc::Status WorkerService::FailTile(grpc::ServerContext* ctx, const pb::FailRequest* req, pb::FailReply*) {
   return guarded(ctx, tokens_, Role::Worker, "FailTile", [&] {
-    c_.failTile(req->lease_id(), req->reason().substr(0, 1000));
+    c_.leases().failTile(req->lease_id(), req->reason().substr(0, 1000));
     return grpc::Status::OK;
   });
 }

@@ -2,9 +2,8 @@
 // turned into statuses. Everything else is Coordinator's.
 #pragma once
 
-#include "auth.h"
-#include "coordinator.h"
-#include "cpvs/scene/import.h"
+#include "coordinator/coordinator.h"
+#include "rpc/auth.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 
 namespace cpvs::server {

@@ -1,4 +1,6 @@
-#include "farm_store.h"
+#include "store/farm_store.h"
+
+#include <sqlite3.h>
 
 #include <stdexcept>
 
@@ -72,9 +74,18 @@ class Transaction {
 };
 
 constexpr const char* kJobColumns =
-    "id, request_id, scene_hash, geometry_hash, spec, grid, options, state, priority, created_ms, started_ms, "
-    "finished_ms, error, artifact_checksum, tiles_per_side, tiles_total, bytes, file_bytes, peak_merge_bytes, "
-    "resolution";
+    "id, request_id, scene_hash, geometry_hash, spec, state, priority, created_ms, started_ms, finished_ms, error, "
+    "artifact_checksum, tiles_per_side, tiles_total, bytes, file_bytes, peak_merge_bytes, resolution, "
+    "light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, frame_u_z, frame_v_x, frame_v_y, frame_v_z, "
+    "origin_x, origin_y, origin_z, u0, v0, d0, extent, depth_extent, log2_resolution, "
+    "closed, exit_mode, cull, compress, undefined_rule, log2_tile_size, hash_kind";
+constexpr int kJobColumnCount = 43;
+constexpr int kGridColumn = 18, kOptionsColumn = 36;
+
+/// The schema this build writes (PRAGMA user_version). 2: typed grid and option columns.
+constexpr int kSchemaVersion = 2;
+
+Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
 JobRecord readJob(const Statement& s) {
   JobRecord j;
@@ -83,22 +94,59 @@ JobRecord readJob(const Statement& s) {
   j.sceneHash = s.str(2);
   j.geometryHash = s.str(3);
   j.spec = s.str(4);
-  j.grid = s.str(5);
-  j.options = s.str(6);
-  j.state = JobState(s.i64(7));
-  j.priority = int(s.i64(8));
-  j.createdMs = s.i64(9);
-  j.startedMs = s.i64(10);
-  j.finishedMs = s.i64(11);
-  j.error = s.str(12);
-  j.artifactChecksum = s.str(13);
-  j.tilesPerSide = uint64_t(s.i64(14));
-  j.tilesTotal = uint64_t(s.i64(15));
-  j.bytes = uint64_t(s.i64(16));
-  j.fileBytes = uint64_t(s.i64(17));
-  j.peakMergeBytes = uint64_t(s.i64(18));
-  j.resolution = uint64_t(s.i64(19));
+  j.state = JobState(s.i64(5));
+  j.priority = int(s.i64(6));
+  j.createdMs = s.i64(7);
+  j.startedMs = s.i64(8);
+  j.finishedMs = s.i64(9);
+  j.error = s.str(10);
+  j.artifactChecksum = s.str(11);
+  j.tilesPerSide = uint64_t(s.i64(12));
+  j.tilesTotal = uint64_t(s.i64(13));
+  j.bytes = uint64_t(s.i64(14));
+  j.fileBytes = uint64_t(s.i64(15));
+  j.peakMergeBytes = uint64_t(s.i64(16));
+  j.resolution = uint64_t(s.i64(17));
+  OrthoGrid& g = j.grid;
+  int c = kGridColumn;
+  g.frame.dir = readVec(s, c);
+  g.frame.u = readVec(s, c + 3);
+  g.frame.v = readVec(s, c + 6);
+  g.origin = readVec(s, c + 9);
+  g.u0 = s.f64(c + 12);
+  g.v0 = s.f64(c + 13);
+  g.d0 = s.f64(c + 14);
+  g.extent = s.f64(c + 15);
+  g.depthExtent = s.f64(c + 16);
+  g.log2Resolution = int(s.i64(c + 17));
+  BakeOptions& o = j.options;
+  c = kOptionsColumn;
+  o.closed = ClosedMode(s.i64(c));
+  o.exit = ExitMode(s.i64(c + 1));
+  o.cull = s.i64(c + 2) != 0;
+  o.compress = CompressMode(s.i64(c + 3));
+  o.undefinedRule = UndefinedRule(s.i64(c + 4));
+  o.log2TileSize = int(s.i64(c + 5));
+  o.hash = HashKind(s.i64(c + 6));
   return j;
+}
+
+void bindJob(Statement& s, const JobRecord& j) {
+  s.text(1, j.id).text(2, j.requestId).text(3, j.sceneHash).text(4, j.geometryHash).bind(5, j.spec);
+  s.bind(6, int64_t(j.state)).bind(7, int64_t(j.priority)).bind(8, j.createdMs).bind(9, j.startedMs);
+  s.bind(10, j.finishedMs).text(11, j.error).text(12, j.artifactChecksum).bind(13, int64_t(j.tilesPerSide));
+  s.bind(14, int64_t(j.tilesTotal)).bind(15, int64_t(0)).bind(16, int64_t(0)).bind(17, int64_t(0));
+  s.bind(18, int64_t(j.resolution));
+  const OrthoGrid& g = j.grid;
+  int c = kGridColumn + 1;
+  for (const Vec3* v : {&g.frame.dir, &g.frame.u, &g.frame.v, &g.origin})
+    for (double x : {v->x, v->y, v->z}) s.bind(c++, x);
+  for (double v : {g.u0, g.v0, g.d0, g.extent, g.depthExtent}) s.bind(c++, v);
+  s.bind(c++, int64_t(g.log2Resolution));
+  const BakeOptions& o = j.options;
+  for (int64_t v : {int64_t(o.closed), int64_t(o.exit), int64_t(o.cull), int64_t(o.compress),
+                    int64_t(o.undefinedRule), int64_t(o.log2TileSize), int64_t(o.hash)})
+    s.bind(c++, v);
 }
 
 }  // namespace
@@ -117,11 +165,27 @@ FarmStore::FarmStore(const std::string& path) {
   exec(
       "CREATE TABLE IF NOT EXISTS scenes(hash TEXT PRIMARY KEY, file_name TEXT, total_size INTEGER, received INTEGER,"
       " complete INTEGER, triangles INTEGER, geometry_hash TEXT)");
+  {
+    Statement v(db_, "PRAGMA user_version");
+    v.step();
+    const int64_t version = v.i64(0);
+    Statement t(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'jobs'");
+    t.step();
+    const bool existing = t.i64(0) > 0;
+    if (existing && version != kSchemaVersion)
+      throw std::runtime_error("the job store " + path + " has schema version " + std::to_string(version == 0 ? 1 : version) +
+                               "; this cpvs-server reads version " + std::to_string(kSchemaVersion) +
+                               ": finish its jobs with the server that made it, or start with an empty --data folder");
+  }
   exec(
       "CREATE TABLE IF NOT EXISTS jobs(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, scene_hash TEXT, geometry_hash "
-      "TEXT, spec BLOB, grid BLOB, options BLOB, state INTEGER, priority INTEGER, created_ms INTEGER, started_ms "
-      "INTEGER, finished_ms INTEGER, error TEXT, artifact_checksum TEXT, tiles_per_side INTEGER, tiles_total INTEGER,"
-      " bytes INTEGER, file_bytes INTEGER, peak_merge_bytes INTEGER, resolution INTEGER)");
+      "TEXT, spec BLOB, state INTEGER, priority INTEGER, created_ms INTEGER, started_ms INTEGER, finished_ms INTEGER, "
+      "error TEXT, artifact_checksum TEXT, tiles_per_side INTEGER, tiles_total INTEGER, bytes INTEGER, file_bytes "
+      "INTEGER, peak_merge_bytes INTEGER, resolution INTEGER, "
+      "light_dir_x REAL, light_dir_y REAL, light_dir_z REAL, frame_u_x REAL, frame_u_y REAL, frame_u_z REAL, "
+      "frame_v_x REAL, frame_v_y REAL, frame_v_z REAL, origin_x REAL, origin_y REAL, origin_z REAL, u0 REAL, v0 REAL, "
+      "d0 REAL, extent REAL, depth_extent REAL, log2_resolution INTEGER, closed INTEGER, exit_mode INTEGER, cull "
+      "INTEGER, compress INTEGER, undefined_rule INTEGER, log2_tile_size INTEGER, hash_kind INTEGER)");
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
       "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, PRIMARY KEY(job_id, idx))");
@@ -130,6 +194,7 @@ FarmStore::FarmStore(const std::string& path) {
       "CREATE TABLE IF NOT EXISTS leases(lease_id TEXT PRIMARY KEY, job_id TEXT, idx INTEGER, worker_id TEXT, "
       "granted_ms INTEGER)");
   exec("CREATE TABLE IF NOT EXISTS job_stages(job_id TEXT, stage TEXT, seconds REAL, PRIMARY KEY(job_id, stage))");
+  exec(("PRAGMA user_version = " + std::to_string(kSchemaVersion)).c_str());
 }
 
 FarmStore::~FarmStore() { sqlite3_close(db_); }
@@ -200,14 +265,10 @@ std::optional<JobRecord> FarmStore::jobByRequest(const std::string& requestId) {
 void FarmStore::createJob(const JobRecord& j) {
   std::lock_guard lock(mutex_);
   Transaction t(db_);
-  Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns +
-                    ") VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)")
-                       .c_str());
-  s.text(1, j.id).text(2, j.requestId).text(3, j.sceneHash).text(4, j.geometryHash);
-  s.bind(5, j.spec).bind(6, j.grid).bind(7, j.options).bind(8, int64_t(j.state)).bind(9, int64_t(j.priority));
-  s.bind(10, j.createdMs).bind(11, j.startedMs).bind(12, j.finishedMs).text(13, j.error).text(14, j.artifactChecksum);
-  s.bind(15, int64_t(j.tilesPerSide)).bind(16, int64_t(j.tilesTotal)).bind(17, int64_t(0)).bind(18, int64_t(0));
-  s.bind(19, int64_t(0)).bind(20, int64_t(j.resolution));
+  std::string placeholders;
+  for (int i = 0; i < kJobColumnCount; ++i) placeholders += i ? ", ?" : "?";
+  Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns + ") VALUES(" + placeholders + ")").c_str());
+  bindJob(s, j);
   s.run();
   for (uint64_t i = 0; i < j.tilesTotal; ++i) {
     Statement one(db_, "INSERT INTO tiles VALUES(?, ?, 0, 0, NULL, 0, '')");

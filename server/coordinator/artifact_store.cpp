@@ -1,0 +1,53 @@
+#include "coordinator/artifact_store.h"
+
+#include <filesystem>
+
+#include "cpvs/base/file.h"
+
+namespace cpvs::server {
+
+namespace fs = std::filesystem;
+
+ArtifactStore::ArtifactStore(const std::string& dataDir) : dataDir_(dataDir) {
+  for (const char* sub : {"tiles", "artifacts"}) fs::create_directories(fs::path(dataDir_) / sub);
+}
+
+void ArtifactStore::createTileFolder(const std::string& jobId) const {
+  fs::create_directories(fs::path(dataDir_) / "tiles" / jobId);
+  syncParentFolder((fs::path(dataDir_) / "tiles" / jobId).string());
+}
+
+std::string ArtifactStore::tilePath(const std::string& jobId, uint64_t tile) const {
+  return (fs::path(dataDir_) / "tiles" / jobId / (std::to_string(tile) + ".cpvt")).string();
+}
+
+void ArtifactStore::writeTile(const std::string& jobId, uint64_t tile, const std::vector<uint8_t>& bytes) const {
+  writeFileAtomic(tilePath(jobId, tile), bytes);
+}
+
+std::vector<uint8_t> ArtifactStore::readTile(const std::string& jobId, uint64_t tile) const {
+  return readFile(tilePath(jobId, tile));
+}
+
+void ArtifactStore::removeTiles(const std::string& jobId) const {
+  std::error_code ec;
+  fs::remove_all(fs::path(dataDir_) / "tiles" / jobId, ec);
+}
+
+std::vector<std::string> ArtifactStore::jobsWithTiles() const {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(fs::path(dataDir_) / "tiles", ec))
+    out.push_back(entry.path().filename().string());
+  return out;
+}
+
+std::string ArtifactStore::artifactPath(const std::string& jobId) const {
+  return (fs::path(dataDir_) / "artifacts" / (jobId + ".cpvs")).string();
+}
+
+void ArtifactStore::writeArtifact(const std::string& jobId, const std::vector<uint8_t>& bytes) const {
+  writeFileAtomic(artifactPath(jobId), bytes);
+}
+
+}  // namespace cpvs::server

@@ -1,0 +1,61 @@
+#include "coordinator/coordinator.h"
+
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+
+namespace cpvs::server {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string databasePath(const std::string& dataDir) {
+  fs::create_directories(dataDir);
+  return (fs::path(dataDir) / "farm.sqlite").string();
+}
+
+}  // namespace
+
+Coordinator::Coordinator(CoordinatorConfig config)
+    : config_(std::move(config)),
+      store_(databasePath(config_.dataDir)),
+      artifacts_(config_.dataDir),
+      scenes_(store_, config_.dataDir, config_.maxUploadBytes),
+      merges_(store_, artifacts_, feed_, [this](const std::string& jobId, const std::string& why) {
+        jobs_.failJob(jobId, why);
+      }),
+      jobs_(store_, scenes_, artifacts_, merges_, feed_,
+            JobLimits{config_.minLog2Resolution, config_.maxLog2Resolution, config_.maxActiveJobs}),
+      leases_(store_, artifacts_, merges_, jobs_, feed_, LeaseRules{config_.leaseSeconds, config_.maxAttempts}) {
+  // Resume: every acknowledged tile of an unfinished job goes back into its merge.
+  size_t jobs = 0, tiles = 0;
+  for (const auto& j : store_.jobs(false)) {
+    for (uint64_t t : store_.doneTiles(j.id)) {
+      merges_.mergeTile(j.id, t);
+      ++tiles;
+    }
+    ++jobs;
+  }
+  if (jobs) spdlog::info("resuming {} unfinished job(s), {} acknowledged tile(s) to merge", jobs, tiles);
+  // Tile results of jobs that ended (cancelled or failed) while the coordinator was down
+  // before the merge thread removed them.
+  for (const std::string& jobId : artifacts_.jobsWithTiles()) {
+    auto j = store_.job(jobId);
+    if (!j || isFinal(j->state)) artifacts_.removeTiles(jobId);
+  }
+  merges_.start();
+  leases_.start();
+}
+
+Coordinator::~Coordinator() { stop(); }
+
+void Coordinator::stop() {
+  if (stopped_) return;
+  stopped_ = true;
+  leases_.stop();
+  merges_.stop();
+  feed_.wakeAll();
+}
+
+}  // namespace cpvs::server

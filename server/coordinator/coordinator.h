@@ -1,0 +1,69 @@
+// The coordinator's logic, free of gRPC, as five concerns wired together: the scene store
+// (uploads), the job service (lifecycle), the lease service (tiles out to workers, the
+// reaper), the merge scheduler (the streaming merge) and the artifact store (bytes on
+// disk), over the durable FarmStore. The services in rpc/ are a thin edge over it; errors
+// are FarmError values.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "coordinator/artifact_store.h"
+#include "coordinator/change_feed.h"
+#include "coordinator/job_service.h"
+#include "coordinator/lease_service.h"
+#include "coordinator/merge_scheduler.h"
+#include "coordinator/scene_store.h"
+#include "cpvs/net/error_kind.h"
+#include "cpvs/v1/farm.pb.h"
+#include "store/farm_store.h"
+
+namespace cpvs::server {
+
+namespace pb = ::cpvs::v1;
+using net::ErrorKind;
+using net::FarmError;
+
+struct CoordinatorConfig {
+  std::string dataDir;                          // SQLite database, scenes, tile results, artifacts
+  double leaseSeconds = 30;                     // a worker renews well before this
+  int maxAttempts = 3;                          // a tile that fails or expires this often fails its job
+  int maxLog2Resolution = 18;                   // 256K
+  int minLog2Resolution = 6;                    // 64
+  uint64_t maxUploadBytes = uint64_t(4) << 30;  // per scene
+  size_t maxActiveJobs = 64;
+};
+
+class Coordinator {
+ public:
+  /// Opens the data folder and resumes every unfinished job from what is on disk: tiles
+  /// acknowledged before a restart are merged again from their files, never rebuilt.
+  explicit Coordinator(CoordinatorConfig config);
+  ~Coordinator();
+
+  SceneStore& scenes() { return scenes_; }
+  JobService& jobs() { return jobs_; }
+  LeaseService& leases() { return leases_; }
+
+  /// A counter bumped on every job change; waitForChange blocks until it passes `seen`
+  /// or the timeout ends, and returns the current value.
+  uint64_t waitForChange(uint64_t seen, int timeoutMs) { return feed_.waitForChange(seen, timeoutMs); }
+
+  /// Stops the background threads (also done by the destructor).
+  void stop();
+
+ private:
+  CoordinatorConfig config_;
+  FarmStore store_;
+  ChangeFeed feed_;
+  ArtifactStore artifacts_;
+  SceneStore scenes_;
+  MergeScheduler merges_;
+  JobService jobs_;
+  LeaseService leases_;
+  bool stopped_ = false;
+};
+
+}  // namespace cpvs::server

@@ -1,0 +1,178 @@
+#include "coordinator/job_service.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+
+#include "coordinator/clock.h"
+#include "cpvs/bake/tile_plan.h"
+#include "cpvs/base/error.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/net/convert.h"
+#include "cpvs/net/error_kind.h"
+
+namespace cpvs::server {
+
+using net::ErrorKind;
+using net::FarmError;
+
+JobService::JobService(FarmStore& store, SceneStore& scenes, ArtifactStore& artifacts, MergeScheduler& merges,
+                       ChangeFeed& feed, JobLimits limits)
+    : store_(store), scenes_(scenes), artifacts_(artifacts), merges_(merges), feed_(feed), limits_(limits) {}
+
+std::optional<pb::JobStatus> JobService::knownRequest(const pb::SubmitBakeRequest& request) {
+  auto existing = store_.jobByRequest(request.request_id());
+  if (!existing) return std::nullopt;
+  if (existing->spec != request.spec().SerializeAsString())
+    throw FarmError(ErrorKind::AlreadyExists,
+                    "request_id " + request.request_id() + " was used for a different job (" + existing->id + ")");
+  return toStatus(*existing);
+}
+
+void JobService::checkRoom() {
+  if (store_.activeJobCount() >= limits_.maxActiveJobs)
+    throw FarmError(ErrorKind::ResourceExhausted,
+                    "the farm already holds " + std::to_string(limits_.maxActiveJobs) + " unfinished jobs");
+}
+
+pb::JobStatus JobService::toStatus(const JobRecord& j) const {
+  pb::JobStatus s;
+  s.set_job_id(j.id);
+  s.set_request_id(j.requestId);
+  s.set_state(pb::JobState(int(j.state)));
+  s.mutable_spec()->ParseFromString(j.spec);
+  s.set_tiles_total(j.tilesTotal);
+  s.set_tiles_done(j.tilesDone);
+  for (const auto& [stage, seconds] : j.stages) {
+    auto* st = s.add_stages();
+    st->set_stage(stage);
+    st->set_seconds(seconds);
+  }
+  int64_t end = isFinal(j.state) && j.finishedMs ? j.finishedMs : nowMs();
+  double elapsed = double(end - j.createdMs) / 1000.0;
+  s.set_seconds_elapsed(elapsed);
+  double eta = -1;
+  if (j.state == JobState::Running && j.tilesDone > 0 && j.startedMs > 0) {
+    double running = double(nowMs() - j.startedMs) / 1000.0;
+    eta = running * double(j.tilesTotal - j.tilesDone) / double(j.tilesDone);
+  }
+  s.set_eta_seconds(isFinal(j.state) ? 0 : eta);
+  s.set_error(j.error);
+  s.set_bytes(j.bytes);
+  s.set_file_bytes(j.fileBytes);
+  s.set_resolution(j.resolution);
+  s.set_peak_merge_bytes(j.peakMergeBytes);
+  s.set_created_unix_ms(j.createdMs);
+  return s;
+}
+
+pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
+  const pb::BakeSpec& spec = request.spec();
+  if (request.request_id().empty() || request.request_id().size() > 128)
+    throw FarmError(ErrorKind::InvalidArgument, "request_id must be 1..128 characters");
+  if (auto existing = knownRequest(request)) return *existing;
+  if (spec.name().size() > 256) throw FarmError(ErrorKind::InvalidArgument, "name is longer than 256 characters");
+  if (std::abs(spec.priority()) > 1000) throw FarmError(ErrorKind::InvalidArgument, "priority must be in -1000..1000");
+  JobRecord j;
+  LightFrame frame;
+  BakeOptions options;
+  int log2R = 0;
+  try {
+    frame = net::lightOf(spec);
+    options = net::fromProto(spec.options());
+    log2R = parseResolution(spec.resolution());
+  } catch (const InputError& e) {
+    throw FarmError(ErrorKind::InvalidArgument, e.what());
+  }
+  if (log2R < limits_.minLog2Resolution || log2R > limits_.maxLog2Resolution)
+    throw FarmError(ErrorKind::InvalidArgument, "resolution " + spec.resolution() + " is outside this farm's limits (" +
+                                                    std::to_string(1ull << limits_.minLog2Resolution) + " .. " +
+                                                    std::to_string(1ull << limits_.maxLog2Resolution) + ")");
+  checkRoom();  // before loading the scene, which may take long
+  Scene scene = scenes_.load(spec.scene_hash());
+  OrthoGrid grid;
+  try {
+    grid = makeGrid(scene, frame, log2R);
+  } catch (const InputError& e) {
+    throw FarmError(ErrorKind::InvalidArgument, e.what());
+  }
+  j.id = randomId("j");
+  j.requestId = request.request_id();
+  j.sceneHash = spec.scene_hash();
+  j.geometryHash = sceneHash(scene).hex();
+  j.spec = spec.SerializeAsString();
+  j.grid = grid;
+  j.options = options;
+  j.priority = spec.priority();
+  j.createdMs = nowMs();
+  j.resolution = grid.resolution();
+  j.tilesPerSide = TilePlan(log2R, options.log2TileSize).perSide();
+  j.tilesTotal = j.tilesPerSide * j.tilesPerSide;
+  {
+    // Checked again and created under one lock: a retry that arrives while its first call
+    // is still loading the scene gets the same job (not a unique-key error), and calls
+    // submitted at once cannot together exceed the job limit. The tile folder exists
+    // before a worker can lease a tile of the job.
+    std::lock_guard lock(submitMutex_);
+    if (auto existing = knownRequest(request)) return *existing;
+    checkRoom();
+    artifacts_.createTileFolder(j.id);
+    store_.createJob(j);
+  }
+  spdlog::info("job {} submitted: scene {}, {}^3, {} tiles", j.id, j.sceneHash, j.resolution, j.tilesTotal);
+  feed_.notify();
+  return status(j.id);
+}
+
+pb::JobStatus JobService::status(const std::string& jobId) {
+  auto j = store_.job(jobId);
+  if (!j) throw FarmError(ErrorKind::NotFound, "no job " + jobId);
+  return toStatus(*j);
+}
+
+std::vector<pb::JobStatus> JobService::list(bool includeFinished) {
+  std::vector<pb::JobStatus> out;
+  for (const auto& j : store_.jobs(includeFinished)) out.push_back(toStatus(j));
+  return out;
+}
+
+pb::JobStatus JobService::cancel(const std::string& jobId) {
+  auto j = store_.job(jobId);
+  if (!j) throw FarmError(ErrorKind::NotFound, "no job " + jobId);
+  if (endJob(jobId, JobState::Cancelled, "cancelled")) spdlog::info("job {} cancelled", jobId);
+  return status(jobId);
+}
+
+std::string JobService::artifactPath(const std::string& jobId, std::string* checksum) {
+  auto j = store_.job(jobId);
+  if (!j) throw FarmError(ErrorKind::NotFound, "no job " + jobId);
+  if (j->state != JobState::Done)
+    throw FarmError(ErrorKind::FailedPrecondition,
+                    "job " + jobId + " is " + net::jobStateName(pb::JobState(int(j->state))) + ", not done");
+  if (checksum) *checksum = j->artifactChecksum;
+  return artifacts_.artifactPath(jobId);
+}
+
+void JobService::failJob(const std::string& jobId, const std::string& error) {
+  if (endJob(jobId, JobState::Failed, error)) spdlog::warn("job {} failed: {}", jobId, error);
+}
+
+bool JobService::endJob(const std::string& jobId, JobState state, const std::string& why) {
+  {
+    // Under the result lock, so that no result of the job is written after its tiles are
+    // cancelled: completeTile takes only tiles still waiting for one.
+    std::lock_guard resultLock(resultMutex_);
+    auto j = store_.job(jobId);
+    if (!j || isFinal(j->state)) return false;  // the first end stands (cancel vs a late failure)
+    store_.setJobState(jobId, state, why, nowMs());
+    store_.cancelTiles(jobId);
+  }
+  // Its tile results are removed by the merge thread, after any merge of them queued
+  // before: the merge never finds a file gone under it.
+  merges_.removeTiles(jobId);
+  feed_.notify();
+  return true;
+}
+
+}  // namespace cpvs::server

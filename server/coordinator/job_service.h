@@ -1,0 +1,61 @@
+// The lifecycle of jobs: submitted (idempotent by request id, within quotas), followed,
+// cancelled or failed (the first end stands), done with an artifact.
+#pragma once
+
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "coordinator/artifact_store.h"
+#include "coordinator/change_feed.h"
+#include "coordinator/merge_scheduler.h"
+#include "coordinator/scene_store.h"
+#include "cpvs/v1/farm.pb.h"
+#include "store/farm_store.h"
+
+namespace cpvs::server {
+
+struct JobLimits {
+  int minLog2Resolution = 6;   // 64
+  int maxLog2Resolution = 18;  // 256K
+  size_t maxActiveJobs = 64;
+};
+
+class JobService {
+ public:
+  JobService(FarmStore& store, SceneStore& scenes, ArtifactStore& artifacts, MergeScheduler& merges, ChangeFeed& feed,
+             JobLimits limits);
+
+  pb::JobStatus submit(const pb::SubmitBakeRequest& request);
+  pb::JobStatus status(const std::string& jobId);
+  std::vector<pb::JobStatus> list(bool includeFinished);
+  pb::JobStatus cancel(const std::string& jobId);
+  /// The artifact of a finished job and its checksum (hex).
+  std::string artifactPath(const std::string& jobId, std::string* checksum);
+
+  /// Ends an unfinished job as failed (logged); a job already ended keeps its end.
+  void failJob(const std::string& jobId, const std::string& error);
+  /// Held while a tile result is decided and written, and while a job ends: no result of
+  /// a job is written after its tiles are cancelled.
+  std::mutex& resultMutex() { return resultMutex_; }
+
+ private:
+  pb::JobStatus toStatus(const JobRecord& j) const;
+  /// Ends an unfinished job as cancelled or failed; false when it had already ended.
+  bool endJob(const std::string& jobId, JobState state, const std::string& why);
+  /// The job a request id already names: the same spec is a retry, another is refused.
+  std::optional<pb::JobStatus> knownRequest(const pb::SubmitBakeRequest& request);
+  void checkRoom();
+
+  FarmStore& store_;
+  SceneStore& scenes_;
+  ArtifactStore& artifacts_;
+  MergeScheduler& merges_;
+  ChangeFeed& feed_;
+  JobLimits limits_;
+  std::mutex submitMutex_;  // a request id's check and its job's creation, see submit
+  std::mutex resultMutex_;
+};
+
+}  // namespace cpvs::server

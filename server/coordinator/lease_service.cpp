@@ -1,0 +1,138 @@
+#include "coordinator/lease_service.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+
+#include "coordinator/clock.h"
+#include "cpvs/base/error.h"
+#include "cpvs/io/sub_dag_file.h"
+#include "cpvs/net/convert.h"
+#include "cpvs/net/error_kind.h"
+
+namespace cpvs::server {
+
+using net::ErrorKind;
+using net::FarmError;
+
+LeaseService::LeaseService(FarmStore& store, ArtifactStore& artifacts, MergeScheduler& merges, JobService& jobs,
+                           ChangeFeed& feed, LeaseRules rules)
+    : store_(store), artifacts_(artifacts), merges_(merges), jobs_(jobs), feed_(feed), rules_(rules) {}
+
+void LeaseService::start() { reaper_ = std::thread([this] { reaperLoop(); }); }
+
+void LeaseService::stop() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  if (reaper_.joinable()) reaper_.join();
+}
+
+pb::TileLease LeaseService::lease(const std::string& workerId) {
+  if (workerId.empty() || workerId.size() > 128)
+    throw FarmError(ErrorKind::InvalidArgument, "worker_id must be 1..128 characters");
+  pb::TileLease out;
+  int64_t now = nowMs();
+  int64_t deadline = now + int64_t(rules_.leaseSeconds * 1000);
+  auto l = store_.leaseNextTile(workerId, randomId("l"), now, deadline);
+  if (!l) {
+    out.set_granted(false);
+    out.set_retry_after_ms(500);
+    return out;
+  }
+  auto j = store_.job(l->jobId);
+  out.set_granted(true);
+  out.set_lease_id(l->leaseId);
+  out.set_job_id(l->jobId);
+  out.set_tile_index(l->tile);
+  out.set_tile_x(l->tile % j->tilesPerSide);
+  out.set_tile_y(l->tile / j->tilesPerSide);
+  out.set_scene_hash(j->sceneHash);
+  *out.mutable_grid() = net::toProto(j->grid);
+  *out.mutable_options() = net::toProto(j->options);
+  out.set_deadline_unix_ms(deadline);
+  feed_.notify();
+  return out;
+}
+
+pb::RenewReply LeaseService::renew(const std::string& leaseId) {
+  pb::RenewReply r;
+  int64_t deadline = nowMs() + int64_t(rules_.leaseSeconds * 1000);
+  r.set_valid(store_.renewLease(leaseId, deadline));
+  r.set_deadline_unix_ms(r.valid() ? deadline : 0);
+  return r;
+}
+
+bool LeaseService::completeTile(const std::string& leaseId, const std::string& encoded,
+                               const std::map<std::string, double>& stages) {
+  auto l = store_.lease(leaseId);
+  if (!l) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
+  auto j = store_.job(l->jobId);
+  if (!j || isFinal(j->state)) return false;
+  const BakeOptions& options = j->options;
+  std::string source = "tile " + std::to_string(l->tile) + " of job " + l->jobId;
+  try {
+    Dag dag = decodeSubDag(reinterpret_cast<const uint8_t*>(encoded.data()), encoded.size(), source,
+                           options.compress != CompressMode::None, options.hash);
+    if (dag.log2Resolution != int(std::log2(double(j->resolution))))
+      throw InputError(source + ": resolution does not match the job");
+    checkTileRoots(dag, l->tile % j->tilesPerSide, l->tile / j->tilesPerSide,
+                   std::min(options.log2TileSize, dag.log2Resolution), source);
+  } catch (const InputError& e) {
+    throw FarmError(ErrorKind::InvalidArgument, std::string("rejected result: ") + e.what());
+  }
+  // The file first, then the acknowledgement: a tile marked done always has its bytes.
+  // Both under one lock, and only for a tile still waiting for its result: a declined
+  // result (a late or duplicate lease) must not replace the file of the one taken, which
+  // the merge, and a restart's merge, read; and two results for one tile must not write
+  // the same temporary file at once.
+  std::lock_guard resultLock(jobs_.resultMutex());
+  auto state = store_.tileState(l->jobId, l->tile);
+  if (!state || (*state != TileState::Queued && *state != TileState::Leased)) return false;
+  std::vector<uint8_t> bytes(encoded.begin(), encoded.end());
+  try {
+    artifacts_.writeTile(l->jobId, l->tile, bytes);
+  } catch (const InputError& e) {
+    // The coordinator's own disk (full, read-only): not the worker's fault, and the tile
+    // stays leased, so the worker's report or the lease's expiry puts it back in the queue.
+    throw FarmError(ErrorKind::Internal, std::string("the coordinator cannot store the result: ") + e.what());
+  }
+  if (!store_.completeTile(l->jobId, l->tile)) return false;
+  store_.addStageSeconds(l->jobId, stages);
+  auto after = store_.job(l->jobId);
+  if (after && after->tilesDone == after->tilesTotal) store_.setJobState(l->jobId, JobState::Merging, "", nowMs());
+  merges_.mergeTile(l->jobId, l->tile);
+  feed_.notify();
+  return true;
+}
+
+void LeaseService::failTile(const std::string& leaseId, const std::string& reason) {
+  auto l = store_.lease(leaseId);
+  if (!l) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
+  if (l->deadlineMs == 0) return;  // no longer the tile's current lease
+  int attempts = store_.requeueTile(l->jobId, l->tile, reason);
+  spdlog::warn("tile {} of job {} failed on {} (attempt {}): {}", l->tile, l->jobId, l->workerId, attempts, reason);
+  if (attempts >= rules_.maxAttempts)
+    jobs_.failJob(l->jobId, "tile " + std::to_string(l->tile) + " failed " + std::to_string(attempts) + " times: " + reason);
+  feed_.notify();
+}
+
+void LeaseService::reaperLoop() {
+  for (;;) {
+    {
+      std::unique_lock lock(mutex_);
+      wake_.wait_for(lock, std::chrono::milliseconds(250), [&] { return stopping_; });
+      if (stopping_) return;
+    }
+    for (const auto& [jobId, tile, attempts] : store_.expireLeases(nowMs())) {
+      spdlog::warn("lease on tile {} of job {} expired (attempt {})", tile, jobId, attempts);
+      if (attempts >= rules_.maxAttempts)
+        jobs_.failJob(jobId, "tile " + std::to_string(tile) + ": lease expired " + std::to_string(attempts) + " times");
+      feed_.notify();
+    }
+  }
+}
+
+}  // namespace cpvs::server

@@ -1,0 +1,71 @@
+// The streaming merge: tile results merged, in the order they are acknowledged, by one
+// thread per coordinator, into each job's StreamingMerger; the job's artifact written when
+// its last tile is in.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "coordinator/artifact_store.h"
+#include "coordinator/change_feed.h"
+#include "cpvs/dag/merge.h"
+#include "store/farm_store.h"
+
+namespace cpvs::server {
+
+class MergeScheduler {
+ public:
+  /// `failJob` ends a job whose merge failed (a damaged tile file, a full disk).
+  using FailJob = std::function<void(const std::string& jobId, const std::string& why)>;
+  MergeScheduler(FarmStore& store, ArtifactStore& artifacts, ChangeFeed& feed, FailJob failJob);
+  ~MergeScheduler() { stop(); }
+
+  /// Starts the merge thread.
+  void start();
+  /// Stops it; queued work stays in the store (acknowledged tiles) for the next start.
+  void stop();
+
+  /// Merges an acknowledged tile result.
+  void mergeTile(const std::string& jobId, uint64_t tile);
+  /// Removes an ended job's tile results, after any merge of them queued before, so that
+  /// a merge never finds a file gone under it.
+  void removeTiles(const std::string& jobId);
+
+ private:
+  struct Item {
+    enum class Kind { MergeTile, RemoveTiles } kind;
+    std::string jobId;
+    uint64_t tile = 0;
+  };
+  struct JobMerge {
+    std::unique_ptr<StreamingMerger> merger;
+    uint64_t merged = 0;
+    uint64_t peak = 0;
+  };
+
+  void push(Item item);
+  void loop();
+  void mergeOne(const std::string& jobId, uint64_t tile);
+  void finishJob(const JobRecord& job, JobMerge& m);
+
+  FarmStore& store_;
+  ArtifactStore& artifacts_;
+  ChangeFeed& feed_;
+  FailJob failJob_;
+
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<Item> queue_;
+  bool stopping_ = false;
+  std::map<std::string, JobMerge> merges_;  // the merge thread's only
+  std::thread thread_;
+};
+
+}  // namespace cpvs::server

@@ -1,0 +1,163 @@
+#include "coordinator/scene_store.h"
+
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "cpvs/base/error.h"
+#include "cpvs/base/file.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/net/error_kind.h"
+#include "cpvs/scene/import.h"
+
+namespace cpvs::server {
+
+namespace fs = std::filesystem;
+using net::ErrorKind;
+using net::FarmError;
+
+namespace {
+
+/// The extension of an uploaded file name, which tells the importer its format: a dot
+/// and 1..10 letters or digits. FarmError otherwise.
+std::string safeExtension(const std::string& fileName) {
+  std::string ext = fs::path(fileName).extension().string();
+  bool ok = ext.size() >= 2 && ext.size() <= 11;
+  for (size_t i = 1; ok && i < ext.size(); ++i) ok = std::isalnum(static_cast<unsigned char>(ext[i])) != 0;
+  if (!ok) throw FarmError(ErrorKind::InvalidArgument, "file name '" + fileName + "' has no usable extension");
+  return ext;
+}
+
+}  // namespace
+
+void checkHashText(const std::string& hash, const char* what) {
+  try {
+    parseHashHex(hash, what);
+  } catch (const InputError& e) {
+    throw FarmError(ErrorKind::InvalidArgument, e.what());
+  }
+}
+
+SceneStore::SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes)
+    : store_(store), folder_((fs::path(dataDir) / "scenes").string()), maxUploadBytes_(maxUploadBytes) {
+  fs::create_directories(folder_);
+}
+
+std::string SceneStore::partPath(const std::string& hash) const { return (fs::path(folder_) / (hash + ".part")).string(); }
+
+pb::UploadStatus SceneStore::uploadStatus(const std::string& hash) {
+  checkHashText(hash, "scene_hash");
+  pb::UploadStatus s;
+  s.set_scene_hash(hash);
+  if (auto r = store_.scene(hash)) {
+    s.set_known(true);
+    s.set_received(r->received);
+    s.set_total_size(r->totalSize);
+    s.set_complete(r->complete);
+  }
+  return s;
+}
+
+void SceneStore::beginUpload(const pb::UploadSceneChunk& first) {
+  checkHashText(first.scene_hash(), "scene_hash");
+  std::string ext = safeExtension(first.file_name());
+  if (first.total_size() == 0) throw FarmError(ErrorKind::InvalidArgument, "the scene file is empty");
+  if (first.total_size() > maxUploadBytes_)
+    throw FarmError(ErrorKind::ResourceExhausted, "the scene is " + std::to_string(first.total_size()) +
+                                                      " bytes; the limit is " + std::to_string(maxUploadBytes_));
+  std::lock_guard lock(mutex_);
+  auto r = store_.scene(first.scene_hash());
+  if (r && r->complete) return;  // known: nothing to do
+  if (r && (r->totalSize != first.total_size() || r->fileName != first.file_name())) {
+    // A different announcement for the same hash: start over.
+    fs::remove(partPath(first.scene_hash()));
+    r.reset();
+  }
+  SceneRecord rec = r ? *r : SceneRecord{first.scene_hash(), first.file_name(), "", first.total_size(), 0, 0, false};
+  if (first.offset() != rec.received)
+    throw FarmError(ErrorKind::FailedPrecondition, "upload of " + rec.hash + " must resume at byte " +
+                                                       std::to_string(rec.received) + ", not " +
+                                                       std::to_string(first.offset()));
+  store_.putScene(rec);
+}
+
+void SceneStore::appendUpload(const std::string& hash, uint64_t offset, const std::string& data) {
+  std::lock_guard lock(mutex_);
+  auto r = store_.scene(hash);
+  if (!r) throw FarmError(ErrorKind::NotFound, "no upload of scene " + hash + " was started");
+  if (r->complete) return;
+  if (offset != r->received)
+    throw FarmError(ErrorKind::InvalidArgument, "chunk at byte " + std::to_string(offset) + ", expected " +
+                                                    std::to_string(r->received));
+  if (r->received + data.size() > r->totalSize)
+    throw FarmError(ErrorKind::InvalidArgument, "the upload runs past its announced size of " +
+                                                    std::to_string(r->totalSize) + " bytes");
+  const fs::path part = partPath(hash);
+  std::ofstream out(part, std::ios::binary | std::ios::app);
+  out.write(data.data(), std::streamsize(data.size()));
+  out.flush();
+  if (!out) throw FarmError(ErrorKind::Internal, "cannot write " + part.string());
+  r->received += data.size();
+  store_.putScene(*r);
+}
+
+pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
+  std::lock_guard lock(mutex_);
+  auto r = store_.scene(hash);
+  if (!r) throw FarmError(ErrorKind::NotFound, "no upload of scene " + hash + " was started");
+  pb::UploadSceneReply reply;
+  reply.set_scene_hash(hash);
+  reply.set_received(r->received);
+  if (r->complete) {
+    reply.set_complete(true);
+    reply.set_triangles(r->triangles);
+    return reply;
+  }
+  if (r->received < r->totalSize) return reply;  // resumable later
+  const fs::path part = partPath(hash);
+  std::vector<uint8_t> bytes = readFile(part.string());
+  std::string got = contentHash(bytes.data(), bytes.size()).hex();
+  if (got != hash) {
+    fs::remove(part);
+    store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false});
+    throw FarmError(ErrorKind::DataLoss, "the uploaded bytes hash to " + got + ", not " + hash + "; upload again");
+  }
+  fs::path final = fs::path(folder_) / (hash + safeExtension(r->fileName));
+  fs::rename(part, final);
+  syncParentFolder(final.string());
+  try {
+    SceneStats stats;
+    Scene scene = loadScene(final.string(), &stats);
+    r->triangles = stats.triangles;
+    r->geometryHash = sceneHash(scene).hex();
+  } catch (const InputError& e) {
+    fs::remove(final);
+    store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false});
+    // The importer names the stored file: the caller is told its own file name instead,
+    // not where the data folder is.
+    std::string why = e.what();
+    const std::string stored = final.string();
+    for (size_t at = why.find(stored); at != std::string::npos; at = why.find(stored, at + r->fileName.size()))
+      why.replace(at, stored.size(), r->fileName);
+    throw FarmError(ErrorKind::InvalidArgument, "the scene does not import: " + why);
+  }
+  r->complete = true;
+  store_.putScene(*r);
+  spdlog::info("scene {} ({}, {} bytes, {} triangles) stored", hash, r->fileName, r->totalSize, r->triangles);
+  reply.set_complete(true);
+  reply.set_triangles(r->triangles);
+  return reply;
+}
+
+std::string SceneStore::scenePath(const std::string& hash, std::string* fileName) {
+  checkHashText(hash, "scene_hash");
+  auto r = store_.scene(hash);
+  if (!r || !r->complete) throw FarmError(ErrorKind::NotFound, "scene " + hash + " is not on the server");
+  if (fileName) *fileName = r->fileName;
+  return (fs::path(folder_) / (hash + safeExtension(r->fileName))).string();
+}
+
+Scene SceneStore::load(const std::string& sceneHash) { return loadScene(scenePath(sceneHash)); }
+
+}  // namespace cpvs::server

@@ -1,0 +1,46 @@
+// Scenes on the coordinator: resumable uploads checked by content hash, imported once
+// when complete, and the stored files workers fetch.
+#pragma once
+
+#include <cstdint>
+#include <mutex>
+#include <string>
+
+#include "cpvs/scene/scene.h"
+#include "cpvs/v1/farm.pb.h"
+#include "store/farm_store.h"
+
+namespace cpvs::server {
+
+namespace pb = ::cpvs::v1;
+
+class SceneStore {
+ public:
+  /// Creates scenes/ under the data folder.
+  SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes);
+
+  pb::UploadStatus uploadStatus(const std::string& sceneHash);
+  /// Starts or resumes an upload; its offset must equal the bytes already received.
+  void beginUpload(const pb::UploadSceneChunk& first);
+  /// Appends data at `offset` (the bytes received so far).
+  void appendUpload(const std::string& sceneHash, uint64_t offset, const std::string& data);
+  /// Completes the upload when every byte is in: checks the hash, imports the scene.
+  pb::UploadSceneReply endUpload(const std::string& sceneHash);
+  /// The stored file of a complete scene; FarmError(NotFound) otherwise.
+  std::string scenePath(const std::string& sceneHash, std::string* fileName = nullptr);
+  /// The imported geometry of a complete scene.
+  Scene load(const std::string& sceneHash);
+
+ private:
+  std::string partPath(const std::string& hash) const;
+
+  FarmStore& store_;
+  std::string folder_;
+  uint64_t maxUploadBytes_;
+  std::mutex mutex_;  // one upload step at a time
+};
+
+/// FarmError(InvalidArgument) unless `hash` is 32 lower-case hex digits.
+void checkHashText(const std::string& hash, const char* what);
+
+}  // namespace cpvs::server

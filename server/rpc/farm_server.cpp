@@ -1,0 +1,34 @@
+#include "rpc/farm_server.h"
+
+#include <chrono>
+
+#include "cpvs/base/error.h"
+#include "cpvs/net/channel.h"
+
+namespace cpvs::server {
+
+FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const std::string& listen,
+                       std::shared_ptr<grpc::ServerCredentials> creds)
+    : farm_(coordinator, tokens), workers_(coordinator, tokens) {
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(listen, creds ? creds : grpc::InsecureServerCredentials(), &port_);
+  builder.SetMaxReceiveMessageSize(net::kMaxMessageBytes);
+  builder.SetMaxSendMessageSize(net::kMaxMessageBytes);
+  builder.RegisterService(&farm_);
+  builder.RegisterService(&workers_);
+  server_ = builder.BuildAndStart();
+  if (!server_ || port_ == 0) throw InputError("cannot listen on " + listen);
+  address_ = listen.substr(0, listen.rfind(':')) + ":" + std::to_string(port_);
+}
+
+FarmServer::~FarmServer() { shutdown(0); }
+
+void FarmServer::shutdown(double graceSeconds) {
+  if (!server_) return;
+  server_->Shutdown(std::chrono::system_clock::now() +
+                    std::chrono::milliseconds(static_cast<int64_t>(graceSeconds * 1000)));
+  server_.reset();
+}
+
+}  // namespace cpvs::server
