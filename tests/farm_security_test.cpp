@@ -14,7 +14,9 @@
 #include <limits>
 #include <thread>
 
+#include "cpvs/scene/boxes.h"
 #include "cpvs/scene/import.h"
+#include "cpvs/scene/obj_writer.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/raytrace/ray_scene.h"
@@ -55,32 +57,13 @@ std::string fileText(const fs::path& path) {
   return std::string(b.begin(), b.end());
 }
 
-/// Appends a closed box, faces counter-clockwise seen from outside, to an OBJ text;
-/// `base` counts the vertices written so far.
-void addBox(std::string& obj, int& base, Vec3 lo, Vec3 hi) {
-  char line[128];
-  for (int i = 0; i < 8; ++i) {  // corner i: x from bit 0, y from bit 1, z from bit 2
-    std::snprintf(line, sizeof line, "v %g %g %g\n", (i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y,
-                  (i & 4) ? hi.z : lo.z);
-    obj += line;
-  }
-  static const int quads[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
-  for (const auto& q : quads) {
-    std::snprintf(line, sizeof line, "f %d %d %d\nf %d %d %d\n", base + q[0] + 1, base + q[1] + 1, base + q[2] + 1,
-                  base + q[0] + 1, base + q[2] + 1, base + q[3] + 1);
-    obj += line;
-  }
-  base += 8;
-}
-
 /// The scene every suite bakes: a slab with a tower and a bridge-like bar over it.
 std::string testSceneObj() {
-  std::string obj = "# cpvs farm security test scene\n";
-  int base = 0;
-  addBox(obj, base, {-4, -0.5, -4}, {4, 0, 4});
-  addBox(obj, base, {-1, 0, -1}, {1, 3, 1});
-  addBox(obj, base, {-3, 2, 1.5}, {3, 2.5, 2.5});
-  return obj;
+  Scene scene;
+  appendBox(scene, {-4, -0.5, -4}, {4, 0, 4});
+  appendBox(scene, {-1, 0, -1}, {1, 3, 1});
+  appendBox(scene, {-3, 2, 1.5}, {3, 2.5, 2.5});
+  return objText(scene, "cpvs farm security test scene");
 }
 
 /// The chunks of an upload of bytes [from, to) of a file: the first names the scene.
@@ -740,9 +723,9 @@ TEST_F(FarmSecurityTest, MalformedRequestsGetTheirStatusAndChangeNothing) {
        }},
       {"UploadScene: a stream that ends before total_size (OK, resumable)", StatusCode::OK,
        [&] {
-         std::string bytes = "# resumed\n";
-         int base = 0;
-         addBox(bytes, base, {0, 0, 0}, {1, 1, 1});
+         Scene box;
+         appendBox(box, {0, 0, 0}, {1, 1, 1});
+         const std::string bytes = objText(box, "resumed");
          const std::string hash = hashOf(bytes);
          const size_t half = bytes.size() / 2;
          pb::UploadSceneReply reply;

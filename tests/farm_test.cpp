@@ -14,6 +14,7 @@
 #include <set>
 
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/scene/obj_writer.h"
 #include "cpvs/scene/source.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "cpvs/net/channel.h"
@@ -44,16 +45,7 @@ class FarmTest : public ::testing::Test {
     fs::create_directories(dir_);
     // A scene file that every process reads the same way: the city, written as OBJ.
     Scene city = openScene("city:3:5");
-    std::ofstream obj(path("city.obj"));
-    char line[160];
-    for (const Vec3& p : city.positions) {
-      std::snprintf(line, sizeof line, "v %.9g %.9g %.9g\n", p.x, p.y, p.z);
-      obj << line;
-    }
-    for (size_t t = 0; t < city.triangleCount(); ++t)
-      obj << "f " << city.indices[3 * t] + 1 << ' ' << city.indices[3 * t + 1] + 1 << ' ' << city.indices[3 * t + 2] + 1
-          << '\n';
-    obj.close();
+    writeObj(path("city.obj"), city);
     std::ofstream(path("tokens")) << "client " << kClientToken << "\nworker " << kWorkerToken << "\nadmin "
                                   << kAdminToken << "\n";
     Ran local = runCli("bake " + path("city.obj") + kSpec + " -q -o " + path("local.cpvs"));

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "cpvs/scene/procedural_city.h"
+#include "cpvs/scene/boxes.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
@@ -39,25 +40,8 @@ struct Box {
 /// Appends a box as 8 vertices and 12 triangles, counter-clockwise seen from outside
 /// (cross(v1 - v0, v2 - v0) points outward).
 void appendBox(Scene& scene, const Box& b) {
-  const uint32_t base = static_cast<uint32_t>(scene.positions.size());
-  // Corner i has x from bit 0, y from bit 1, z from bit 2.
-  for (int i = 0; i < 8; ++i) {
-    scene.positions.push_back({static_cast<double>((i & 1) ? b.hi[0] : b.lo[0]),
-                               static_cast<double>((i & 2) ? b.hi[1] : b.lo[1]),
-                               static_cast<double>((i & 4) ? b.hi[2] : b.lo[2])});
-  }
-  // Each face as a quad, counter-clockwise seen from outside.
-  static constexpr int kFaces[6][4] = {
-      {0, 4, 6, 2},  // -x
-      {1, 3, 7, 5},  // +x
-      {0, 1, 5, 4},  // -y
-      {2, 6, 7, 3},  // +y
-      {0, 2, 3, 1},  // -z
-      {4, 5, 7, 6},  // +z
-  };
-  for (const auto& f : kFaces) {
-    for (int c : {f[0], f[1], f[2], f[0], f[2], f[3]}) scene.indices.push_back(base + c);
-  }
+  cpvs::appendBox(scene, {double(b.lo[0]), double(b.lo[1]), double(b.lo[2])},
+                  {double(b.hi[0]), double(b.hi[1]), double(b.hi[2])});
 }
 
 /// The boxes of one city block, in world coordinates.
