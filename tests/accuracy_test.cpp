@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "cpvs/scene/boxes.h"
 #include "cpvs/base/error.h"
 #include "cpvs/scene/procedural_city.h"
 #include "cpvs/eval/accuracy.h"
@@ -29,15 +30,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A closed axis-aligned box as 12 outward-facing triangles.
-void addBox(Scene& s, const Vec3& lo, const Vec3& hi) {
-  const uint32_t b = uint32_t(s.positions.size());
-  for (int i = 0; i < 8; ++i)
-    s.positions.push_back({(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z});
-  const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& q : quads)
-    for (uint32_t t : {q[0], q[1], q[2], q[0], q[2], q[3]}) s.indices.push_back(b + t);
-}
 
 // A ground slab from -10 to 10 in x and z, top at y = 0, and a box floating above it over
 // [-1, 1] x [1, 3] x [-1, 1]: under a light straight down, its shadow on the ground is the
@@ -45,8 +37,8 @@ void addBox(Scene& s, const Vec3& lo, const Vec3& hi) {
 Scene floatingBox() {
   Scene s;
   s.name = "floating box";
-  addBox(s, {-10, -1, -10}, {10, 0, 10});
-  addBox(s, {-1, 1, -1}, {1, 3, 1});
+  appendBox(s, {-10, -1, -10}, {10, 0, 10});
+  appendBox(s, {-1, 1, -1}, {1, 3, 1});
   finalizeScene(s);
   return s;
 }
@@ -194,7 +186,7 @@ TEST(BoundaryDistance, KnownDistanceToAShadowEdge) {
 TEST(BoundaryDistance, FollowsASlopedReceiver) {
   Scene scene;
   scene.name = "box over a ramp";
-  addBox(scene, {-1, 1, -1}, {1, 3, 1});
+  appendBox(scene, {-1, 1, -1}, {1, 3, 1});
   const auto ramp = [](double x, double z) { return Vec3{x, 0.3 * x - 4, z}; };
   for (const Vec3& p : {ramp(-10, -10), ramp(10, -10), ramp(10, 10), ramp(-10, 10)}) scene.positions.push_back(p);
   for (uint32_t t : {8u, 10u, 9u, 8u, 11u, 10u}) scene.indices.push_back(t);  // facing up

@@ -8,6 +8,7 @@
 #include <numbers>
 #include <random>
 
+#include "cpvs/scene/boxes.h"
 #include "cpvs/base/error.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/io/cpvs_file.h"
@@ -167,12 +168,7 @@ TEST(HardCases, TinyAndHugeScenes) {
   EXPECT_EXACT_AWAY_FROM_BOUNDARIES(tiny, "1e-3 units across");
   // 1e5 units across, with a detail far below one voxel: a 0.01-unit box on a roof.
   Scene huge = scaled(city, 1e5 / 100);
-  size_t base = huge.positions.size();
-  Vec3 lo{50000, 0, 50000}, hi{50000.01, 30000.01, 50000.01};
-  for (int i = 0; i < 8; ++i) huge.positions.push_back({i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z});
-  const uint32_t box[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
-                            2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
-  for (uint32_t i : box) huge.indices.push_back(uint32_t(base) + i);
+  appendBox(huge, {50000, 0, 50000}, {50000.01, 30000.01, 50000.01});
   finalizeScene(huge);
   Baked b = bakeAndVerify(huge, sun, 8);
   EXPECT_EXACT_AWAY_FROM_BOUNDARIES(b, "1e5 across with a sub-voxel needle");
@@ -182,21 +178,13 @@ TEST(HardCases, TinyAndHugeScenes) {
 
 // --- awkward geometry ------------------------------------------------------------------------
 
-/// Appends a closed axis-aligned box (outward winding).
-void addBox(Scene& s, Vec3 lo, Vec3 hi) {
-  uint32_t base = uint32_t(s.positions.size());
-  for (int i = 0; i < 8; ++i) s.positions.push_back({i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z});
-  const uint32_t box[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
-                            2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
-  for (uint32_t i : box) s.indices.push_back(base + i);
-}
 
 TEST(HardCases, ThinCoplanarOverlappingDuplicatedAndDegenerateTriangles) {
   Scene s;
-  addBox(s, {0, 0, 0}, {100, 2, 100});         // ground
-  addBox(s, {10, 2, 10}, {10.05, 40, 60});     // a wall far thinner than a voxel
-  addBox(s, {30, 2, 30}, {50, 20, 50});        // two boxes overlapping each other
-  addBox(s, {40, 2, 40}, {60, 25, 60});
+  appendBox(s, {0, 0, 0}, {100, 2, 100});         // ground
+  appendBox(s, {10, 2, 10}, {10.05, 40, 60});     // a wall far thinner than a voxel
+  appendBox(s, {30, 2, 30}, {50, 20, 50});        // two boxes overlapping each other
+  appendBox(s, {40, 2, 40}, {60, 25, 60});
   size_t before = s.indices.size();
   for (size_t i = before - 36; i < before; ++i) s.indices.push_back(s.indices[i]);  // a duplicated box
   // A coplanar open quad lying on the ground's top, and zero-area triangles.
@@ -217,9 +205,9 @@ TEST(HardCases, ThinCoplanarOverlappingDuplicatedAndDegenerateTriangles) {
 // which is still behind the enter depth, so both must verify.
 TEST(HardCases, SelfIntersectingClosedMeshes) {
   Scene s;
-  addBox(s, {0, 0, 0}, {100, 2, 100});
-  addBox(s, {20, 2, 20}, {60, 30, 60});
-  addBox(s, {40, 10, 40}, {80, 50, 80});
+  appendBox(s, {0, 0, 0}, {100, 2, 100});
+  appendBox(s, {20, 2, 20}, {60, 30, 60});
+  appendBox(s, {40, 10, 40}, {80, 50, 80});
   finalizeScene(s);
   for (ExitMode exit : {ExitMode::Exact, ExitMode::Approx}) {
     CpvsArtifact art;
@@ -238,7 +226,7 @@ TEST(HardCases, SelfIntersectingClosedMeshes) {
 // that never leave the "interior" keep their column defined.
 TEST(HardCases, OpenMeshesForcedClosed) {
   Scene s;
-  addBox(s, {0, 0, 0}, {100, 2, 100});
+  appendBox(s, {0, 0, 0}, {100, 2, 100});
   uint32_t q = uint32_t(s.positions.size());
   for (Vec3 p : {Vec3{20, 20, 20}, Vec3{80, 20, 20}, Vec3{80, 20, 80}, Vec3{20, 20, 80}}) s.positions.push_back(p);
   for (uint32_t i : {0u, 2u, 1u, 0u, 3u, 2u}) s.indices.push_back(q + i);  // a floating open roof
