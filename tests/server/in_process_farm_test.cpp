@@ -1,0 +1,258 @@
+// The farm inside one test process: the coordinator served on port 0 (FarmServer), a
+// worker on a thread, the client library; and the store and the token table on their
+// own. The multi-process farm tests (farm_test, farm_security_test) run the same pieces
+// as separate programs.
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "coordinator/coordinator.h"
+#include "cpvs/bake/bake.h"
+#include "cpvs/base/error.h"
+#include "cpvs/base/file.h"
+#include "cpvs/client/farm_client.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/net/convert.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/scene/obj_writer.h"
+#include "cpvs/scene/source.h"
+#include "rpc/farm_server.h"
+#include "store/farm_store.h"
+#include "tile_worker.h"
+
+namespace cpvs {
+namespace {
+
+namespace fs = std::filesystem;
+namespace pb = ::cpvs::v1;
+
+class TempDir {
+ public:
+  explicit TempDir(const std::string& name)
+      : path_(fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  fs::path path_;
+};
+
+TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
+  TempDir dir("cpvs_in_process_farm");
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:2:3"));
+
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  ASSERT_GT(farm.port(), 0);
+  const net::Connection connection{farm.address(), "", ""};
+
+  worker::WorkerConfig wc;
+  wc.server = connection;
+  wc.cacheDir = dir / "cache";
+  fs::create_directories(wc.cacheDir);
+  wc.workerId = "in-process";
+  wc.threads = 2;
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+
+  client::FarmClient farmClient(connection);
+  const client::FarmClient::UploadResult up = farmClient.uploadScene(obj);
+  EXPECT_FALSE(up.alreadyThere);
+  EXPECT_GT(up.triangles, 0u);
+  EXPECT_TRUE(farmClient.uploadScene(obj).alreadyThere);  // content-addressed: sent once
+
+  pb::BakeSpec spec;
+  spec.set_scene_hash(up.sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.3, -1, 0.2});
+  spec.set_resolution("256");
+  spec.mutable_options()->set_tile_size(64);
+  const pb::JobStatus submitted = farmClient.submit("in-process-1", spec);
+  const pb::JobStatus done = farmClient.watch(submitted.job_id());
+  EXPECT_EQ(done.state(), pb::JOB_DONE) << done.error();
+  EXPECT_EQ(done.tiles_total(), 16u);
+  farmClient.download(submitted.job_id(), dir / "farm.cpvs");
+
+  tileWorker.stop();
+  workerThread.join();
+  farm.shutdown(1);
+
+  // The same bake in this process, from the same file.
+  const Scene scene = loadScene(obj);
+  CpvsArtifact local;
+  local.grid = makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
+  local.options.log2TileSize = 6;
+  local.sceneHash = sceneHash(scene);
+  RayScene rays(scene, local.grid.origin);
+  local.dag = bakeGrid(rays, local.grid, local.options);
+  EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true));
+
+  // A refused call reaches the client as its kind, through the library.
+  try {
+    farmClient.cancel("no-such-job");
+    ADD_FAILURE() << "cancel of an unknown job succeeded";
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::Unavailable);  // the server is shut down by now
+  }
+}
+
+TEST(InProcessFarm, UnknownJobsAndRefusalsAreTheirKinds) {
+  TempDir dir("cpvs_in_process_refusals");
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
+  try {
+    farmClient.cancel("no-such-job");
+    ADD_FAILURE();
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::NotFound);
+    EXPECT_TRUE(e.callerCanFix());
+    EXPECT_NE(std::string(e.what()).find("NOT_FOUND: no job no-such-job"), std::string::npos) << e.what();
+  }
+  pb::BakeSpec spec;
+  spec.set_scene_hash(std::string(32, 'a'));
+  spec.set_resolution("256");
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0, -1, 0});
+  try {
+    farmClient.submit("r", spec);
+    ADD_FAILURE();
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::NotFound) << e.what();  // the scene was never uploaded
+  }
+}
+
+server::JobRecord sampleJob(const std::string& id, int priority, uint64_t tiles) {
+  server::JobRecord j;
+  j.id = id;
+  j.requestId = "req-" + id;
+  j.sceneHash = std::string(32, 'b');
+  j.geometryHash = std::string(32, 'c');
+  j.spec = "spec bytes";
+  j.priority = priority;
+  j.createdMs = 1000;
+  j.tilesPerSide = 1;
+  j.tilesTotal = tiles;
+  j.resolution = 1024;
+  j.grid.frame = LightFrame::fromDirection({0.3, -1, 0.2});
+  j.grid.log2Resolution = 10;
+  j.grid.origin = {1.5, -2.25, 1e5};
+  j.grid.u0 = -3.125;
+  j.grid.v0 = 7.5;
+  j.grid.d0 = -0.0625;
+  j.grid.extent = 12.75;
+  j.grid.depthExtent = 3.5;
+  j.options.closed = ClosedMode::Off;
+  j.options.exit = ExitMode::Approx;
+  j.options.cull = false;
+  j.options.compress = CompressMode::BottomUp;
+  j.options.undefinedRule = UndefinedRule::Old;
+  j.options.log2TileSize = 7;
+  return j;
+}
+
+TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
+  TempDir dir("cpvs_farm_store");
+  server::FarmStore store(dir / "farm.sqlite");
+  store.createJob(sampleJob("low", 0, 2));
+  store.createJob(sampleJob("high", 5, 1));
+  const auto back = store.job("low");
+  ASSERT_TRUE(back.has_value());
+  const server::JobRecord want = sampleJob("low", 0, 2);
+  EXPECT_EQ(back->options, want.options);
+  EXPECT_EQ(back->grid.frame.dir, want.grid.frame.dir);
+  EXPECT_EQ(back->grid.frame.v, want.grid.frame.v);
+  EXPECT_EQ(back->grid.origin, want.grid.origin);
+  EXPECT_EQ(back->grid.u0, want.grid.u0);
+  EXPECT_EQ(back->grid.depthExtent, want.grid.depthExtent);
+  EXPECT_EQ(back->grid.log2Resolution, 10);
+  EXPECT_EQ(back->spec, "spec bytes");
+
+  // Highest priority first, then the other job's tiles in order; nothing after that.
+  auto a = store.leaseNextTile("w", "l1", 2000, 5000);
+  auto b = store.leaseNextTile("w", "l2", 2000, 5000);
+  auto c = store.leaseNextTile("w", "l3", 2000, 5000);
+  ASSERT_TRUE(a && b && c);
+  EXPECT_EQ(a->jobId, "high");
+  EXPECT_EQ(b->jobId, "low");
+  EXPECT_EQ(c->jobId, "low");
+  EXPECT_NE(b->tile, c->tile);
+  EXPECT_FALSE(store.leaseNextTile("w", "l4", 2000, 5000).has_value());
+  // A renewed lease survives the reaper; an expired one goes back to the queue.
+  EXPECT_TRUE(store.renewLease("l2", 9000));
+  const auto expired = store.expireLeases(6000);
+  EXPECT_EQ(expired.size(), 2u);  // l1 and l3
+  EXPECT_TRUE(store.completeTile("low", b->tile));
+  EXPECT_FALSE(store.completeTile("low", b->tile));  // the first result stands
+  EXPECT_EQ(store.job("low")->tilesDone, 1u);
+}
+
+TEST(FarmStore, ADatabaseOfAnotherSchemaIsRefusedWithWhatToDo) {
+  TempDir dir("cpvs_farm_store_schema");
+  const std::string path = dir / "farm.sqlite";
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "CREATE TABLE jobs(id TEXT PRIMARY KEY, grid BLOB)", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  try {
+    server::FarmStore store(path);
+    ADD_FAILURE() << "an older database was opened";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("schema version 1"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("empty --data folder"), std::string::npos) << e.what();
+  }
+}
+
+TEST(TokenTable, RolesFromAFileAndWhatEachMayCall) {
+  TempDir dir("cpvs_tokens");
+  const std::string c = "client-token-0001", w = "worker-token-0001", a = "admin-token-00001";
+  std::ofstream(dir / "tokens") << "# farm tokens\nclient " << c << "\nworker " << w << "\nadmin " << a << "\n";
+  const server::TokenTable t = server::TokenTable::load(dir / "tokens");
+  EXPECT_TRUE(t.enabled());
+  EXPECT_EQ(t.roleOf(c), server::Role::Client);
+  EXPECT_EQ(t.roleOf(w), server::Role::Worker);
+  EXPECT_EQ(t.roleOf(a), server::Role::Admin);
+  EXPECT_FALSE(t.roleOf("nope").has_value());
+  EXPECT_TRUE(server::TokenTable::allows(server::Role::Admin, server::Role::Worker));
+  EXPECT_FALSE(server::TokenTable::allows(server::Role::Client, server::Role::Worker));
+  std::ofstream(dir / "bad") << "superuser superuser-token-01\n";
+  EXPECT_THROW(server::TokenTable::load(dir / "bad"), InputError);
+}
+
+TEST(Convert, OptionsAndGridsRoundTripAndTheWeakHashStaysHome) {
+  BakeOptions o;
+  o.closed = ClosedMode::On;
+  o.exit = ExitMode::Approx;
+  o.cull = false;
+  o.compress = CompressMode::None;
+  o.undefinedRule = UndefinedRule::Old;
+  o.log2TileSize = 9;
+  EXPECT_EQ(net::fromProto(net::toProto(o)), o);
+  const OrthoGrid g = sampleJob("x", 0, 1).grid;
+  const OrthoGrid back = net::fromProto(net::toProto(g));
+  EXPECT_EQ(back.origin, g.origin);
+  EXPECT_EQ(back.extent, g.extent);
+  EXPECT_EQ(back.frame.u, g.frame.u);
+  o.hash = HashKind::WeakForTests;
+  EXPECT_THROW(net::toProto(o), InputError);
+  pb::BakeOptions p;
+  p.set_tile_size(100);
+  EXPECT_THROW(net::fromProto(p), InputError);
+  p.set_tile_size(0);
+  EXPECT_EQ(net::fromProto(p).log2TileSize, kDefaultLog2TileSize);
+}
+
+}  // namespace
+}  // namespace cpvs
