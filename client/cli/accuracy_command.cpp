@@ -11,6 +11,7 @@
 #include <iostream>
 #include <memory>
 
+#include "bake_flags.h"
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/base/error.h"
@@ -23,8 +24,8 @@ namespace cpvs::cli {
 namespace {
 
 struct AccuracyArgs {
-  std::string scene, out, sunDir, resolutions = "1K,2K,4K";
-  double elevation = NAN, azimuth = NAN;
+  std::string scene, out, resolutions = "1K,2K,4K";
+  SunFlags sun;
   uint64_t samples = 100000, pcfSamples = 10000, seed = 1, maxFullMapMb = 2048;
   double timingSeconds = 0.2;
   int tileSize = 4096, threads = 0;
@@ -103,7 +104,7 @@ int runAccuracy(const AccuracyArgs& a) {
     throw InputError("--timing-seconds " + std::to_string(a.timingSeconds) + " must be between 0 and 3600");
   opt.minTimingSeconds = a.timingSeconds;
   opt.bake.log2TileSize = log2TileSizeOf(uint64_t(std::max(a.tileSize, 0)), "--tile-size");
-  const LightFrame frame = lightFromFlags(a.sunDir, a.elevation, a.azimuth);
+  const LightFrame frame = lightFromFlags(a.sun.dir, a.sun.elevation, a.sun.azimuth);
   prepareOutDir(a.out);
 
   const Scene scene = openScene(a.scene);
@@ -136,9 +137,7 @@ void addAccuracyCommand(CLI::App& app, int& status) {
   c->add_option("scene", a->scene, "Scene file (glTF/GLB, OBJ, DAE, PLY, FBX, STL, ...) or city[:BLOCKS[:SEED]]")
       ->required();
   c->add_option("--out,-o", a->out, "Output folder (created)")->required();
-  c->add_option("--sun-dir", a->sunDir, "Light direction X,Y,Z, from the sun into the scene (any side)");
-  c->add_option("--sun-elevation", a->elevation, "Sun elevation above the horizon in degrees (0..90, Y up)");
-  c->add_option("--sun-azimuth", a->azimuth, "Sun azimuth in degrees (0 = towards +Z, 90 = towards +X)");
+  addSunFlags(c, a->sun);
   c->add_option("--resolutions", a->resolutions, "Comma-separated grid resolutions, e.g. 1K,2K,4K,8K,16K")
       ->capture_default_str();
   c->add_option("--samples,-n", a->samples, "Surface points (at least 100), the same for every resolution")

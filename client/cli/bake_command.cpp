@@ -7,6 +7,7 @@
 #include <memory>
 #include <sstream>
 
+#include "bake_flags.h"
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/bake/tile_plan.h"
@@ -20,10 +21,10 @@ namespace cpvs::cli {
 namespace {
 
 struct BakeArgs {
-  std::string scene, out, sunDir, resolution = "4K";
-  double elevation = NAN, azimuth = NAN;
-  std::string closed = "auto", exit = "exact", cull = "on", compress = "topdown", undefinedRule = "new";
-  int tileSize = 4096, threads = 0;
+  std::string scene, out, resolution = "4K";
+  SunFlags sun;
+  OptionFlags options;
+  int threads = 0;
   bool zstd = true, json = false, quiet = false;
 };
 
@@ -102,15 +103,9 @@ int runBake(const BakeArgs& a) {
   std::unique_ptr<tbb::global_control> limit;
   if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
 
-  BakeOptions opt;
-  opt.closed = parseOption<ClosedMode>(a.closed, "--closed");
-  opt.exit = parseOption<ExitMode>(a.exit, "--exit");
-  opt.cull = a.cull == "on";
-  opt.compress = parseOption<CompressMode>(a.compress, "--compress");
-  opt.undefinedRule = parseOption<UndefinedRule>(a.undefinedRule, "--undefined");
-  opt.log2TileSize = log2TileSizeOf(uint64_t(std::max(a.tileSize, 0)), "--tile-size");
+  const BakeOptions opt = optionsOf(a.options);
   int log2R = parseResolution(a.resolution);
-  const LightFrame frame = lightFromFlags(a.sunDir, a.elevation, a.azimuth);
+  const LightFrame frame = lightFromFlags(a.sun.dir, a.sun.elevation, a.sun.azimuth);
 
   StageTimes st;
   auto start = std::chrono::steady_clock::now();
@@ -155,22 +150,10 @@ void addBakeCommand(CLI::App& app, int& status) {
   CLI::App* c = app.add_subcommand("bake", "Bake the sun shadows of a scene into a .cpvs file, in this process");
   c->add_option("scene", a->scene, "Scene file (glTF/GLB, OBJ, DAE, PLY, FBX, STL, ...) or city[:BLOCKS[:SEED]] for the procedural city")->required();
   c->add_option("--out,-o", a->out, "Output .cpvs file")->required();
-  c->add_option("--sun-dir", a->sunDir, "Light direction X,Y,Z, from the sun into the scene (any side)");
-  c->add_option("--sun-elevation", a->elevation, "Sun elevation above the horizon in degrees (0..90, Y up)");
-  c->add_option("--sun-azimuth", a->azimuth, "Sun azimuth in degrees (0 = towards +Z, 90 = towards +X)");
+  addSunFlags(c, a->sun);
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R (voxels a side): 1024, 4K, 16K, ... 1M")
       ->capture_default_str();
-  c->add_option("--closed", a->closed, "Closed-geometry interiors: auto (watertight parts), on (all), off (none)")
-      ->check(CLI::IsMember({"auto", "on", "off"}))->capture_default_str();
-  c->add_option("--exit", a->exit, "Exit depth: exact (face counting) or approx (first back face)")
-      ->check(CLI::IsMember({"exact", "approx"}))->capture_default_str();
-  c->add_option("--cull", a->cull, "Cull identical nodes during insertion (§3.2)")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-  c->add_option("--compress", a->compress, "Compression: topdown (§4.2), bottomup (§4.1), none (as inserted)")
-      ->check(CLI::IsMember({"topdown", "bottomup", "none"}))->capture_default_str();
-  c->add_option("--undefined", a->undefinedRule, "Undefined voxels: new (§3.4 masks) or old (mixed -> shadowed)")
-      ->check(CLI::IsMember({"new", "old"}))->capture_default_str();
-  c->add_option("--tile-size", a->tileSize, "Tile size in texels (power of two >= 8)")->capture_default_str();
+  addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
   c->add_option("--threads,-j", a->threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   c->add_flag("!--no-zstd", a->zstd, "Store the levels uncompressed");
   c->add_flag("--json", a->json, "Print the summary as JSON on stdout");

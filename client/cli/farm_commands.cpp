@@ -16,6 +16,7 @@
 #include <optional>
 #include <sstream>
 
+#include "bake_flags.h"
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/base/error.h"
@@ -188,10 +189,10 @@ int finalExitStatus(const pb::JobStatus& s) {
 struct SubmitArgs {
   ConnectionArgs conn;
   std::string scene, jobFile, requestId, name, out;
-  std::string sunDir, resolution = "4K";
-  double elevation = NAN, azimuth = NAN;
-  std::string closed = "auto", exit = "exact", cull = "on", compress = "topdown", undefinedRule = "new";
-  int tileSize = 4096, priority = 0;
+  std::string resolution = "4K";
+  SunFlags sun;
+  OptionFlags options;
+  int priority = 0;
   bool wait = false, json = false, quiet = false;
 };
 
@@ -240,13 +241,13 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
   if (dir && (elevation || azimuth))
     throw InputError("give either --sun-dir or --sun-elevation/--sun-azimuth, not both");
   if (dir) {
-    *spec.mutable_sun_direction() = net::toProto(parseVec3(a.sunDir, "--sun-dir"));
+    *spec.mutable_sun_direction() = net::toProto(parseVec3(a.sun.dir, "--sun-dir"));
   } else if (elevation || azimuth) {
     if (!elevation && spec.sun_case() != pb::BakeSpec::kSunAngles)
       throw InputError("--sun-azimuth needs --sun-elevation (or sun_angles in the job file)");
     pb::SunAngles angles = spec.sun_case() == pb::BakeSpec::kSunAngles ? spec.sun_angles() : pb::SunAngles();
-    if (elevation) angles.set_elevation_deg(a.elevation);
-    if (azimuth) angles.set_azimuth_deg(a.azimuth);
+    if (elevation) angles.set_elevation_deg(a.sun.elevation);
+    if (azimuth) angles.set_azimuth_deg(a.sun.azimuth);
     *spec.mutable_sun_angles() = angles;
   }
   if (spec.sun_case() == pb::BakeSpec::SUN_NOT_SET)
@@ -258,15 +259,15 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
   (void)parseResolution(spec.resolution());
 
   pb::BakeOptions& o = *spec.mutable_options();
-  // The proto's enum values are the core's (static_asserts in farm_convert.cpp).
-  if (given("--closed")) o.set_closed(pb::ClosedMode(parseOption<ClosedMode>(a.closed, "--closed")));
-  if (given("--exit")) o.set_exit(pb::ExitMode(parseOption<ExitMode>(a.exit, "--exit")));
-  if (given("--cull")) o.set_no_cull(a.cull == "off");
-  if (given("--compress")) o.set_compress(pb::CompressMode(parseOption<CompressMode>(a.compress, "--compress")));
-  if (given("--undefined"))
-    o.set_undefined_rule(pb::UndefinedRule(parseOption<UndefinedRule>(a.undefinedRule, "--undefined")));
-  if (given("--tile-size"))
-    o.set_tile_size(uint32_t(1) << log2TileSizeOf(uint64_t(std::max(a.tileSize, 0)), "--tile-size"));
+  // Each flag given overrides its field; the proto's enum values are the core's
+  // (static_asserts in net/src/convert.cpp).
+  const BakeOptions flags = optionsOf(a.options);
+  if (given("--closed")) o.set_closed(pb::ClosedMode(flags.closed));
+  if (given("--exit")) o.set_exit(pb::ExitMode(flags.exit));
+  if (given("--cull")) o.set_no_cull(!flags.cull);
+  if (given("--compress")) o.set_compress(pb::CompressMode(flags.compress));
+  if (given("--undefined")) o.set_undefined_rule(pb::UndefinedRule(flags.undefinedRule));
+  if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
   (void)net::fromProto(o);
 
   if (given("--priority")) spec.set_priority(a.priority);
@@ -412,23 +413,10 @@ void addSubmitCommand(CLI::App& app, int& status) {
                 "Scene file (uploaded unless the server has it) or city[:BLOCKS[:SEED]]; optional when --job names a "
                 "scene_hash");
   c->add_option("--job", a->jobFile, "Bake spec as JSON (BakeSpec); flags given here override its fields");
-  c->add_option("--sun-dir", a->sunDir, "Light direction X,Y,Z, from the sun into the scene (any side)");
-  c->add_option("--sun-elevation", a->elevation, "Sun elevation above the horizon in degrees (0..90, Y up)");
-  c->add_option("--sun-azimuth", a->azimuth, "Sun azimuth in degrees (0 = towards +Z, 90 = towards +X)");
+  addSunFlags(c, a->sun);
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R (voxels a side): 1024, 4K, 16K, ... 1M")
       ->capture_default_str();
-  c->add_option("--closed", a->closed, "Closed-geometry interiors: auto (watertight parts), on (all), off (none)")
-      ->check(CLI::IsMember({"auto", "on", "off"}))->capture_default_str();
-  c->add_option("--exit", a->exit, "Exit depth: exact (face counting) or approx (first back face)")
-      ->check(CLI::IsMember({"exact", "approx"}))->capture_default_str();
-  c->add_option("--cull", a->cull, "Cull identical nodes during insertion (§3.2)")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-  c->add_option("--compress", a->compress, "Compression: topdown (§4.2), bottomup (§4.1), none (as inserted)")
-      ->check(CLI::IsMember({"topdown", "bottomup", "none"}))->capture_default_str();
-  c->add_option("--undefined", a->undefinedRule, "Undefined voxels: new (§3.4 masks) or old (mixed -> shadowed)")
-      ->check(CLI::IsMember({"new", "old"}))->capture_default_str();
-  c->add_option("--tile-size", a->tileSize, "Tile size in texels (power of two >= 8): the unit of work of a worker")
-      ->capture_default_str();
+  addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8): the unit of work of a worker");
   c->add_option("--request-id", a->requestId,
                 "Idempotency key: submitting again with it returns the same job (default: a random id)");
   c->add_option("--priority", a->priority, "Higher runs first; equal priorities share the workers (-1000..1000)");
