@@ -92,18 +92,11 @@ Dag mergeDags(const Dag& a, const Dag& b, CompressMode mode) {
     mapB.assign(nb, 0);
     // Content order with children mapped into the merged level below; each input stays
     // sorted under it because the maps are monotone.
+    const auto intoA = [&](uint32_t k) { return childA[k]; };
+    const auto intoB = [&](uint32_t k) { return childB[k]; };
     auto compare = [&](uint32_t i, uint32_t j) -> int {
       if (ha[i] != hb[j]) return ha[i] < hb[j] ? -1 : 1;
-      if (l < 0) return compareNodes(a, l, i, b, j);
-      const InternalLevel& la = a.levels[l];
-      const InternalLevel& lb = b.levels[l];
-      if (la.codes[i] != lb.codes[j]) return la.codes[i] < lb.codes[j] ? -1 : 1;
-      uint32_t ka = la.childBegin[i], kb = lb.childBegin[j], n = la.refCount(i);
-      for (uint32_t k = 0; k < n; ++k) {
-        uint32_t ca = childA[la.children[ka + k]], cb = childB[lb.children[kb + k]];
-        if (ca != cb) return ca < cb ? -1 : 1;
-      }
-      return 0;
+      return compareNodesMapped(a, l, i, intoA, b, j, intoB);
     };
     auto emit = [&](const Dag& src, uint32_t i, const std::vector<uint32_t>& childMap,
                     const Hash128& h) -> uint32_t {
