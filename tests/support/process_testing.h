@@ -116,28 +116,9 @@ struct CommandResult {
 
 /// Runs a shell command line to its end and collects its standard output (add `2>&1` to
 /// collect its errors too). Bound it with coreutils' `timeout` in the line itself.
-inline CommandResult runShell(const std::string& line) {
-  CommandResult r;
-  FILE* p = popen(line.c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  int raw = pclose(p);
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  return r;
-}
+CommandResult runShell(const std::string& line);
 
 /// Waits until `path` exists and is not empty; "" after `seconds`.
-inline std::string waitForFile(const std::string& path, double seconds) {
-  auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-  while (std::chrono::steady_clock::now() < end) {
-    std::ifstream in(path);
-    std::string line;
-    if (in && std::getline(in, line) && !line.empty()) return line;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  return "";
-}
+std::string waitForFile(const std::string& path, double seconds);
 
 }  // namespace cpvs::testing

@@ -24,6 +24,7 @@
 
 #include "cpvs/base/error.h"
 #include "cpvs/base/parse.h"
+#include "scene_testing.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/scene/source.h"
@@ -148,7 +149,6 @@ Args parseArgs(int argc, char** argv) {
 // ---------------------------------------------------------------------------------------
 // Scenes
 
-std::string sharedScenesDir() { return std::string(CPVS_SOURCE_DIR) + "/../shared/scenes"; }
 
 struct BenchScene {
   std::string label;  // short name for the tables
@@ -164,9 +164,9 @@ struct BenchScene {
 std::optional<BenchScene> openBenchScene(const std::string& spec, std::vector<std::string>& notes) {
   std::string path = spec, label = spec;
   if (spec == "bunny") {
-    path = sharedScenesDir() + "/stanford-bunny/bunny.obj";
+    path = testing::sharedScenesDir() + "/stanford-bunny/bunny.obj";
   } else if (spec == "teapots") {
-    path = sharedScenesDir() + "/assimp-testmodels/teapots.DAE";
+    path = testing::sharedScenesDir() + "/assimp-testmodels/teapots.DAE";
   } else if (spec == "city" || spec.starts_with("city:")) {
     path.clear();
   } else {

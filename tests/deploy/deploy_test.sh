@@ -17,7 +17,7 @@
 # Exits 0 when all pass, 1 (naming every failure) otherwise.
 set -euo pipefail
 
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 DEPLOY="$ROOT/deploy"
 LIMIT="${DEPLOY_TEST_TIMEOUT:-60}"   # seconds per step
 failures=0

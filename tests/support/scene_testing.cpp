@@ -1,0 +1,66 @@
+#include "scene_testing.h"
+
+namespace cpvs::testing {
+
+std::string sharedScenesDir() {
+  std::filesystem::path p = std::filesystem::path(CPVS_SOURCE_DIR) / ".." / "shared" / "scenes";
+  return std::filesystem::is_directory(p) ? p.string() : std::string();
+}
+
+void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit, uint64_t x,
+                            uint64_t y, uint32_t& lo, uint32_t& hi, bool& ambiguous) {
+  const Vec3 from = grid.worldFromVoxel(Vec3{double(x) + 0.5, double(y) + 0.5, 0.0});
+  const Vec3 dir = grid.frame.dir;
+  const uint32_t R = uint32_t(grid.resolution());
+  const double slicesPerUnit = double(R) / grid.depthExtent;
+  std::vector<RayHit> hits;
+  ambiguous = false;
+  for (size_t t = 0; t < scene.triangleCount(); ++t) {
+    Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+    Vec3 e1 = b - a, e2 = c - a, p = cross(dir, e2);
+    double det = dot(e1, p);
+    if (std::abs(det) < 1e-300) continue;  // parallel to the ray
+    Vec3 s = from - a;
+    double u = dot(s, p) / det;
+    Vec3 q = cross(s, e1);
+    double v = dot(dir, q) / det, w = 1 - u - v;
+    double dist = dot(e2, q) / det;
+    const double hair = 1e-5;
+    bool inside = u >= 0 && v >= 0 && w >= 0;
+    if (std::min({u, v, w}) > -hair && std::min({u, v, w}) < hair && dist > 0) ambiguous = true;
+    if (!inside || dist < 0) continue;
+    double frac = dist * slicesPerUnit - std::floor(dist * slicesPerUnit);
+    if (frac < 1e-4 || frac > 1 - 1e-4) ambiguous = true;
+    bool isClosed = closed == ClosedMode::On || (closed == ClosedMode::Auto && scene.closed[t] != 0);
+    hits.push_back(RayHit{dist, uint32_t(t), dot(cross(e1, e2), dir) < 0, isClosed});
+  }
+  hits.resize(size_t(orderCrossings(hits.data(), int(hits.size()), grid.depthExtent * 1e-6)));
+  if (exit == ExitMode::Approx) {
+    // The approximate pass only ever sees the first hit and the first closed back face.
+    std::vector<RayHit> kept;
+    if (!hits.empty()) kept.push_back(hits[0]);
+    for (size_t i = 1; i < hits.size(); ++i)
+      if (hits[i].closed && !hits[i].front) {
+        kept.push_back(hits[i]);
+        break;
+      }
+    hits = kept;
+  }
+  classifyTexel(hits.data(), int(hits.size()), exit == ExitMode::Exact, grid, lo, hi);
+}
+
+void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
+                             TexelSlices& out, std::vector<uint8_t>& ambiguous) {
+  const uint64_t R = grid.resolution();
+  out.firstUndefined.assign(R * R, 0);
+  out.firstShadowed.assign(R * R, 0);
+  ambiguous.assign(R * R, 0);
+  for (uint64_t y = 0; y < R; ++y)
+    for (uint64_t x = 0; x < R; ++x) {
+      bool amb = false;
+      bruteForceTexel(scene, grid, closed, exit, x, y, out.firstUndefined[y * R + x], out.firstShadowed[y * R + x], amb);
+      ambiguous[y * R + x] = amb;
+    }
+}
+
+}  // namespace cpvs::testing
