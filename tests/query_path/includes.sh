@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# No public header of query/ reaches a header of bake/, raytrace/ or scene/, directly or
+# through others: the compiler lists every header each one includes.  includes.sh CXX SRC
+set -euo pipefail
+cxx=$1 src=$2
+status=0
+for header in "$src"/core/include/cpvs/query/*.h; do
+  deps=$("$cxx" -std=c++20 -MM -I "$src/core/include" -x c++ "$header")
+  if grep -qE 'cpvs/(bake|raytrace|scene)/' <<<"$deps"; then
+    echo "$(basename "$header") includes: $(grep -oE 'cpvs/(bake|raytrace|scene)/[a-z_]+\.h' <<<"$deps" | sort -u | tr '\n' ' ')"
+    status=1
+  fi
+done
+[ $status = 0 ] && echo "query headers: no bake, raytrace or scene header reached"
+exit $status
