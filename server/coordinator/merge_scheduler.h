@@ -15,7 +15,9 @@
 
 #include "coordinator/artifact_store.h"
 #include "coordinator/change_feed.h"
+#include "cpvs/dag/assemble_roots.h"
 #include "cpvs/dag/merge.h"
+#include "cpvs/dag/streaming_merger.h"
 #include "store/farm_store.h"
 
 namespace cpvs::server {

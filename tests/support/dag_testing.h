@@ -15,7 +15,9 @@
 #include "cpvs/dag/dag.h"
 #include "cpvs/bake/insert_tile.h"
 #include "cpvs/dag/compress.h"
+#include "cpvs/dag/assemble_roots.h"
 #include "cpvs/dag/merge.h"
+#include "cpvs/dag/streaming_merger.h"
 #include "cpvs/bake/column_masks.h"
 
 namespace cpvs::testing {

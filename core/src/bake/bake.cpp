@@ -9,7 +9,9 @@
 #include "cpvs/bake/texel_slices.h"
 #include "cpvs/base/error.h"
 #include "cpvs/dag/compress.h"
+#include "cpvs/dag/assemble_roots.h"
 #include "cpvs/dag/merge.h"
+#include "cpvs/dag/streaming_merger.h"
 
 namespace cpvs {
 

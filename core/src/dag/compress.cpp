@@ -8,6 +8,8 @@
 #include <cstring>
 #include <numeric>
 
+#include "cpvs/base/error.h"
+#include "cpvs/dag/invariants.h"
 #include "cpvs/dag/node_order.h"
 
 namespace cpvs {
@@ -268,11 +270,10 @@ Dag compressTopDown(const Dag& in) {
 }  // namespace
 
 Dag compressDag(Dag&& dag, CompressMode mode) {
-  switch (mode) {
-    case CompressMode::None: return std::move(dag);
-    case CompressMode::BottomUp: return compressBottomUp(dag);
-    case CompressMode::TopDown: return compressTopDown(dag);
-  }
+  if (mode == CompressMode::None) return std::move(dag);
+  Dag out = mode == CompressMode::BottomUp ? compressBottomUp(dag) : compressTopDown(dag);
+  CPVS_DCHECK(dagInvariantsHold(out, true));
+  return out;
 }
 
 }  // namespace cpvs

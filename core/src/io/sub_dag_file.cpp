@@ -4,7 +4,7 @@
 #include "cpvs/light/ortho_grid.h"
 #include "io/container.h"
 #include "io/level_section.h"
-#include "cpvs/dag/node_order.h"
+#include "cpvs/dag/invariants.h"
 
 namespace cpvs {
 
@@ -65,16 +65,8 @@ Dag decodeSubDag(const uint8_t* data, size_t size, const std::string& source, bo
   if (canonical) {
     // A merge sweeps levels in (hash, content) order: anything else would silently
     // produce duplicates, so it is rejected here.
-    for (int l = -1; l < levels; ++l) {
-      const auto& hashes = l < 0 ? dag.leafHashes : dag.levelHashes[l];
-      for (size_t i = 1; i < hashes.size(); ++i) {
-        bool ordered = hashes[i - 1] < hashes[i] ||
-                       (hashes[i - 1] == hashes[i] && compareNodes(dag, l, uint32_t(i - 1), dag, uint32_t(i)) < 0);
-        if (!ordered)
-          h.fail((l < 0 ? std::string("leaves") : "level " + std::to_string(l)) + " are not in canonical order at node " +
-                 std::to_string(i));
-      }
-    }
+    const std::string violation = dagInvariantViolation(dag, true);
+    if (!violation.empty()) h.fail(violation);
   }
   return dag;
 }
