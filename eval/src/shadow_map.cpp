@@ -65,7 +65,7 @@ void ShadowMap::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& 
 
 ShadowMap renderShadowMap(const RayScene& rays, const OrthoGrid& grid, uint32_t side) {
   ShadowMap map(grid, side);
-  const OrthoGrid cells = grid.withSide(side);
+  const TexelMapping texels = grid.withSide(side).texelMapping(rays.origin());
   const uint32_t packetRows = (side + kPacketH - 1) / kPacketH;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, packetRows, 4), [&](const auto& range) {
     RayPacket packet;
@@ -75,7 +75,7 @@ ShadowMap renderShadowMap(const RayScene& rays, const OrthoGrid& grid, uint32_t 
       for (uint32_t px = 0; px < side; px += kPacketW) {
         for (uint32_t l = 0; l < uint32_t(kPacketLanes); ++l) {
           const uint32_t x = px + l % kPacketW, y = pr * kPacketH + l / kPacketW;
-          const TexelRay ray = cells.texelRay(std::min(x, side - 1), std::min(y, side - 1), rays.origin());
+          const TexelRay ray = texels.ray(std::min(x, side - 1), std::min(y, side - 1));
           packet.origin[l] = ray.origin;
           packet.dir = ray.dir;
           packet.tNear[l] = 0.0f;

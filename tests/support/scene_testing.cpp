@@ -46,7 +46,7 @@ void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode close
       }
     hits = kept;
   }
-  classifyTexel(hits.data(), int(hits.size()), exit == ExitMode::Exact, grid, lo, hi);
+  classifyTexel(hits.data(), int(hits.size()), exit == ExitMode::Exact, grid.texelMapping(grid.origin), lo, hi);
 }
 
 void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,

@@ -50,20 +50,20 @@ int orderCrossings(RayHit* hits, int count, double tieDistance) {
   return n;
 }
 
-void classifyTexel(const RayHit* hits, int count, bool exact, const LightGrid& grid, uint32_t& lo, uint32_t& hi) {
-  const uint32_t R = uint32_t(grid.side());
+void classifyTexel(const RayHit* hits, int count, bool exact, const TexelMapping& slices, uint32_t& lo, uint32_t& hi) {
+  const uint32_t R = slices.side();
   if (count == 0) {
     lo = hi = R;
     return;
   }
   const RayHit& enter = hits[0];
-  lo = hi = grid.sliceOfDepth(enter.t);
+  lo = hi = slices.slice(enter.t);
   // Only a closed surface entered from its front side opens an interior.
   if (!enter.closed || !enter.front) return;
   if (!exact) {
     for (int i = 1; i < count; ++i)
       if (hits[i].closed && !hits[i].front) {
-        hi = std::max(lo, grid.sliceOfDepth(hits[i].t));
+        hi = std::max(lo, slices.slice(hits[i].t));
         return;
       }
     return;
@@ -74,7 +74,7 @@ void classifyTexel(const RayHit* hits, int count, bool exact, const LightGrid& g
     depth += hits[i].front ? 1 : -1;
     if (depth < 0) return;  // inconsistent orientation: no interior is trusted
     if (depth == 0) {
-      hi = std::max(lo, grid.sliceOfDepth(hits[i].t));
+      hi = std::max(lo, slices.slice(hits[i].t));
       return;
     }
   }
@@ -92,6 +92,7 @@ void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
   // a ray through a shared edge on both triangles).
   const double dedupT = grid.depthExtent * 1e-6;
   const bool exact = exit == ExitMode::Exact;
+  const TexelMapping texels = grid.texelMapping(rays.origin());
 
   const uint32_t rowsOfPackets = height / kPacketH;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, rowsOfPackets, 4), [&](const auto& range) {
@@ -104,7 +105,7 @@ void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
       for (uint32_t px = 0; px < width; px += kPacketW) {
         for (int l = 0; l < kPacketLanes; ++l) {
           const uint64_t gx = x0 + px + (l % kPacketW), gy = y0 + uint64_t(pr) * kPacketH + (l / kPacketW);
-          const TexelRay ray = grid.texelRay(gx, gy, rays.origin());
+          const TexelRay ray = texels.ray(gx, gy);
           packet.origin[size_t(l)] = ray.origin;
           packet.dir = ray.dir;
           packet.tNear[size_t(l)] = 0.0f;
@@ -151,7 +152,7 @@ void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
           }
           const uint32_t lx = px + (l % kPacketW), ly = pr * kPacketH + (l / kPacketW);
           const size_t at = size_t(ly) * width + lx;
-          classifyTexel(sorted.data(), n, exact, grid, out.firstUndefined[at], out.firstShadowed[at]);
+          classifyTexel(sorted.data(), n, exact, texels, out.firstUndefined[at], out.firstShadowed[at]);
         }
       }
     }

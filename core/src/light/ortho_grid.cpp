@@ -37,20 +37,26 @@ Vec3 OrthoGrid::directionToVoxel(const Vec3& w) const {
   return {dot(w, frame.u) / extent * r, dot(w, frame.v) / extent * r, dot(w, frame.dir) / depthExtent * r};
 }
 
+TexelMapping::TexelMapping(const OrthoGrid& g, const Vec3& relativeTo)
+    : local0_(g.origin - relativeTo),
+      u_(g.frame.u),
+      v_(g.frame.v),
+      dir_(g.frame.dir),
+      u0_(g.u0),
+      v0_(g.v0),
+      d0_(g.d0),
+      texelSize_(g.texelSize()),
+      slicesPerUnit_(double(g.side()) / g.depthExtent),
+      cells_(double(g.side())),
+      // The far end lies a hair beyond the grid so that a surface on its last slice is hit.
+      tMax_(g.depthExtent * 1.0001),
+      side_(uint32_t(g.side())) {}
+
 TexelRay OrthoGrid::texelRay(uint64_t x, uint64_t y, const Vec3& relativeTo) const {
-  const double ts = texelSize();
-  const double lu = u0 + (double(x) + 0.5) * ts, lv = v0 + (double(y) + 0.5) * ts;
-  const Vec3 local0 = origin - relativeTo;
-  // The far end lies a hair beyond the grid so that a surface on its last slice is hit.
-  return {local0 + frame.u * lu + frame.v * lv + frame.dir * d0, frame.dir, depthExtent * 1.0001};
+  return texelMapping(relativeTo).ray(x, y);
 }
 
-uint32_t OrthoGrid::sliceOfDepth(double t) const {
-  const double s = std::floor(t * (cells() / depthExtent));
-  if (!(s >= 0)) return 0;
-  if (s >= cells()) return uint32_t(side());
-  return static_cast<uint32_t>(s);
-}
+uint32_t OrthoGrid::sliceOfDepth(double t) const { return texelMapping(origin).slice(t); }
 
 double OrthoGrid::depthOf(const Vec3& world) const { return dot(world - origin, frame.dir) - d0; }
 

@@ -43,6 +43,6 @@ int orderCrossings(RayHit* hits, int count, double tieDistance);
 /// The texel classification of one ray's hits, sorted by distance: the shared rule of
 /// renderTexelSlices, exposed for tests. `t` values are depths along the texel's ray
 /// (LightGrid::texelRay), which the grid turns into slices.
-void classifyTexel(const RayHit* hits, int count, bool exact, const LightGrid& grid, uint32_t& lo, uint32_t& hi);
+void classifyTexel(const RayHit* hits, int count, bool exact, const TexelMapping& slices, uint32_t& lo, uint32_t& hi);
 
 }  // namespace cpvs
