@@ -107,8 +107,9 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
   j.priority = spec.priority();
   j.createdMs = nowMs();
   j.resolution = grid.resolution();
-  j.tilesPerSide = TilePlan(log2R, options.log2TileSize).perSide();
-  j.tilesTotal = j.tilesPerSide * j.tilesPerSide;
+  const TilePlan plan(log2R, options.log2TileSize);  // the local bake's tiles, in its order
+  j.tilesPerSide = plan.perSide();
+  j.tilesTotal = plan.count();
   {
     // Checked again and created under one lock: a retry that arrives while its first call
     // is still loading the scene gets the same job (not a unique-key error), and calls

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "coordinator/clock.h"
+#include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/net/convert.h"
@@ -47,8 +48,9 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   out.set_lease_id(l->leaseId);
   out.set_job_id(l->jobId);
   out.set_tile_index(l->tile);
-  out.set_tile_x(l->tile % j->tilesPerSide);
-  out.set_tile_y(l->tile / j->tilesPerSide);
+  const TileCoord tile = TilePlan(j->grid.log2Resolution, j->options.log2TileSize).tile(l->tile);
+  out.set_tile_x(tile.x);
+  out.set_tile_y(tile.y);
   out.set_scene_hash(j->sceneHash);
   *out.mutable_grid() = net::toProto(j->grid);
   *out.mutable_options() = net::toProto(j->options);
@@ -76,10 +78,11 @@ bool LeaseService::completeTile(const std::string& leaseId, const std::string& e
   try {
     Dag dag = decodeSubDag(reinterpret_cast<const uint8_t*>(encoded.data()), encoded.size(), source,
                            options.compress != CompressMode::None, options.hash);
-    if (dag.log2Resolution != int(std::log2(double(j->resolution))))
+    if (dag.log2Resolution != j->grid.log2Resolution)
       throw InputError(source + ": resolution does not match the job");
-    checkTileRoots(dag, l->tile % j->tilesPerSide, l->tile / j->tilesPerSide,
-                   std::min(options.log2TileSize, dag.log2Resolution), source);
+    const TilePlan plan(j->grid.log2Resolution, options.log2TileSize);
+    const TileCoord tile = plan.tile(l->tile);
+    checkTileRoots(dag, tile.x, tile.y, plan.log2TileSize(), source);
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, std::string("rejected result: ") + e.what());
   }
