@@ -13,6 +13,7 @@
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/eval/shadow_map.h"
 #include "cpvs/eval/verify.h"
+#include "cpvs/raytrace/visibility.h"
 
 namespace cpvs {
 

@@ -6,43 +6,10 @@
 #include <atomic>
 #include <cmath>
 #include <mutex>
-#include "cpvs/base/split_mix64.h"
+#include "cpvs/eval/surface_sampling.h"
+#include "cpvs/raytrace/visibility.h"
 
 namespace cpvs {
-
-std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
-                                          const Vec3& lightDir, uint64_t count, uint64_t seed) {
-  size_t tris = scene.triangleCount();
-  std::vector<double> cdf(tris + 1, 0.0);
-  for (size_t t = 0; t < tris; ++t) {
-    Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-    cdf[t + 1] = cdf[t] + 0.5 * length(cross(b - a, c - a));
-  }
-  std::vector<SurfaceSample> out(count);
-  if (tris == 0 || !(cdf[tris] > 0)) return {};
-  tbb::parallel_for(uint64_t(0), count, [&](uint64_t i) {
-    SplitMix64 rng = SplitMix64::forItem(seed, i);
-    double pick = rng.uniform01() * cdf[tris];
-    size_t t = size_t(std::upper_bound(cdf.begin(), cdf.end(), pick) - cdf.begin());
-    t = std::clamp<size_t>(t, 1, tris) - 1;
-    double r1 = rng.uniform01(), r2 = rng.uniform01();
-    if (r1 + r2 > 1) {
-      r1 = 1 - r1;
-      r2 = 1 - r2;
-    }
-    Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-    Vec3 n = normalize(cross(b - a, c - a));
-    if (!rays.triangleClosed(uint32_t(t), closed) && dot(n, lightDir) > 0) n = -n;
-    out[i] = SurfaceSample{a + (b - a) * r1 + (c - a) * r2, n};
-  });
-  return out;
-}
-
-double shadowRayLength(const OrthoGrid& g) { return 2.0 * (g.depthExtent + g.extent) + 1.0; }
-
-bool exactlyLit(const RayScene& rays, const OrthoGrid& grid, const Vec3& point) {
-  return !rays.occluded(point, -grid.frame.dir, 0.0, shadowRayLength(grid));
-}
 
 VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
                             uint64_t count, uint64_t seed) {

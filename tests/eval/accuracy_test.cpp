@@ -23,6 +23,8 @@
 #include "cpvs/eval/render.h"
 #include "cpvs/eval/shadow_map.h"
 #include "cpvs/eval/verify.h"
+#include "cpvs/raytrace/visibility.h"
+#include "cpvs/scene/source.h"
 #include "process_testing.h"
 
 namespace cpvs {

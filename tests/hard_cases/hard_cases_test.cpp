@@ -13,6 +13,8 @@
 #include "cpvs/bake/bake.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/eval/verify.h"
+#include "cpvs/raytrace/visibility.h"
+#include "cpvs/scene/source.h"
 #include "dag_testing.h"
 
 namespace cpvs {

@@ -6,20 +6,10 @@
 
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/raytrace/ray_scene.h"
-#include "cpvs/scene/source.h"
+#include "cpvs/eval/surface_sampling.h"
+#include "cpvs/scene/scene.h"
 
 namespace cpvs {
-
-/// A point on a surface with the normal of the side a lookup is made from.
-struct SurfaceSample {
-  Vec3 point, normal;
-};
-
-/// `count` points sampled uniformly by area over the scene's triangles (deterministic for
-/// a seed). The normal is the outward one for closed geometry, and for open geometry the
-/// side facing the light (`lightDir` points from the light into the scene).
-std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
-                                          const Vec3& lightDir, uint64_t count, uint64_t seed);
 
 struct VerifyResult {
   uint64_t samples = 0;              // points compared
@@ -42,11 +32,5 @@ struct VerifyResult {
 /// closed geometry (where no lookup can come from) are skipped.
 VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
                             uint64_t count, uint64_t seed);
-
-/// Exact visibility of the light from a world point: true = lit.
-bool exactlyLit(const RayScene& rays, const OrthoGrid& grid, const Vec3& point);
-/// Length of a shadow ray that leaves any point of the grid's volume towards the light:
-/// past the grid's near plane, whatever the point.
-double shadowRayLength(const OrthoGrid& grid);
 
 }  // namespace cpvs

@@ -1,0 +1,38 @@
+// Points on a scene's surfaces to measure at: uniformly by area, or as cameras see them.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "cpvs/bake/options.h"
+#include "cpvs/eval/camera.h"
+#include "cpvs/raytrace/ray_scene.h"
+#include "cpvs/scene/scene.h"
+
+namespace cpvs {
+
+/// A point on a surface with the normal of the side a lookup is made from.
+struct SurfaceSample {
+  Vec3 point, normal;
+};
+
+/// `count` points sampled uniformly by area over the scene's triangles (deterministic for
+/// a seed). The normal is the outward one for closed geometry, and for open geometry the
+/// side facing the light (`lightDir` points from the light into the scene).
+std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
+                                          const Vec3& lightDir, uint64_t count, uint64_t seed);
+
+/// Rays a camera sample may spend on sky before its point is dropped.
+constexpr int kCameraSampleAttempts = 16;
+
+/// Up to `count` points of the surfaces the cameras see, each with the normal of the side
+/// seen: sample i is the first hit of a ray through a uniformly random point of the image
+/// (of width / height `aspect`) of camera i mod cameras.size(), drawn again up to
+/// kCameraSampleAttempts times while it sees nothing, dropped after that. Deterministic
+/// for a seed (whatever the threads). Points are spread as the images' pixels are: dense
+/// where a camera looks closely, as a player's view is.
+std::vector<SurfaceSample> sampleCameraViews(const Scene& scene, const RayScene& rays,
+                                             const std::vector<Camera>& cameras, double aspect, uint64_t count,
+                                             uint64_t seed);
+
+}  // namespace cpvs
