@@ -181,6 +181,202 @@ double nsPerQuery(size_t n, double minSeconds, Fn&& fn) {
   return s / double(reps) / double(n) * 1e9;
 }
 
+// What every resolution shares: the scene's BVH, the sample points and their normals.
+struct Inputs {
+  const Scene& scene;
+  const LightFrame& frame;
+  const AccuracyOptions& options;
+  const ProgressFn& progress;
+  const Reporter& report;
+  const RayScene& rays;
+  std::vector<Vec3> points, normals;
+  double shadowRay = 0;  // shadowRayLength of the grid
+  Hash128 geometryHash;
+  double firstRadius = 0, maxRadius = 0;
+  size_t pcfSamples = 0;
+  size_t count() const { return points.size(); }
+};
+
+// The methods measured at one resolution: the CPVS and the shadow maps, with their rows.
+struct Methods {
+  ShadowQuery query;
+  ShadowMap equalBytes, fullMap;
+  bool full = false;
+  uint32_t equalSide = 0;
+  AccuracyRow cpvs, eq, eqOff, fullRow;
+};
+
+// The CPVS at this resolution, timed per stage; its row's size and times filled in.
+ShadowQuery bakeRow(const Inputs& in, const OrthoGrid& grid, const std::string& label, AccuracyRow& row) {
+  row.method = AccuracyMethod::Cpvs;
+  row.log2Resolution = grid.log2Resolution;
+  row.side = grid.resolution();
+  CpvsArtifact art;
+  art.grid = grid;
+  art.options = in.options.bake;
+  art.sceneHash = in.geometryHash;
+  StageTimes st;
+  const auto start = std::chrono::steady_clock::now();
+  art.dag = bakeGrid(in.rays, grid, in.options.bake, &st, [&](const std::string&, uint64_t d, uint64_t t) {
+    return !in.progress || in.progress(label + " bake", d, t);
+  });
+  row.bakeSeconds = secondsSince(start);
+  row.stageSeconds = st.seconds;
+  row.bytes = art.dag.bytes();
+  return ShadowQuery(art.grid, PackedDag(art.dag));
+}
+
+// The shadow maps: one with the DAG's bytes, one with the CPVS's texels (when not over
+// the size limit), and their rows.
+void baselineRows(const Inputs& in, const OrthoGrid& grid, const std::string& label, Methods& m) {
+  const uint64_t R = grid.resolution();
+  m.full = R * R * 2 <= in.options.maxFullShadowMapBytes;
+  in.report(label + " shadow maps", 0, m.full ? 2 : 1);
+  m.equalSide = uint32_t(std::max<double>(1.0, std::floor(std::sqrt(double(m.cpvs.bytes) / 2.0))));
+  m.eq.method = AccuracyMethod::ShadowMapEqualBytes;
+  m.eqOff.method = AccuracyMethod::ShadowMapEqualBytesCpvsOffset;
+  m.fullRow.method = AccuracyMethod::ShadowMapFull;
+  for (AccuracyRow* r : {&m.eq, &m.eqOff, &m.fullRow}) r->log2Resolution = grid.log2Resolution;
+  auto start = std::chrono::steady_clock::now();
+  m.equalBytes = renderShadowMap(in.rays, grid, m.equalSide);
+  m.eq.bakeSeconds = m.eqOff.bakeSeconds = secondsSince(start);
+  m.eq.side = m.eqOff.side = m.equalSide;
+  m.eq.bytes = m.eqOff.bytes = m.equalBytes.bytes();
+  m.eqOff.note = "the map above, looked up at the CPVS's offset point";
+  in.report(label + " shadow maps", 1, m.full ? 2 : 1);
+  m.fullRow.side = R;
+  m.fullRow.bytes = R * R * 2;
+  if (m.full) {
+    start = std::chrono::steady_clock::now();
+    m.fullMap = renderShadowMap(in.rays, grid, uint32_t(R));
+    m.fullRow.bakeSeconds = secondsSince(start);
+    in.report(label + " shadow maps", 2, 2);
+  } else {
+    m.fullRow.skipped = true;
+    m.fullRow.note = "skipped: " + std::to_string(R * R * 2) + " bytes is over the limit of " +
+                     std::to_string(in.options.maxFullShadowMapBytes);
+  }
+}
+
+// Query points under the two offset rules (the CPVS's, which the full map shares, and the
+// equal-bytes map's own), their exact visibility and distance to a boundary.
+void exactReference(const Inputs& in, const OrthoGrid& grid, const std::string& label, const Methods& m,
+                    QueryPoints& atR, QueryPoints& atS) {
+  const size_t n = in.count();
+  for (QueryPoints* qp : {&atR, &atS}) {
+    qp->points.resize(n);
+    qp->inside.assign(n, 0);
+    qp->lit.assign(n, 0);
+    qp->distance.assign(n, 0);
+  }
+  forChunks(2 * n, label + " exact", in.report, [&](size_t k) {
+    const size_t i = k % n;
+    QueryPoints& qp = k < n ? atR : atS;
+    const Vec3 q = k < n ? m.query.offsetPoint(in.points[i], in.normals[i], 1)
+                         : m.equalBytes.offsetPoint(in.points[i], in.normals[i], 1);
+    qp.points[i] = q;
+    if (in.rays.closedNesting(q, -grid.frame.dir, in.shadowRay, in.options.bake.closed) > 0) {
+      qp.inside[i] = 1;
+      return;
+    }
+    const bool lit = exactlyLit(in.rays, grid, q);
+    qp.lit[i] = lit;
+    qp.distance[i] = boundaryDistance(in.rays, grid, q, in.normals[i], lit, in.firstRadius, in.maxRadius);
+  });
+}
+
+// Binary lookups of every method against the exact answers.
+void tallyBinary(const Inputs& in, const OrthoGrid& grid, Methods& m, const QueryPoints& atR, const QueryPoints& atS) {
+  const size_t n = in.count();
+  const double texel = grid.texelSize();
+  std::vector<uint8_t> answer(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = m.query.visibility(in.points[i], in.normals[i]) > 0.5f; });
+  tally(m.cpvs, atR, answer, texel);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = m.equalBytes.filteredAt(atS.points[i], 1) > 0.5f; });
+  tally(m.eq, atS, answer, texel);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = m.equalBytes.filteredAt(atR.points[i], 1) > 0.5f; });
+  tally(m.eqOff, atR, answer, texel);
+  if (m.full) {
+    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = m.fullMap.filteredAt(atR.points[i], 1) > 0.5f; });
+    tally(m.fullRow, atR, answer, texel);
+  }
+}
+
+// PCF of every method against the exact fraction over each lookup's own footprint, at
+// texel centres and averaged over each texel's area.
+void measurePcf(const Inputs& in, const OrthoGrid& grid, const std::string& label, Methods& m, const QueryPoints& atR,
+                const QueryPoints& atS) {
+  const uint64_t R = grid.resolution();
+  const size_t count = in.pcfSamples;
+  for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) {
+    const int pcf = kAccuracyPcfWidths[w];
+    constexpr double kNone = -1;  // not compared (inside closed geometry, or no full map)
+    constexpr int kArea = kAreaRaysPerTexelSide;
+    // Per method, the errors against texel-centre rays [0] and against the area average [1].
+    std::array<std::vector<double>, 2> eCpvs, eEq, eEqOff, eFull;
+    for (auto* e : {&eCpvs, &eEq, &eEqOff, &eFull})
+      for (auto& v : *e) v.assign(count, kNone);
+    forChunks(count, label + " pcf " + std::to_string(pcf), in.report, [&](size_t i) {
+      if (!atR.inside[i]) {
+        const Vec3 q = m.query.offsetPoint(in.points[i], in.normals[i], pcf);
+        const double cpvs = m.query.filtered(in.points[i], in.normals[i], pcf);
+        const double fullLookup = m.full ? double(m.fullMap.filteredAt(q, pcf)) : 0.0;
+        const double eqLookup = m.equalBytes.filteredAt(q, pcf);
+        for (int ref = 0; ref < 2; ++ref) {
+          const int per = ref == 0 ? 1 : kArea;
+          const double exactR = exactFootprintLit(in.rays, grid, uint32_t(R), q, pcf, per);
+          eCpvs[ref][i] = pcfError(cpvs, exactR, pcf, per);
+          if (m.full) eFull[ref][i] = pcfError(fullLookup, exactR, pcf, per);
+          eEqOff[ref][i] = pcfError(eqLookup, exactFootprintLit(in.rays, grid, m.equalSide, q, pcf, per), pcf, per);
+        }
+      }
+      if (!atS.inside[i]) {
+        const Vec3 q = m.equalBytes.offsetPoint(in.points[i], in.normals[i], pcf);
+        const double eqLookup = m.equalBytes.filteredAt(q, pcf);
+        for (int ref = 0; ref < 2; ++ref) {
+          const int per = ref == 0 ? 1 : kArea;
+          eEq[ref][i] = pcfError(eqLookup, exactFootprintLit(in.rays, grid, m.equalSide, q, pcf, per), pcf, per);
+        }
+      }
+    });
+    auto summarizeBoth = [&](AccuracyRow& row, std::array<std::vector<double>, 2>& errors) {
+      for (int ref = 0; ref < 2; ++ref) {
+        std::vector<double> kept;
+        for (double e : errors[ref])
+          if (e != kNone) kept.push_back(e);
+        summarize((ref == 0 ? row.pcf : row.pcfArea)[w], pcf, kept);
+      }
+    };
+    summarizeBoth(m.cpvs, eCpvs);
+    summarizeBoth(m.eq, eEq);
+    summarizeBoth(m.eqOff, eEqOff);
+    summarizeBoth(m.fullRow, eFull);
+  }
+}
+
+// Lookup times: the whole batch of surface points, offsets included.
+void timeLookups(const Inputs& in, const std::string& label, Methods& m) {
+  in.report(label + " timing", 0, 1);
+  std::vector<float> vis;
+  const size_t n = in.count();
+  const double minT = in.options.minTimingSeconds;
+  const auto& p = in.points;
+  const auto& nn = in.normals;
+  m.cpvs.nsPerQuery = nsPerQuery(n, minT, [&] { m.query.batch(p, nn, 1, vis); });
+  m.eq.nsPerQuery = nsPerQuery(n, minT, [&] { m.equalBytes.batch(p, nn, 1, vis); });
+  if (m.full) m.fullRow.nsPerQuery = nsPerQuery(n, minT, [&] { m.fullMap.batch(p, nn, 1, vis); });
+  for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) {
+    const int pcf = kAccuracyPcfWidths[w];
+    m.cpvs.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.query.batch(p, nn, pcf, vis); });
+    m.eq.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.equalBytes.batch(p, nn, pcf, vis); });
+    if (m.full) m.fullRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.fullMap.batch(p, nn, pcf, vis); });
+  }
+  // The CPVS-offset row looks up the same map the same way, from another point.
+  m.eqOff.nsPerQuery = m.eq.nsPerQuery;
+  for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) m.eqOff.pcf[w].nsPerQuery = m.eq.pcf[w].nsPerQuery;
+  in.report(label + " timing", 1, 1);
+}
+
 }  // namespace
 
 AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, const AccuracyOptions& options,
@@ -205,19 +401,18 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
     throw InputError("accuracy: " + std::string(options.cameras.empty() ? "scene '" + scene.name + "' has no surface"
                                                                       : "the cameras see no surface of '" + scene.name + "'") +
                      " to sample");
-  const size_t n = samples.size();
-  std::vector<Vec3> points(n), normals(n);
-  for (size_t i = 0; i < n; ++i) {
-    points[i] = samples[i].point;
-    normals[i] = samples[i].normal;
+  Inputs in{scene, frame, options, progress, report, rays, {}, {}, shadowRayLength(finest), sceneHash(scene), 0, 0, 0};
+  for (const SurfaceSample& s : samples) {
+    in.points.push_back(s.point);
+    in.normals.push_back(s.normal);
   }
 
   AccuracyReport out;
   out.scene = scene.name;
   out.triangles = scene.triangleCount();
   out.lightDir = frame.dir;
-  out.samples = n;
-  out.pcfSamples = std::min<uint64_t>(options.pcfSamples, n);
+  out.samples = in.count();
+  out.pcfSamples = std::min<uint64_t>(options.pcfSamples, in.count());
   out.seed = options.seed;
   out.cameras = options.cameras;
   out.extent = finest.extent;
@@ -226,172 +421,23 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
   out.maxRadius = finest.extent / 16.0;
   out.threads = unsigned(tbb::this_task_arena::max_concurrency());
   out.timingSeconds = options.minTimingSeconds;
-  const double len = shadowRayLength(finest);
-  const Hash128 geometryHash = sceneHash(scene);
-  const ClosedMode closed = options.bake.closed;
+  in.firstRadius = out.firstRadius;
+  in.maxRadius = out.maxRadius;
+  in.pcfSamples = size_t(out.pcfSamples);
 
   for (int log2R : resolutions) {
-    const uint64_t R = uint64_t(1) << log2R;
-    const std::string label = resolutionLabel(R);
     const OrthoGrid grid = makeGrid(scene, frame, log2R);
-    const double texel = grid.texelSize();
-
-    // The CPVS, timed per stage.
+    const std::string label = resolutionLabel(grid.resolution());
     AccuracyRow cpvsRow;
-    cpvsRow.method = AccuracyMethod::Cpvs;
-    cpvsRow.log2Resolution = log2R;
-    cpvsRow.side = R;
-    CpvsArtifact art;
-    art.grid = grid;
-    art.options = options.bake;
-    art.sceneHash = geometryHash;
-    {
-      StageTimes st;
-      const auto start = std::chrono::steady_clock::now();
-      art.dag = bakeGrid(rays, grid, options.bake, &st, [&](const std::string&, uint64_t d, uint64_t t) {
-        return !progress || progress(label + " bake", d, t);
-      });
-      cpvsRow.bakeSeconds = secondsSince(start);
-      cpvsRow.stageSeconds = st.seconds;
-    }
-    cpvsRow.bytes = art.dag.bytes();
-    const ShadowQuery query(art.grid, PackedDag(art.dag));
-
-    // The shadow maps: one with the DAG's bytes, one with the CPVS's texels.
-    const bool full = R * R * 2 <= options.maxFullShadowMapBytes;
-    report(label + " shadow maps", 0, full ? 2 : 1);
-    const uint32_t equalSide = uint32_t(std::max<double>(1.0, std::floor(std::sqrt(double(cpvsRow.bytes) / 2.0))));
-    AccuracyRow eqRow, eqOffRow, fullRow;
-    eqRow.method = AccuracyMethod::ShadowMapEqualBytes;
-    eqOffRow.method = AccuracyMethod::ShadowMapEqualBytesCpvsOffset;
-    fullRow.method = AccuracyMethod::ShadowMapFull;
-    for (AccuracyRow* r : {&eqRow, &eqOffRow, &fullRow}) r->log2Resolution = log2R;
-    auto start = std::chrono::steady_clock::now();
-    const ShadowMap eq = renderShadowMap(rays, grid, equalSide);
-    eqRow.bakeSeconds = eqOffRow.bakeSeconds = secondsSince(start);
-    eqRow.side = eqOffRow.side = equalSide;
-    eqRow.bytes = eqOffRow.bytes = eq.bytes();
-    eqOffRow.note = "the map above, looked up at the CPVS's offset point";
-    report(label + " shadow maps", 1, full ? 2 : 1);
-    ShadowMap fullMap;
-    fullRow.side = R;
-    fullRow.bytes = R * R * 2;
-    if (full) {
-      start = std::chrono::steady_clock::now();
-      fullMap = renderShadowMap(rays, grid, uint32_t(R));
-      fullRow.bakeSeconds = secondsSince(start);
-      report(label + " shadow maps", 2, 2);
-    } else {
-      fullRow.skipped = true;
-      fullRow.note = "skipped: " + std::to_string(R * R * 2) + " bytes is over the limit of " +
-                     std::to_string(options.maxFullShadowMapBytes);
-    }
-
-    // Query points under the two offset rules (the CPVS's, which the full map shares, and
-    // the equal-bytes map's own), their exact visibility and distance to a boundary.
+    ShadowQuery query = bakeRow(in, grid, label, cpvsRow);
+    Methods m{std::move(query), {}, {}, false, 0, std::move(cpvsRow), {}, {}, {}};
+    baselineRows(in, grid, label, m);
     QueryPoints atR, atS;
-    for (QueryPoints* qp : {&atR, &atS}) {
-      qp->points.resize(n);
-      qp->inside.assign(n, 0);
-      qp->lit.assign(n, 0);
-      qp->distance.assign(n, 0);
-    }
-    forChunks(2 * n, label + " exact", report, [&](size_t k) {
-      const size_t i = k % n;
-      QueryPoints& qp = k < n ? atR : atS;
-      const Vec3 q = k < n ? query.offsetPoint(points[i], normals[i], 1) : eq.offsetPoint(points[i], normals[i], 1);
-      qp.points[i] = q;
-      if (rays.closedNesting(q, -grid.frame.dir, len, closed) > 0) {
-        qp.inside[i] = 1;
-        return;
-      }
-      const bool lit = exactlyLit(rays, grid, q);
-      qp.lit[i] = lit;
-      qp.distance[i] = boundaryDistance(rays, grid, q, normals[i], lit, out.firstRadius, out.maxRadius);
-    });
-
-    // Binary lookups.
-    std::vector<uint8_t> answer(n);
-    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = query.visibility(points[i], normals[i]) > 0.5f; });
-    tally(cpvsRow, atR, answer, texel);
-    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = eq.filteredAt(atS.points[i], 1) > 0.5f; });
-    tally(eqRow, atS, answer, texel);
-    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = eq.filteredAt(atR.points[i], 1) > 0.5f; });
-    tally(eqOffRow, atR, answer, texel);
-    if (full) {
-      tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = fullMap.filteredAt(atR.points[i], 1) > 0.5f; });
-      tally(fullRow, atR, answer, texel);
-    }
-
-    // PCF against the exact fraction over each lookup's own footprint.
-    const size_t m = size_t(out.pcfSamples);
-    for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) {
-      const int pcf = kAccuracyPcfWidths[w];
-      constexpr double kNone = -1;  // not compared (inside closed geometry, or no full map)
-      constexpr int kArea = kAreaRaysPerTexelSide;
-      // Per method, the errors against texel-centre rays [0] and against the area average [1].
-      std::array<std::vector<double>, 2> eCpvs, eEq, eEqOff, eFull;
-      for (auto* e : {&eCpvs, &eEq, &eEqOff, &eFull})
-        for (auto& v : *e) v.assign(m, kNone);
-      forChunks(m, label + " pcf " + std::to_string(pcf), report, [&](size_t i) {
-        if (!atR.inside[i]) {
-          const Vec3 q = query.offsetPoint(points[i], normals[i], pcf);
-          const double cpvs = query.filtered(points[i], normals[i], pcf);
-          const double fullLookup = full ? double(fullMap.filteredAt(q, pcf)) : 0.0;
-          const double eqLookup = eq.filteredAt(q, pcf);
-          for (int ref = 0; ref < 2; ++ref) {
-            const int per = ref == 0 ? 1 : kArea;
-            const double exactR = exactFootprintLit(rays, grid, uint32_t(R), q, pcf, per);
-            eCpvs[ref][i] = pcfError(cpvs, exactR, pcf, per);
-            if (full) eFull[ref][i] = pcfError(fullLookup, exactR, pcf, per);
-            eEqOff[ref][i] = pcfError(eqLookup, exactFootprintLit(rays, grid, equalSide, q, pcf, per), pcf, per);
-          }
-        }
-        if (!atS.inside[i]) {
-          const Vec3 q = eq.offsetPoint(points[i], normals[i], pcf);
-          const double eqLookup = eq.filteredAt(q, pcf);
-          for (int ref = 0; ref < 2; ++ref) {
-            const int per = ref == 0 ? 1 : kArea;
-            eEq[ref][i] = pcfError(eqLookup, exactFootprintLit(rays, grid, equalSide, q, pcf, per), pcf, per);
-          }
-        }
-      });
-      auto summarizeBoth = [&](AccuracyRow& row, std::array<std::vector<double>, 2>& errors) {
-        for (int ref = 0; ref < 2; ++ref) {
-          std::vector<double> kept;
-          for (double e : errors[ref])
-            if (e != kNone) kept.push_back(e);
-          summarize((ref == 0 ? row.pcf : row.pcfArea)[w], pcf, kept);
-        }
-      };
-      summarizeBoth(cpvsRow, eCpvs);
-      summarizeBoth(eqRow, eEq);
-      summarizeBoth(eqOffRow, eEqOff);
-      summarizeBoth(fullRow, eFull);
-    }
-
-    // Lookup times: the whole batch of surface points, offsets included.
-    report(label + " timing", 0, 1);
-    std::vector<float> vis;
-    const double minT = options.minTimingSeconds;
-    cpvsRow.nsPerQuery = nsPerQuery(n, minT, [&] { query.batch(points, normals, 1, vis); });
-    eqRow.nsPerQuery = nsPerQuery(n, minT, [&] { eq.batch(points, normals, 1, vis); });
-    if (full) fullRow.nsPerQuery = nsPerQuery(n, minT, [&] { fullMap.batch(points, normals, 1, vis); });
-    for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) {
-      const int pcf = kAccuracyPcfWidths[w];
-      cpvsRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { query.batch(points, normals, pcf, vis); });
-      eqRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { eq.batch(points, normals, pcf, vis); });
-      if (full) fullRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { fullMap.batch(points, normals, pcf, vis); });
-    }
-    // The CPVS-offset row looks up the same map the same way, from another point.
-    eqOffRow.nsPerQuery = eqRow.nsPerQuery;
-    for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) eqOffRow.pcf[w].nsPerQuery = eqRow.pcf[w].nsPerQuery;
-    report(label + " timing", 1, 1);
-
-    out.rows.push_back(std::move(cpvsRow));
-    out.rows.push_back(std::move(eqRow));
-    out.rows.push_back(std::move(eqOffRow));
-    out.rows.push_back(std::move(fullRow));
+    exactReference(in, grid, label, m, atR, atS);
+    tallyBinary(in, grid, m, atR, atS);
+    measurePcf(in, grid, label, m, atR, atS);
+    timeLookups(in, label, m);
+    for (AccuracyRow* r : {&m.cpvs, &m.eq, &m.eqOff, &m.fullRow}) out.rows.push_back(std::move(*r));
   }
   out.seconds = secondsSince(totalStart);
   return out;
