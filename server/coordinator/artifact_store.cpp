@@ -50,4 +50,9 @@ void ArtifactStore::writeArtifact(const std::string& jobId, const std::vector<ui
   writeFileAtomic(artifactPath(jobId), bytes);
 }
 
+void ArtifactStore::removeArtifact(const std::string& jobId) const {
+  std::error_code ec;
+  fs::remove(artifactPath(jobId), ec);
+}
+
 }  // namespace cpvs::server

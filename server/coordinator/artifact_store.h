@@ -27,6 +27,8 @@ class ArtifactStore {
 
   std::string artifactPath(const std::string& jobId) const;
   void writeArtifact(const std::string& jobId, const std::vector<uint8_t>& bytes) const;
+  /// Removes an artifact (of a job that ended otherwise while it was written).
+  void removeArtifact(const std::string& jobId) const;
 
  private:
   std::string dataDir_;

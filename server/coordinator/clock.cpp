@@ -7,13 +7,18 @@
 namespace cpvs::server {
 
 std::string randomId(const char* prefix) {
-  // Seeded once from the system's source, then a 64-bit generator: unique and unguessable
-  // enough for ids that are also checked against the store.
+  // 64 bits straight from the system's source for every id (a seeded generator's next
+  // ids follow from the ones it gave out): a lease id is a worker's only credential for
+  // its tile.
   static std::mutex m;
-  static std::mt19937_64 rng{(uint64_t(std::random_device{}()) << 32) ^ std::random_device{}()};
-  std::lock_guard lock(m);
+  static std::random_device source;
+  uint64_t v;
+  {
+    std::lock_guard lock(m);
+    v = uint64_t(source()) << 32 | uint64_t(source());
+  }
   char buf[40];
-  std::snprintf(buf, sizeof buf, "%s%016llx", prefix, static_cast<unsigned long long>(rng()));
+  std::snprintf(buf, sizeof buf, "%s%016llx", prefix, static_cast<unsigned long long>(v));
   return buf;
 }
 

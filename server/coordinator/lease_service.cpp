@@ -59,6 +59,10 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   return out;
 }
 
+void LeaseService::checkResultLease(const std::string& leaseId) {
+  if (!store_.lease(leaseId)) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
+}
+
 pb::RenewReply LeaseService::renew(const std::string& leaseId) {
   pb::RenewReply r;
   int64_t deadline = nowMs() + int64_t(rules_.leaseSeconds * 1000);
@@ -114,8 +118,8 @@ bool LeaseService::completeTile(const std::string& leaseId, const std::string& e
 void LeaseService::failTile(const std::string& leaseId, const std::string& reason) {
   auto l = store_.lease(leaseId);
   if (!l) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
-  if (l->deadlineMs == 0) return;  // no longer the tile's current lease
-  int attempts = store_.requeueTile(l->jobId, l->tile, reason);
+  const int attempts = store_.requeueTile(leaseId, reason);
+  if (attempts == 0) return;  // no longer the tile's current lease: its tile is someone else's
   spdlog::warn("tile {} of job {} failed on {} (attempt {}): {}", l->tile, l->jobId, l->workerId, attempts, reason);
   if (attempts >= rules_.maxAttempts)
     jobs_.failJob(l->jobId, "tile " + std::to_string(l->tile) + " failed " + std::to_string(attempts) + " times: " + reason);

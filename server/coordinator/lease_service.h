@@ -35,6 +35,9 @@ class LeaseService {
 
   pb::TileLease lease(const std::string& workerId);
   pb::RenewReply renew(const std::string& leaseId);
+  /// FarmError(NotFound) unless the lease exists: checked on a result's first chunk,
+  /// before the rest of the stream is read.
+  void checkResultLease(const std::string& leaseId);
   /// A tile's sub-DAG, validated; false when another result for the tile was taken.
   bool completeTile(const std::string& leaseId, const std::string& encoded, const std::map<std::string, double>& stages);
   void failTile(const std::string& leaseId, const std::string& reason);

@@ -95,7 +95,12 @@ void MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
   artifacts_.writeArtifact(j.id, file);
   const std::string checksum = contentHash(file.data(), file.size()).hex();
   store_.addStageSeconds(j.id, {{"write", secondsSince(start)}});
-  store_.finishJob(j.id, art.dag.bytes(), file.size(), m.peak, checksum, nowMs());
+  if (!store_.finishJob(j.id, art.dag.bytes(), file.size(), m.peak, checksum, nowMs())) {
+    // Cancelled or failed while this merge wrote the artifact: the first end stands.
+    artifacts_.removeArtifact(j.id);
+    artifacts_.removeTiles(j.id);
+    return;
+  }
   // Only now that the artifact and its acknowledgement are durable.
   artifacts_.removeTiles(j.id);
   spdlog::info("job {} done: {} bytes (file {}), peak merge memory {} bytes", j.id, art.dag.bytes(), file.size(),

@@ -1,6 +1,11 @@
 #include "coordinator/scene_store.h"
 
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <filesystem>
 #include <fstream>
@@ -93,11 +98,26 @@ void SceneStore::appendUpload(const std::string& hash, uint64_t offset, const st
   if (r->received + data.size() > r->totalSize)
     throw FarmError(ErrorKind::InvalidArgument, "the upload runs past its announced size of " +
                                                     std::to_string(r->totalSize) + " bytes");
-  const fs::path part = partPath(hash);
-  std::ofstream out(part, std::ios::binary | std::ios::app);
-  out.write(data.data(), std::streamsize(data.size()));
-  out.flush();
-  if (!out) throw FarmError(ErrorKind::Internal, "cannot write " + part.string());
+  // At the acknowledged offset, not the file's end: bytes written before a crash but
+  // never acknowledged are cut off. Synced before `received` is committed, so that an
+  // acknowledged byte survives a power cut.
+  const std::string part = partPath(hash);
+  const int fd = ::open(part.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  auto fail = [&](int error) {
+    if (fd >= 0) ::close(fd);
+    throw FarmError(ErrorKind::Internal, std::string("cannot store the upload: ") + std::strerror(error));
+  };
+  if (fd < 0) fail(errno);
+  if (::ftruncate(fd, off_t(r->received)) != 0) fail(errno);
+  for (size_t done = 0; done < data.size();) {
+    const ssize_t n = ::pwrite(fd, data.data() + done, data.size() - done, off_t(r->received + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) fail(errno);
+    done += size_t(n);
+  }
+  if (::fdatasync(fd) != 0) fail(errno);
+  ::close(fd);
+  if (r->received == 0) syncParentFolder(part);
   r->received += data.size();
   store_.putScene(*r);
 }

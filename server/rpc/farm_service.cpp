@@ -2,6 +2,7 @@
 
 #include "cpvs/base/error.h"
 #include "cpvs/base/hash.h"
+#include "cpvs/base/text.h"
 
 #include <spdlog/spdlog.h>
 
@@ -180,6 +181,7 @@ grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerR
     pb::TileResultChunk chunk;
     if (!reader->Read(&chunk)) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "empty result stream");
     const std::string leaseId = chunk.lease_id();
+    c_.leases().checkResultLease(leaseId);  // before reading the rest of the stream
     const uint64_t total = chunk.total_size();
     const std::string checksum = chunk.checksum();
     if (total == 0) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "result size 0 is out of range");
@@ -209,7 +211,8 @@ grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerR
 
 grpc::Status WorkerService::FailTile(grpc::ServerContext* ctx, const pb::FailRequest* req, pb::FailReply*) {
   return guarded(ctx, tokens_, Role::Worker, "FailTile", [&] {
-    c_.leases().failTile(req->lease_id(), req->reason().substr(0, 1000));
+    // Stored in JobStatus.error, a proto3 string: it must stay valid UTF-8 when cut.
+    c_.leases().failTile(req->lease_id(), validUtf8Prefix(req->reason(), 1000));
     return grpc::Status::OK;
   });
 }

@@ -309,15 +309,16 @@ void FarmStore::setJobState(const std::string& id, JobState state, const std::st
   s.run();
 }
 
-void FarmStore::finishJob(const std::string& id, uint64_t bytes, uint64_t fileBytes, uint64_t peak,
+bool FarmStore::finishJob(const std::string& id, uint64_t bytes, uint64_t fileBytes, uint64_t peak,
                           const std::string& checksum, int64_t nowMs) {
   std::lock_guard lock(mutex_);
   Statement s(db_,
               "UPDATE jobs SET state = 4, bytes = ?, file_bytes = ?, peak_merge_bytes = MAX(peak_merge_bytes, ?), "
-              "artifact_checksum = ?, finished_ms = ? WHERE id = ?");
+              "artifact_checksum = ?, finished_ms = ? WHERE id = ? AND state IN (1, 2, 3)");
   s.bind(1, int64_t(bytes)).bind(2, int64_t(fileBytes)).bind(3, int64_t(peak)).text(4, checksum).bind(5, nowMs);
   s.text(6, id);
   s.run();
+  return sqlite3_changes(db_) > 0;
 }
 
 void FarmStore::addStageSeconds(const std::string& id, const std::map<std::string, double>& stages) {
@@ -402,15 +403,20 @@ bool FarmStore::completeTile(const std::string& jobId, uint64_t tile) {
   return sqlite3_changes(db_) > 0;
 }
 
-int FarmStore::requeueTile(const std::string& jobId, uint64_t tile, const std::string& error) {
+int FarmStore::requeueTile(const std::string& leaseId, const std::string& error) {
   std::lock_guard lock(mutex_);
-  Statement s(db_, "UPDATE tiles SET state = 0, lease_id = NULL, last_error = ? WHERE job_id = ? AND idx = ? AND "
-                   "state = 1");
-  s.text(1, error).text(2, jobId).bind(3, int64_t(tile));
+  Transaction t(db_);
+  Statement find(db_, "SELECT job_id, idx, attempts FROM tiles WHERE lease_id = ? AND state = 1");
+  find.text(1, leaseId);
+  if (!find.step()) return 0;
+  const std::string jobId = find.str(0);
+  const int64_t tile = find.i64(1);
+  const int attempts = int(find.i64(2));
+  Statement s(db_, "UPDATE tiles SET state = 0, lease_id = NULL, last_error = ? WHERE job_id = ? AND idx = ?");
+  s.text(1, error).text(2, jobId).bind(3, tile);
   s.run();
-  Statement a(db_, "SELECT attempts FROM tiles WHERE job_id = ? AND idx = ?");
-  a.text(1, jobId).bind(2, int64_t(tile));
-  return a.step() ? int(a.i64(0)) : 0;
+  t.commit();
+  return attempts;
 }
 
 std::vector<std::tuple<std::string, uint64_t, int>> FarmStore::expireLeases(int64_t nowMs) {

@@ -73,7 +73,9 @@ class FarmStore {
   std::vector<JobRecord> jobs(bool includeFinished);
   size_t activeJobCount();
   void setJobState(const std::string& id, JobState s, const std::string& error, int64_t nowMs);
-  void finishJob(const std::string& id, uint64_t bytes, uint64_t fileBytes, uint64_t peakMergeBytes,
+  /// Marks an unfinished job done with its artifact; false (and nothing changed) when the
+  /// job ended meanwhile (a cancel stands).
+  bool finishJob(const std::string& id, uint64_t bytes, uint64_t fileBytes, uint64_t peakMergeBytes,
                  const std::string& checksum, int64_t nowMs);
   void addStageSeconds(const std::string& id, const std::map<std::string, double>& stages);
   void setPeakMergeBytes(const std::string& id, uint64_t bytes);
@@ -90,8 +92,9 @@ class FarmStore {
   std::optional<TileState> tileState(const std::string& jobId, uint64_t tile);
   /// Marks the tile done unless it already is; returns whether this call did.
   bool completeTile(const std::string& jobId, uint64_t tile);
-  /// Returns an expired or failed tile to the queue; returns its attempts so far.
-  int requeueTile(const std::string& jobId, uint64_t tile, const std::string& error);
+  /// Returns the tile of a failed lease to the queue when that lease is still the tile's
+  /// current one; returns the tile's attempts so far, 0 when the lease was not current.
+  int requeueTile(const std::string& leaseId, const std::string& error);
   /// Tiles whose current lease expired before nowMs, returned to the queue: (job, tile, attempts).
   std::vector<std::tuple<std::string, uint64_t, int>> expireLeases(int64_t nowMs);
   std::vector<uint64_t> doneTiles(const std::string& jobId);

@@ -107,6 +107,12 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
       {"leaf count", [](Bytes& b) { put<uint64_t>(b, kLeafCount, uint64_t(1) << 40); }, "leaf count is out of range"},
       {"child count", [](Bytes& b) { put<uint64_t>(b, kLevelSizes + 8, 9 * get<uint64_t>(b, kLevelSizes)); },
        "sizes are out of range"},
+      {"more child references than 32 bits hold (R24)",
+       [](Bytes& b) {
+         put<uint64_t>(b, kLevelSizes, uint64_t(1) << 31);
+         put<uint64_t>(b, kLevelSizes + 8, uint64_t(1) << 33);
+       },
+       "sizes are out of range"},
       {"payload size", [=](Bytes& b) { put<uint64_t>(b, payloadSize, get<uint64_t>(b, payloadSize) + 8); },
        "does not match the counts"},
       {"child code 3", [=](Bytes& b) { put<uint16_t>(b, level0Codes, uint16_t(get<uint16_t>(b, level0Codes) | 3)); },

@@ -43,7 +43,8 @@ void readDagLevels(ByteReader& h, bool zstd, int expectedLevels, Dag& dag) {
   for (uint32_t l = 0; l < levels; ++l) {
     nodeCounts[l] = h.get<uint64_t>("level table");
     childCounts[l] = h.get<uint64_t>("level table");
-    if (nodeCounts[l] > kMaxCount || childCounts[l] > 8 * nodeCounts[l])
+    // Child offsets (childBegin) are 32-bit: more references than that would wrap.
+    if (nodeCounts[l] > kMaxCount || childCounts[l] > kMaxCount || childCounts[l] > 8 * nodeCounts[l])
       h.fail("level " + std::to_string(l) + " sizes are out of range");
     expected += pad4(nodeCounts[l] * 2) + childCounts[l] * 4;
   }

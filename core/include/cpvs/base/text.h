@@ -1,0 +1,13 @@
+// Text that crosses a boundary where it must be valid UTF-8 (protobuf strings, JSON).
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+namespace cpvs {
+
+/// `text` as valid UTF-8 of at most `maxBytes` bytes: every invalid or truncated sequence
+/// replaced by U+FFFD, and cut before the first character that would not fit whole.
+std::string validUtf8Prefix(const std::string& text, size_t maxBytes);
+
+}  // namespace cpvs

@@ -1,0 +1,195 @@
+// Findings of the reliability review (../shared/notes/reliability-review.md), each
+// reproduced by the test named after it before it was fixed.
+#include <gtest/gtest.h>
+#include <grpcpp/grpcpp.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "coordinator/coordinator.h"
+#include "cpvs/base/file.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/base/text.h"
+#include "cpvs/client/farm_client.h"
+#include "cpvs/net/channel.h"
+#include "cpvs/net/convert.h"
+#include "cpvs/scene/obj_writer.h"
+#include "cpvs/scene/source.h"
+#include "cpvs/v1/farm.grpc.pb.h"
+#include "rpc/farm_server.h"
+#include "store/farm_store.h"
+
+namespace cpvs {
+namespace {
+
+namespace fs = std::filesystem;
+namespace pb = ::cpvs::v1;
+
+class TempDir {
+ public:
+  explicit TempDir(const std::string& name)
+      : path_(fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  fs::path path_;
+};
+
+server::JobRecord oneTileJob(const std::string& id) {
+  server::JobRecord j;
+  j.id = id;
+  j.requestId = "req-" + id;
+  j.sceneHash = std::string(32, 'b');
+  j.geometryHash = std::string(32, 'c');
+  j.createdMs = 1000;
+  j.tilesPerSide = 1;
+  j.tilesTotal = 1;
+  j.resolution = 64;
+  j.grid.frame = LightFrame::fromDirection({0, -1, 0});
+  j.grid.log2Resolution = 6;
+  return j;
+}
+
+// R13: a cancel that lands while the merge writes the artifact must stand; finishing the
+// job afterwards must not turn CANCELLED into DONE.
+TEST(Hardening, R13_ACancelledJobStaysCancelledWhenItsMergeFinishes) {
+  TempDir dir("cpvs_r13");
+  server::FarmStore store(dir / "farm.sqlite");
+  store.createJob(oneTileJob("j1"));
+  store.setJobState("j1", server::JobState::Cancelled, "cancelled", 2000);
+  EXPECT_FALSE(store.finishJob("j1", 10, 20, 30, std::string(32, 'd'), 3000));
+  EXPECT_EQ(store.job("j1")->state, server::JobState::Cancelled);
+  store.createJob(oneTileJob("j2"));
+  EXPECT_TRUE(store.finishJob("j2", 10, 20, 30, std::string(32, 'd'), 3000));
+  EXPECT_EQ(store.job("j2")->state, server::JobState::Done);
+}
+
+// R20: a failure reported under a lease that is no longer the tile's current one must
+// not return the tile, now leased to another worker, to the queue.
+TEST(Hardening, R20_AStaleLeaseCannotRequeueAnotherWorkersLease) {
+  TempDir dir("cpvs_r20");
+  server::FarmStore store(dir / "farm.sqlite");
+  store.createJob(oneTileJob("j"));
+  ASSERT_TRUE(store.leaseNextTile("w1", "l1", 1000, 2000).has_value());
+  ASSERT_EQ(store.expireLeases(3000).size(), 1u);
+  ASSERT_TRUE(store.leaseNextTile("w2", "l2", 3000, 9000).has_value());
+  store.requeueTile("l1", "late failure of the first worker");
+  EXPECT_EQ(store.tileState("j", 0), server::TileState::Leased);
+  EXPECT_TRUE(store.renewLease("l2", 9500));  // still w2's
+  EXPECT_GT(store.requeueTile("l2", "w2 failed"), 0);
+  EXPECT_EQ(store.tileState("j", 0), server::TileState::Queued);
+}
+
+// R8: a failure reason cut at the byte limit inside a multi-byte character made every
+// later ListJobs fail to parse (proto3 strings must be UTF-8).
+TEST(Hardening, R8_FailureReasonsStayValidUtf8) {
+  EXPECT_EQ(validUtf8Prefix("abc", 10), "abc");
+  EXPECT_EQ(validUtf8Prefix("ab\xC3\xA9", 3), "ab");                 // é not split
+  EXPECT_EQ(validUtf8Prefix("a\xFF" "b", 10), "a\xEF\xBF\xBD" "b");  // invalid byte replaced
+  EXPECT_EQ(validUtf8Prefix("\xE2\x82", 10), "\xEF\xBF\xBD");          // truncated sequence replaced
+  EXPECT_EQ(validUtf8Prefix("\xF0\x9F\x98\x80!", 5), "\xF0\x9F\x98\x80!");
+
+  TempDir dir("cpvs_r8");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  const net::Connection c{farm.address(), "", ""};
+  client::FarmClient farmClient(c);
+  pb::BakeSpec spec;
+  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+  spec.set_resolution("64");
+  const pb::JobStatus job = farmClient.submit("r8", spec);
+
+  auto workers = pb::Workers::NewStub(net::makeChannel(c));
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    pb::LeaseRequest lr;
+    lr.set_worker_id("w");
+    pb::TileLease lease;
+    grpc::ClientContext lctx;
+    ASSERT_TRUE(workers->LeaseTile(&lctx, lr, &lease).ok());
+    ASSERT_TRUE(lease.granted());
+    pb::FailRequest fr;
+    fr.set_lease_id(lease.lease_id());
+    fr.set_reason(std::string(999, 'x') + "\xC3\xA9 and more");  // é across byte 1000
+    pb::FailReply reply;
+    grpc::ClientContext fctx;
+    ASSERT_TRUE(workers->FailTile(&fctx, fr, &reply).ok());
+  }
+  const std::vector<pb::JobStatus> jobs = farmClient.list(true);  // parses: the error is UTF-8
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].state(), pb::JOB_FAILED);
+  EXPECT_NE(jobs[0].error().find("failed 3 times"), std::string::npos);
+}
+
+// R15 (and R1's server part): CompleteTile under a lease nobody holds is refused at the
+// first chunk, not after the whole announced stream.
+TEST(Hardening, R15_AResultUnderAnUnknownLeaseIsRefusedAtItsFirstChunk) {
+  TempDir dir("cpvs_r15");
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  auto workers = pb::Workers::NewStub(net::makeChannel(net::Connection{farm.address(), "", ""}));
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+  pb::CompleteReply reply;
+  auto writer = workers->CompleteTile(&ctx, &reply);
+  pb::TileResultChunk chunk;
+  chunk.set_lease_id("l0123456789abcdef");
+  chunk.set_total_size(uint64_t(1) << 31);
+  chunk.set_checksum(std::string(32, 'a'));
+  chunk.set_data(std::string(1 << 20, 'z'));
+  const auto start = std::chrono::steady_clock::now();
+  writer->Write(chunk);  // and the stream stays open
+  const grpc::Status s = writer->Finish();
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::NOT_FOUND) << s.error_message();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(2));
+}
+
+// R3/R5: bytes past the acknowledged offset (a crash between the write and the commit)
+// must not end up inside the scene: the resumed upload writes at that offset.
+TEST(Hardening, R3_AnUploadResumesAtTheAcknowledgedOffsetNotTheFilesEnd) {
+  TempDir dir("cpvs_r3");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  const std::vector<uint8_t> bytes = readFile(obj);
+  const std::string hash = contentHash(bytes.data(), bytes.size()).hex();
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  {
+    server::Coordinator coordinator(config);
+    pb::UploadSceneChunk first;
+    first.set_scene_hash(hash);
+    first.set_file_name("box.obj");
+    first.set_total_size(bytes.size());
+    first.set_offset(0);
+    coordinator.scenes().beginUpload(first);
+    coordinator.scenes().appendUpload(hash, 0, std::string(bytes.begin(), bytes.begin() + 100));
+  }
+  // As if the coordinator died after writing more bytes but before acknowledging them.
+  std::ofstream(dir / "data/scenes/" + hash + ".part", std::ios::app) << "garbage not acknowledged";
+  server::Coordinator coordinator(config);
+  EXPECT_EQ(coordinator.scenes().uploadStatus(hash).received(), 100u);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
+  const client::FarmClient::UploadResult up = farmClient.uploadScene(obj);
+  EXPECT_EQ(up.resumedFrom, 100u);
+  EXPECT_TRUE(coordinator.scenes().uploadStatus(hash).complete());
+}
+
+}  // namespace
+}  // namespace cpvs
