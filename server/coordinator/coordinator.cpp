@@ -10,15 +10,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string databasePath(const std::string& dataDir) {
-  fs::create_directories(dataDir);
-  return (fs::path(dataDir) / "farm.sqlite").string();
-}
+std::string databasePath(const std::string& dataDir) { return (fs::path(dataDir) / "farm.sqlite").string(); }
 
 }  // namespace
 
 Coordinator::Coordinator(CoordinatorConfig config)
     : config_(std::move(config)),
+      lock_(config_.dataDir),
       store_(databasePath(config_.dataDir)),
       artifacts_(config_.dataDir),
       scenes_(store_, config_.dataDir, config_.maxUploadBytes),
@@ -26,7 +24,8 @@ Coordinator::Coordinator(CoordinatorConfig config)
         jobs_.failJob(jobId, why);
       }),
       jobs_(store_, scenes_, artifacts_, merges_, feed_,
-            JobLimits{config_.minLog2Resolution, config_.maxLog2Resolution, config_.maxActiveJobs}),
+            JobLimits{config_.minLog2Resolution, config_.maxLog2Resolution, config_.maxActiveJobs,
+                      config_.maxTilesPerJob}),
       leases_(store_, artifacts_, merges_, jobs_, feed_, LeaseRules{config_.leaseSeconds, config_.maxAttempts}) {
   // Resume: every acknowledged tile of an unfinished job goes back into its merge.
   size_t jobs = 0, tiles = 0;
@@ -44,6 +43,11 @@ Coordinator::Coordinator(CoordinatorConfig config)
     auto j = store_.job(jobId);
     if (!j || isFinal(j->state)) artifacts_.removeTiles(jobId);
   }
+  // Temporaries of atomic writes a crash left behind (R25).
+  std::error_code ec;
+  for (const auto& entry : fs::recursive_directory_iterator(config_.dataDir, ec))
+    if (entry.is_regular_file(ec) && entry.path().filename().string().find(".tmp.") != std::string::npos)
+      fs::remove(entry.path(), ec);
   merges_.start();
   leases_.start();
 }

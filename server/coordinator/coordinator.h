@@ -12,6 +12,7 @@
 
 #include "coordinator/artifact_store.h"
 #include "coordinator/change_feed.h"
+#include "coordinator/data_folder_lock.h"
 #include "coordinator/job_service.h"
 #include "coordinator/lease_service.h"
 #include "coordinator/merge_scheduler.h"
@@ -34,6 +35,7 @@ struct CoordinatorConfig {
   int minLog2Resolution = 6;                    // 64
   uint64_t maxUploadBytes = uint64_t(4) << 30;  // per scene
   size_t maxActiveJobs = 64;
+  uint64_t maxTilesPerJob = 65536;              // see JobLimits
 };
 
 class Coordinator {
@@ -56,6 +58,7 @@ class Coordinator {
 
  private:
   CoordinatorConfig config_;
+  DataFolderLock lock_;  // first: nothing is opened in a folder another server holds
   FarmStore store_;
   ChangeFeed feed_;
   ArtifactStore artifacts_;

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <bit>
 #include <cmath>
 
 #include "coordinator/clock.h"
@@ -89,6 +90,16 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
     throw FarmError(ErrorKind::InvalidArgument, "resolution " + spec.resolution() + " is outside this farm's limits (" +
                                                     std::to_string(1ull << limits_.minLog2Resolution) + " .. " +
                                                     std::to_string(1ull << limits_.maxLog2Resolution) + ")");
+  const TilePlan plan(log2R, options.log2TileSize);  // the local bake's tiles, in its order
+  if (plan.count() > limits_.maxTilesPerJob) {
+    uint64_t smallest = uint64_t(1) << plan.log2TileSize();
+    while (TilePlan(log2R, std::countr_zero(smallest)).count() > limits_.maxTilesPerJob) smallest *= 2;
+    throw FarmError(ErrorKind::InvalidArgument,
+                    "tile_size " + std::to_string(uint64_t(1) << plan.log2TileSize()) + " at resolution " +
+                        spec.resolution() + " makes " + std::to_string(plan.count()) + " tiles; this farm takes at most " +
+                        std::to_string(limits_.maxTilesPerJob) + " per job (tiles of at least " +
+                        std::to_string(smallest) + " texels at this resolution)");
+  }
   checkRoom();  // before loading the scene, which may take long
   Scene scene = scenes_.load(spec.scene_hash());
   OrthoGrid grid;
@@ -107,7 +118,6 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
   j.priority = spec.priority();
   j.createdMs = nowMs();
   j.resolution = grid.resolution();
-  const TilePlan plan(log2R, options.log2TileSize);  // the local bake's tiles, in its order
   j.tilesPerSide = plan.perSide();
   j.tilesTotal = plan.count();
   {

@@ -20,6 +20,9 @@ struct JobLimits {
   int minLog2Resolution = 6;   // 64
   int maxLog2Resolution = 18;  // 256K
   size_t maxActiveJobs = 64;
+  /// Most tiles one job may have: 65536 is 256K³ in tiles of 1024 texels. Bounds the rows
+  /// a submit creates and the work one client can ask for in one request.
+  uint64_t maxTilesPerJob = 65536;
 };
 
 class JobService {

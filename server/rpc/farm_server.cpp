@@ -13,6 +13,8 @@ FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const
   grpc::EnableDefaultHealthCheckService(true);
   grpc::ServerBuilder builder;
   builder.AddListeningPort(listen, creds ? creds : grpc::InsecureServerCredentials(), &port_);
+  // One server per port: gRPC's default SO_REUSEPORT would let a second bind it too (R14).
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.SetMaxReceiveMessageSize(net::kMaxMessageBytes);
   builder.SetMaxSendMessageSize(net::kMaxMessageBytes);
   builder.RegisterService(&farm_);

@@ -43,6 +43,11 @@ class Statement {
     while (step()) {
     }
   }
+  /// Ready to run again with new bindings.
+  void reset() {
+    sqlite3_reset(st_);
+    sqlite3_clear_bindings(st_);
+  }
   int64_t i64(int c) const { return sqlite3_column_int64(st_, c); }
   double f64(int c) const { return sqlite3_column_double(st_, c); }
   std::string str(int c) const {
@@ -158,7 +163,12 @@ FarmStore::FarmStore(const std::string& path) {
     throw std::runtime_error("cannot open the job store " + path + ": " + msg);
   }
   sqlite3_busy_timeout(db_, 5000);
-  exec("PRAGMA journal_mode=WAL");
+  {
+    // The durability argument rests on WAL (R25): a file system that refuses it is an error.
+    Statement wal(db_, "PRAGMA journal_mode=WAL");
+    if (!wal.step() || wal.str(0) != "wal")
+      throw std::runtime_error("the job store " + path + " cannot use write-ahead logging on this file system");
+  }
   // FULL: an acknowledged tile or upload must survive a power cut, not only a crash.
   exec("PRAGMA synchronous=FULL");
   exec("PRAGMA foreign_keys=ON");
@@ -270,10 +280,11 @@ void FarmStore::createJob(const JobRecord& j) {
   Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns + ") VALUES(" + placeholders + ")").c_str());
   bindJob(s, j);
   s.run();
+  Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, 0, 0, NULL, 0, '')");  // prepared once
   for (uint64_t i = 0; i < j.tilesTotal; ++i) {
-    Statement one(db_, "INSERT INTO tiles VALUES(?, ?, 0, 0, NULL, 0, '')");
-    one.text(1, j.id).bind(2, int64_t(i));
-    one.run();
+    tile.text(1, j.id).bind(2, int64_t(i));
+    tile.run();
+    tile.reset();
   }
   t.commit();
 }

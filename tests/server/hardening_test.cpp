@@ -193,3 +193,69 @@ TEST(Hardening, R3_AnUploadResumesAtTheAcknowledgedOffsetNotTheFilesEnd) {
 
 }  // namespace
 }  // namespace cpvs
+
+namespace cpvs {
+namespace {
+
+// R2: tile_size 8 at 256K asked the store for 2^30 tile rows in one transaction.
+TEST(Hardening, R2_AJobOfTooManyTilesIsRefusedAtOnce) {
+  TempDir dir("cpvs_r2");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
+  pb::BakeSpec spec;
+  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+  spec.set_resolution("256K");
+  spec.mutable_options()->set_tile_size(8);
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    farmClient.submit("r2", spec);
+    ADD_FAILURE() << "a job of 2^30 tiles was accepted";
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::InvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("tiles of at least 1024 texels"), std::string::npos) << e.what();
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(2));
+  EXPECT_TRUE(farmClient.list(true).empty());
+}
+
+// R14: a second coordinator on the same data folder, or on the same port, is refused.
+TEST(Hardening, R14_OneCoordinatorPerDataFolderAndPerPort) {
+  TempDir dir("cpvs_r14");
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator first(config);
+  try {
+    server::Coordinator second(config);
+    ADD_FAILURE() << "two coordinators opened one data folder";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("in use by another cpvs-server"), std::string::npos) << e.what();
+  }
+  server::TokenTable open;
+  server::FarmServer one(first, open, "127.0.0.1:0");
+  server::CoordinatorConfig other;
+  other.dataDir = dir / "other";
+  server::Coordinator otherCoordinator(other);
+  EXPECT_THROW(server::FarmServer(otherCoordinator, open, one.address()), InputError);
+}
+
+// R25: temporaries of atomic writes that a crash left behind are removed at start.
+TEST(Hardening, R25_TemporariesLeftByACrashAreRemovedAtStart) {
+  TempDir dir("cpvs_r25");
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  { server::Coordinator once(config); }
+  const std::string stale = dir / "data/artifacts/j1.cpvs.tmp.4242.0";
+  std::ofstream(stale) << "half an artifact";
+  server::Coordinator again(config);
+  EXPECT_FALSE(fs::exists(stale));
+}
+
+}  // namespace
+}  // namespace cpvs
