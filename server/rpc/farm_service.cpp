@@ -3,6 +3,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/text.h"
+#include "cpvs/bake/stage_times.h"
 
 #include <spdlog/spdlog.h>
 
@@ -57,10 +58,25 @@ grpc::Status guarded(const grpc::ServerContext* ctx, const TokenTable& tokens, R
   }
 }
 
+/// The stage names, comma-separated, for messages.
+std::string stageList() {
+  std::string out;
+  for (const char* name : kStageNames) out += (out.empty() ? "" : ", ") + std::string(name);
+  return out;
+}
+
 /// Streams a stored file from `offset`; `fill` completes each message.
 template <class Msg, class Fill>
 grpc::Status streamFile(const std::string& path, uint64_t offset, grpc::ServerWriter<Msg>* writer, Fill&& fill) {
-  const net::ChunkSource src = net::ChunkSource::ofFile(path);
+  // The caller learns that the file is gone, not where the data folder is (R21).
+  std::optional<net::ChunkSource> opened;
+  try {
+    opened = net::ChunkSource::ofFile(path);
+  } catch (const FarmError& e) {
+    spdlog::error("{}", e.what());
+    return grpc::Status(grpc::StatusCode::DATA_LOSS, "the stored file is missing or unreadable on the coordinator");
+  }
+  const net::ChunkSource& src = *opened;
   const bool sent = net::sendChunks<Msg>(src, offset, *writer, [&](Msg& m, uint64_t at, bool) {
     m.set_offset(at);
     m.set_total_size(src.size());
@@ -187,8 +203,12 @@ grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerR
     if (total == 0) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "result size 0 is out of range");
     std::map<std::string, double> stages;
     for (const auto& s : chunk.stages()) {
-      if (!(s.seconds() >= 0 && s.seconds() < 1e7) || s.stage().empty() || s.stage().size() > 32)
+      if (!(s.seconds() >= 0 && s.seconds() < 1e7))
         return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "invalid stage time");
+      // Only the stages the pipeline has: each becomes a stored row of the job (R16).
+      if (!isStageName(s.stage()))
+        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                            "unknown stage '" + validUtf8Prefix(s.stage(), 32) + "' (stages: " + stageList() + ")");
       stages[s.stage()] += s.seconds();
     }
     net::ChunkReceiver receiver(0, kMaxTileResultBytes, ErrorKind::InvalidArgument, "the result");

@@ -259,3 +259,90 @@ TEST(Hardening, R25_TemporariesLeftByACrashAreRemovedAtStart) {
 
 }  // namespace
 }  // namespace cpvs
+
+#include "tile_worker.h"
+
+namespace cpvs {
+namespace {
+
+// R16: worker-supplied stage names became stored rows without bound; only the pipeline's
+// stages are taken now.
+TEST(Hardening, R16_AResultWithAStageThePipelineDoesNotHaveIsRefused) {
+  TempDir dir("cpvs_r16");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  const net::Connection c{farm.address(), "", ""};
+  client::FarmClient farmClient(c);
+  pb::BakeSpec spec;
+  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+  spec.set_resolution("64");
+  farmClient.submit("r16", spec);
+  auto workers = pb::Workers::NewStub(net::makeChannel(c));
+  pb::LeaseRequest lr;
+  lr.set_worker_id("w");
+  pb::TileLease lease;
+  grpc::ClientContext lctx;
+  ASSERT_TRUE(workers->LeaseTile(&lctx, lr, &lease).ok());
+  grpc::ClientContext ctx;
+  pb::CompleteReply reply;
+  auto writer = workers->CompleteTile(&ctx, &reply);
+  pb::TileResultChunk chunk;
+  chunk.set_lease_id(lease.lease_id());
+  chunk.set_total_size(4);
+  chunk.set_checksum(std::string(32, 'a'));
+  auto* st = chunk.add_stages();
+  st->set_stage("padding-0001");
+  st->set_seconds(1);
+  chunk.set_data("abcd");
+  writer->Write(chunk);
+  writer->WritesDone();
+  const grpc::Status s = writer->Finish();
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("unknown stage 'padding-0001'"), std::string::npos) << s.error_message();
+}
+
+// R21: a download whose stored artifact is gone named the data folder to the client.
+TEST(Hardening, R21_AMissingStoredFileDoesNotNameTheDataFolder) {
+  TempDir dir("cpvs_r21");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  const net::Connection c{farm.address(), "", ""};
+  worker::WorkerConfig wc;
+  wc.server = c;
+  wc.cacheDir = dir / "cache";
+  fs::create_directories(wc.cacheDir);
+  wc.workerId = "w";
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+  client::FarmClient farmClient(c);
+  pb::BakeSpec spec;
+  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+  spec.set_resolution("64");
+  const pb::JobStatus job = farmClient.watch(farmClient.submit("r21", spec).job_id());
+  tileWorker.stop();
+  workerThread.join();
+  ASSERT_EQ(job.state(), pb::JOB_DONE);
+  fs::remove(coordinator.jobs().artifactPath(job.job_id(), nullptr));
+  try {
+    farmClient.download(job.job_id(), dir / "out.cpvs");
+    ADD_FAILURE() << "downloaded a missing artifact";
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::DataLoss) << e.what();
+    EXPECT_EQ(std::string(e.what()).find(dir / "data"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace cpvs
