@@ -133,11 +133,17 @@ void LeaseService::reaperLoop() {
       wake_.wait_for(lock, std::chrono::milliseconds(250), [&] { return stopping_; });
       if (stopping_) return;
     }
-    for (const auto& [jobId, tile, attempts] : store_.expireLeases(nowMs())) {
-      spdlog::warn("lease on tile {} of job {} expired (attempt {})", tile, jobId, attempts);
-      if (attempts >= rules_.maxAttempts)
-        jobs_.failJob(jobId, "tile " + std::to_string(tile) + ": lease expired " + std::to_string(attempts) + " times");
-      feed_.notify();
+    // A store that fails now (a busy or full disk) fails this round, not the process
+    // (R9): the leases stay in the store and the next round expires them.
+    try {
+      for (const auto& [jobId, tile, attempts] : store_.expireLeases(nowMs())) {
+        spdlog::warn("lease on tile {} of job {} expired (attempt {})", tile, jobId, attempts);
+        if (attempts >= rules_.maxAttempts)
+          jobs_.failJob(jobId, "tile " + std::to_string(tile) + ": lease expired " + std::to_string(attempts) + " times");
+        feed_.notify();
+      }
+    } catch (const std::exception& e) {
+      spdlog::error("expiring leases failed, retrying: {}", e.what());
     }
   }
 }

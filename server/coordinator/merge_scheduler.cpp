@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "cpvs/base/error.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/progress.h"
 #include "cpvs/io/cpvs_file.h"
@@ -36,6 +37,16 @@ void MergeScheduler::mergeTile(const std::string& jobId, uint64_t tile) { push({
 
 void MergeScheduler::removeTiles(const std::string& jobId) { push({Item::Kind::RemoveTiles, jobId, 0}); }
 
+void MergeScheduler::failJob(const std::string& jobId, const std::string& why) {
+  // The merge thread outlives any one failure (R9): a store that cannot record this one
+  // now is logged, and the job's tiles stay for the next start.
+  try {
+    failJob_(jobId, why);
+  } catch (const std::exception& e) {
+    spdlog::error("job {}: {} (and it could not be recorded: {})", jobId, why, e.what());
+  }
+}
+
 void MergeScheduler::loop() {
   for (;;) {
     Item item;
@@ -53,9 +64,19 @@ void MergeScheduler::loop() {
     }
     try {
       mergeOne(item.jobId, item.tile);
+    } catch (const TileUnreadable& e) {
+      // An acknowledged tile whose file is gone or damaged (a crash, a bad disk) is baked
+      // again, that tile only (R4); the tiles merged so far stay merged.
+      spdlog::warn("{}: baking it again", e.what());
+      try {
+        store_.requeueDoneTile(item.jobId, item.tile, e.what());
+        feed_.notify();
+      } catch (const std::exception& again) {
+        failJob(item.jobId, std::string("merge failed: ") + e.what() + "; " + again.what());
+      }
     } catch (const std::exception& e) {
       merges_.erase(item.jobId);
-      failJob_(item.jobId, std::string("merge failed: ") + e.what());
+      failJob(item.jobId, std::string("merge failed: ") + e.what());
     }
   }
 }
@@ -69,9 +90,14 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
   JobMerge& m = merges_[jobId];
   if (!m.merger) m.merger = std::make_unique<StreamingMerger>(j->options.compress);
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<uint8_t> bytes = artifacts_.readTile(jobId, tile);
-  Dag dag = decodeSubDag(bytes.data(), bytes.size(), artifacts_.tilePath(jobId, tile),
-                         j->options.compress != CompressMode::None, j->options.hash);
+  Dag dag;
+  try {
+    const std::vector<uint8_t> bytes = artifacts_.readTile(jobId, tile);
+    dag = decodeSubDag(bytes.data(), bytes.size(), "tile " + std::to_string(tile) + " of job " + jobId,
+                       j->options.compress != CompressMode::None, j->options.hash);
+  } catch (const InputError& e) {
+    throw TileUnreadable(e.what());
+  }
   m.merger->add(std::move(dag));
   ++m.merged;
   m.peak = std::max(m.peak, m.merger->heldBytes());

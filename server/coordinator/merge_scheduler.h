@@ -8,6 +8,7 @@
 #include <deque>
 #include <functional>
 #include <map>
+#include <stdexcept>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -52,7 +53,13 @@ class MergeScheduler {
     uint64_t peak = 0;
   };
 
+  /// A tile result that cannot be read back: baked again rather than failing the job.
+  struct TileUnreadable : std::runtime_error {
+    using std::runtime_error::runtime_error;
+  };
+
   void push(Item item);
+  void failJob(const std::string& jobId, const std::string& why);
   void loop();
   void mergeOne(const std::string& jobId, uint64_t tile);
   void finishJob(const JobRecord& job, JobMerge& m);

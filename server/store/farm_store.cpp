@@ -430,6 +430,19 @@ int FarmStore::requeueTile(const std::string& leaseId, const std::string& error)
   return attempts;
 }
 
+void FarmStore::requeueDoneTile(const std::string& jobId, uint64_t tile, const std::string& error) {
+  std::lock_guard lock(mutex_);
+  Transaction t(db_);
+  Statement s(db_, "UPDATE tiles SET state = 0, lease_id = NULL, last_error = ? WHERE job_id = ? AND idx = ? AND "
+                   "state = 2");
+  s.text(1, error).text(2, jobId).bind(3, int64_t(tile));
+  s.run();
+  Statement j(db_, "UPDATE jobs SET state = 2 WHERE id = ? AND state = 3");
+  j.text(1, jobId);
+  j.run();
+  t.commit();
+}
+
 std::vector<std::tuple<std::string, uint64_t, int>> FarmStore::expireLeases(int64_t nowMs) {
   std::lock_guard lock(mutex_);
   Transaction t(db_);

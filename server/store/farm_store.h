@@ -95,6 +95,9 @@ class FarmStore {
   /// Returns the tile of a failed lease to the queue when that lease is still the tile's
   /// current one; returns the tile's attempts so far, 0 when the lease was not current.
   int requeueTile(const std::string& leaseId, const std::string& error);
+  /// Returns an acknowledged tile whose result cannot be read back to the queue (its
+  /// attempts kept); the job goes back to running.
+  void requeueDoneTile(const std::string& jobId, uint64_t tile, const std::string& error);
   /// Tiles whose current lease expired before nowMs, returned to the queue: (job, tile, attempts).
   std::vector<std::tuple<std::string, uint64_t, int>> expireLeases(int64_t nowMs);
   std::vector<uint64_t> doneTiles(const std::string& jobId);

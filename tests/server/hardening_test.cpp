@@ -346,3 +346,74 @@ TEST(Hardening, R21_AMissingStoredFileDoesNotNameTheDataFolder) {
 
 }  // namespace
 }  // namespace cpvs
+
+#include <sqlite3.h>
+
+namespace cpvs {
+namespace {
+
+// R9: a store error in the reaper thread (here: the database held by another writer past
+// the busy timeout) called std::terminate; the coordinator must live on and serve.
+TEST(Hardening, R9_AStoreThatFailsForAWhileDoesNotStopTheCoordinator) {
+  TempDir dir("cpvs_r9");
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  sqlite3* other = nullptr;
+  ASSERT_EQ(sqlite3_open((dir / "data/farm.sqlite").c_str(), &other), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(other, "BEGIN EXCLUSIVE", nullptr, nullptr, nullptr), SQLITE_OK);
+  std::this_thread::sleep_for(std::chrono::milliseconds(5600));  // past the 5 s busy timeout
+  sqlite3_exec(other, "COMMIT", nullptr, nullptr, nullptr);
+  sqlite3_close(other);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // a reaper round after it
+  EXPECT_FALSE(coordinator.scenes().uploadStatus(std::string(32, 'e')).known());  // still serving
+}
+
+// R4: an acknowledged tile whose file is gone at restart failed its whole job; now that
+// tile is baked again and the job finishes.
+TEST(Hardening, R4_AMissingAcknowledgedTileIsBakedAgainAtRestart) {
+  TempDir dir("cpvs_r4");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  std::string jobId;
+  {
+    server::Coordinator coordinator(config);
+    server::TokenTable open;
+    server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+    client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
+    pb::BakeSpec spec;
+    spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
+    *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+    spec.set_resolution("64");
+    spec.mutable_options()->set_tile_size(32);  // 4 tiles
+    jobId = farmClient.submit("r4", spec).job_id();
+  }
+  {
+    // Tile 0 acknowledged, but its file lost (as after a power cut before R3's syncs).
+    server::FarmStore store(dir / "data/farm.sqlite");
+    ASSERT_TRUE(store.leaseNextTile("w", "l-lost", 1000, 1e15).has_value());
+    ASSERT_TRUE(store.completeTile(jobId, 0));
+  }
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  const net::Connection c{farm.address(), "", ""};
+  worker::WorkerConfig wc;
+  wc.server = c;
+  wc.cacheDir = dir / "cache";
+  fs::create_directories(wc.cacheDir);
+  wc.workerId = "w";
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+  client::FarmClient farmClient(c);
+  const pb::JobStatus done = farmClient.watch(jobId);
+  tileWorker.stop();
+  workerThread.join();
+  EXPECT_EQ(done.state(), pb::JOB_DONE) << done.error();
+  EXPECT_EQ(done.tiles_done(), 4u);
+}
+
+}  // namespace
+}  // namespace cpvs
