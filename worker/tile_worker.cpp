@@ -11,6 +11,8 @@
 
 #include "cpvs/scene/import.h"
 #include "cpvs/bake/bake.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/base/text.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/net/chunked_stream.h"
@@ -115,6 +117,8 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
   try {
     OrthoGrid grid = net::fromProto(lease.grid());
     BakeOptions options = net::fromProto(lease.options());
+    // The hash names files in the cache: 32 hex digits, nothing a path could be made of (R23).
+    parseHashHex(lease.scene_hash(), "the lease's scene_hash");
     auto rays = rayScene(lease.scene_hash(), grid.origin);
     StageTimes times;
     Dag dag = bakeTile(*rays, grid, lease.tile_x(), lease.tile_y(), options, &times);
@@ -134,7 +138,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     throw;
   } catch (const std::exception& e) {
     if (renewer.joinable()) stopRenewing();
-    spdlog::error("tile {} of job {} failed: {}", lease.tile_index(), lease.job_id(), e.what());
+    spdlog::error("tile {} of job {} failed: {}", lease.tile_index(), loggable(lease.job_id()), loggable(e.what(), 1000));
     release(lease, e.what());
   }
 }

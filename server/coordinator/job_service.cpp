@@ -9,6 +9,7 @@
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/parse.h"
+#include "cpvs/base/text.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/net/error_kind.h"
@@ -166,7 +167,7 @@ std::string JobService::artifactPath(const std::string& jobId, std::string* chec
 }
 
 void JobService::failJob(const std::string& jobId, const std::string& error) {
-  if (endJob(jobId, JobState::Failed, error)) spdlog::warn("job {} failed: {}", jobId, error);
+  if (endJob(jobId, JobState::Failed, error)) spdlog::warn("job {} failed: {}", jobId, loggable(error, 1200));
 }
 
 bool JobService::endJob(const std::string& jobId, JobState state, const std::string& why) {

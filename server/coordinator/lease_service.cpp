@@ -7,6 +7,7 @@
 #include "coordinator/clock.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
+#include "cpvs/base/text.h"
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/net/error_kind.h"
@@ -120,7 +121,9 @@ void LeaseService::failTile(const std::string& leaseId, const std::string& reaso
   if (!l) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
   const int attempts = store_.requeueTile(leaseId, reason);
   if (attempts == 0) return;  // no longer the tile's current lease: its tile is someone else's
-  spdlog::warn("tile {} of job {} failed on {} (attempt {}): {}", l->tile, l->jobId, l->workerId, attempts, reason);
+  // Worker ids and reasons are the workers' text: logged escaped (R26).
+  spdlog::warn("tile {} of job {} failed on {} (attempt {}): {}", l->tile, l->jobId, loggable(l->workerId), attempts,
+               loggable(reason));
   if (attempts >= rules_.maxAttempts)
     jobs_.failJob(l->jobId, "tile " + std::to_string(l->tile) + " failed " + std::to_string(attempts) + " times: " + reason);
   feed_.notify();

@@ -13,6 +13,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
 #include "cpvs/base/hash.h"
+#include "cpvs/base/text.h"
 #include "cpvs/net/error_kind.h"
 #include "cpvs/scene/import.h"
 
@@ -164,7 +165,7 @@ pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
   }
   r->complete = true;
   store_.putScene(*r);
-  spdlog::info("scene {} ({}, {} bytes, {} triangles) stored", hash, r->fileName, r->totalSize, r->triangles);
+  spdlog::info("scene {} ({}, {} bytes, {} triangles) stored", hash, loggable(r->fileName), r->totalSize, r->triangles);
   reply.set_complete(true);
   reply.set_triangles(r->triangles);
   return reply;

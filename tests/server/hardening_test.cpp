@@ -417,3 +417,115 @@ TEST(Hardening, R4_AMissingAcknowledgedTileIsBakedAgainAtRestart) {
 
 }  // namespace
 }  // namespace cpvs
+
+#include <spdlog/sinks/ostream_sink.h>
+#include <spdlog/spdlog.h>
+
+#include <mutex>
+#include <sstream>
+
+#include "cpvs/base/text.h"
+
+namespace cpvs {
+namespace {
+
+// R26: worker ids and failure reasons went into the log raw: a newline forged log lines.
+TEST(Hardening, R26_WorkerTextCannotForgeLogLines) {
+  EXPECT_EQ(loggable("a\nb\x1b[31m"), "a\\x0Ab\\x1B[31m");
+  TempDir dir("cpvs_r26");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
+  pb::BakeSpec spec;
+  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+  spec.set_resolution("64");
+  farmClient.submit("r26", spec);
+
+  std::ostringstream log;
+  auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
+  spdlog::default_logger()->sinks().push_back(sink);
+  const pb::TileLease lease = coordinator.leases().lease("w\n[2026-01-01 00:00:00.000] [info] job jX done");
+  ASSERT_TRUE(lease.granted());
+  coordinator.leases().failTile(lease.lease_id(), "bad\n[2026-01-01 00:00:00.000] [info] all good");
+  spdlog::default_logger()->sinks().pop_back();
+  std::istringstream lines(log.str());
+  std::string line;
+  int warnings = 0;
+  while (std::getline(lines, line)) {
+    EXPECT_NE(line.rfind("[2026-01-01", 0), 0u) << "a forged line: " << line;
+    warnings += line.find("failed on w\\x0A[2026-01-01") != std::string::npos;
+  }
+  EXPECT_EQ(warnings, 1) << log.str();
+}
+
+// R23: the worker built cache paths from the lease's scene_hash unchecked; a coordinator
+// (or a man in the middle) granting "../../x" made it write outside its cache.
+class OneBadLease final : public pb::Workers::Service {
+ public:
+  grpc::Status LeaseTile(grpc::ServerContext*, const pb::LeaseRequest*, pb::TileLease* out) override {
+    std::lock_guard lock(mutex);
+    if (granted++ > 0) {
+      out->set_granted(false);
+      out->set_retry_after_ms(50);
+      return grpc::Status::OK;
+    }
+    OrthoGrid g;
+    g.frame = LightFrame::fromDirection({0, -1, 0});
+    g.log2Resolution = 6;
+    out->set_granted(true);
+    out->set_lease_id("l-bad");
+    out->set_job_id("j");
+    out->set_scene_hash("../../escaped");
+    *out->mutable_grid() = net::toProto(g);
+    *out->mutable_options() = net::toProto(BakeOptions{});
+    out->set_deadline_unix_ms(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                  std::chrono::system_clock::now().time_since_epoch()).count() + 60000);
+    return grpc::Status::OK;
+  }
+  grpc::Status FailTile(grpc::ServerContext*, const pb::FailRequest* req, pb::FailReply*) override {
+    std::lock_guard lock(mutex);
+    reasons.push_back(req->reason());
+    return grpc::Status::OK;
+  }
+  grpc::Status RenewLease(grpc::ServerContext*, const pb::RenewRequest*, pb::RenewReply* out) override {
+    out->set_valid(true);
+    return grpc::Status::OK;
+  }
+  std::mutex mutex;
+  int granted = 0;
+  std::vector<std::string> reasons;
+};
+
+TEST(Hardening, R23_AWorkerRefusesASceneHashThatIsNotAHash) {
+  TempDir dir("cpvs_r23");
+  OneBadLease service;
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&service);
+  auto server = builder.BuildAndStart();
+  ASSERT_TRUE(server);
+  const std::string cache = dir / "a/b/cache";
+  fs::create_directories(cache);
+  worker::WorkerConfig wc;
+  wc.server = net::Connection{"127.0.0.1:" + std::to_string(port), "", ""};
+  wc.cacheDir = cache;
+  wc.workerId = "w";
+  wc.maxTiles = 1;
+  worker::TileWorker tileWorker(wc);
+  tileWorker.run();  // returns after its one tile
+  server->Shutdown();
+  EXPECT_FALSE(fs::exists(dir / "a/escaped.part"));
+  EXPECT_FALSE(fs::exists(dir / "a/escaped"));
+  ASSERT_EQ(service.reasons.size(), 1u);
+  EXPECT_NE(service.reasons[0].find("scene_hash"), std::string::npos) << service.reasons[0];
+}
+
+}  // namespace
+}  // namespace cpvs

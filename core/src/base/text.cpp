@@ -1,6 +1,7 @@
 #include "cpvs/base/text.h"
 
 #include <cstdint>
+#include <cstdio>
 
 namespace cpvs {
 
@@ -46,6 +47,21 @@ std::string validUtf8Prefix(const std::string& text, size_t maxBytes) {
       out += kReplacement;
       ++i;
       for (int k = 0; k < 3 && i < text.size() && (uint8_t(text[i]) & 0xC0) == 0x80; ++k) ++i;
+    }
+  }
+  return out;
+}
+
+std::string loggable(const std::string& text, size_t maxBytes) {
+  std::string out;
+  for (char c : validUtf8Prefix(text, maxBytes)) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u == 0x7F) {
+      char esc[5];
+      std::snprintf(esc, sizeof esc, "\\x%02X", u);
+      out += esc;
+    } else {
+      out += c;
     }
   }
   return out;

@@ -10,4 +10,8 @@ namespace cpvs {
 /// replaced by U+FFFD, and cut before the first character that would not fit whole.
 std::string validUtf8Prefix(const std::string& text, size_t maxBytes);
 
+/// `text` safe to put in a log line or on a terminal: valid UTF-8 of at most `maxBytes`,
+/// every control character (newlines, ESC of terminal sequences, ...) written as \xNN.
+std::string loggable(const std::string& text, size_t maxBytes = 200);
+
 }  // namespace cpvs
