@@ -46,6 +46,9 @@ int main(int argc, char** argv) {
   app.add_option("--tls-cert", tlsCert, "PEM certificate chain: serve TLS (with --tls-key)");
   app.add_option("--tls-key", tlsKey, "PEM private key of --tls-cert");
   app.add_option("--lease-seconds", config.leaseSeconds, "Tile lease length")->capture_default_str()->check(CLI::Range(1.0, 3600.0));
+  app.add_option("--max-tile-seconds", config.maxTileSeconds,
+                 "Longest a tile may be baked (renewals stop after it; a hung bake's tile goes to another worker)")
+      ->capture_default_str()->check(CLI::Range(1.0, 7 * 86400.0));
   app.add_option("--max-attempts", config.maxAttempts, "Failures or expiries of one tile that fail its job")
       ->capture_default_str()->check(CLI::Range(1, 100));
   app.add_option("--max-resolution", maxResolution, "Largest resolution accepted")->capture_default_str();

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "coordinator/clock.h"
@@ -66,7 +67,17 @@ void LeaseService::checkResultLease(const std::string& leaseId) {
 
 pb::RenewReply LeaseService::renew(const std::string& leaseId) {
   pb::RenewReply r;
-  int64_t deadline = nowMs() + int64_t(rules_.leaseSeconds * 1000);
+  const int64_t now = nowMs();
+  int64_t deadline = now + int64_t(rules_.leaseSeconds * 1000);
+  // A bake that keeps renewing without finishing (hung) gets no renewal past the longest
+  // a tile may take: its lease then expires and the tile goes to another worker (R12).
+  const auto l = store_.lease(leaseId);
+  const int64_t ceiling = l ? l->grantedMs + int64_t(rules_.maxTileSeconds * 1000) : 0;
+  if (!l || now >= ceiling) {
+    r.set_valid(false);
+    return r;
+  }
+  deadline = std::min(deadline, ceiling);
   r.set_valid(store_.renewLease(leaseId, deadline));
   r.set_deadline_unix_ms(r.valid() ? deadline : 0);
   return r;

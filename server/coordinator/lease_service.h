@@ -21,6 +21,7 @@ namespace cpvs::server {
 struct LeaseRules {
   double leaseSeconds = 30;  // a worker renews well before this
   int maxAttempts = 3;       // a tile that fails or expires this often fails its job
+  double maxTileSeconds = 3600;  // no renewal beyond this after the lease was granted (a hung bake)
 };
 
 class LeaseService {

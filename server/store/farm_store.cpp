@@ -363,7 +363,7 @@ std::optional<LeaseRecord> FarmStore::leaseNextTile(const std::string& workerId,
                  "(SELECT COUNT(*) FROM tiles l WHERE l.job_id = t.job_id AND l.state = 1), "
                  "j.created_ms, j.id, t.idx LIMIT 1");
   if (!pick.step()) return std::nullopt;
-  LeaseRecord r{leaseId, pick.str(0), workerId, uint64_t(pick.i64(1)), deadlineMs};
+  LeaseRecord r{leaseId, pick.str(0), workerId, uint64_t(pick.i64(1)), deadlineMs, nowMs};
   Statement upd(db_, "UPDATE tiles SET state = 1, attempts = attempts + 1, lease_id = ?, deadline_ms = ? "
                      "WHERE job_id = ? AND idx = ?");
   upd.text(1, leaseId).bind(2, deadlineMs).text(3, r.jobId).bind(4, int64_t(r.tile));
@@ -381,11 +381,12 @@ std::optional<LeaseRecord> FarmStore::leaseNextTile(const std::string& workerId,
 std::optional<LeaseRecord> FarmStore::lease(const std::string& leaseId) {
   std::lock_guard lock(mutex_);
   Statement s(db_,
-              "SELECT l.lease_id, l.job_id, l.worker_id, l.idx, COALESCE(t.deadline_ms, 0) FROM leases l LEFT JOIN "
-              "tiles t ON t.job_id = l.job_id AND t.idx = l.idx AND t.lease_id = l.lease_id WHERE l.lease_id = ?");
+              "SELECT l.lease_id, l.job_id, l.worker_id, l.idx, COALESCE(t.deadline_ms, 0), l.granted_ms FROM leases l "
+              "LEFT JOIN tiles t ON t.job_id = l.job_id AND t.idx = l.idx AND t.lease_id = l.lease_id WHERE "
+              "l.lease_id = ?");
   s.text(1, leaseId);
   if (!s.step()) return std::nullopt;
-  return LeaseRecord{s.str(0), s.str(1), s.str(2), uint64_t(s.i64(3)), s.i64(4)};
+  return LeaseRecord{s.str(0), s.str(1), s.str(2), uint64_t(s.i64(3)), s.i64(4), s.i64(5)};
 }
 
 bool FarmStore::renewLease(const std::string& leaseId, int64_t deadlineMs) {

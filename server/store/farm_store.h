@@ -49,7 +49,8 @@ struct JobRecord {
 struct LeaseRecord {
   std::string leaseId, jobId, workerId;
   uint64_t tile = 0;
-  int64_t deadlineMs = 0;
+  int64_t deadlineMs = 0;  // 0 when no longer the tile's current lease
+  int64_t grantedMs = 0;
 };
 
 class FarmStore {

@@ -529,3 +529,50 @@ TEST(Hardening, R23_AWorkerRefusesASceneHashThatIsNotAHash) {
 
 }  // namespace
 }  // namespace cpvs
+
+namespace cpvs {
+namespace {
+
+// R12: a hung bake renewed its lease forever; renewals now stop after --max-tile-seconds.
+TEST(Hardening, R12_RenewalsEndAfterTheLongestATileMayTake) {
+  TempDir dir("cpvs_r12");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  config.leaseSeconds = 1;
+  config.maxTileSeconds = 2;
+  config.maxAttempts = 5;
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
+  pb::BakeSpec spec;
+  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+  spec.set_resolution("64");
+  farmClient.submit("r12", spec);
+  const pb::TileLease first = coordinator.leases().lease("hung");
+  ASSERT_TRUE(first.granted());
+  const auto start = std::chrono::steady_clock::now();
+  bool stillValid = true;
+  while (stillValid && std::chrono::steady_clock::now() - start < std::chrono::seconds(5)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    stillValid = coordinator.leases().renew(first.lease_id()).valid();
+  }
+  const double refusedAfter = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_FALSE(stillValid);
+  EXPECT_GT(refusedAfter, 1.5);  // renewals past the lease's own length were honoured...
+  EXPECT_LT(refusedAfter, 3.0);  // ...until the tile's 2 s were up
+  // The reaper returns the tile; another worker gets it.
+  pb::TileLease second;
+  while (!second.granted() && std::chrono::steady_clock::now() - start < std::chrono::seconds(8)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    second = coordinator.leases().lease("healthy");
+  }
+  EXPECT_TRUE(second.granted());
+  EXPECT_EQ(second.tile_index(), first.tile_index());
+}
+
+}  // namespace
+}  // namespace cpvs
