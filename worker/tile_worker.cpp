@@ -130,7 +130,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
       release(lease, "worker stopping");
       return;
     }
-    sendResult(lease, encoded, times.seconds);
+    deliverResult(lease, encoded, times.seconds);
     ++tilesDone_;
     if (lost) spdlog::warn("tile {} of job {}: the lease was lost while baking", lease.tile_index(), lease.job_id());
   } catch (const Unreachable&) {
@@ -140,6 +140,27 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     if (renewer.joinable()) stopRenewing();
     spdlog::error("tile {} of job {} failed: {}", lease.tile_index(), loggable(lease.job_id()), loggable(e.what(), 1000));
     release(lease, e.what());
+  }
+}
+
+void TileWorker::deliverResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
+                               const std::map<std::string, double>& stages) {
+  // A baked tile is not thrown away because the coordinator is briefly unreachable (a
+  // restart keeps the lease in its store, and CompleteTile may be sent again): retried
+  // with backoff for up to two minutes, then given up as before (R17).
+  const auto giveUp = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  int backoffMs = 200;
+  for (;;) {
+    try {
+      sendResult(lease, encoded, stages);
+      return;
+    } catch (const Unreachable& e) {
+      if (abandoning_ || std::chrono::steady_clock::now() + std::chrono::milliseconds(backoffMs) > giveUp) throw;
+      spdlog::warn("tile {} of job {}: {}; sending it again in {} ms", lease.tile_index(), loggable(lease.job_id()),
+                   e.what(), backoffMs);
+      std::this_thread::sleep_for(std::chrono::milliseconds(backoffMs));
+      backoffMs = std::min(backoffMs * 2, 5000);
+    }
   }
 }
 

@@ -55,6 +55,9 @@ class TileWorker {
   void bakeLeased(const pb::TileLease& lease);
   std::shared_ptr<RayScene> rayScene(const std::string& sceneHash, const Vec3& origin);
   std::string fetchScene(const std::string& sceneHash);
+  /// sendResult, again with backoff while the coordinator is unreachable.
+  void deliverResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
+                     const std::map<std::string, double>& stages);
   void sendResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
                   const std::map<std::string, double>& stages);
   void release(const pb::TileLease& lease, const std::string& reason);

@@ -576,3 +576,101 @@ TEST(Hardening, R12_RenewalsEndAfterTheLongestATileMayTake) {
 
 }  // namespace
 }  // namespace cpvs
+
+namespace cpvs {
+namespace {
+
+// Between a worker and the coordinator: forwards every call, but answers the first
+// CompleteTile with UNAVAILABLE, as a coordinator that restarts under it would.
+class FlakyOnce final : public pb::Workers::Service {
+ public:
+  explicit FlakyOnce(const std::string& address) : stub_(pb::Workers::NewStub(net::makeChannel({address, "", ""}))) {}
+  grpc::Status LeaseTile(grpc::ServerContext*, const pb::LeaseRequest* req, pb::TileLease* out) override {
+    grpc::ClientContext ctx;
+    return stub_->LeaseTile(&ctx, *req, out);
+  }
+  grpc::Status RenewLease(grpc::ServerContext*, const pb::RenewRequest* req, pb::RenewReply* out) override {
+    grpc::ClientContext ctx;
+    return stub_->RenewLease(&ctx, *req, out);
+  }
+  grpc::Status FailTile(grpc::ServerContext*, const pb::FailRequest* req, pb::FailReply* out) override {
+    grpc::ClientContext ctx;
+    return stub_->FailTile(&ctx, *req, out);
+  }
+  grpc::Status FetchScene(grpc::ServerContext*, const pb::FetchSceneRequest* req,
+                          grpc::ServerWriter<pb::SceneChunk>* writer) override {
+    grpc::ClientContext ctx;
+    auto reader = stub_->FetchScene(&ctx, *req);
+    pb::SceneChunk chunk;
+    while (reader->Read(&chunk)) writer->Write(chunk);
+    return reader->Finish();
+  }
+  grpc::Status CompleteTile(grpc::ServerContext*, grpc::ServerReader<pb::TileResultChunk>* reader,
+                            pb::CompleteReply* out) override {
+    std::vector<pb::TileResultChunk> chunks;
+    pb::TileResultChunk chunk;
+    while (reader->Read(&chunk)) chunks.push_back(chunk);
+    if (completes++ == 0) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "restarting");
+    grpc::ClientContext ctx;
+    auto writer = stub_->CompleteTile(&ctx, out);
+    for (const auto& c : chunks) writer->Write(c);
+    writer->WritesDone();
+    return writer->Finish();
+  }
+  std::atomic<int> completes{0};
+
+ private:
+  std::unique_ptr<pb::Workers::Stub> stub_;
+};
+
+// R17: a worker whose CompleteTile met UNAVAILABLE threw its baked tile away (the tile was
+// baked again after its lease expired); now it sends it again.
+TEST(Hardening, R17_ABakedTileIsSentAgainNotBakedAgain) {
+  TempDir dir("cpvs_r17");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  FlakyOnce proxy(farm.address());
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&proxy);
+  auto proxyServer = builder.BuildAndStart();
+  ASSERT_TRUE(proxyServer);
+
+  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
+  pb::BakeSpec spec;
+  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+  spec.set_resolution("64");
+  const std::string jobId = farmClient.submit("r17", spec).job_id();
+
+  std::ostringstream log;
+  auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
+  spdlog::default_logger()->sinks().push_back(sink);
+  worker::WorkerConfig wc;
+  wc.server = net::Connection{"127.0.0.1:" + std::to_string(port), "", ""};
+  wc.cacheDir = dir / "cache";
+  fs::create_directories(wc.cacheDir);
+  wc.workerId = "w";
+  wc.maxTiles = 1;
+  worker::TileWorker tileWorker(wc);
+  tileWorker.run();  // one tile, delivered on the second try
+  spdlog::default_logger()->sinks().pop_back();
+  proxyServer->Shutdown();
+
+  EXPECT_EQ(proxy.completes.load(), 2);
+  ASSERT_EQ(tileWorker.tilesDone(), 1u);  // before the watch, which would wait for the tile
+  const pb::JobStatus done = farmClient.watch(jobId);
+  EXPECT_EQ(done.state(), pb::JOB_DONE) << done.error();
+  size_t bakes = 0;
+  for (size_t at = log.str().find(": baking"); at != std::string::npos; at = log.str().find(": baking", at + 1)) ++bakes;
+  EXPECT_EQ(bakes, 1u) << log.str();
+}
+
+}  // namespace
+}  // namespace cpvs
