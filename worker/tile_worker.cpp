@@ -89,10 +89,17 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
   bool done = false;
   std::atomic<bool> lost{false};
   std::thread renewer([&] {
-    int64_t periodMs = std::max<int64_t>(
-        200, (lease.deadline_unix_ms() -
-              std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
-                  .count()) / 3);
+    // A third of the lease's length, measured from each reply on this machine's steady
+    // clock (R11): the deadline is the coordinator's wall clock, which this one may not
+    // share. A coordinator that sends no length leaves the deadline as the only guide.
+    const auto periodOf = [](uint32_t leaseMs, int64_t deadlineUnixMs) {
+      if (leaseMs > 0) return std::max<int64_t>(100, int64_t(leaseMs) / 3);
+      const int64_t wallNow =
+          std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
+              .count();
+      return std::max<int64_t>(200, (deadlineUnixMs - wallNow) / 3);
+    };
+    int64_t periodMs = periodOf(lease.lease_ms(), lease.deadline_unix_ms());
     std::unique_lock lock(m);
     while (!cv.wait_for(lock, std::chrono::milliseconds(periodMs), [&] { return done; })) {
       pb::RenewRequest req;
@@ -100,9 +107,12 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
       pb::RenewReply reply;
       grpc::ClientContext ctx;
       net::prepare(ctx, config_.server, 10);
-      if (stub_->RenewLease(&ctx, req, &reply).ok() && !reply.valid()) {
-        lost = true;  // expired or the job ended: the result will likely be declined
-        return;
+      if (stub_->RenewLease(&ctx, req, &reply).ok()) {
+        if (!reply.valid()) {
+          lost = true;  // expired or the job ended: the result will likely be declined
+          return;
+        }
+        periodMs = periodOf(reply.lease_ms(), reply.deadline_unix_ms());
       }
     }
   });

@@ -57,6 +57,7 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   *out.mutable_grid() = net::toProto(j->grid);
   *out.mutable_options() = net::toProto(j->options);
   out.set_deadline_unix_ms(deadline);
+  out.set_lease_ms(uint32_t(deadline - now));
   feed_.notify();
   return out;
 }
@@ -80,6 +81,7 @@ pb::RenewReply LeaseService::renew(const std::string& leaseId) {
   deadline = std::min(deadline, ceiling);
   r.set_valid(store_.renewLease(leaseId, deadline));
   r.set_deadline_unix_ms(r.valid() ? deadline : 0);
+  r.set_lease_ms(r.valid() ? uint32_t(deadline - now) : 0);
   return r;
 }
 

@@ -674,3 +674,100 @@ TEST(Hardening, R17_ABakedTileIsSentAgainNotBakedAgain) {
 
 }  // namespace
 }  // namespace cpvs
+
+namespace cpvs {
+namespace {
+
+// Forwards to the coordinator, but shows the worker a deadline five minutes later than
+// the coordinator's (a worker clock five minutes behind), and counts renewals.
+class SkewedClock final : public pb::Workers::Service {
+ public:
+  SkewedClock(const std::string& address, bool sendLength)
+      : stub_(pb::Workers::NewStub(net::makeChannel({address, "", ""}))), sendLength_(sendLength) {}
+  grpc::Status LeaseTile(grpc::ServerContext*, const pb::LeaseRequest* req, pb::TileLease* out) override {
+    grpc::ClientContext ctx;
+    grpc::Status s = stub_->LeaseTile(&ctx, *req, out);
+    out->set_deadline_unix_ms(out->deadline_unix_ms() + 300000);
+    if (!sendLength_) out->clear_lease_ms();
+    return s;
+  }
+  grpc::Status RenewLease(grpc::ServerContext*, const pb::RenewRequest* req, pb::RenewReply* out) override {
+    ++renewals;
+    grpc::ClientContext ctx;
+    grpc::Status s = stub_->RenewLease(&ctx, *req, out);
+    out->set_deadline_unix_ms(out->deadline_unix_ms() + 300000);
+    if (!sendLength_) out->clear_lease_ms();
+    return s;
+  }
+  grpc::Status FailTile(grpc::ServerContext*, const pb::FailRequest* req, pb::FailReply* out) override {
+    grpc::ClientContext ctx;
+    return stub_->FailTile(&ctx, *req, out);
+  }
+  grpc::Status FetchScene(grpc::ServerContext*, const pb::FetchSceneRequest* req,
+                          grpc::ServerWriter<pb::SceneChunk>* writer) override {
+    grpc::ClientContext ctx;
+    auto reader = stub_->FetchScene(&ctx, *req);
+    pb::SceneChunk chunk;
+    while (reader->Read(&chunk)) writer->Write(chunk);
+    return reader->Finish();
+  }
+  grpc::Status CompleteTile(grpc::ServerContext*, grpc::ServerReader<pb::TileResultChunk>* reader,
+                            pb::CompleteReply* out) override {
+    grpc::ClientContext ctx;
+    auto writer = stub_->CompleteTile(&ctx, out);
+    pb::TileResultChunk chunk;
+    while (reader->Read(&chunk)) writer->Write(chunk);
+    writer->WritesDone();
+    return writer->Finish();
+  }
+  std::atomic<int> renewals{0};
+
+ private:
+  std::unique_ptr<pb::Workers::Stub> stub_;
+  bool sendLength_;
+};
+
+// R11: the worker's renewal period came from the coordinator's wall-clock deadline minus
+// its own clock; five minutes of skew meant no renewal within a 0.3 s lease.
+TEST(Hardening, R11_RenewalsFollowTheLeaseLengthWhateverTheClocks) {
+  TempDir dir("cpvs_r11");
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:3:2"));
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  config.leaseSeconds = 0.3;  // renewals every 0.1 s
+  server::Coordinator coordinator(config);
+  server::TokenTable open;
+  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
+  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
+  pb::BakeSpec spec;
+  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+  spec.set_resolution("4096");  // one tile that bakes for a second or more
+  spec.mutable_options()->set_tile_size(4096);
+  farmClient.submit("r11", spec);
+
+  SkewedClock proxy(farm.address(), true);
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&proxy);
+  auto proxyServer = builder.BuildAndStart();
+  worker::WorkerConfig wc;
+  wc.server = net::Connection{"127.0.0.1:" + std::to_string(port), "", ""};
+  wc.cacheDir = dir / "cache";
+  fs::create_directories(wc.cacheDir);
+  wc.workerId = "w";
+  wc.maxTiles = 1;
+  const auto start = std::chrono::steady_clock::now();
+  worker::TileWorker tileWorker(wc);
+  tileWorker.run();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  proxyServer->Shutdown();
+  if (seconds < 0.4) GTEST_SKIP() << "the tile baked in " << seconds << " s, too fast to need renewals here";
+  EXPECT_GE(proxy.renewals.load(), 2);
+  EXPECT_EQ(coordinator.jobs().list(true).at(0).tiles_done(), 1u);  // the lease held to the end
+}
+
+}  // namespace
+}  // namespace cpvs
