@@ -1,6 +1,5 @@
 #include "cpvs/net/chunked_stream.h"
 
-#include <fstream>
 
 namespace cpvs::net {
 
@@ -12,11 +11,12 @@ ChunkSource ChunkSource::ofBytes(const void* data, uint64_t size) {
 }
 
 ChunkSource ChunkSource::ofFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) throw FarmError(ErrorKind::Internal, "cannot read " + path);
+  auto in = std::make_shared<std::ifstream>(path, std::ios::binary | std::ios::ate);
+  if (!*in) throw FarmError(ErrorKind::Internal, "cannot read " + path);
   ChunkSource s;
   s.path_ = path;
-  s.size_ = uint64_t(in.tellg());
+  s.size_ = uint64_t(in->tellg());
+  s.file_ = std::move(in);
   return s;
 }
 
@@ -25,10 +25,9 @@ void ChunkSource::read(uint64_t offset, size_t n, std::string& out) const {
     out.assign(data_ ? data_ + offset : "", n);
     return;
   }
-  std::ifstream in(path_, std::ios::binary);
-  in.seekg(std::streamoff(offset));
+  file_->seekg(std::streamoff(offset));
   out.resize(n);
-  if (!in.read(out.data(), std::streamsize(n))) throw FarmError(ErrorKind::Internal, "cannot read " + path_);
+  if (!file_->read(out.data(), std::streamsize(n))) throw FarmError(ErrorKind::Internal, "cannot read " + path_);
 }
 
 void ChunkReceiver::fail(const std::string& why) const { throw FarmError(blame_, what_ + ": " + why); }

@@ -63,7 +63,7 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   s.set_error(j.error);
   s.set_bytes(j.bytes);
   s.set_file_bytes(j.fileBytes);
-  s.set_resolution(j.resolution);
+  s.set_resolution(j.grid.resolution());
   s.set_peak_merge_bytes(j.peakMergeBytes);
   s.set_created_unix_ms(j.createdMs);
   return s;
@@ -118,8 +118,6 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
   j.options = options;
   j.priority = spec.priority();
   j.createdMs = nowMs();
-  j.resolution = grid.resolution();
-  j.tilesPerSide = plan.perSide();
   j.tilesTotal = plan.count();
   {
     // Checked again and created under one lock: a retry that arrives while its first call
@@ -132,7 +130,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
     artifacts_.createTileFolder(j.id);
     store_.createJob(j);
   }
-  spdlog::info("job {} submitted: scene {}, {}^3, {} tiles", j.id, j.sceneHash, j.resolution, j.tilesTotal);
+  spdlog::info("job {} submitted: scene {}, {}^3, {} tiles", j.id, j.sceneHash, j.grid.resolution(), j.tilesTotal);
   feed_.notify();
   return status(j.id);
 }

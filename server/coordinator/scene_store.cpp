@@ -1,11 +1,6 @@
 #include "coordinator/scene_store.h"
 
-#include <fcntl.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstring>
 
 #include <filesystem>
 #include <fstream>
@@ -102,23 +97,12 @@ void SceneStore::appendUpload(const std::string& hash, uint64_t offset, const st
   // At the acknowledged offset, not the file's end: bytes written before a crash but
   // never acknowledged are cut off. Synced before `received` is committed, so that an
   // acknowledged byte survives a power cut.
-  const std::string part = partPath(hash);
-  const int fd = ::open(part.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
-  auto fail = [&](int error) {
-    if (fd >= 0) ::close(fd);
-    throw FarmError(ErrorKind::Internal, std::string("cannot store the upload: ") + std::strerror(error));
-  };
-  if (fd < 0) fail(errno);
-  if (::ftruncate(fd, off_t(r->received)) != 0) fail(errno);
-  for (size_t done = 0; done < data.size();) {
-    const ssize_t n = ::pwrite(fd, data.data() + done, data.size() - done, off_t(r->received + done));
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) fail(errno);
-    done += size_t(n);
+  try {
+    replaceTail(partPath(hash), r->received, data.data(), data.size());
+  } catch (const InputError& e) {
+    spdlog::error("{}", e.what());  // the path stays in the log, not in the caller's message
+    throw FarmError(ErrorKind::Internal, "cannot store the upload");
   }
-  if (::fdatasync(fd) != 0) fail(errno);
-  ::close(fd);
-  if (r->received == 0) syncParentFolder(part);
   r->received += data.size();
   store_.putScene(*r);
 }

@@ -80,12 +80,12 @@ class Transaction {
 
 constexpr const char* kJobColumns =
     "id, request_id, scene_hash, geometry_hash, spec, state, priority, created_ms, started_ms, finished_ms, error, "
-    "artifact_checksum, tiles_per_side, tiles_total, bytes, file_bytes, peak_merge_bytes, resolution, "
+    "artifact_checksum, tiles_total, bytes, file_bytes, peak_merge_bytes, "
     "light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, frame_u_z, frame_v_x, frame_v_y, frame_v_z, "
     "origin_x, origin_y, origin_z, u0, v0, d0, extent, depth_extent, log2_resolution, "
     "closed, exit_mode, cull, compress, undefined_rule, log2_tile_size, hash_kind";
-constexpr int kJobColumnCount = 43;
-constexpr int kGridColumn = 18, kOptionsColumn = 36;
+constexpr int kJobColumnCount = 41;
+constexpr int kGridColumn = 16, kOptionsColumn = 34;
 
 /// The schema this build writes (PRAGMA user_version). 2: typed grid and option columns.
 constexpr int kSchemaVersion = 2;
@@ -106,12 +106,10 @@ JobRecord readJob(const Statement& s) {
   j.finishedMs = s.i64(9);
   j.error = s.str(10);
   j.artifactChecksum = s.str(11);
-  j.tilesPerSide = uint64_t(s.i64(12));
-  j.tilesTotal = uint64_t(s.i64(13));
-  j.bytes = uint64_t(s.i64(14));
-  j.fileBytes = uint64_t(s.i64(15));
-  j.peakMergeBytes = uint64_t(s.i64(16));
-  j.resolution = uint64_t(s.i64(17));
+  j.tilesTotal = uint64_t(s.i64(12));
+  j.bytes = uint64_t(s.i64(13));
+  j.fileBytes = uint64_t(s.i64(14));
+  j.peakMergeBytes = uint64_t(s.i64(15));
   OrthoGrid& g = j.grid;
   int c = kGridColumn;
   g.frame.dir = readVec(s, c);
@@ -139,9 +137,8 @@ JobRecord readJob(const Statement& s) {
 void bindJob(Statement& s, const JobRecord& j) {
   s.text(1, j.id).text(2, j.requestId).text(3, j.sceneHash).text(4, j.geometryHash).bind(5, j.spec);
   s.bind(6, int64_t(j.state)).bind(7, int64_t(j.priority)).bind(8, j.createdMs).bind(9, j.startedMs);
-  s.bind(10, j.finishedMs).text(11, j.error).text(12, j.artifactChecksum).bind(13, int64_t(j.tilesPerSide));
-  s.bind(14, int64_t(j.tilesTotal)).bind(15, int64_t(0)).bind(16, int64_t(0)).bind(17, int64_t(0));
-  s.bind(18, int64_t(j.resolution));
+  s.bind(10, j.finishedMs).text(11, j.error).text(12, j.artifactChecksum).bind(13, int64_t(j.tilesTotal));
+  s.bind(14, int64_t(0)).bind(15, int64_t(0)).bind(16, int64_t(0));
   const OrthoGrid& g = j.grid;
   int c = kGridColumn + 1;
   for (const Vec3* v : {&g.frame.dir, &g.frame.u, &g.frame.v, &g.origin})
@@ -190,8 +187,8 @@ FarmStore::FarmStore(const std::string& path) {
   exec(
       "CREATE TABLE IF NOT EXISTS jobs(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, scene_hash TEXT, geometry_hash "
       "TEXT, spec BLOB, state INTEGER, priority INTEGER, created_ms INTEGER, started_ms INTEGER, finished_ms INTEGER, "
-      "error TEXT, artifact_checksum TEXT, tiles_per_side INTEGER, tiles_total INTEGER, bytes INTEGER, file_bytes "
-      "INTEGER, peak_merge_bytes INTEGER, resolution INTEGER, "
+      "error TEXT, artifact_checksum TEXT, tiles_total INTEGER, bytes INTEGER, file_bytes INTEGER, "
+      "peak_merge_bytes INTEGER, "
       "light_dir_x REAL, light_dir_y REAL, light_dir_z REAL, frame_u_x REAL, frame_u_y REAL, frame_u_z REAL, "
       "frame_v_x REAL, frame_v_y REAL, frame_v_z REAL, origin_x REAL, origin_y REAL, origin_z REAL, u0 REAL, v0 REAL, "
       "d0 REAL, extent REAL, depth_extent REAL, log2_resolution INTEGER, closed INTEGER, exit_mode INTEGER, cull "

@@ -41,8 +41,8 @@ struct JobRecord {
   int priority = 0;
   int64_t createdMs = 0, startedMs = 0, finishedMs = 0;
   std::string error, artifactChecksum;
-  uint64_t tilesPerSide = 0, tilesTotal = 0, tilesDone = 0;
-  uint64_t bytes = 0, fileBytes = 0, peakMergeBytes = 0, resolution = 0;
+  uint64_t tilesTotal = 0, tilesDone = 0;  // the grid's and options' TilePlan; done from the tiles
+  uint64_t bytes = 0, fileBytes = 0, peakMergeBytes = 0;
   std::map<std::string, double> stages;
 };
 

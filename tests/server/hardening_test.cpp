@@ -2,24 +2,27 @@
 // reproduced by the test named after it before it was fixed.
 #include <gtest/gtest.h>
 #include <grpcpp/grpcpp.h>
-#include <unistd.h>
+#include <spdlog/sinks/ostream_sink.h>
+#include <spdlog/spdlog.h>
+#include <sqlite3.h>
 
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
+#include <sstream>
 #include <thread>
 
-#include "coordinator/coordinator.h"
+#include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/text.h"
-#include "cpvs/client/farm_client.h"
 #include "cpvs/net/channel.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/scene/source.h"
-#include "cpvs/v1/farm.grpc.pb.h"
-#include "rpc/farm_server.h"
+#include "farm_testing.h"
 #include "store/farm_store.h"
 
 namespace cpvs {
@@ -27,20 +30,10 @@ namespace {
 
 namespace fs = std::filesystem;
 namespace pb = ::cpvs::v1;
-
-class TempDir {
- public:
-  explicit TempDir(const std::string& name)
-      : path_(fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  fs::path path_;
-};
+using testing::ForwardingWorkers;
+using testing::InProcessFarm;
+using testing::ServiceServer;
+using testing::TempDir;
 
 server::JobRecord oneTileJob(const std::string& id) {
   server::JobRecord j;
@@ -49,12 +42,32 @@ server::JobRecord oneTileJob(const std::string& id) {
   j.sceneHash = std::string(32, 'b');
   j.geometryHash = std::string(32, 'c');
   j.createdMs = 1000;
-  j.tilesPerSide = 1;
   j.tilesTotal = 1;
-  j.resolution = 64;
   j.grid.frame = LightFrame::fromDirection({0, -1, 0});
   j.grid.log2Resolution = 6;
   return j;
+}
+
+/// Leases one tile through the Workers service, as a worker would.
+pb::TileLease leaseThroughRpc(const net::Connection& c) {
+  auto workers = pb::Workers::NewStub(net::makeChannel(c));
+  pb::LeaseRequest lr;
+  lr.set_worker_id("w");
+  pb::TileLease lease;
+  grpc::ClientContext ctx;
+  EXPECT_TRUE(workers->LeaseTile(&ctx, lr, &lease).ok());
+  return lease;
+}
+
+/// Log lines written while `body` runs.
+template <class Body>
+std::string logOf(Body&& body) {
+  std::ostringstream log;
+  auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
+  spdlog::default_logger()->sinks().push_back(sink);
+  body();
+  spdlog::default_logger()->sinks().pop_back();
+  return log.str();
 }
 
 // R13: a cancel that lands while the merge writes the artifact must stand; finishing the
@@ -97,28 +110,11 @@ TEST(Hardening, R8_FailureReasonsStayValidUtf8) {
   EXPECT_EQ(validUtf8Prefix("\xF0\x9F\x98\x80!", 5), "\xF0\x9F\x98\x80!");
 
   TempDir dir("cpvs_r8");
-  const std::string obj = dir / "box.obj";
-  writeObj(obj, openScene("city:1:1"));
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  const net::Connection c{farm.address(), "", ""};
-  client::FarmClient farmClient(c);
-  pb::BakeSpec spec;
-  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-  spec.set_resolution("64");
-  const pb::JobStatus job = farmClient.submit("r8", spec);
-
-  auto workers = pb::Workers::NewStub(net::makeChannel(c));
+  InProcessFarm farm(dir / "data");
+  farm.client.submit("r8", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64"));
+  auto workers = pb::Workers::NewStub(net::makeChannel(farm.connection()));
   for (int attempt = 0; attempt < 3; ++attempt) {
-    pb::LeaseRequest lr;
-    lr.set_worker_id("w");
-    pb::TileLease lease;
-    grpc::ClientContext lctx;
-    ASSERT_TRUE(workers->LeaseTile(&lctx, lr, &lease).ok());
+    const pb::TileLease lease = leaseThroughRpc(farm.connection());
     ASSERT_TRUE(lease.granted());
     pb::FailRequest fr;
     fr.set_lease_id(lease.lease_id());
@@ -127,7 +123,7 @@ TEST(Hardening, R8_FailureReasonsStayValidUtf8) {
     grpc::ClientContext fctx;
     ASSERT_TRUE(workers->FailTile(&fctx, fr, &reply).ok());
   }
-  const std::vector<pb::JobStatus> jobs = farmClient.list(true);  // parses: the error is UTF-8
+  const std::vector<pb::JobStatus> jobs = farm.client.list(true);  // parses: the error is UTF-8
   ASSERT_EQ(jobs.size(), 1u);
   EXPECT_EQ(jobs[0].state(), pb::JOB_FAILED);
   EXPECT_NE(jobs[0].error().find("failed 3 times"), std::string::npos);
@@ -137,12 +133,8 @@ TEST(Hardening, R8_FailureReasonsStayValidUtf8) {
 // first chunk, not after the whole announced stream.
 TEST(Hardening, R15_AResultUnderAnUnknownLeaseIsRefusedAtItsFirstChunk) {
   TempDir dir("cpvs_r15");
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  auto workers = pb::Workers::NewStub(net::makeChannel(net::Connection{farm.address(), "", ""}));
+  InProcessFarm farm(dir / "data");
+  auto workers = pb::Workers::NewStub(net::makeChannel(farm.connection()));
   grpc::ClientContext ctx;
   ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
   pb::CompleteReply reply;
@@ -167,9 +159,9 @@ TEST(Hardening, R3_AnUploadResumesAtTheAcknowledgedOffsetNotTheFilesEnd) {
   writeObj(obj, openScene("city:1:1"));
   const std::vector<uint8_t> bytes = readFile(obj);
   const std::string hash = contentHash(bytes.data(), bytes.size()).hex();
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
   {
+    server::CoordinatorConfig config;
+    config.dataDir = dir / "data";
     server::Coordinator coordinator(config);
     pb::UploadSceneChunk first;
     first.set_scene_hash(hash);
@@ -181,68 +173,47 @@ TEST(Hardening, R3_AnUploadResumesAtTheAcknowledgedOffsetNotTheFilesEnd) {
   }
   // As if the coordinator died after writing more bytes but before acknowledging them.
   std::ofstream(dir / "data/scenes/" + hash + ".part", std::ios::app) << "garbage not acknowledged";
-  server::Coordinator coordinator(config);
-  EXPECT_EQ(coordinator.scenes().uploadStatus(hash).received(), 100u);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
-  const client::FarmClient::UploadResult up = farmClient.uploadScene(obj);
+  InProcessFarm farm(dir / "data");
+  EXPECT_EQ(farm.coordinator.scenes().uploadStatus(hash).received(), 100u);
+  const client::FarmClient::UploadResult up = farm.client.uploadScene(obj);
   EXPECT_EQ(up.resumedFrom, 100u);
-  EXPECT_TRUE(coordinator.scenes().uploadStatus(hash).complete());
+  EXPECT_TRUE(farm.coordinator.scenes().uploadStatus(hash).complete());
 }
-
-}  // namespace
-}  // namespace cpvs
-
-namespace cpvs {
-namespace {
 
 // R2: tile_size 8 at 256K asked the store for 2^30 tile rows in one transaction.
 TEST(Hardening, R2_AJobOfTooManyTilesIsRefusedAtOnce) {
   TempDir dir("cpvs_r2");
-  const std::string obj = dir / "box.obj";
-  writeObj(obj, openScene("city:1:1"));
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
-  pb::BakeSpec spec;
-  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-  spec.set_resolution("256K");
+  InProcessFarm farm(dir / "data");
+  pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "256K");
   spec.mutable_options()->set_tile_size(8);
   const auto start = std::chrono::steady_clock::now();
   try {
-    farmClient.submit("r2", spec);
+    farm.client.submit("r2", spec);
     ADD_FAILURE() << "a job of 2^30 tiles was accepted";
   } catch (const client::FarmCallError& e) {
     EXPECT_EQ(e.kind(), net::ErrorKind::InvalidArgument);
     EXPECT_NE(std::string(e.what()).find("tiles of at least 1024 texels"), std::string::npos) << e.what();
   }
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(2));
-  EXPECT_TRUE(farmClient.list(true).empty());
+  EXPECT_TRUE(farm.client.list(true).empty());
 }
 
 // R14: a second coordinator on the same data folder, or on the same port, is refused.
 TEST(Hardening, R14_OneCoordinatorPerDataFolderAndPerPort) {
   TempDir dir("cpvs_r14");
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator first(config);
+  InProcessFarm first(dir / "data");
+  server::CoordinatorConfig same;
+  same.dataDir = dir / "data";
   try {
-    server::Coordinator second(config);
+    server::Coordinator second(same);
     ADD_FAILURE() << "two coordinators opened one data folder";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("in use by another cpvs-server"), std::string::npos) << e.what();
   }
-  server::TokenTable open;
-  server::FarmServer one(first, open, "127.0.0.1:0");
   server::CoordinatorConfig other;
   other.dataDir = dir / "other";
   server::Coordinator otherCoordinator(other);
-  EXPECT_THROW(server::FarmServer(otherCoordinator, open, one.address()), InputError);
+  EXPECT_THROW(server::FarmServer(otherCoordinator, first.tokens, first.server.address()), InputError);
 }
 
 // R25: temporaries of atomic writes that a crash left behind are removed at start.
@@ -257,38 +228,14 @@ TEST(Hardening, R25_TemporariesLeftByACrashAreRemovedAtStart) {
   EXPECT_FALSE(fs::exists(stale));
 }
 
-}  // namespace
-}  // namespace cpvs
-
-#include "tile_worker.h"
-
-namespace cpvs {
-namespace {
-
 // R16: worker-supplied stage names became stored rows without bound; only the pipeline's
 // stages are taken now.
 TEST(Hardening, R16_AResultWithAStageThePipelineDoesNotHaveIsRefused) {
   TempDir dir("cpvs_r16");
-  const std::string obj = dir / "box.obj";
-  writeObj(obj, openScene("city:1:1"));
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  const net::Connection c{farm.address(), "", ""};
-  client::FarmClient farmClient(c);
-  pb::BakeSpec spec;
-  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-  spec.set_resolution("64");
-  farmClient.submit("r16", spec);
-  auto workers = pb::Workers::NewStub(net::makeChannel(c));
-  pb::LeaseRequest lr;
-  lr.set_worker_id("w");
-  pb::TileLease lease;
-  grpc::ClientContext lctx;
-  ASSERT_TRUE(workers->LeaseTile(&lctx, lr, &lease).ok());
+  InProcessFarm farm(dir / "data");
+  farm.client.submit("r16", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64"));
+  const pb::TileLease lease = leaseThroughRpc(farm.connection());
+  auto workers = pb::Workers::NewStub(net::makeChannel(farm.connection()));
   grpc::ClientContext ctx;
   pb::CompleteReply reply;
   auto writer = workers->CompleteTile(&ctx, &reply);
@@ -310,47 +257,23 @@ TEST(Hardening, R16_AResultWithAStageThePipelineDoesNotHaveIsRefused) {
 // R21: a download whose stored artifact is gone named the data folder to the client.
 TEST(Hardening, R21_AMissingStoredFileDoesNotNameTheDataFolder) {
   TempDir dir("cpvs_r21");
-  const std::string obj = dir / "box.obj";
-  writeObj(obj, openScene("city:1:1"));
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  const net::Connection c{farm.address(), "", ""};
-  worker::WorkerConfig wc;
-  wc.server = c;
-  wc.cacheDir = dir / "cache";
-  fs::create_directories(wc.cacheDir);
-  wc.workerId = "w";
-  worker::TileWorker tileWorker(wc);
+  InProcessFarm farm(dir / "data");
+  worker::TileWorker tileWorker(testing::workerConfig(farm.connection(), dir / "cache"));
   std::thread workerThread([&] { tileWorker.run(); });
-  client::FarmClient farmClient(c);
-  pb::BakeSpec spec;
-  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-  spec.set_resolution("64");
-  const pb::JobStatus job = farmClient.watch(farmClient.submit("r21", spec).job_id());
+  const pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+  const pb::JobStatus job = farm.client.watch(farm.client.submit("r21", spec).job_id());
   tileWorker.stop();
   workerThread.join();
   ASSERT_EQ(job.state(), pb::JOB_DONE);
-  fs::remove(coordinator.jobs().artifactPath(job.job_id(), nullptr));
+  fs::remove(farm.coordinator.jobs().artifactPath(job.job_id(), nullptr));
   try {
-    farmClient.download(job.job_id(), dir / "out.cpvs");
+    farm.client.download(job.job_id(), dir / "out.cpvs");
     ADD_FAILURE() << "downloaded a missing artifact";
   } catch (const client::FarmCallError& e) {
     EXPECT_EQ(e.kind(), net::ErrorKind::DataLoss) << e.what();
     EXPECT_EQ(std::string(e.what()).find(dir / "data"), std::string::npos) << e.what();
   }
 }
-
-}  // namespace
-}  // namespace cpvs
-
-#include <sqlite3.h>
-
-namespace cpvs {
-namespace {
 
 // R9: a store error in the reaper thread (here: the database held by another writer past
 // the busy timeout) called std::terminate; the coordinator must live on and serve.
@@ -373,22 +296,12 @@ TEST(Hardening, R9_AStoreThatFailsForAWhileDoesNotStopTheCoordinator) {
 // tile is baked again and the job finishes.
 TEST(Hardening, R4_AMissingAcknowledgedTileIsBakedAgainAtRestart) {
   TempDir dir("cpvs_r4");
-  const std::string obj = dir / "box.obj";
-  writeObj(obj, openScene("city:1:1"));
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
   std::string jobId;
   {
-    server::Coordinator coordinator(config);
-    server::TokenTable open;
-    server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-    client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
-    pb::BakeSpec spec;
-    spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
-    *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-    spec.set_resolution("64");
+    InProcessFarm farm(dir / "data");
+    pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
     spec.mutable_options()->set_tile_size(32);  // 4 tiles
-    jobId = farmClient.submit("r4", spec).job_id();
+    jobId = farm.client.submit("r4", spec).job_id();
   }
   {
     // Tile 0 acknowledged, but its file lost (as after a power cut before R3's syncs).
@@ -396,72 +309,35 @@ TEST(Hardening, R4_AMissingAcknowledgedTileIsBakedAgainAtRestart) {
     ASSERT_TRUE(store.leaseNextTile("w", "l-lost", 1000, 1e15).has_value());
     ASSERT_TRUE(store.completeTile(jobId, 0));
   }
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  const net::Connection c{farm.address(), "", ""};
-  worker::WorkerConfig wc;
-  wc.server = c;
-  wc.cacheDir = dir / "cache";
-  fs::create_directories(wc.cacheDir);
-  wc.workerId = "w";
-  worker::TileWorker tileWorker(wc);
+  InProcessFarm farm(dir / "data");
+  worker::TileWorker tileWorker(testing::workerConfig(farm.connection(), dir / "cache"));
   std::thread workerThread([&] { tileWorker.run(); });
-  client::FarmClient farmClient(c);
-  const pb::JobStatus done = farmClient.watch(jobId);
+  const pb::JobStatus done = farm.client.watch(jobId);
   tileWorker.stop();
   workerThread.join();
   EXPECT_EQ(done.state(), pb::JOB_DONE) << done.error();
   EXPECT_EQ(done.tiles_done(), 4u);
 }
 
-}  // namespace
-}  // namespace cpvs
-
-#include <spdlog/sinks/ostream_sink.h>
-#include <spdlog/spdlog.h>
-
-#include <mutex>
-#include <sstream>
-
-#include "cpvs/base/text.h"
-
-namespace cpvs {
-namespace {
-
 // R26: worker ids and failure reasons went into the log raw: a newline forged log lines.
 TEST(Hardening, R26_WorkerTextCannotForgeLogLines) {
   EXPECT_EQ(loggable("a\nb\x1b[31m"), "a\\x0Ab\\x1B[31m");
   TempDir dir("cpvs_r26");
-  const std::string obj = dir / "box.obj";
-  writeObj(obj, openScene("city:1:1"));
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
-  pb::BakeSpec spec;
-  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-  spec.set_resolution("64");
-  farmClient.submit("r26", spec);
-
-  std::ostringstream log;
-  auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
-  spdlog::default_logger()->sinks().push_back(sink);
-  const pb::TileLease lease = coordinator.leases().lease("w\n[2026-01-01 00:00:00.000] [info] job jX done");
-  ASSERT_TRUE(lease.granted());
-  coordinator.leases().failTile(lease.lease_id(), "bad\n[2026-01-01 00:00:00.000] [info] all good");
-  spdlog::default_logger()->sinks().pop_back();
-  std::istringstream lines(log.str());
+  InProcessFarm farm(dir / "data");
+  farm.client.submit("r26", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64"));
+  const std::string log = logOf([&] {
+    const pb::TileLease lease = farm.coordinator.leases().lease("w\n[2026-01-01 00:00:00.000] [info] job jX done");
+    ASSERT_TRUE(lease.granted());
+    farm.coordinator.leases().failTile(lease.lease_id(), "bad\n[2026-01-01 00:00:00.000] [info] all good");
+  });
+  std::istringstream lines(log);
   std::string line;
   int warnings = 0;
   while (std::getline(lines, line)) {
     EXPECT_NE(line.rfind("[2026-01-01", 0), 0u) << "a forged line: " << line;
     warnings += line.find("failed on w\\x0A[2026-01-01") != std::string::npos;
   }
-  EXPECT_EQ(warnings, 1) << log.str();
+  EXPECT_EQ(warnings, 1) << log;
 }
 
 // R23: the worker built cache paths from the lease's scene_hash unchecked; a coordinator
@@ -505,60 +381,35 @@ class OneBadLease final : public pb::Workers::Service {
 TEST(Hardening, R23_AWorkerRefusesASceneHashThatIsNotAHash) {
   TempDir dir("cpvs_r23");
   OneBadLease service;
-  grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(&service);
-  auto server = builder.BuildAndStart();
-  ASSERT_TRUE(server);
-  const std::string cache = dir / "a/b/cache";
-  fs::create_directories(cache);
-  worker::WorkerConfig wc;
-  wc.server = net::Connection{"127.0.0.1:" + std::to_string(port), "", ""};
-  wc.cacheDir = cache;
-  wc.workerId = "w";
-  wc.maxTiles = 1;
-  worker::TileWorker tileWorker(wc);
-  tileWorker.run();  // returns after its one tile
-  server->Shutdown();
+  {
+    ServiceServer server(service);
+    worker::TileWorker tileWorker(testing::workerConfig(server.connection(), dir / "a/b/cache", 1));
+    tileWorker.run();  // returns after its one tile
+  }
   EXPECT_FALSE(fs::exists(dir / "a/escaped.part"));
   EXPECT_FALSE(fs::exists(dir / "a/escaped"));
   ASSERT_EQ(service.reasons.size(), 1u);
   EXPECT_NE(service.reasons[0].find("scene_hash"), std::string::npos) << service.reasons[0];
 }
 
-}  // namespace
-}  // namespace cpvs
-
-namespace cpvs {
-namespace {
-
 // R12: a hung bake renewed its lease forever; renewals now stop after --max-tile-seconds.
 TEST(Hardening, R12_RenewalsEndAfterTheLongestATileMayTake) {
   TempDir dir("cpvs_r12");
-  const std::string obj = dir / "box.obj";
-  writeObj(obj, openScene("city:1:1"));
   server::CoordinatorConfig config;
   config.dataDir = dir / "data";
   config.leaseSeconds = 1;
   config.maxTileSeconds = 2;
   config.maxAttempts = 5;
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
-  pb::BakeSpec spec;
-  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-  spec.set_resolution("64");
-  farmClient.submit("r12", spec);
-  const pb::TileLease first = coordinator.leases().lease("hung");
+  InProcessFarm farm(config);
+  farm.client.submit("r12", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64"));
+  server::LeaseService& leases = farm.coordinator.leases();
+  const pb::TileLease first = leases.lease("hung");
   ASSERT_TRUE(first.granted());
   const auto start = std::chrono::steady_clock::now();
   bool stillValid = true;
   while (stillValid && std::chrono::steady_clock::now() - start < std::chrono::seconds(5)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    stillValid = coordinator.leases().renew(first.lease_id()).valid();
+    stillValid = leases.renew(first.lease_id()).valid();
   }
   const double refusedAfter = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_FALSE(stillValid);
@@ -568,162 +419,72 @@ TEST(Hardening, R12_RenewalsEndAfterTheLongestATileMayTake) {
   pb::TileLease second;
   while (!second.granted() && std::chrono::steady_clock::now() - start < std::chrono::seconds(8)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    second = coordinator.leases().lease("healthy");
+    second = leases.lease("healthy");
   }
   EXPECT_TRUE(second.granted());
   EXPECT_EQ(second.tile_index(), first.tile_index());
 }
 
-}  // namespace
-}  // namespace cpvs
-
-namespace cpvs {
-namespace {
-
-// Between a worker and the coordinator: forwards every call, but answers the first
-// CompleteTile with UNAVAILABLE, as a coordinator that restarts under it would.
-class FlakyOnce final : public pb::Workers::Service {
+// Answers the first CompleteTile with UNAVAILABLE, as a coordinator that restarts under
+// the worker would, and forwards the rest.
+class FlakyOnce final : public ForwardingWorkers {
  public:
-  explicit FlakyOnce(const std::string& address) : stub_(pb::Workers::NewStub(net::makeChannel({address, "", ""}))) {}
-  grpc::Status LeaseTile(grpc::ServerContext*, const pb::LeaseRequest* req, pb::TileLease* out) override {
-    grpc::ClientContext ctx;
-    return stub_->LeaseTile(&ctx, *req, out);
-  }
-  grpc::Status RenewLease(grpc::ServerContext*, const pb::RenewRequest* req, pb::RenewReply* out) override {
-    grpc::ClientContext ctx;
-    return stub_->RenewLease(&ctx, *req, out);
-  }
-  grpc::Status FailTile(grpc::ServerContext*, const pb::FailRequest* req, pb::FailReply* out) override {
-    grpc::ClientContext ctx;
-    return stub_->FailTile(&ctx, *req, out);
-  }
-  grpc::Status FetchScene(grpc::ServerContext*, const pb::FetchSceneRequest* req,
-                          grpc::ServerWriter<pb::SceneChunk>* writer) override {
-    grpc::ClientContext ctx;
-    auto reader = stub_->FetchScene(&ctx, *req);
-    pb::SceneChunk chunk;
-    while (reader->Read(&chunk)) writer->Write(chunk);
-    return reader->Finish();
-  }
+  using ForwardingWorkers::ForwardingWorkers;
   grpc::Status CompleteTile(grpc::ServerContext*, grpc::ServerReader<pb::TileResultChunk>* reader,
                             pb::CompleteReply* out) override {
     std::vector<pb::TileResultChunk> chunks;
     pb::TileResultChunk chunk;
     while (reader->Read(&chunk)) chunks.push_back(chunk);
     if (completes++ == 0) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "restarting");
-    grpc::ClientContext ctx;
-    auto writer = stub_->CompleteTile(&ctx, out);
-    for (const auto& c : chunks) writer->Write(c);
-    writer->WritesDone();
-    return writer->Finish();
+    return forwardResult(chunks, out);
   }
   std::atomic<int> completes{0};
-
- private:
-  std::unique_ptr<pb::Workers::Stub> stub_;
 };
 
 // R17: a worker whose CompleteTile met UNAVAILABLE threw its baked tile away (the tile was
 // baked again after its lease expired); now it sends it again.
 TEST(Hardening, R17_ABakedTileIsSentAgainNotBakedAgain) {
   TempDir dir("cpvs_r17");
-  const std::string obj = dir / "box.obj";
-  writeObj(obj, openScene("city:1:1"));
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  FlakyOnce proxy(farm.address());
-  grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(&proxy);
-  auto proxyServer = builder.BuildAndStart();
-  ASSERT_TRUE(proxyServer);
-
-  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
-  pb::BakeSpec spec;
-  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-  spec.set_resolution("64");
-  const std::string jobId = farmClient.submit("r17", spec).job_id();
-
-  std::ostringstream log;
-  auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
-  spdlog::default_logger()->sinks().push_back(sink);
-  worker::WorkerConfig wc;
-  wc.server = net::Connection{"127.0.0.1:" + std::to_string(port), "", ""};
-  wc.cacheDir = dir / "cache";
-  fs::create_directories(wc.cacheDir);
-  wc.workerId = "w";
-  wc.maxTiles = 1;
-  worker::TileWorker tileWorker(wc);
-  tileWorker.run();  // one tile, delivered on the second try
-  spdlog::default_logger()->sinks().pop_back();
-  proxyServer->Shutdown();
-
+  InProcessFarm farm(dir / "data");
+  const std::string jobId = farm.client.submit("r17", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).job_id();
+  FlakyOnce proxy(farm.server.address());
+  uint64_t tilesDone = 0;
+  const std::string log = logOf([&] {
+    ServiceServer proxyServer(proxy);
+    worker::TileWorker tileWorker(testing::workerConfig(proxyServer.connection(), dir / "cache", 1));
+    tileWorker.run();  // one tile, delivered on the second try
+    tilesDone = tileWorker.tilesDone();
+  });
   EXPECT_EQ(proxy.completes.load(), 2);
-  ASSERT_EQ(tileWorker.tilesDone(), 1u);  // before the watch, which would wait for the tile
-  const pb::JobStatus done = farmClient.watch(jobId);
-  EXPECT_EQ(done.state(), pb::JOB_DONE) << done.error();
+  ASSERT_EQ(tilesDone, 1u);  // before the watch, which would wait for the tile
+  const pb::JobStatus status = farm.client.watch(jobId);
+  EXPECT_EQ(status.state(), pb::JOB_DONE) << status.error();
   size_t bakes = 0;
-  for (size_t at = log.str().find(": baking"); at != std::string::npos; at = log.str().find(": baking", at + 1)) ++bakes;
-  EXPECT_EQ(bakes, 1u) << log.str();
+  for (size_t at = log.find(": baking"); at != std::string::npos; at = log.find(": baking", at + 1)) ++bakes;
+  EXPECT_EQ(bakes, 1u) << log;
 }
 
-}  // namespace
-}  // namespace cpvs
-
-namespace cpvs {
-namespace {
-
-// Forwards to the coordinator, but shows the worker a deadline five minutes later than
-// the coordinator's (a worker clock five minutes behind), and counts renewals.
-class SkewedClock final : public pb::Workers::Service {
+// Shows the worker a deadline five minutes later than the coordinator's (a worker clock
+// five minutes behind), with or without the lease's length, and counts renewals.
+class SkewedClock final : public ForwardingWorkers {
  public:
-  SkewedClock(const std::string& address, bool sendLength)
-      : stub_(pb::Workers::NewStub(net::makeChannel({address, "", ""}))), sendLength_(sendLength) {}
-  grpc::Status LeaseTile(grpc::ServerContext*, const pb::LeaseRequest* req, pb::TileLease* out) override {
-    grpc::ClientContext ctx;
-    grpc::Status s = stub_->LeaseTile(&ctx, *req, out);
+  SkewedClock(const std::string& address, bool sendLength) : ForwardingWorkers(address), sendLength_(sendLength) {}
+  grpc::Status LeaseTile(grpc::ServerContext* ctx, const pb::LeaseRequest* req, pb::TileLease* out) override {
+    grpc::Status s = ForwardingWorkers::LeaseTile(ctx, req, out);
     out->set_deadline_unix_ms(out->deadline_unix_ms() + 300000);
     if (!sendLength_) out->clear_lease_ms();
     return s;
   }
-  grpc::Status RenewLease(grpc::ServerContext*, const pb::RenewRequest* req, pb::RenewReply* out) override {
+  grpc::Status RenewLease(grpc::ServerContext* ctx, const pb::RenewRequest* req, pb::RenewReply* out) override {
     ++renewals;
-    grpc::ClientContext ctx;
-    grpc::Status s = stub_->RenewLease(&ctx, *req, out);
+    grpc::Status s = ForwardingWorkers::RenewLease(ctx, req, out);
     out->set_deadline_unix_ms(out->deadline_unix_ms() + 300000);
     if (!sendLength_) out->clear_lease_ms();
     return s;
-  }
-  grpc::Status FailTile(grpc::ServerContext*, const pb::FailRequest* req, pb::FailReply* out) override {
-    grpc::ClientContext ctx;
-    return stub_->FailTile(&ctx, *req, out);
-  }
-  grpc::Status FetchScene(grpc::ServerContext*, const pb::FetchSceneRequest* req,
-                          grpc::ServerWriter<pb::SceneChunk>* writer) override {
-    grpc::ClientContext ctx;
-    auto reader = stub_->FetchScene(&ctx, *req);
-    pb::SceneChunk chunk;
-    while (reader->Read(&chunk)) writer->Write(chunk);
-    return reader->Finish();
-  }
-  grpc::Status CompleteTile(grpc::ServerContext*, grpc::ServerReader<pb::TileResultChunk>* reader,
-                            pb::CompleteReply* out) override {
-    grpc::ClientContext ctx;
-    auto writer = stub_->CompleteTile(&ctx, out);
-    pb::TileResultChunk chunk;
-    while (reader->Read(&chunk)) writer->Write(chunk);
-    writer->WritesDone();
-    return writer->Finish();
   }
   std::atomic<int> renewals{0};
 
  private:
-  std::unique_ptr<pb::Workers::Stub> stub_;
   bool sendLength_;
 };
 
@@ -731,42 +492,26 @@ class SkewedClock final : public pb::Workers::Service {
 // its own clock; five minutes of skew meant no renewal within a 0.3 s lease.
 TEST(Hardening, R11_RenewalsFollowTheLeaseLengthWhateverTheClocks) {
   TempDir dir("cpvs_r11");
-  const std::string obj = dir / "city.obj";
-  writeObj(obj, openScene("city:3:2"));
   server::CoordinatorConfig config;
   config.dataDir = dir / "data";
   config.leaseSeconds = 0.3;  // renewals every 0.1 s
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
-  pb::BakeSpec spec;
-  spec.set_scene_hash(farmClient.uploadScene(obj).sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-  spec.set_resolution("4096");  // one tile that bakes for a second or more
+  InProcessFarm farm(config);
+  pb::BakeSpec spec = farm.uploadAndSpec(dir / "city.obj", "city:3:2", "4096");  // one tile of a second or more
   spec.mutable_options()->set_tile_size(4096);
-  farmClient.submit("r11", spec);
+  farm.client.submit("r11", spec);
 
-  SkewedClock proxy(farm.address(), true);
-  grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(&proxy);
-  auto proxyServer = builder.BuildAndStart();
-  worker::WorkerConfig wc;
-  wc.server = net::Connection{"127.0.0.1:" + std::to_string(port), "", ""};
-  wc.cacheDir = dir / "cache";
-  fs::create_directories(wc.cacheDir);
-  wc.workerId = "w";
-  wc.maxTiles = 1;
-  const auto start = std::chrono::steady_clock::now();
-  worker::TileWorker tileWorker(wc);
-  tileWorker.run();
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  proxyServer->Shutdown();
+  SkewedClock proxy(farm.server.address(), true);
+  double seconds = 0;
+  {
+    ServiceServer proxyServer(proxy);
+    const auto start = std::chrono::steady_clock::now();
+    worker::TileWorker tileWorker(testing::workerConfig(proxyServer.connection(), dir / "cache", 1));
+    tileWorker.run();
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
   if (seconds < 0.4) GTEST_SKIP() << "the tile baked in " << seconds << " s, too fast to need renewals here";
   EXPECT_GE(proxy.renewals.load(), 2);
-  EXPECT_EQ(coordinator.jobs().list(true).at(0).tiles_done(), 1u);  // the lease held to the end
+  EXPECT_EQ(farm.coordinator.jobs().list(true).at(0).tiles_done(), 1u);  // the lease held to the end
 }
 
 }  // namespace

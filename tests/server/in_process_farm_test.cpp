@@ -4,7 +4,6 @@
 // as separate programs.
 #include <gtest/gtest.h>
 #include <sqlite3.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -22,6 +21,7 @@
 #include "cpvs/scene/source.h"
 #include "rpc/farm_server.h"
 #include "store/farm_store.h"
+#include "farm_testing.h"
 #include "tile_worker.h"
 
 namespace cpvs {
@@ -30,43 +30,24 @@ namespace {
 namespace fs = std::filesystem;
 namespace pb = ::cpvs::v1;
 
-class TempDir {
- public:
-  explicit TempDir(const std::string& name)
-      : path_(fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  fs::path path_;
-};
+using testing::InProcessFarm;
+using testing::TempDir;
 
 TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   TempDir dir("cpvs_in_process_farm");
   const std::string obj = dir / "city.obj";
   writeObj(obj, openScene("city:2:3"));
 
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  ASSERT_GT(farm.port(), 0);
-  const net::Connection connection{farm.address(), "", ""};
+  InProcessFarm farm(dir / "data");
+  ASSERT_GT(farm.server.port(), 0);
 
-  worker::WorkerConfig wc;
-  wc.server = connection;
-  wc.cacheDir = dir / "cache";
-  fs::create_directories(wc.cacheDir);
+  worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
   wc.workerId = "in-process";
   wc.threads = 2;
   worker::TileWorker tileWorker(wc);
   std::thread workerThread([&] { tileWorker.run(); });
 
-  client::FarmClient farmClient(connection);
+  client::FarmClient& farmClient = farm.client;
   const client::FarmClient::UploadResult up = farmClient.uploadScene(obj);
   EXPECT_FALSE(up.alreadyThere);
   EXPECT_GT(up.triangles, 0u);
@@ -85,7 +66,7 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
 
   tileWorker.stop();
   workerThread.join();
-  farm.shutdown(1);
+  farm.server.shutdown(1);
 
   // The same bake in this process, from the same file.
   const Scene scene = loadScene(obj);
@@ -108,12 +89,8 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
 
 TEST(InProcessFarm, UnknownJobsAndRefusalsAreTheirKinds) {
   TempDir dir("cpvs_in_process_refusals");
-  server::CoordinatorConfig config;
-  config.dataDir = dir / "data";
-  server::Coordinator coordinator(config);
-  server::TokenTable open;
-  server::FarmServer farm(coordinator, open, "127.0.0.1:0");
-  client::FarmClient farmClient(net::Connection{farm.address(), "", ""});
+  InProcessFarm farm(dir / "data");
+  client::FarmClient& farmClient = farm.client;
   try {
     farmClient.cancel("no-such-job");
     ADD_FAILURE();
@@ -143,9 +120,7 @@ server::JobRecord sampleJob(const std::string& id, int priority, uint64_t tiles)
   j.spec = "spec bytes";
   j.priority = priority;
   j.createdMs = 1000;
-  j.tilesPerSide = 1;
   j.tilesTotal = tiles;
-  j.resolution = 1024;
   j.grid.frame = LightFrame::fromDirection({0.3, -1, 0.2});
   j.grid.log2Resolution = 10;
   j.grid.origin = {1.5, -2.25, 1e5};

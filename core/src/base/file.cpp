@@ -25,6 +25,20 @@ std::string temporaryName(const std::string& path) {
   return path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1));
 }
 
+// Writes all of data to fd at its current offset; the errno of the failure, 0 on success.
+int writeAll(int fd, const void* data, size_t size) {
+  const char* p = static_cast<const char*>(data);
+  for (size_t done = 0; done < size;) {
+    const ssize_t n = ::write(fd, p + done, size - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return errno;
+    }
+    done += size_t(n);
+  }
+  return 0;
+}
+
 }  // namespace
 
 void syncParentFolder(const std::string& path) {
@@ -44,17 +58,10 @@ void writeFileAtomic(const std::string& path, const std::vector<uint8_t>& bytes)
   const std::string tmp = temporaryName(path);
   int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   if (fd < 0) fail("write", path, errno);
-  size_t done = 0;
-  while (done < bytes.size()) {
-    ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      int e = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      fail("write", path, e);
-    }
-    done += size_t(n);
+  if (const int e = writeAll(fd, bytes.data(), bytes.size()); e != 0) {
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    fail("write", path, e);
   }
   if (::fsync(fd) != 0 || ::close(fd) != 0) {
     int e = errno;
@@ -91,15 +98,9 @@ AppendFile::~AppendFile() {
 }
 
 void AppendFile::write(const void* data, size_t size) {
-  const char* p = static_cast<const char*>(data);
-  size_t done = 0;
-  while (done < size) {
-    const ssize_t n = ::write(fd_, p + done, size - done);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      fail();
-    }
-    done += size_t(n);
+  if (const int e = writeAll(fd_, data, size); e != 0) {
+    errno = e;
+    fail();
   }
 }
 
@@ -113,6 +114,18 @@ void AppendFile::syncAndClose() {
     fail();
   }
   if (::close(fd) != 0) fail();
+}
+
+void replaceTail(const std::string& path, uint64_t keep, const void* data, size_t size) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) fail("write", path, errno);
+  int e = 0;
+  if (::ftruncate(fd, off_t(keep)) != 0 || ::lseek(fd, off_t(keep), SEEK_SET) < 0) e = errno;
+  if (e == 0) e = writeAll(fd, data, size);
+  if (e == 0 && ::fdatasync(fd) != 0) e = errno;
+  ::close(fd);
+  if (e != 0) fail("write", path, e);
+  if (keep == 0) syncParentFolder(path);  // the file may be new
 }
 
 void AppendFile::fail() const { throw InputError("cannot write " + path_ + ": " + std::strerror(errno)); }

@@ -21,6 +21,11 @@ std::vector<uint8_t> readFile(const std::string& path);
 /// InputError naming the folder on failure.
 void syncParentFolder(const std::string& path);
 
+/// Keeps the first `keep` bytes of the file at `path` (created when absent), writes
+/// `data` after them, and syncs it: a resumable transfer that continues exactly at the
+/// bytes it acknowledged, whatever a crash left after them. InputError naming the path.
+void replaceTail(const std::string& path, uint64_t keep, const void* data, size_t size);
+
 /// A file opened for appending (created when absent), for transfers that resume: data
 /// goes in with write(2) and is fsync'ed before the file is renamed into place. Errors are
 /// InputError naming the file.

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <cstdint>
+#include <fstream>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -26,6 +28,7 @@ class ChunkSource {
  private:
   const char* data_ = nullptr;
   std::string path_;
+  std::shared_ptr<std::ifstream> file_;  // opened once, read chunk by chunk
   uint64_t size_ = 0;
 };
 
