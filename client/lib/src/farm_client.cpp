@@ -86,6 +86,16 @@ struct FarmClient::Transport {
   /// announced total size and checksum.
   void receiveArtifact(const std::string& jobId, const std::string& part, uint64_t offset, uint64_t& total,
                        std::string& checksum);
+  /// One unary call with the token and the unary deadline; FarmCallError when it fails.
+  template <class Request, class Reply>
+  Reply unary(grpc::Status (pb::Farm::Stub::*call)(grpc::ClientContext*, const Request&, Reply*),
+              const Request& request) {
+    Reply reply;
+    grpc::ClientContext ctx;
+    net::prepare(ctx, connection, kCallSeconds);
+    check((stub.get()->*call)(&ctx, request, &reply));
+    return reply;
+  }
 
   net::Connection connection;
   std::shared_ptr<grpc::Channel> channel;
@@ -105,12 +115,7 @@ FarmClient::UploadResult FarmClient::uploadScene(const std::string& path) {
 
   pb::SceneRef ref;
   ref.set_scene_hash(result.sceneHash);
-  pb::UploadStatus status;
-  {
-    grpc::ClientContext ctx;
-    net::prepare(ctx, transport_->connection, kCallSeconds);
-    check(transport_->stub->GetUploadStatus(&ctx, ref, &status));
-  }
+  const pb::UploadStatus status = transport_->unary(&pb::Farm::Stub::GetUploadStatus, ref);
   if (status.complete()) {
     result.alreadyThere = true;
     return result;
@@ -164,11 +169,7 @@ pb::JobStatus FarmClient::submit(const std::string& requestId, const pb::BakeSpe
   pb::SubmitBakeRequest request;
   request.set_request_id(requestId);
   *request.mutable_spec() = spec;
-  pb::JobStatus status;
-  grpc::ClientContext ctx;
-  net::prepare(ctx, transport_->connection, kCallSeconds);
-  check(transport_->stub->SubmitBake(&ctx, request, &status));
-  return status;
+  return transport_->unary(&pb::Farm::Stub::SubmitBake, request);
 }
 
 pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<void(const pb::JobStatus&)>& onUpdate) {
@@ -193,20 +194,13 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
 pb::JobStatus FarmClient::cancel(const std::string& jobId) {
   pb::JobRef ref;
   ref.set_job_id(jobId);
-  pb::JobStatus status;
-  grpc::ClientContext ctx;
-  net::prepare(ctx, transport_->connection, kCallSeconds);
-  check(transport_->stub->CancelJob(&ctx, ref, &status));
-  return status;
+  return transport_->unary(&pb::Farm::Stub::CancelJob, ref);
 }
 
 std::vector<pb::JobStatus> FarmClient::list(bool includeFinished) {
   pb::ListJobsRequest request;
   request.set_include_finished(includeFinished);
-  pb::ListJobsReply reply;
-  grpc::ClientContext ctx;
-  net::prepare(ctx, transport_->connection, kCallSeconds);
-  check(transport_->stub->ListJobs(&ctx, request, &reply));
+  const pb::ListJobsReply reply = transport_->unary(&pb::Farm::Stub::ListJobs, request);
   return {reply.jobs().begin(), reply.jobs().end()};
 }
 
