@@ -9,6 +9,7 @@ PACKAGES=(
   libtbb-dev libxxhash-dev libzstd-dev libassimp-dev libcli11-dev libsqlite3-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libpng-dev assimp-testmodels nlohmann-json3-dev python3-yaml clang
+  libhwy-dev
 )
 
 missing=()

@@ -129,9 +129,9 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     BakeOptions options = net::fromProto(lease.options());
     // The hash names files in the cache: 32 hex digits, nothing a path could be made of (R23).
     parseHashHex(lease.scene_hash(), "the lease's scene_hash");
-    auto rays = rayScene(lease.scene_hash(), grid.origin);
+    auto prepared = bakeScene(lease.scene_hash(), grid, options.renderer);
     StageTimes times;
-    Dag dag = bakeTile(*rays, grid, lease.tile_x(), lease.tile_y(), options, &times);
+    Dag dag = bakeTile(*prepared, lease.tile_x(), lease.tile_y(), options, &times);
     auto start = std::chrono::steady_clock::now();
     std::vector<uint8_t> encoded = encodeSubDag(dag, true);
     times.add("encode", secondsSince(start));
@@ -248,7 +248,8 @@ std::string TileWorker::fetchScene(const std::string& sceneHash) {
   return final.string();
 }
 
-std::shared_ptr<RayScene> TileWorker::rayScene(const std::string& sceneHash, const Vec3& origin) {
+std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, const OrthoGrid& grid,
+                                                 Renderer renderer) {
   std::shared_ptr<CachedScene> cached;
   {
     std::lock_guard lock(cacheMutex_);
@@ -257,15 +258,24 @@ std::shared_ptr<RayScene> TileWorker::rayScene(const std::string& sceneHash, con
   }
   std::lock_guard lock(cached->mutex);
   if (cached->scene.indices.empty()) cached->scene = loadScene(fetchScene(sceneHash));
-  char key[80];
-  std::snprintf(key, sizeof key, "%a,%a,%a", origin.x, origin.y, origin.z);
-  auto& bvh = cached->bvhs[key];
-  if (!bvh) {
+  // Every field of the grid decides the projection; the bits of the doubles name it.
+  std::string key = optionName(renderer);
+  char field[32];
+  for (const Vec3* v : {&grid.frame.dir, &grid.frame.u, &grid.frame.v, &grid.origin})
+    for (double x : {v->x, v->y, v->z}) key += (std::snprintf(field, sizeof field, ",%a", x), field);
+  for (double x : {grid.u0, grid.v0, grid.d0, grid.extent, grid.depthExtent})
+    key += (std::snprintf(field, sizeof field, ",%a", x), field);
+  key += "," + std::to_string(grid.log2Resolution);
+  // A job's tiles share one grid: a handful of entries cover the jobs a worker serves
+  // (slots still baking keep theirs alive).
+  if (!cached->prepared.count(key) && cached->prepared.size() >= 4) cached->prepared.clear();
+  auto& prepared = cached->prepared[key];
+  if (!prepared) {
     auto start = std::chrono::steady_clock::now();
-    bvh = std::make_shared<RayScene>(cached->scene, origin, config_.threads);
-    spdlog::info("BVH of scene {} built in {:.2f} s", sceneHash, secondsSince(start));
+    prepared = std::make_shared<BakeScene>(cached->scene, grid, renderer, config_.threads);
+    spdlog::info("scene {} prepared for the {} renderer in {:.2f} s", sceneHash, optionName(renderer), secondsSince(start));
   }
-  return bvh;
+  return prepared;
 }
 
 }  // namespace cpvs::worker

@@ -9,7 +9,7 @@
 #include <mutex>
 #include <string>
 
-#include "cpvs/raytrace/ray_scene.h"
+#include "cpvs/bake/bake_scene.h"
 #include "cpvs/scene/source.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "cpvs/net/channel.h"
@@ -46,14 +46,15 @@ class TileWorker {
  private:
   struct CachedScene {
     Scene scene;
-    std::map<std::string, std::shared_ptr<RayScene>> bvhs;  // by grid origin
+    std::map<std::string, std::shared_ptr<BakeScene>> prepared;  // by grid and renderer
     std::mutex mutex;
   };
 
   void slotLoop(int slot);
   /// Bakes and returns one leased tile; false when the coordinator is unreachable.
   void bakeLeased(const pb::TileLease& lease);
-  std::shared_ptr<RayScene> rayScene(const std::string& sceneHash, const Vec3& origin);
+  /// The scene prepared for a lease's grid and renderer, loaded and built once.
+  std::shared_ptr<BakeScene> bakeScene(const std::string& sceneHash, const OrthoGrid& grid, Renderer renderer);
   std::string fetchScene(const std::string& sceneHash);
   /// sendResult, again with backoff while the coordinator is unreachable.
   void deliverResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,

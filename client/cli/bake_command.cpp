@@ -41,6 +41,7 @@ std::string summaryJson(const BakeArgs& a, const Scene& scene, const SceneStats&
     << ", \"exit\": " << jsonString(optionName(art.options.exit)) << ", \"cull\": " << (art.options.cull ? "true" : "false")
     << ", \"compress\": " << jsonString(optionName(art.options.compress))
     << ", \"undefined\": " << jsonString(optionName(art.options.undefinedRule))
+    << ", \"renderer\": " << jsonString(optionName(art.options.renderer))
     << ", \"tile_size\": " << (1u << art.options.log2TileSize) << "},\n  \"tiles\": " << tiles
     << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"file_bytes\": " << fileBytes
     << ",\n  \"shadow_map_bytes\": " << R * R * 2
@@ -70,9 +71,10 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
   std::printf("\nBaked %s (%zu triangles, %zu closed) at %llu^3 in %llu tile%s\n", scene.name.c_str(), ss.triangles,
               ss.closedTriangles, static_cast<unsigned long long>(R), static_cast<unsigned long long>(tiles),
               tiles == 1 ? "" : "s");
-  std::printf("  options: closed=%s exit=%s cull=%s compress=%s undefined=%s tile=%u\n",
+  std::printf("  options: closed=%s exit=%s cull=%s compress=%s undefined=%s renderer=%s tile=%u\n",
               optionName(art.options.closed), optionName(art.options.exit), art.options.cull ? "on" : "off",
-              optionName(art.options.compress), optionName(art.options.undefinedRule), 1u << art.options.log2TileSize);
+              optionName(art.options.compress), optionName(art.options.undefinedRule), optionName(art.options.renderer),
+              1u << art.options.log2TileSize);
   std::printf("\n  %-10s %10s\n", "stage", "seconds");
   for (const char* name : kStageNames)
     if (auto it = st.seconds.find(name); it != st.seconds.end()) std::printf("  %-10s %10.3f\n", name, it->second);
@@ -112,7 +114,7 @@ int runBake(const BakeArgs& a) {
   SceneStats ss;
   Scene scene = openScene(a.scene, &ss);
   OrthoGrid grid = makeGrid(scene, frame, log2R);
-  RayScene rays(scene, grid.origin, a.threads);
+  BakeScene prepared(scene, grid, opt.renderer, a.threads);
   st.add("load", secondsSince(start));
   if (!a.json && !a.quiet)
     spdlog::info("{}: {} triangles ({} closed, {} degenerate dropped), resolution {}^3, light ({:.4f}, {:.4f}, {:.4f})",
@@ -124,7 +126,7 @@ int runBake(const BakeArgs& a) {
   art.grid = grid;
   art.options = opt;
   art.sceneHash = sceneHash(scene);
-  art.dag = bakeGrid(rays, grid, opt, &st, [&](const std::string& s, uint64_t d, uint64_t t) {
+  art.dag = bakeGrid(prepared, opt, &st, [&](const std::string& s, uint64_t d, uint64_t t) {
     return progress.update(s, d, t);
   });
   progress.finish();

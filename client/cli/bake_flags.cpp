@@ -32,6 +32,10 @@ void addOptionFlags(CLI::App* c, OptionFlags& o, const std::string& tileHelp) {
       ->check(CLI::IsMember(namesOf<CompressMode>()))->capture_default_str();
   c->add_option("--undefined", o.undefinedRule, "Undefined voxels: new (§3.4 masks) or old (mixed -> shadowed)")
       ->check(CLI::IsMember(namesOf<UndefinedRule>()))->capture_default_str();
+  c->add_option("--renderer", o.renderer,
+                "Depth maps: raster (exact rasterization, fast) or embree (a ray per texel); they differ only on "
+                "texels whose ray grazes an edge")
+      ->check(CLI::IsMember(namesOf<Renderer>()))->capture_default_str();
   c->add_option("--tile-size", o.tileSize, tileHelp)->capture_default_str();
 }
 
@@ -42,6 +46,7 @@ BakeOptions optionsOf(const OptionFlags& f) {
   o.cull = f.cull == "on";
   o.compress = parseOption<CompressMode>(f.compress, "--compress");
   o.undefinedRule = parseOption<UndefinedRule>(f.undefinedRule, "--undefined");
+  o.renderer = parseOption<Renderer>(f.renderer, "--renderer");
   o.log2TileSize = log2TileSizeOf(uint64_t(std::max(f.tileSize, 0)), "--tile-size");
   return o;
 }

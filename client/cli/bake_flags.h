@@ -19,10 +19,11 @@ struct SunFlags {
 };
 void addSunFlags(CLI::App* c, SunFlags& sun);
 
-/// --closed, --exit, --cull, --compress, --undefined, --tile-size.
+/// --closed, --exit, --cull, --compress, --undefined, --renderer, --tile-size.
 struct OptionFlags {
   std::string closed = optionName(ClosedMode::Auto), exit = optionName(ExitMode::Exact), cull = "on",
-              compress = optionName(CompressMode::TopDown), undefinedRule = optionName(UndefinedRule::New);
+              compress = optionName(CompressMode::TopDown), undefinedRule = optionName(UndefinedRule::New),
+              renderer = optionName(BakeOptions{}.renderer);
   int tileSize = 1 << kDefaultLog2TileSize;
 };
 /// `tileHelp` says what the tile size means to this command.

@@ -268,6 +268,7 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
   if (given("--compress")) o.set_compress(pb::CompressMode(flags.compress));
   if (given("--undefined")) o.set_undefined_rule(pb::UndefinedRule(flags.undefinedRule));
   if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
+  if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
   (void)net::fromProto(o);
 
   if (given("--priority")) spec.set_priority(a.priority);

@@ -38,7 +38,8 @@ int runInspect(const InspectArgs& a) {
       << "},\n  \"options\": {\"closed\": " << jsonString(optionName(o.closed))
       << ", \"exit\": " << jsonString(optionName(o.exit)) << ", \"cull\": " << (o.cull ? "true" : "false")
       << ", \"compress\": " << jsonString(optionName(o.compress))
-      << ", \"undefined\": " << jsonString(optionName(o.undefinedRule)) << ", \"tile_size\": " << (1u << o.log2TileSize)
+      << ", \"undefined\": " << jsonString(optionName(o.undefinedRule))
+      << ", \"renderer\": " << jsonString(optionName(o.renderer)) << ", \"tile_size\": " << (1u << o.log2TileSize)
       << "},\n  \"bytes\": " << dag.bytes() << ",\n  \"nodes\": " << dag.nodeCount()
       << ",\n  \"shadow_map_bytes\": " << R * R * 2 << ",\n  \"levels\": [";
     for (int l = -1; l < int(dag.levels.size()); ++l) {
@@ -57,8 +58,9 @@ int runInspect(const InspectArgs& a) {
   std::printf("  grid origin  (%.6g, %.6g, %.6g), extent %.6g, depth %.6g\n", g.origin.x, g.origin.y, g.origin.z,
               g.extent, g.depthExtent);
   std::printf("  scene hash   %s\n", art.sceneHash.hex().c_str());
-  std::printf("  options      closed=%s exit=%s cull=%s compress=%s undefined=%s tile=%u\n", optionName(o.closed),
-              optionName(o.exit), o.cull ? "on" : "off", optionName(o.compress), optionName(o.undefinedRule),
+  std::printf("  options      closed=%s exit=%s cull=%s compress=%s undefined=%s renderer=%s tile=%u\n",
+              optionName(o.closed), optionName(o.exit), o.cull ? "on" : "off", optionName(o.compress),
+              optionName(o.undefinedRule), optionName(o.renderer),
               1u << o.log2TileSize);
   std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
   for (int l = -1; l < int(dag.levels.size()); ++l) {

@@ -217,7 +217,9 @@ ShadowQuery bakeRow(const Inputs& in, const OrthoGrid& grid, const std::string& 
   art.sceneHash = in.geometryHash;
   StageTimes st;
   const auto start = std::chrono::steady_clock::now();
-  art.dag = bakeGrid(in.rays, grid, in.options.bake, &st, [&](const std::string&, uint64_t d, uint64_t t) {
+  // The bake's own renderer, as `cpvs bake` would prepare it (included in the bake time).
+  const BakeScene prepared(in.scene, grid, in.options.bake.renderer);
+  art.dag = bakeGrid(prepared, in.options.bake, &st, [&](const std::string&, uint64_t d, uint64_t t) {
     return !in.progress || in.progress(label + " bake", d, t);
   });
   row.bakeSeconds = secondsSince(start);

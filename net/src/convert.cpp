@@ -25,7 +25,9 @@ static_assert(int(ExitMode::Exact) == pb::EXIT_EXACT && int(ExitMode::Approx) ==
 static_assert(int(CompressMode::TopDown) == pb::COMPRESS_TOPDOWN && int(CompressMode::BottomUp) == pb::COMPRESS_BOTTOMUP &&
               int(CompressMode::None) == pb::COMPRESS_NONE);
 static_assert(int(UndefinedRule::New) == pb::UNDEFINED_NEW && int(UndefinedRule::Old) == pb::UNDEFINED_OLD);
-static_assert(pb::ClosedMode_ARRAYSIZE == int(OptionNames<ClosedMode>::kNames.size()) &&
+static_assert(int(Renderer::Embree) == pb::RENDERER_EMBREE && int(Renderer::Raster) == pb::RENDERER_RASTER);
+static_assert(pb::Renderer_ARRAYSIZE == int(OptionNames<Renderer>::kNames.size()) &&
+              pb::ClosedMode_ARRAYSIZE == int(OptionNames<ClosedMode>::kNames.size()) &&
               pb::ExitMode_ARRAYSIZE == int(OptionNames<ExitMode>::kNames.size()) &&
               pb::CompressMode_ARRAYSIZE == int(OptionNames<CompressMode>::kNames.size()) &&
               pb::UndefinedRule_ARRAYSIZE == int(OptionNames<UndefinedRule>::kNames.size()),
@@ -42,6 +44,7 @@ pb::BakeOptions toProto(const BakeOptions& o) {
   p.set_compress(pb::CompressMode(int(o.compress)));
   p.set_undefined_rule(pb::UndefinedRule(int(o.undefinedRule)));
   p.set_tile_size(1u << o.log2TileSize);
+  p.set_renderer(pb::Renderer(int(o.renderer)));
   return p;
 }
 
@@ -53,12 +56,14 @@ BakeOptions fromProto(const pb::BakeOptions& p) {
   check(isOptionValue<ExitMode>(p.exit()), "exit", p.exit());
   check(isOptionValue<CompressMode>(p.compress()), "compress", p.compress());
   check(isOptionValue<UndefinedRule>(p.undefined_rule()), "undefined_rule", p.undefined_rule());
+  check(isOptionValue<Renderer>(p.renderer()), "renderer", p.renderer());
   BakeOptions o;
   o.closed = ClosedMode(p.closed());
   o.exit = ExitMode(p.exit());
   o.cull = !p.no_cull();
   o.compress = CompressMode(p.compress());
   o.undefinedRule = UndefinedRule(p.undefined_rule());
+  o.renderer = p.has_renderer() ? Renderer(p.renderer()) : BakeOptions{}.renderer;
   o.log2TileSize = p.tile_size() == 0 ? kDefaultLog2TileSize : log2TileSizeOf(p.tile_size(), "options.tile_size");
   return o;
 }

@@ -28,13 +28,15 @@ TEST(BakeOptions, NamesRoundTripAndUnknownNamesAreRefused) {
   expectNamesRoundTrip<UndefinedRule>();
   expectNamesRoundTrip<CompressMode>();
   expectNamesRoundTrip<HashKind>();
+  expectNamesRoundTrip<Renderer>();
   try {
     parseOption<CompressMode>("zip", "--compress");
     FAIL();
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "--compress: 'zip' is not one of topdown, bottomup, none");
   }
-  EXPECT_EQ(describe(BakeOptions{}), "closed auto, exit exact, cull on, compress topdown, undefined new, tile 4096");
+  EXPECT_EQ(describe(BakeOptions{}),
+            "closed auto, exit exact, cull on, compress topdown, undefined new, renderer raster, tile 4096");
 }
 
 TEST(BakeOptions, OneTileSizeRule) {

@@ -20,6 +20,9 @@
 namespace cpvs {
 namespace {
 
+using testing::bakeTileWith;
+using testing::bakeWith;
+
 using testing::bruteForceDepths;
 using testing::expectOptimal;
 using testing::expectSameDag;
@@ -90,7 +93,7 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
     RayScene rays(scene_, grid.origin);
     BakeOptions opt;
     opt.log2TileSize = 5;  // several tiles even at small R
-    Dag dag = bakeGrid(rays, grid, opt);
+    Dag dag = bakeWith(scene_, grid, opt);
     expectOptimal(dag);
     const uint64_t R = grid.resolution();
     TexelSlices want;
@@ -130,13 +133,12 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
 // every defined voxel but every byte agrees.
 TEST_P(ScenePipeline, TileSizesAgreeToTheByte) {
   OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 9);
-  RayScene rays(scene_, grid.origin);
   BakeOptions opt;
   opt.log2TileSize = 9;
-  Dag whole = bakeGrid(rays, grid, opt);
+  Dag whole = bakeWith(scene_, grid, opt);
   for (int log2T : {6, 8}) {
     opt.log2TileSize = log2T;
-    Dag tiled = bakeGrid(rays, grid, opt);
+    Dag tiled = bakeWith(scene_, grid, opt);
     expectSameDag(whole, tiled);
     EXPECT_EQ(whole.bytes(), tiled.bytes()) << "tile " << (1 << log2T);
   }
@@ -145,13 +147,12 @@ TEST_P(ScenePipeline, TileSizesAgreeToTheByte) {
 // Sub-DAGs merged in a shuffled order give the same bytes as the in-order merge.
 TEST_P(ScenePipeline, MergeOrderDoesNotChangeBytes) {
   OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
-  RayScene rays(scene_, grid.origin);
   BakeOptions opt;
   opt.log2TileSize = 6;
   const uint64_t n = TilePlan(grid.log2Resolution, opt.log2TileSize).perSide();
   std::vector<Dag> tiles;
-  for (uint64_t i = 0; i < n * n; ++i) tiles.push_back(bakeTile(rays, grid, i % n, i / n, opt));
-  Dag inOrder = bakeGrid(rays, grid, opt);
+  for (uint64_t i = 0; i < n * n; ++i) tiles.push_back(bakeTileWith(scene_, grid, i % n, i / n, opt));
+  Dag inOrder = bakeWith(scene_, grid, opt);
   std::vector<uint64_t> order(n * n);
   for (uint64_t i = 0; i < n * n; ++i) order[i] = i;
   std::mt19937 rng(3);
@@ -174,7 +175,7 @@ TEST_P(ScenePipeline, ConstructionVariantsAgreeToTheByte) {
   RayScene rays(scene_, grid.origin);
   BakeOptions base;
   base.log2TileSize = 7;
-  Dag reference = bakeGrid(rays, grid, base);
+  Dag reference = bakeWith(scene_, grid, base);
   expectOptimal(reference);
   std::mt19937_64 rng(11);
   const uint64_t R = grid.resolution();
@@ -186,7 +187,7 @@ TEST_P(ScenePipeline, ConstructionVariantsAgreeToTheByte) {
         opt.compress = mode;
         opt.hash = hash;
         SCOPED_TRACE(::testing::Message() << "cull " << cull << " mode " << int(mode) << " hash " << int(hash));
-        Dag dag = bakeGrid(rays, grid, opt);
+        Dag dag = bakeWith(scene_, grid, opt);
         if (hash == base.hash) {
           expectSameDag(reference, dag);
           continue;
@@ -214,7 +215,7 @@ TEST_P(ScenePipeline, LookupsAgreeWithShadowRaysAwayFromBoundaries) {
     CpvsArtifact art;
     art.grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), log2R);
     RayScene rays(scene_, art.grid.origin);
-    art.dag = bakeGrid(rays, art.grid, art.options);
+    art.dag = bakeWith(scene_, art.grid, art.options);
     art.sceneHash = sceneHash(scene_);
     ShadowQuery query(art.grid, PackedDag(art.dag));
     VerifyResult r = verifyArtifact(query, art.options.closed, scene_, rays, 20000, 5);
@@ -230,8 +231,7 @@ TEST_P(ScenePipeline, LookupsAgreeWithShadowRaysAwayFromBoundaries) {
 TEST_P(ScenePipeline, FilteredLookupsCountTheirFootprintVoxelByVoxel) {
   CpvsArtifact art;
   art.grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 7);
-  RayScene rays(scene_, art.grid.origin);
-  art.dag = bakeGrid(rays, art.grid, art.options);
+  art.dag = bakeWith(scene_, art.grid, art.options);
   ShadowQuery query(art.grid, PackedDag(art.dag));
   const int64_t R = int64_t(art.grid.resolution());
   std::mt19937_64 rng(11);
@@ -259,10 +259,9 @@ TEST_P(ScenePipeline, FilteredLookupsCountTheirFootprintVoxelByVoxel) {
 TEST_P(ScenePipeline, BakesAreDeterministic) {
   CpvsArtifact a, b;
   a.grid = b.grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
-  RayScene rays(scene_, a.grid.origin);
   a.options.log2TileSize = b.options.log2TileSize = 6;
-  a.dag = bakeGrid(rays, a.grid, a.options);
-  b.dag = bakeGrid(rays, b.grid, b.options);
+  a.dag = bakeWith(scene_, a.grid, a.options);
+  b.dag = bakeWith(scene_, b.grid, b.options);
   a.sceneHash = b.sceneHash = sceneHash(scene_);
   EXPECT_EQ(encodeCpvs(a, true), encodeCpvs(b, true));
 }

@@ -14,6 +14,7 @@
 #include <limits>
 #include <thread>
 
+#include "scene_testing.h"
 #include "cpvs/scene/boxes.h"
 #include "cpvs/scene/import.h"
 #include "cpvs/scene/obj_writer.h"
@@ -30,6 +31,9 @@
 
 namespace cpvs {
 namespace {
+
+using testing::bakeTileWith;
+using testing::bakeWith;
 
 namespace fs = std::filesystem;
 namespace pb = ::cpvs::v1;
@@ -360,8 +364,7 @@ struct SuiteState {
     OrthoGrid grid = net::fromProto(lease.grid());
     if (otherLight) grid = makeGrid(scene, LightFrame::fromDirection({-0.6, -1, 0.5}), grid.log2Resolution);
     BakeOptions options = net::fromProto(lease.options());
-    RayScene rays(scene, grid.origin);
-    std::vector<uint8_t> bytes = encodeSubDag(bakeTile(rays, grid, tileX, tileY, options));
+    std::vector<uint8_t> bytes = encodeSubDag(bakeTileWith(scene, grid, tileX, tileY, options));
     return std::string(bytes.begin(), bytes.end());
   }
 };

@@ -143,10 +143,12 @@ TEST_F(FarmTest, OneAndThreeWorkersGiveTheLocalBytes) {
     EXPECT_NE(workers_[size_t(w)]->log().find("returned"), std::string::npos) << "worker " << w + 1;
   EXPECT_NE(workers_[1]->log().find("1 slot(s), 1 thread(s)"), std::string::npos) << workers_[1]->log();
 
-  // The worker built the scene's BVH once, not once per tile or per job.
+  // The worker prepared the scene once, not once per tile or per job.
   std::string w1 = workers_[0]->log();
   size_t builds = 0;
-  for (size_t at = w1.find("BVH of scene"); at != std::string::npos; at = w1.find("BVH of scene", at + 1)) ++builds;
+  for (size_t at = w1.find("prepared for the raster renderer"); at != std::string::npos;
+       at = w1.find("prepared for the raster renderer", at + 1))
+    ++builds;
   EXPECT_EQ(builds, 1u) << w1;
 
   // Submitting again with a known request id returns the same job, without a new bake.

@@ -8,6 +8,7 @@
 #include <numbers>
 #include <random>
 
+#include "scene_testing.h"
 #include "cpvs/scene/boxes.h"
 #include "cpvs/base/error.h"
 #include "cpvs/bake/bake.h"
@@ -19,6 +20,9 @@
 
 namespace cpvs {
 namespace {
+
+using testing::bakeTileWith;
+using testing::bakeWith;
 
 struct Baked {
   CpvsArtifact art;
@@ -33,7 +37,7 @@ Baked bakeAndVerify(const Scene& scene, const Vec3& dir, int log2R, uint64_t sam
   b.art.options.closed = closed;
   b.art.options.log2TileSize = std::min(log2R, 6);
   RayScene rays(scene, b.art.grid.origin);
-  b.art.dag = bakeGrid(rays, b.art.grid, b.art.options);
+  b.art.dag = bakeWith(scene, b.art.grid, b.art.options);
   b.art.sceneHash = sceneHash(scene);
   ShadowQuery q(b.art.grid, PackedDag(b.art.dag));
   b.verify = verifyArtifact(q, b.art.options.closed, scene, rays, samples, 7);
@@ -217,7 +221,7 @@ TEST(HardCases, SelfIntersectingClosedMeshes) {
     art.options.exit = exit;
     art.options.log2TileSize = 6;
     RayScene rays(s, art.grid.origin);
-    art.dag = bakeGrid(rays, art.grid, art.options);
+    art.dag = bakeWith(s, art.grid, art.options);
     ShadowQuery q(art.grid, PackedDag(art.dag));
     VerifyResult r = verifyArtifact(q, art.options.closed, s, rays, 8000, 3);
     EXPECT_EQ(r.mismatchElsewhere, 0u) << "exit " << int(exit);
@@ -244,14 +248,13 @@ TEST(HardCases, OpenMeshesForcedClosed) {
 TEST(HardCases, TileSeams) {
   Scene city = openScene("city:3:2");
   OrthoGrid grid = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
-  RayScene rays(city, grid.origin);
   BakeOptions whole;
   whole.log2TileSize = 8;
-  Dag reference = bakeGrid(rays, grid, whole);
+  Dag reference = bakeWith(city, grid, whole);
   for (int log2T : {3, 4, 5, 7}) {
     BakeOptions tiled = whole;
     tiled.log2TileSize = log2T;
-    Dag dag = bakeGrid(rays, grid, tiled);
+    Dag dag = bakeWith(city, grid, tiled);
     const uint64_t T = uint64_t(1) << log2T, R = grid.resolution();
     uint64_t differ = 0;
     for (uint64_t seam = T; seam < R; seam += T)
@@ -292,7 +295,7 @@ TEST(HardCases, AddressingAtTwoToThe18And20) {
   BakeOptions opt;
   opt.log2TileSize = 9;
   const uint64_t tile = (uint64_t(1) << 9) / 2;  // tile index in the middle
-  Dag sub = bakeTile(rays, g, tile, tile, opt);
+  Dag sub = bakeTileWith(city, g, tile, tile, opt);
   EXPECT_EQ(sub.roots.size(), uint64_t(1) << 9);
   EXPECT_GT(sub.nodeCount(), 0u);
   // Voxels of the tile whose exact visibility is the same at their centre and at every

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <thread>
 
+#include "scene_testing.h"
 #include "coordinator/coordinator.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/base/error.h"
@@ -26,6 +27,9 @@
 
 namespace cpvs {
 namespace {
+
+using testing::bakeTileWith;
+using testing::bakeWith;
 
 namespace fs = std::filesystem;
 namespace pb = ::cpvs::v1;
@@ -74,8 +78,7 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   local.grid = makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
   local.options.log2TileSize = 6;
   local.sceneHash = sceneHash(scene);
-  RayScene rays(scene, local.grid.origin);
-  local.dag = bakeGrid(rays, local.grid, local.options);
+  local.dag = bakeWith(scene, local.grid, local.options);
   EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true));
 
   // A refused call reaches the client as its kind, through the library.

@@ -63,4 +63,14 @@ void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode clos
     }
 }
 
+Dag bakeWith(const Scene& scene, const OrthoGrid& grid, const BakeOptions& options) {
+  const BakeScene prepared(scene, grid, options.renderer);
+  return bakeGrid(prepared, options);
+}
+
+Dag bakeTileWith(const Scene& scene, const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options) {
+  const BakeScene prepared(scene, grid, options.renderer);
+  return bakeTile(prepared, tileX, tileY, options);
+}
+
 }  // namespace cpvs::testing

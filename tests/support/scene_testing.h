@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "cpvs/bake/bake.h"
 #include "cpvs/bake/texel_slices.h"
 #include "cpvs/light/frame.h"
 #include "cpvs/light/ortho_grid.h"
@@ -40,5 +41,10 @@ void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode close
 /// Brute-force depths of the whole grid; `ambiguous` marks texels to leave out.
 void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
                              TexelSlices& out, std::vector<uint8_t>& ambiguous);
+
+/// bakeGrid of the scene prepared for the options' renderer.
+Dag bakeWith(const Scene& scene, const OrthoGrid& grid, const BakeOptions& options);
+/// bakeTile of the scene prepared for the options' renderer.
+Dag bakeTileWith(const Scene& scene, const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options);
 
 }  // namespace cpvs::testing

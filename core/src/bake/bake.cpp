@@ -6,7 +6,6 @@
 #include "cpvs/bake/column_masks.h"
 #include "cpvs/bake/insert_tile.h"
 #include "cpvs/bake/min_max_pyramid.h"
-#include "cpvs/bake/texel_slices.h"
 #include "cpvs/base/error.h"
 #include "cpvs/dag/compress.h"
 #include "cpvs/dag/assemble_roots.h"
@@ -15,23 +14,22 @@
 
 namespace cpvs {
 
-Dag bakeTile(const RayScene& rays, const OrthoGrid& grid, uint64_t tileX, uint64_t tileY,
-             const BakeOptions& options, StageTimes* times) {
+Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
+             StageTimes* times) {
   StageTimes local;
   StageTimes& st = times ? *times : local;
+  const OrthoGrid& grid = scene.grid();
   const int t = TilePlan(grid.log2Resolution, options.log2TileSize).log2TileSize();
   const uint32_t T = uint32_t(1) << t;
   const uint32_t R = uint32_t(grid.resolution());
 
-  auto start = std::chrono::steady_clock::now();
-  TexelSlices depths;
-  renderTexelSlices(rays, grid, options.closed, options.exit, tileX * T, tileY * T, T, T, depths);
-  st.add("render", secondsSince(start));
-
-  start = std::chrono::steady_clock::now();
   ColumnMasks masks;
-  buildColumnMasks(depths, T, T, R, options.undefinedRule, masks);
-  depths = TexelSlices{};
+  if (scene.touchesTile(tileX, tileY, t)) {
+    scene.columnMasks(options, tileX * T, tileY * T, T, T, masks, st);
+  } else {
+    litColumnMasks(T, T, R, masks);
+  }
+  auto start = std::chrono::steady_clock::now();
   MinMaxPyramid pyramid;
   buildMinMaxPyramid(masks, pyramid);
   st.add("masks", secondsSince(start));
@@ -50,11 +48,10 @@ Dag bakeTile(const RayScene& rays, const OrthoGrid& grid, uint64_t tileX, uint64
   return dag;
 }
 
-Dag bakeGrid(const RayScene& rays, const OrthoGrid& grid, const BakeOptions& options, StageTimes* times,
-             const ProgressFn& progress) {
+Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* times, const ProgressFn& progress) {
   StageTimes local;
   StageTimes& st = times ? *times : local;
-  const TilePlan plan(grid.log2Resolution, options.log2TileSize);
+  const TilePlan plan(scene.grid().log2Resolution, options.log2TileSize);
   const uint64_t total = plan.count();
   StreamingMerger merger(options.compress);
   if (progress && !progress("bake", 0, total)) throw Cancelled();
@@ -62,7 +59,7 @@ Dag bakeGrid(const RayScene& rays, const OrthoGrid& grid, const BakeOptions& opt
   // tiles complete, so at most ~log2(tiles) partial DAGs are held.
   for (uint64_t i = 0; i < total; ++i) {
     const TileCoord tile = plan.tile(i);
-    Dag sub = bakeTile(rays, grid, tile.x, tile.y, options, &st);
+    Dag sub = bakeTile(scene, tile.x, tile.y, options, &st);
     auto start = std::chrono::steady_clock::now();
     merger.add(std::move(sub));
     st.add("merge", secondsSince(start));

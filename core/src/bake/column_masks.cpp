@@ -11,7 +11,9 @@ namespace {
 
 constexpr uint64_t kAll = ~uint64_t(0);
 
-// Appends the transitions of one 8x8 column. The new rule (§3.4) starts shadowing only
+}  // namespace
+
+// The new rule (§3.4) starts shadowing only
 // where some texel must be shadowed (the smallest hi), then shadows every texel that may be
 // shadowed (lo <= k) and keeps that mask until a lit texel must turn (the next smallest hi
 // among the lit bits). The old rule shadows every texel as soon as it may be, once the
@@ -44,7 +46,18 @@ void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R,
   }
 }
 
-}  // namespace
+void litColumnMasks(uint32_t width, uint32_t height, uint32_t R, ColumnMasks& out) {
+  if (width % 8 || height % 8) throw std::invalid_argument("litColumnMasks: size not a multiple of 8");
+  out.columnsX = width / 8;
+  out.columnsY = height / 8;
+  out.resolution = R;
+  const size_t n = size_t(out.columnsX) * out.columnsY;
+  out.begin.assign(n + 1, 0);
+  out.slice.clear();
+  out.mask.clear();
+  out.firstShadow.assign(n, R);
+  out.fullShadow.assign(n, R);
+}
 
 void buildColumnMasks(const TexelSlices& depths, uint32_t width, uint32_t height, uint32_t R,
                       UndefinedRule rule, ColumnMasks& out) {

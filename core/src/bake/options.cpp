@@ -21,7 +21,7 @@ int log2TileSizeOf(uint64_t texels, const std::string& what) {
 std::string describe(const BakeOptions& o) {
   return std::string("closed ") + optionName(o.closed) + ", exit " + optionName(o.exit) + ", cull " +
          (o.cull ? "on" : "off") + ", compress " + optionName(o.compress) + ", undefined " +
-         optionName(o.undefinedRule) + ", tile " + std::to_string(uint64_t(1) << o.log2TileSize) +
+         optionName(o.undefinedRule) + ", renderer " + optionName(o.renderer) + ", tile " + std::to_string(uint64_t(1) << o.log2TileSize) +
          (o.hash == HashKind::Xxh3 ? "" : std::string(", hash ") + optionName(o.hash));
 }
 

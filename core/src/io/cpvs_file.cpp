@@ -39,7 +39,8 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   w.put<uint8_t>(uint8_t(o.compress));
   w.put<uint8_t>(uint8_t(o.undefinedRule));
   w.put<uint8_t>(uint8_t(o.hash));
-  w.put<uint16_t>(0);
+  w.put<uint8_t>(uint8_t(o.renderer));  // 0 (embree) in files written before the rasterizer
+  w.put<uint8_t>(0);
   w.put<int32_t>(o.log2TileSize);
   w.put(a.sceneHash.lo);
   w.put(a.sceneHash.hi);
@@ -83,7 +84,9 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
   o.compress = CompressMode(opt[3]);
   o.undefinedRule = UndefinedRule(opt[4]);
   o.hash = HashKind(opt[5]);
-  h.get<uint16_t>("options");
+  const uint8_t renderer = h.get<uint8_t>("options");
+  if (!isOptionValue<Renderer>(renderer) || h.get<uint8_t>("options") != 0) h.fail("options hold an unknown value");
+  o.renderer = Renderer(renderer);
   o.log2TileSize = h.get<int32_t>("options");
   if (o.log2TileSize < kMinLog2TileSize || o.log2TileSize > kMaxLog2TileSize)
     h.fail("tile size 2^" + std::to_string(o.log2TileSize) + " is out of range");

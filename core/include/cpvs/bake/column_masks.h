@@ -33,4 +33,14 @@ struct ColumnMasks {
 void buildColumnMasks(const TexelSlices& depths, uint32_t width, uint32_t height, uint32_t R,
                       UndefinedRule rule, ColumnMasks& out);
 
+/// Appends the transitions of one 8x8 column, texel (tx, ty) at ty * 8 + tx: lo is the
+/// first undefined slice, hi the first shadowed one (hi >= lo). Returns firstShadow and
+/// fullShadow as ColumnMasks stores them. What buildColumnMasks runs per column.
+void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, UndefinedRule rule,
+                       std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
+                       uint32_t& fullShadow);
+
+/// The masks of a width x height block that no surface touches: every column all lit.
+void litColumnMasks(uint32_t width, uint32_t height, uint32_t R, ColumnMasks& out);
+
 }  // namespace cpvs

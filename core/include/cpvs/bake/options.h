@@ -30,6 +30,13 @@ enum class UndefinedRule : uint8_t {
   Old = 1,  // Sintorn et al.: lit or shadowed where homogeneous, else shadowed
 };
 
+/// How the depth maps are rendered. Both follow the same classification and tie rules;
+/// they differ only on texels whose ray grazes an edge or a slice boundary.
+enum class Renderer : uint8_t {
+  Embree = 0,  // a ray per texel through Embree's BVH (robust mode, float rays)
+  Raster = 1,  // exact rasterization: snapped vertices, integer edge functions, top-left rule
+};
+
 enum class CompressMode : uint8_t {
   TopDown = 0,   // §4.2: dedupe from the roots down, never visiting subtrees of duplicates
   BottomUp = 1,  // §4.1: sort and dedupe every level from the leaves up
@@ -54,6 +61,7 @@ struct BakeOptions {
   UndefinedRule undefinedRule = UndefinedRule::New;
   int log2TileSize = kDefaultLog2TileSize;
   HashKind hash = HashKind::Xxh3;
+  Renderer renderer = Renderer::Raster;
   constexpr bool operator==(const BakeOptions&) const = default;
 };
 
@@ -80,6 +88,11 @@ template <>
 struct OptionNames<CompressMode> {
   static constexpr const char* kFlag = "compress";
   static constexpr std::array<const char*, 3> kNames{"topdown", "bottomup", "none"};
+};
+template <>
+struct OptionNames<Renderer> {
+  static constexpr const char* kFlag = "renderer";
+  static constexpr std::array<const char*, 2> kNames{"embree", "raster"};
 };
 template <>
 struct OptionNames<HashKind> {

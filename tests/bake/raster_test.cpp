@@ -1,0 +1,268 @@
+// The rasterizer against its references: the double-precision brute force (every ray
+// against every triangle) on every texel it does not mark ambiguous, the Embree renderer,
+// the exact one-texel coverage test, and its own fused masks against the unfused path.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+#include "cpvs/bake/column_masks.h"
+#include "cpvs/bake/raster_scene.h"
+#include "cpvs/bake/raster_slices.h"
+#include "cpvs/bake/texel_slices.h"
+#include "cpvs/scene/boxes.h"
+#include "scene_testing.h"
+
+namespace cpvs {
+namespace {
+
+using testing::bruteForceDepths;
+
+struct Case {
+  std::string name;
+  std::string relative;  // under shared/scenes, or a generator ("city:4:7")
+  Vec3 sun;
+};
+
+Scene openCase(const Case& c) {
+  if (c.relative.find(':') != std::string::npos) return openScene(c.relative);
+  return openScene(testing::sharedScenesDir() + "/" + c.relative);
+}
+
+struct Comparison {
+  uint64_t mismatches = 0, ambiguous = 0, hit = 0, interior = 0;
+};
+
+// Compares rasterized slices with the brute force over the whole grid.
+Comparison compareWithBruteForce(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
+                                 const std::string& what) {
+  RasterScene raster(scene, grid);
+  const uint64_t R = grid.resolution();
+  TexelSlices got, want;
+  std::vector<uint8_t> ambiguous;
+  rasterTexelSlices(raster, closed, exit, 0, 0, uint32_t(R), uint32_t(R), got);
+  bruteForceDepths(scene, grid, closed, exit, want, ambiguous);
+  Comparison c;
+  for (uint64_t i = 0; i < R * R; ++i) {
+    c.hit += want.firstUndefined[i] < R;
+    c.interior += want.firstShadowed[i] > want.firstUndefined[i];
+    if (ambiguous[i]) {
+      ++c.ambiguous;
+      continue;
+    }
+    if (got.firstUndefined[i] != want.firstUndefined[i] || got.firstShadowed[i] != want.firstShadowed[i]) {
+      if (++c.mismatches <= 5)
+        ADD_FAILURE() << what << " texel " << i % R << "," << i / R << ": raster " << got.firstUndefined[i] << "/"
+                      << got.firstShadowed[i] << ", brute force " << want.firstUndefined[i] << "/"
+                      << want.firstShadowed[i];
+    }
+  }
+  return c;
+}
+
+class RasterScenes : public ::testing::TestWithParam<Case> {
+ protected:
+  void SetUp() override {
+    if (GetParam().relative.find(':') == std::string::npos && testing::sharedScenesDir().empty())
+      GTEST_SKIP() << "shared/scenes is not beside the project: skipping " << GetParam().relative;
+    scene_ = openCase(GetParam());
+  }
+  Scene scene_;
+};
+
+TEST_P(RasterScenes, MatchesBruteForceOnEveryUnambiguousTexel) {
+  for (ExitMode exit : {ExitMode::Exact, ExitMode::Approx}) {
+    const OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 6);
+    const Comparison c = compareWithBruteForce(scene_, grid, ClosedMode::Auto, exit, optionName(exit));
+    EXPECT_EQ(c.mismatches, 0u);
+    EXPECT_LT(c.ambiguous, 64u * 64u / 50u);
+    EXPECT_GT(c.hit, 64u * 64u / 10u);
+  }
+}
+
+// Raster and Embree agree at a resolution the brute force can't reach, except on texels
+// where float rays and exact coverage may legitimately differ: a ray within a hair of an
+// edge or a slice boundary. Those must stay rare.
+TEST_P(RasterScenes, AgreesWithTheRayTracer) {
+  const OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 9);
+  RasterScene raster(scene_, grid);
+  RayScene rays(scene_, grid.origin);
+  const uint64_t R = grid.resolution();
+  for (ExitMode exit : {ExitMode::Exact, ExitMode::Approx}) {
+    TexelSlices a, b;
+    rasterTexelSlices(raster, ClosedMode::Auto, exit, 0, 0, uint32_t(R), uint32_t(R), a);
+    renderTexelSlices(rays, grid, ClosedMode::Auto, exit, 0, 0, uint32_t(R), uint32_t(R), b);
+    uint64_t differ = 0, hit = 0;
+    for (uint64_t i = 0; i < R * R; ++i) {
+      hit += b.firstUndefined[i] < R;
+      differ += a.firstUndefined[i] != b.firstUndefined[i] || a.firstShadowed[i] != b.firstShadowed[i];
+    }
+    EXPECT_GT(hit, R * R / 10);
+    EXPECT_LE(differ, R * R / 1000) << optionName(exit) << ": " << differ << " of " << R * R << " texels differ";
+  }
+}
+
+// The fused path (masks built per block) gives the masks of the unfused one, on tiles
+// that cut through bins.
+TEST_P(RasterScenes, FusedMasksEqualMasksOfSlices) {
+  const OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
+  RasterScene raster(scene_, grid);
+  for (UndefinedRule rule : {UndefinedRule::New, UndefinedRule::Old})
+    for (auto [x0, y0, w, h] : {std::array<uint32_t, 4>{0, 0, 256, 256}, {72, 16, 120, 200}}) {
+      TexelSlices slices;
+      rasterTexelSlices(raster, ClosedMode::Auto, ExitMode::Exact, x0, y0, w, h, slices);
+      ColumnMasks want, got;
+      buildColumnMasks(slices, w, h, uint32_t(grid.resolution()), rule, want);
+      rasterColumnMasks(raster, ClosedMode::Auto, ExitMode::Exact, rule, x0, y0, w, h, got);
+      EXPECT_EQ(got.begin, want.begin);
+      EXPECT_EQ(got.slice, want.slice);
+      EXPECT_EQ(got.mask, want.mask);
+      EXPECT_EQ(got.firstShadow, want.firstShadow);
+      EXPECT_EQ(got.fullShadow, want.fullShadow);
+      EXPECT_FALSE(want.slice.empty());
+    }
+}
+
+// A texel's result does not depend on the tile that rendered it.
+TEST_P(RasterScenes, TilesAgreeWithTheWholeGrid) {
+  const OrthoGrid grid = makeGrid(scene_, LightFrame::fromDirection(GetParam().sun), 8);
+  RasterScene raster(scene_, grid);
+  TexelSlices whole, part;
+  rasterTexelSlices(raster, ClosedMode::Auto, ExitMode::Exact, 0, 0, 256, 256, whole);
+  for (uint32_t y0 = 0; y0 < 256; y0 += 96)
+    for (uint32_t x0 = 0; x0 < 256; x0 += 56) {
+      const uint32_t w = std::min(56u, 256 - x0), h = std::min(96u, 256 - y0);
+      rasterTexelSlices(raster, ClosedMode::Auto, ExitMode::Exact, x0, y0, w, h, part);
+      for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 0; x < w; ++x) {
+          ASSERT_EQ(part.firstUndefined[y * w + x], whole.firstUndefined[(y0 + y) * 256 + x0 + x]);
+          ASSERT_EQ(part.firstShadowed[y * w + x], whole.firstShadowed[(y0 + y) * 256 + x0 + x]);
+        }
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Scenes, RasterScenes,
+    ::testing::Values(Case{"city", "city:4:7", {0.35, -1, 0.25}}, Case{"city_straight_down", "city:4:7", {0, -1, 0}},
+                      Case{"bunny", "stanford-bunny/bunny.obj", {0.3, -0.8, -0.5}},
+                      Case{"duck", "assimp-testmodels/duck.dae", {-1, -0.4, 0.2}},
+                      Case{"teapots_open", "assimp-testmodels/teapots.DAE", {0.2, -1, 0.6}},
+                      Case{"spider_mixed", "assimp-testmodels/spider.obj", {0.5, -1, 0.1}},
+                      Case{"shouse_open", "openarena/oa_shouse.obj", {0.4, -1, 0.3}}),
+    [](const auto& info) { return info.param.name; });
+
+Scene translated(Scene scene, const Vec3& by) {
+  for (Vec3& p : scene.positions) p = p + by;
+  return scene;
+}
+
+// Far from the world origin (1e7), with grazing and axis-aligned suns, the projection in
+// double keeps the rasterizer on the brute force.
+TEST(Raster, FarFromTheOriginGrazingAndAxisAlignedSuns) {
+  const Scene city = translated(openScene("city:3:5"), {1e7, -3e6, 2e7});
+  for (Vec3 sun : {Vec3{0, -1, 0}, Vec3{1, 0, 0}, Vec3{0.999, -0.04, 0.02}, Vec3{0.3, -0.02, -1}, Vec3{1e-9, -1, 1e-9}}) {
+    const OrthoGrid grid = makeGrid(city, LightFrame::fromDirection(sun), 6);
+    for (ExitMode exit : {ExitMode::Exact, ExitMode::Approx}) {
+      const Comparison c = compareWithBruteForce(city, grid, ClosedMode::Auto, exit, "far city");
+      EXPECT_EQ(c.mismatches, 0u) << sun.x << "," << sun.y << "," << sun.z;
+      EXPECT_GT(c.hit, 64u * 64u / 20u);
+      EXPECT_LT(c.ambiguous, 64u * 64u / 10u);
+    }
+  }
+}
+
+// A grid that shows only part of the scene: triangles reaching far outside it are
+// clipped to the guard band, and what the grid shows is unchanged.
+TEST(Raster, TrianglesFarOutsideTheGridAreClipped) {
+  const Scene city = openScene("city:4:7");
+  OrthoGrid grid = makeGrid(city, LightFrame::fromDirection({0.35, -1, 0.25}), 6);
+  // Zoom into the middle: the ground and many buildings now span several grid widths.
+  grid.u0 += grid.extent * 0.45;
+  grid.v0 += grid.extent * 0.45;
+  grid.extent *= 0.01;
+  const Comparison c = compareWithBruteForce(city, grid, ClosedMode::Auto, ExitMode::Exact, "zoomed city");
+  EXPECT_EQ(c.mismatches, 0u);
+  EXPECT_EQ(c.hit, 64u * 64u) << "the ground covers the whole zoomed grid";
+}
+
+// Exactly once: on a mesh whose vertices lie on texel centres (so centres fall on edges
+// and vertices everywhere), every covered centre belongs to exactly one triangle.
+TEST(Raster, SharedEdgesAndVerticesCoverACentreExactlyOnce) {
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 4; ++trial) {
+    // A height field seen from above: an 8 x 8 grid of quads, split along random diagonals,
+    // its vertices jittered only in height, so they project onto texel centres.
+    Scene s;
+    const int n = 8;
+    std::uniform_real_distribution<double> height(0, 0.3);
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) s.positions.push_back({double(i), height(rng), double(j)});
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
+        if (rng() % 2) {
+          s.indices.insert(s.indices.end(), {a, c, b, b, c, d});
+        } else {
+          s.indices.insert(s.indices.end(), {a, c, d, a, d, b});
+        }
+      }
+    finalizeScene(s);
+    OrthoGrid grid = makeGrid(s, LightFrame::fromDirection({0, -1, 0}), 6);
+    // Put texel centres exactly on the mesh's vertices: 4 texels per quad, offset by half.
+    grid.extent = 16.0;
+    grid.u0 = std::floor(grid.u0) - 0.125 - 4;
+    grid.v0 = std::floor(grid.v0) - 0.125 - 4;
+    RasterScene raster(s, grid);
+    uint64_t once = 0, twice = 0;
+    for (uint64_t y = 0; y < 64; ++y)
+      for (uint64_t x = 0; x < 64; ++x) {
+        int count = 0;
+        for (uint32_t t = 0; t < raster.triangles().size(); ++t) count += raster.covers(t, x, y);
+        once += count == 1;
+        twice += count > 1;
+      }
+    EXPECT_EQ(twice, 0u);
+    EXPECT_GT(once, 500u);
+    // And the block kernel covers exactly the texels the one-texel test does.
+    TexelSlices got;
+    rasterTexelSlices(raster, ClosedMode::Off, ExitMode::Exact, 0, 0, 64, 64, got);
+    for (uint64_t y = 0; y < 64; ++y)
+      for (uint64_t x = 0; x < 64; ++x) {
+        bool covered = false;
+        for (uint32_t t = 0; t < raster.triangles().size(); ++t) covered = covered || raster.covers(t, x, y);
+        ASSERT_EQ(got.firstUndefined[y * 64 + x] < 64, covered) << x << "," << y;
+      }
+  }
+}
+
+// The empty-tile test is conservative: a tile it calls untouched renders to no hit in
+// both renderers, and on a scene with empty corners it finds some.
+TEST(Raster, UntouchedTilesHaveNoHit) {
+  Scene s;
+  appendBox(s, {0, 0, 0}, {1, 1, 1});
+  appendBox(s, {3, 0, 3}, {4, 2, 4});
+  finalizeScene(s);
+  const OrthoGrid grid = makeGrid(s, LightFrame::fromDirection({0.2, -1, 0.1}), 8);
+  RasterScene raster(s, grid);
+  RayScene rays(s, grid.origin);
+  uint64_t untouched = 0, touched = 0;
+  for (uint32_t ty = 0; ty < 256; ty += 32)
+    for (uint32_t tx = 0; tx < 256; tx += 32) {
+      TexelSlices a, b;
+      rasterTexelSlices(raster, ClosedMode::Auto, ExitMode::Exact, tx, ty, 32, 32, a);
+      renderTexelSlices(rays, grid, ClosedMode::Auto, ExitMode::Exact, tx, ty, 32, 32, b);
+      const bool anyHit = std::any_of(a.firstUndefined.begin(), a.firstUndefined.end(), [](uint32_t v) { return v < 256; }) ||
+                          std::any_of(b.firstUndefined.begin(), b.firstUndefined.end(), [](uint32_t v) { return v < 256; });
+      if (raster.touchesRectangle(tx, ty, 32, 32)) {
+        ++touched;
+      } else {
+        ++untouched;
+        EXPECT_FALSE(anyHit) << "tile " << tx << "," << ty;
+      }
+    }
+  EXPECT_GT(untouched, 10u);
+  EXPECT_GT(touched, 10u);
+}
+
+}  // namespace
+}  // namespace cpvs
