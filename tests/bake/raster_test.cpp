@@ -151,6 +151,49 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"shouse_open", "openarena/oa_shouse.obj", {0.4, -1, 0.3}}),
     [](const auto& info) { return info.param.name; });
 
+// The crossing order both renderers share, against its plain statement: std::sort, then
+// std::stable_partition of each tie run, then the same-kind duplicates dropped.
+TEST(CrossingRules, OrderEqualsThePlainStatement) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 20000; ++trial) {
+    const int n = int(rng() % (trial % 50 == 0 ? 60 : 8));
+    std::vector<RayHit> hits(static_cast<size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      // Few distinct depths, so that ties and near-ties are common.
+      const double t = double(rng() % 6) + (rng() % 3 == 0 ? 1e-9 * double(rng() % 3) : 0.0);
+      hits[size_t(i)] = RayHit{t, uint32_t(rng() % 1000), rng() % 2 == 0, rng() % 3 != 0};
+    }
+    std::vector<RayHit> want = hits;
+    std::sort(want.begin(), want.end(), [](const RayHit& a, const RayHit& b) {
+      if (a.t != b.t) return a.t < b.t;
+      if (a.front != b.front) return a.front;
+      return a.triangle < b.triangle;
+    });
+    const double tie = 1e-8;
+    for (size_t i = 0; i < want.size();) {
+      size_t j = i + 1;
+      while (j < want.size() && want[j].t - want[j - 1].t <= tie) ++j;
+      std::stable_partition(want.begin() + ptrdiff_t(i), want.begin() + ptrdiff_t(j), [](const RayHit& h) { return h.front; });
+      i = j;
+    }
+    std::vector<RayHit> kept;
+    for (const RayHit& h : want) {
+      bool dup = false;
+      for (size_t j = kept.size(); j-- > 0 && std::abs(h.t - kept[j].t) <= tie;)
+        dup = dup || (kept[j].front == h.front && kept[j].closed == h.closed);
+      if (!dup) kept.push_back(h);
+    }
+    const int got = orderCrossings(hits.data(), n, tie);
+    ASSERT_EQ(size_t(got), kept.size());
+    for (size_t i = 0; i < kept.size(); ++i) {
+      ASSERT_EQ(hits[i].t, kept[i].t);
+      ASSERT_EQ(hits[i].triangle, kept[i].triangle);
+      ASSERT_EQ(hits[i].front, kept[i].front);
+      ASSERT_EQ(hits[i].closed, kept[i].closed);
+    }
+  }
+}
+
 Scene translated(Scene scene, const Vec3& by) {
   for (Vec3& p : scene.positions) p = p + by;
   return scene;

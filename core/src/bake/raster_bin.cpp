@@ -88,6 +88,163 @@ HWY_INLINE uint64_t blockDepths(const RasterTriangle& r, int64_t bx, int64_t by,
   return mask & valid;
 }
 
+// How one texel's crossings were ordered and which decided its slices, kept so that the
+// next texels of the block, crossed by the same triangles, are resolved without ordering
+// them again. The rule (orderCrossings, then exitCrossing) depends only on how the
+// crossings fall into runs closer than the tie distance: runs of one or two crossings,
+// in the same sequence, with the same first crossing in each pair of the same kind (a
+// pair of an enter and an exit is ordered enter first whichever is nearer, which is what
+// coinciding surfaces, a box standing on another, need). Texels where three crossings
+// chain within the tie distance, or with many crossings, always take the full rule.
+struct LaneOrder {
+  static constexpr int kMax = 16;
+  int count = 0;                        // 0: nothing to repeat
+  uint32_t triangles[kMax];             // the crossings' triangles, in the order gathered
+  int runs = 0;
+  uint8_t first[kMax], second[kMax];    // per run, positions in gathered order (second: pairs)
+  bool pair[kMax], pairOrdered[kMax];   // a run of two; its order must repeat (same kind)
+  int enter = 0, exit = -1;             // positions (in gathered order) of the deciding crossings
+
+  // True when `h` has the same triangles as the texel resolved last, in the same runs.
+  bool repeats(const RayHit* h, int n, double tie) const {
+    if (n != count) return false;
+    for (int i = 0; i < n; ++i)
+      if (h[i].triangle != triangles[i]) return false;
+    double previous = 0;
+    for (int r = 0; r < runs; ++r) {
+      double lo = h[first[r]].t, hi = lo;
+      if (pair[r]) {
+        const RayHit& a = h[first[r]];
+        const RayHit& b = h[second[r]];
+        lo = std::min(a.t, b.t);
+        hi = std::max(a.t, b.t);
+        if (!(hi - lo <= tie)) return false;
+        if (pairOrdered[r] && !closerCrossing(a, b)) return false;
+      }
+      if (r > 0 && !(lo - previous > tie)) return false;
+      previous = hi;
+    }
+    return true;
+  }
+
+  // The full rule for `h` (reordered in place), remembered for the next texels when its
+  // runs allow it.
+  void resolve(RayHit* h, int n, double tie, bool exact, const TexelMapping& texels, uint32_t& lo, uint32_t& hi) {
+    count = 0;
+    if (n > kMaxHitsPerRay) {  // too many crossings: keep the enter depth only
+      std::swap(h[0], *std::min_element(h, h + n, [](const RayHit& a, const RayHit& c) { return a.t < c.t; }));
+      h[0].closed = false;
+      classifyTexel(h, 1, exact, texels, lo, hi);
+      return;
+    }
+    bool repeatable = n <= kMax;
+    if (repeatable) {
+      uint8_t sorted[kMax];
+      for (int i = 0; i < n; ++i) {
+        triangles[i] = h[i].triangle;
+        sorted[i] = uint8_t(i);
+      }
+      for (int i = 1; i < n; ++i)
+        for (int j = i; j > 0 && closerCrossing(h[sorted[j]], h[sorted[j - 1]]); --j) std::swap(sorted[j], sorted[j - 1]);
+      runs = 0;
+      for (int k = 0; k < n && repeatable;) {
+        const bool joined = k + 1 < n && h[sorted[k + 1]].t - h[sorted[k]].t <= tie;
+        repeatable = !(joined && k + 2 < n && h[sorted[k + 2]].t - h[sorted[k + 1]].t <= tie);
+        first[runs] = sorted[k];
+        second[runs] = joined ? sorted[k + 1] : 0;
+        pair[runs] = joined;
+        pairOrdered[runs] = joined && h[sorted[k]].front == h[sorted[k + 1]].front;
+        ++runs;
+        k += joined ? 2 : 1;
+      }
+    }
+    const int m = orderCrossings(h, n, tie);
+    classifyTexel(h, m, exact, texels, lo, hi);
+    if (!repeatable) return;
+    const int decided = exitCrossing(h, m, exact);
+    auto position = [&](uint32_t triangle) { return int(std::find(triangles, triangles + n, triangle) - triangles); };
+    enter = position(h[0].triangle);
+    exit = decided < 0 ? -1 : position(h[decided].triangle);
+    count = n;
+  }
+};
+
+// The slice of each depth, as TexelMapping::slice computes it (the same IEEE operations).
+template <class D, class V>
+HWY_INLINE V slicesOf(D d, V t, const TexelMapping& texels) {
+  const auto cells = hn::Set(d, double(texels.side()));
+  auto k = hn::Floor(hn::Mul(t, hn::Set(d, texels.slicesPerUnit())));
+  k = hn::IfThenElse(hn::Ge(k, hn::Zero(d)), k, hn::Zero(d));  // and NaN
+  return hn::IfThenElse(hn::Ge(k, cells), cells, k);
+}
+
+// A block every one of whose `n` fragments covers all 64 texels (inside a few large
+// triangles: most blocks). Texel 0 is ordered by the full rule; every texel whose
+// crossings keep that order and those ties takes its deciding crossings, 64 texels at a
+// time; the others take the full rule.
+HWY_INLINE void resolveUniformBlock(const RasterBinScratch& s, size_t n, const std::vector<RasterTriangle>& triangles,
+                                    ClosedMode closedMode, bool exact, double tie, const TexelMapping& texels,
+                                    std::vector<RayHit>& buffer, uint32_t* lo, uint32_t* hi) {
+  if (buffer.size() < n) buffer.resize(n);
+  auto laneHits = [&](int l) {
+    for (size_t f = 0; f < n; ++f) {
+      const RasterTriangle& r = triangles[s.fragmentTriangle[f]];
+      const bool closed = closedMode == ClosedMode::On || (closedMode == ClosedMode::Auto && r.closed);
+      buffer[f] = RayHit{s.fragmentDepth[64 * f + size_t(l)], r.triangle, r.front, closed};
+    }
+    return buffer.data();
+  };
+  LaneOrder order;
+  order.resolve(laneHits(0), int(n), tie, exact, texels, lo[0], hi[0]);
+  uint64_t rest = ~uint64_t(1);  // texels still to resolve
+  if (order.count != 0) {
+    const hn::ScalableTag<double> d;
+    const hn::Rebind<int32_t, decltype(d)> di;
+    const size_t lanes = hn::Lanes(d);
+    // Per ordered pair: which comes first when the depths are equal.
+    bool firstWhenEqual[LaneOrder::kMax];
+    for (int r = 0; r < order.runs; ++r) {
+      if (!order.pairOrdered[r]) continue;
+      const RasterTriangle& a = triangles[s.fragmentTriangle[order.first[r]]];
+      const RasterTriangle& b = triangles[s.fragmentTriangle[order.second[r]]];
+      firstWhenEqual[r] = a.front != b.front ? a.front : a.triangle < b.triangle;
+    }
+    const double* enter = s.fragmentDepth.data() + 64 * size_t(order.enter);
+    const double* exit = order.exit < 0 ? nullptr : s.fragmentDepth.data() + 64 * size_t(order.exit);
+    const auto tieV = hn::Set(d, tie);
+    auto row = [&](uint8_t position, size_t i) { return hn::LoadU(d, s.fragmentDepth.data() + 64 * size_t(position) + i); };
+    rest = 0;
+    for (size_t i = 0; i < 64; i += lanes) {
+      auto same = hn::FirstN(d, lanes);
+      auto previous = hn::Zero(d);
+      for (int r = 0; r < order.runs; ++r) {
+        auto lo = row(order.first[r], i), hi = lo;
+        if (order.pair[r]) {
+          const auto a = lo, b = row(order.second[r], i);
+          lo = hn::Min(a, b);
+          hi = hn::Max(a, b);
+          same = hn::And(same, hn::Le(hn::Sub(hi, lo), tieV));
+          if (order.pairOrdered[r]) same = hn::And(same, firstWhenEqual[r] ? hn::Le(a, b) : hn::Lt(a, b));
+        }
+        if (r > 0) same = hn::And(same, hn::Gt(hn::Sub(lo, previous), tieV));
+        previous = hi;
+      }
+      const auto loV = slicesOf(d, hn::LoadU(d, enter + i), texels);
+      const auto hiV = exit ? hn::Max(loV, slicesOf(d, hn::LoadU(d, exit + i), texels)) : loV;
+      hn::StoreU(hn::DemoteTo(di, loV), di, reinterpret_cast<int32_t*>(lo + i));
+      hn::StoreU(hn::DemoteTo(di, hiV), di, reinterpret_cast<int32_t*>(hi + i));
+      uint8_t bits[8] = {};
+      hn::StoreMaskBits(d, hn::Not(same), bits);
+      rest |= (uint64_t(bits[0]) & ((uint64_t(1) << std::min<size_t>(lanes, 8)) - 1)) << i;
+    }
+  }
+  for (uint64_t m = rest; m; m &= m - 1) {
+    const int l = std::countr_zero(m);
+    LaneOrder own;
+    own.resolve(laneHits(l), int(n), tie, exact, texels, lo[l], hi[l]);
+  }
+}
+
 void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
   const RasterScene& scene = *job.scene;
   const auto& triangles = scene.triangles();
@@ -95,6 +252,7 @@ void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
   const int64_t one = int64_t(1) << subBits, half = one / 2;
   const TexelMapping texels = scene.grid().texelMapping(scene.grid().origin);
   const uint32_t R = texels.side();
+  const double tie = scene.grid().depthExtent * 1e-6;
   uint32_t counts[65];
   for (uint32_t b = 0; b < job.blocksX * job.blocksY; ++b) {
     const int64_t bx = job.x0 + 8 * int64_t(b % job.blocksX), by = job.y0 + 8 * int64_t(b / job.blocksX);
@@ -117,6 +275,14 @@ void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
       ++fragments;
     }
 
+    uint64_t everywhere = ~uint64_t(0);
+    for (size_t f = 0; f < fragments; ++f) everywhere &= s.fragmentMask[f];
+    if (fragments >= 2 && everywhere == ~uint64_t(0) && fragments <= size_t(LaneOrder::kMax)) {
+      resolveUniformBlock(s, fragments, triangles, job.closed, job.exact, tie, texels, s.hits, job.lo + 64 * size_t(b),
+                          job.hi + 64 * size_t(b));
+      continue;
+    }
+
     // Each texel's crossings, gathered texel by texel (counting, then filling).
     std::fill(counts, counts + 65, 0u);
     for (size_t f = 0; f < fragments; ++f)
@@ -137,26 +303,20 @@ void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
 
     uint32_t* lo = job.lo + 64 * size_t(b);
     uint32_t* hi = job.hi + 64 * size_t(b);
-    const double tie = scene.grid().depthExtent * 1e-6;
+    LaneOrder previous;
     for (int l = 0; l < 64; ++l) {
       RayHit* h = s.hits.data() + counts[l];
-      int n = int(counts[l + 1] - counts[l]);
+      const int n = int(counts[l + 1] - counts[l]);
       if (n == 0) {
         lo[l] = hi[l] = R;
-        continue;
-      }
-      if (n == 1) {
+      } else if (n == 1) {
         lo[l] = hi[l] = texels.slice(h[0].t);
-        continue;
-      }
-      if (n > kMaxHitsPerRay) {  // too many crossings: keep the enter depth only
-        std::swap(h[0], *std::min_element(h, h + n, [](const RayHit& a, const RayHit& c) { return a.t < c.t; }));
-        h[0].closed = false;
-        n = 1;
+      } else if (!previous.repeats(h, n, tie)) {
+        previous.resolve(h, n, tie, job.exact, texels, lo[l], hi[l]);
       } else {
-        n = orderCrossings(h, n, tie);
+        lo[l] = texels.slice(h[previous.enter].t);
+        hi[l] = previous.exit < 0 ? lo[l] : std::max(lo[l], texels.slice(h[previous.exit].t));
       }
-      classifyTexel(h, n, job.exact, texels, lo[l], hi[l]);
     }
   }
 }

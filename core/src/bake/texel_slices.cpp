@@ -21,18 +21,30 @@ static_assert(kPacketW * kPacketH == kPacketLanes);
 }  // namespace
 
 int orderCrossings(RayHit* hits, int count, double tieDistance) {
-  std::sort(hits, hits + count, [](const RayHit& a, const RayHit& b) {
-    if (a.t != b.t) return a.t < b.t;
-    if (a.front != b.front) return a.front;
-    return a.triangle < b.triangle;
-  });
+  // Rays cross a handful of surfaces: an insertion sort beats std::sort there, and the
+  // in-place partition below, unlike std::stable_partition, never allocates (which it did
+  // once per texel leaving a closed part).
+  if (count > 32) {
+    std::sort(hits, hits + count, closerCrossing);
+  } else {
+    for (int i = 1; i < count; ++i) {
+      const RayHit h = hits[i];
+      int j = i;
+      for (; j > 0 && closerCrossing(h, hits[j - 1]); --j) hits[j] = hits[j - 1];
+      hits[j] = h;
+    }
+  }
   // Surfaces that coincide (a box standing on another) are computed from different
   // triangles and land a few ulps apart in either order; within a run of crossings closer
   // than tieDistance, enters go first so that the count never touches zero between them.
   for (int i = 0; i < count;) {
     int j = i + 1;
     while (j < count && hits[j].t - hits[j - 1].t <= tieDistance) ++j;
-    std::stable_partition(hits + i, hits + j, [](const RayHit& h) { return h.front; });
+    for (int k = i + 1, fronts = hits[i].front ? i + 1 : i; k < j; ++k) {
+      if (!hits[k].front) continue;
+      std::rotate(hits + fronts, hits + k, hits + k + 1);  // stable: the backs between move up
+      ++fronts;
+    }
     i = j;
   }
   // A ray through a shared edge or vertex reports each triangle around it: crossings of
@@ -50,35 +62,33 @@ int orderCrossings(RayHit* hits, int count, double tieDistance) {
   return n;
 }
 
-void classifyTexel(const RayHit* hits, int count, bool exact, const TexelMapping& slices, uint32_t& lo, uint32_t& hi) {
-  const uint32_t R = slices.side();
-  if (count == 0) {
-    lo = hi = R;
-    return;
-  }
-  const RayHit& enter = hits[0];
-  lo = hi = slices.slice(enter.t);
+int exitCrossing(const RayHit* hits, int count, bool exact) {
+  if (count == 0) return -1;
   // Only a closed surface entered from its front side opens an interior.
-  if (!enter.closed || !enter.front) return;
+  if (!hits[0].closed || !hits[0].front) return -1;
   if (!exact) {
     for (int i = 1; i < count; ++i)
-      if (hits[i].closed && !hits[i].front) {
-        hi = std::max(lo, slices.slice(hits[i].t));
-        return;
-      }
-    return;
+      if (hits[i].closed && !hits[i].front) return i;
+    return -1;
   }
   int depth = 0;
   for (int i = 0; i < count; ++i) {
     if (!hits[i].closed) continue;
     depth += hits[i].front ? 1 : -1;
-    if (depth < 0) return;  // inconsistent orientation: no interior is trusted
-    if (depth == 0) {
-      hi = std::max(lo, slices.slice(hits[i].t));
-      return;
-    }
+    if (depth < 0) return -1;  // inconsistent orientation: no interior is trusted
+    if (depth == 0) return i;
   }
-  // Never left the interior (open geometry forced closed): keep the column defined.
+  return -1;  // never left the interior (open geometry forced closed): keep the column defined
+}
+
+void classifyTexel(const RayHit* hits, int count, bool exact, const TexelMapping& slices, uint32_t& lo, uint32_t& hi) {
+  if (count == 0) {
+    lo = hi = slices.side();
+    return;
+  }
+  lo = hi = slices.slice(hits[0].t);
+  const int exit = exitCrossing(hits, count, exact);
+  if (exit >= 0) hi = std::max(lo, slices.slice(hits[exit].t));
 }
 
 void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,

@@ -40,6 +40,19 @@ void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
 /// through a shared edge). The shared rule of renderTexelSlices, exposed for tests.
 int orderCrossings(RayHit* hits, int count, double tieDistance);
 
+/// The order of crossings before ties are resolved: by distance, then enters first, then
+/// by triangle.
+inline bool closerCrossing(const RayHit& a, const RayHit& b) {
+  if (a.t != b.t) return a.t < b.t;
+  if (a.front != b.front) return a.front;
+  return a.triangle < b.triangle;
+}
+
+/// Which of one ray's ordered crossings (orderCrossings) is the exit of the interior the
+/// first one enters, or -1 when the column has none (the first crossing is not a closed
+/// front face; the count goes negative; it never returns to zero).
+int exitCrossing(const RayHit* hits, int count, bool exact);
+
 /// The texel classification of one ray's hits, sorted by distance: the shared rule of
 /// renderTexelSlices, exposed for tests. `t` values are depths along the texel's ray
 /// (LightGrid::texelRay), which the grid turns into slices.

@@ -34,6 +34,7 @@ class TexelMapping {
     return static_cast<uint32_t>(s);
   }
   uint32_t side() const { return side_; }
+  double slicesPerUnit() const { return slicesPerUnit_; }
 
  private:
   Vec3 local0_, u_, v_, dir_;

@@ -25,7 +25,11 @@ struct RayHit {
   uint32_t triangle = 0;
   bool front = false;
   bool closed = false;
+  // Named so that the 16 bytes are copied as one (moves of 14 bytes as two overlapping
+  // stores stall the loads that follow them when hits are sorted).
+  uint16_t unused = 0;
 };
+static_assert(sizeof(RayHit) == 16);
 
 /// Rays traced together, one per lane, all along one direction: what coherent rays
 /// (a block of texels, a shadow map's rows) share. Origins are relative to
