@@ -7,45 +7,6 @@
 
 namespace cpvs {
 
-namespace {
-
-constexpr uint64_t kAll = ~uint64_t(0);
-
-}  // namespace
-
-// The new rule (§3.4) starts shadowing only
-// where some texel must be shadowed (the smallest hi), then shadows every texel that may be
-// shadowed (lo <= k) and keeps that mask until a lit texel must turn (the next smallest hi
-// among the lit bits). The old rule shadows every texel as soon as it may be, once the
-// column can no longer be all lit.
-void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, UndefinedRule rule,
-                       std::vector<uint32_t>& slices, std::vector<uint64_t>& masks,
-                       uint32_t& firstShadow, uint32_t& fullShadow) {
-  firstShadow = fullShadow = R;
-  uint64_t mask = 0;
-  uint32_t k = R;
-  for (int t = 0; t < 64; ++t) k = std::min(k, hi[t]);
-  while (k < R) {
-    uint64_t m = 0;
-    for (int t = 0; t < 64; ++t)
-      if (lo[t] <= k) m |= uint64_t(1) << t;
-    if (m != mask) {
-      if (mask == 0) firstShadow = k;
-      slices.push_back(k);
-      masks.push_back(m);
-      mask = m;
-    }
-    if (mask == kAll) {
-      fullShadow = k;
-      return;
-    }
-    uint32_t next = R;
-    for (int t = 0; t < 64; ++t)
-      if (!(mask >> t & 1)) next = std::min(next, rule == UndefinedRule::New ? hi[t] : lo[t]);
-    k = next;
-  }
-}
-
 void litColumnMasks(uint32_t width, uint32_t height, uint32_t R, ColumnMasks& out) {
   if (width % 8 || height % 8) throw std::invalid_argument("litColumnMasks: size not a multiple of 8");
   out.columnsX = width / 8;

@@ -1,0 +1,87 @@
+// columnTransitions, once per SIMD target (Highway's foreach_target re-includes this
+// file), chosen at run time. The new rule (§3.4) starts shadowing only where some texel
+// must be shadowed (the smallest hi), then shadows every texel that may be shadowed
+// (lo <= k) and keeps that mask until a lit texel must turn (the next smallest hi among
+// the lit bits). The old rule shadows every texel as soon as it may be, once the column
+// can no longer be all lit. Each step compares the 64 texels at once: an open surface
+// gives a column up to 64 transitions.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "bake/column_transitions.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+#include <algorithm>
+
+#include "cpvs/bake/column_masks.h"
+
+HWY_BEFORE_NAMESPACE();
+namespace cpvs {
+namespace HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+void ColumnTransitionsImpl(const uint32_t* lo, const uint32_t* hi, uint32_t R, UndefinedRule rule,
+                           std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
+                           uint32_t& fullShadow) {
+  // Slices stay below 2^21: signed lanes compare them exactly.
+  const hn::ScalableTag<int32_t> d;
+  const size_t lanes = std::min<size_t>(hn::Lanes(d), 64);
+  const auto* loS = reinterpret_cast<const int32_t*>(lo);
+  const auto* hiS = reinterpret_cast<const int32_t*>(hi);
+  const auto* nextS = rule == UndefinedRule::New ? hiS : loS;
+  const auto none = hn::Set(d, int32_t(R));
+  // The smallest key among the texels whose bit in `mask` is clear.
+  auto smallestOutside = [&](const int32_t* key, uint64_t mask) {
+    auto best = none;
+    for (size_t i = 0; i < 64; i += lanes) {
+      uint8_t clear[8];
+      const uint64_t word = ~mask >> i;
+      for (int b = 0; b < 8; ++b) clear[b] = uint8_t(word >> (8 * b));
+      best = hn::Min(best, hn::IfThenElse(hn::LoadMaskBits(d, clear), hn::LoadU(d, key + i), none));
+    }
+    return uint32_t(hn::GetLane(hn::MinOfLanes(d, best)));
+  };
+  firstShadow = fullShadow = R;
+  uint64_t mask = 0;
+  uint32_t k = smallestOutside(hiS, 0);
+  while (k < R) {
+    const auto above = hn::Set(d, int32_t(k + 1));  // lo <= k as lo < k + 1 (Highway 1.0 has no integer Le)
+    uint64_t m = 0;
+    for (size_t i = 0; i < 64; i += lanes) {
+      uint8_t bits[8] = {};
+      hn::StoreMaskBits(d, hn::Lt(hn::LoadU(d, loS + i), above), bits);
+      uint64_t word = 0;
+      for (size_t b = 0; b < (lanes + 7) / 8; ++b) word |= uint64_t(bits[b]) << (8 * b);
+      if (lanes < 64) word &= (uint64_t(1) << lanes) - 1;
+      m |= word << i;
+    }
+    if (m != mask) {
+      if (mask == 0) firstShadow = k;
+      slices.push_back(k);
+      masks.push_back(m);
+      mask = m;
+    }
+    if (mask == ~uint64_t(0)) {
+      fullShadow = k;
+      return;
+    }
+    k = smallestOutside(nextS, mask);
+  }
+}
+
+}  // namespace HWY_NAMESPACE
+}  // namespace cpvs
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace cpvs {
+
+HWY_EXPORT(ColumnTransitionsImpl);
+
+void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, UndefinedRule rule,
+                       std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
+                       uint32_t& fullShadow) {
+  HWY_DYNAMIC_DISPATCH(ColumnTransitionsImpl)(lo, hi, R, rule, slices, masks, firstShadow, fullShadow);
+}
+
+}  // namespace cpvs
+#endif
