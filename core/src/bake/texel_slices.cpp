@@ -102,6 +102,8 @@ void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
   // a ray through a shared edge on both triangles).
   const double dedupT = grid.depthExtent * 1e-6;
   const bool exact = exit == ExitMode::Exact;
+  // Without closed geometry only the first hit decides a texel: no need for all of them.
+  const bool allHits = exact && rays.anyClosed(closed);
   const TexelMapping texels = grid.texelMapping(rays.origin());
 
   const uint32_t rowsOfPackets = height / kPacketH;
@@ -122,28 +124,17 @@ void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
           packet.tFar[size_t(l)] = float(ray.tMax);
           packet.active[size_t(l)] = true;
         }
-        if (exact) {
+        if (allHits) {
           rays.allCrossings(packet, closed, lanes);
         } else {
-          // Each lane's closest hit; lanes entering a closed front face get a second
-          // pass for the first back face behind it.
-          rays.firstHits(packet, closed, first, found);
-          bool second = false;
+          // Each lane's closest hit and, behind a closed front face, the first closed
+          // back face, in one traversal.
+          rays.firstHitsAndClosedBackFaces(packet, closed, first, found, back, foundBack);
           for (size_t l = 0; l < size_t(kPacketLanes); ++l) {
-            lanes[l].count = found[l] ? 1 : 0;
+            lanes[l].count = found[l] ? (foundBack[l] ? 2 : 1) : 0;
             lanes[l].overflow = false;
             if (found[l]) lanes[l].hits[0] = first[l];
-            packet.active[l] = found[l] && first[l].closed && first[l].front;
-            packet.tNear[l] = found[l] ? float(first[l].t) : 0.0f;
-            second = second || packet.active[l];
-          }
-          if (second) {
-            rays.firstClosedBackFaces(packet, closed, back, foundBack);
-            for (size_t l = 0; l < size_t(kPacketLanes); ++l)
-              if (foundBack[l]) {
-                lanes[l].hits[1] = back[l];
-                lanes[l].count = 2;
-              }
+            if (foundBack[l]) lanes[l].hits[1] = back[l];
           }
         }
 

@@ -17,6 +17,9 @@ struct CollectContext {
   ClosedMode mode;
   bool acceptBackFacesOnly;                            // keep the first closed back face
   std::array<RayCrossings, kPacketLanes>* lanes;       // all-crossings pass only
+  // First-and-back pass: per lane, the nearest hit that is not a closed back face.
+  std::array<RayHit, kPacketLanes>* nearest = nullptr;
+  std::array<bool, kPacketLanes>* foundNearest = nullptr;
 };
 
 void collectFilter(const RTCFilterFunctionNArguments* args) {
@@ -28,6 +31,20 @@ void collectFilter(const RTCFilterFunctionNArguments* args) {
                      RTCHitN_Ng_y(args->hit, args->N, i) * RTCRayN_dir_y(args->ray, args->N, i) +
                      RTCHitN_Ng_z(args->hit, args->N, i) * RTCRayN_dir_z(args->ray, args->N, i);
     const bool closed = c->rays->triangleClosed(prim, c->mode);
+    if (c->nearest) {
+      // Closed back faces are accepted, so traversal narrows to the nearest of them; every
+      // other hit is recorded and rejected. Any hit before the final tfar is reported.
+      if (closed && ng > 0) continue;
+      const unsigned lane = RTCRayN_id(args->ray, args->N, i);
+      const float t = RTCRayN_tfar(args->ray, args->N, i);
+      RayHit& best = (*c->nearest)[lane];
+      if (!(*c->foundNearest)[lane] || t < best.t) {
+        best = RayHit{t, prim, frontFacing(ng), closed};
+        (*c->foundNearest)[lane] = true;
+      }
+      args->valid[i] = 0;
+      continue;
+    }
     if (c->acceptBackFacesOnly) {
       if (!(closed && ng > 0)) args->valid[i] = 0;
       continue;
@@ -87,6 +104,28 @@ void RayScene::allCrossings(const RayPacket& packet, ClosedMode closed,
   }
   CollectContext cc{{}, this, closed, false, &lanes};
   intersectPacket(scene_, cc, collectFilter, valid, rh);
+}
+
+void RayScene::firstHitsAndClosedBackFaces(const RayPacket& packet, ClosedMode closed,
+                                           std::array<RayHit, kPacketLanes>& first, std::array<bool, kPacketLanes>& found,
+                                           std::array<RayHit, kPacketLanes>& back,
+                                           std::array<bool, kPacketLanes>& foundBack) const {
+  alignas(32) int valid[8];
+  alignas(32) RTCRayHit8 rh;
+  loadPacket(packet, rh, valid);
+  std::array<RayHit, kPacketLanes> nearest;
+  std::array<bool, kPacketLanes> foundNearest{};
+  CollectContext cc{{}, this, closed, false, nullptr, &nearest, &foundNearest};
+  intersectPacket(scene_, cc, collectFilter, valid, rh);
+  for (size_t l = 0; l < size_t(kPacketLanes); ++l) {
+    const bool hasBack = packet.active[l] && rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID;
+    const RayHit b{rh.ray.tfar[l], hasBack ? rh.hit.primID[l] : 0u, false, true};
+    const bool nearestFirst = foundNearest[l] && (!hasBack || nearest[l].t < b.t || (nearest[l].t == b.t && nearest[l].front));
+    found[l] = foundNearest[l] || hasBack;
+    first[l] = nearestFirst ? nearest[l] : b;
+    foundBack[l] = nearestFirst && hasBack && nearest[l].closed && nearest[l].front;
+    if (foundBack[l]) back[l] = b;
+  }
 }
 
 void RayScene::firstClosedBackFaces(const RayPacket& packet, ClosedMode closed, std::array<RayHit, kPacketLanes>& hits,

@@ -61,6 +61,11 @@ RayScene::RayScene(const Scene& scene, const Vec3& origin, int threads) : origin
   for (size_t i = 0; i < tris && i < scene.closed.size(); ++i) closed_[i] = scene.closed[i];
 }
 
+bool RayScene::anyClosed(ClosedMode mode) const {
+  if (mode != ClosedMode::Auto) return mode == ClosedMode::On && !closed_.empty();
+  return std::find(closed_.begin(), closed_.end(), uint8_t(1)) != closed_.end();
+}
+
 RayScene::~RayScene() {
   if (scene_) rtcReleaseScene(static_cast<RTCScene>(scene_));
   if (device_) rtcReleaseDevice(static_cast<RTCDevice>(device_));

@@ -87,6 +87,14 @@ class RayScene {
   /// triangle it is hit on (a ray through a shared edge reports both: orderCrossings
   /// merges them). Inactive lanes get count 0.
   void allCrossings(const RayPacket& packet, ClosedMode closed, std::array<RayCrossings, kPacketLanes>& lanes) const;
+  /// Per active lane in one traversal: the closest hit (found) and, when it enters a
+  /// closed front face, the closest closed back face behind it (foundBack): what
+  /// firstHits then firstClosedBackFaces from the first hit give.
+  void firstHitsAndClosedBackFaces(const RayPacket& packet, ClosedMode closed, std::array<RayHit, kPacketLanes>& first,
+                                   std::array<bool, kPacketLanes>& found, std::array<RayHit, kPacketLanes>& back,
+                                   std::array<bool, kPacketLanes>& foundBack) const;
+  /// Whether any triangle counts as closed under `mode`.
+  bool anyClosed(ClosedMode mode) const;
   /// Per active lane, the closest back face of closed geometry in (tNear, tFar).
   void firstClosedBackFaces(const RayPacket& packet, ClosedMode closed, std::array<RayHit, kPacketLanes>& hits,
                             std::array<bool, kPacketLanes>& found) const;
