@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "coordinator/clock.h"
+#include "cpvs/bake/raster_scene.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/parse.h"
@@ -46,6 +47,7 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   s.mutable_spec()->ParseFromString(j.spec);
   s.set_tiles_total(j.tilesTotal);
   s.set_tiles_done(j.tilesDone);
+  s.set_tiles_untouched(j.tilesUntouched);
   for (const auto& [stage, seconds] : j.stages) {
     auto* st = s.add_stages();
     st->set_stage(stage);
@@ -55,9 +57,10 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   double elapsed = double(end - j.createdMs) / 1000.0;
   s.set_seconds_elapsed(elapsed);
   double eta = -1;
-  if (j.state == JobState::Running && j.tilesDone > 0 && j.startedMs > 0) {
+  const uint64_t baked = j.tilesDone - j.tilesUntouched;  // untouched tiles took no time
+  if (j.state == JobState::Running && baked > 0 && j.startedMs > 0) {
     double running = double(nowMs() - j.startedMs) / 1000.0;
-    eta = running * double(j.tilesTotal - j.tilesDone) / double(j.tilesDone);
+    eta = running * double(j.tilesTotal - j.tilesDone) / double(baked);
   }
   s.set_eta_seconds(isFinal(j.state) ? 0 : eta);
   s.set_error(j.error);
@@ -119,6 +122,16 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
   j.priority = spec.priority();
   j.createdMs = nowMs();
   j.tilesTotal = plan.count();
+  // Tiles no triangle can touch are all lit: done now, merged without a worker.
+  std::vector<uint64_t> untouched;
+  {
+    const RasterScene projected(scene, grid);
+    const uint64_t T = uint64_t(1) << plan.log2TileSize();
+    for (uint64_t i = 0; i < plan.count(); ++i) {
+      const TileCoord t = plan.tile(i);
+      if (!projected.touchesRectangle(t.x * T, t.y * T, T, T)) untouched.push_back(i);
+    }
+  }
   {
     // Checked again and created under one lock: a retry that arrives while its first call
     // is still loading the scene gets the same job (not a unique-key error), and calls
@@ -128,9 +141,12 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
     if (auto existing = knownRequest(request)) return *existing;
     checkRoom();
     artifacts_.createTileFolder(j.id);
-    store_.createJob(j);
+    store_.createJob(j, untouched);
+    if (untouched.size() == j.tilesTotal) store_.setJobState(j.id, JobState::Merging, "", nowMs());
+    for (uint64_t t : untouched) merges_.mergeTile(j.id, t);
   }
-  spdlog::info("job {} submitted: scene {}, {}^3, {} tiles", j.id, j.sceneHash, j.grid.resolution(), j.tilesTotal);
+  spdlog::info("job {} submitted: scene {}, {}^3, {} tiles ({} touched by no triangle)", j.id, j.sceneHash,
+               j.grid.resolution(), j.tilesTotal, untouched.size());
   feed_.notify();
   return status(j.id);
 }

@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "cpvs/bake/bake.h"
+#include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/progress.h"
@@ -91,7 +93,10 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
   if (!m.merger) m.merger = std::make_unique<StreamingMerger>(j->options.compress);
   const auto start = std::chrono::steady_clock::now();
   Dag dag;
-  try {
+  if (store_.tileState(jobId, tile) == TileState::Untouched) {
+    const TileCoord at = TilePlan(j->grid.log2Resolution, j->options.log2TileSize).tile(tile);
+    dag = bakeUntouchedTile(j->grid, at.x, at.y, j->options);
+  } else try {
     const std::vector<uint8_t> bytes = artifacts_.readTile(jobId, tile);
     dag = decodeSubDag(bytes.data(), bytes.size(), "tile " + std::to_string(tile) + " of job " + jobId,
                        j->options.compress != CompressMode::None, j->options.hash);

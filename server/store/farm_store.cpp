@@ -251,10 +251,11 @@ std::optional<JobRecord> FarmStore::job(const std::string& id) {
   s.text(1, id);
   if (!s.step()) return std::nullopt;
   JobRecord j = readJob(s);
-  Statement d(db_, "SELECT COUNT(*) FROM tiles WHERE job_id = ? AND state = 2");
+  Statement d(db_, "SELECT COUNT(*), COALESCE(SUM(state = 4), 0) FROM tiles WHERE job_id = ? AND state IN (2, 4)");
   d.text(1, id);
   d.step();
   j.tilesDone = uint64_t(d.i64(0));
+  j.tilesUntouched = uint64_t(d.i64(1));
   Statement st(db_, "SELECT stage, seconds FROM job_stages WHERE job_id = ?");
   st.text(1, id);
   while (st.step()) j.stages[st.str(0)] = st.f64(1);
@@ -273,7 +274,7 @@ std::optional<JobRecord> FarmStore::jobByRequest(const std::string& requestId) {
   return job(id);
 }
 
-void FarmStore::createJob(const JobRecord& j) {
+void FarmStore::createJob(const JobRecord& j, const std::vector<uint64_t>& untouched) {
   std::lock_guard lock(mutex_);
   Transaction t(db_);
   std::string placeholders;
@@ -281,9 +282,12 @@ void FarmStore::createJob(const JobRecord& j) {
   Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns + ") VALUES(" + placeholders + ")").c_str());
   bindJob(s, j);
   s.run();
-  Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, 0, 0, NULL, 0, '')");  // prepared once
+  Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, ?, 0, NULL, 0, '')");  // prepared once
+  auto next = untouched.begin();
   for (uint64_t i = 0; i < j.tilesTotal; ++i) {
-    tile.text(1, j.id).bind(2, int64_t(i));
+    const bool lit = next != untouched.end() && *next == i;
+    next += lit;
+    tile.text(1, j.id).bind(2, int64_t(i)).bind(3, int64_t(lit ? TileState::Untouched : TileState::Queued));
     tile.run();
     tile.reset();
   }
@@ -462,7 +466,7 @@ std::vector<std::tuple<std::string, uint64_t, int>> FarmStore::expireLeases(int6
 
 std::vector<uint64_t> FarmStore::doneTiles(const std::string& jobId) {
   std::lock_guard lock(mutex_);
-  Statement s(db_, "SELECT idx FROM tiles WHERE job_id = ? AND state = 2 ORDER BY idx");
+  Statement s(db_, "SELECT idx FROM tiles WHERE job_id = ? AND state IN (2, 4) ORDER BY idx");
   s.text(1, jobId);
   std::vector<uint64_t> out;
   while (s.step()) out.push_back(uint64_t(s.i64(0)));

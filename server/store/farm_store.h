@@ -19,7 +19,9 @@ struct sqlite3;
 namespace cpvs::server {
 
 /// Tile states as stored.
-enum class TileState : int { Queued = 0, Leased = 1, Done = 2, Cancelled = 3 };
+/// Untouched: no triangle can touch the tile (BakeScene::touchesTile): done when the job is
+/// created, never leased, merged as the all-lit sub-DAG without a file.
+enum class TileState : int { Queued = 0, Leased = 1, Done = 2, Cancelled = 3, Untouched = 4 };
 
 /// Job states as stored: the values of cpvs.v1.JobState.
 enum class JobState : int { Queued = 1, Running = 2, Merging = 3, Done = 4, Failed = 5, Cancelled = 6 };
@@ -42,6 +44,7 @@ struct JobRecord {
   int64_t createdMs = 0, startedMs = 0, finishedMs = 0;
   std::string error, artifactChecksum;
   uint64_t tilesTotal = 0, tilesDone = 0;  // the grid's and options' TilePlan; done from the tiles
+  uint64_t tilesUntouched = 0;             // of tilesDone, those no triangle touches
   uint64_t bytes = 0, fileBytes = 0, peakMergeBytes = 0;
   std::map<std::string, double> stages;
 };
@@ -70,7 +73,9 @@ class FarmStore {
   std::optional<JobRecord> job(const std::string& id);
   std::optional<JobRecord> jobByRequest(const std::string& requestId);
   /// Inserts the job and its tiles, all queued.
-  void createJob(const JobRecord& j);
+  /// The job and its tiles: Untouched for the indices in `untouched` (sorted), Queued for
+  /// the others.
+  void createJob(const JobRecord& j, const std::vector<uint64_t>& untouched = {});
   std::vector<JobRecord> jobs(bool includeFinished);
   size_t activeJobCount();
   void setJobState(const std::string& id, JobState s, const std::string& error, int64_t nowMs);
@@ -101,6 +106,7 @@ class FarmStore {
   void requeueDoneTile(const std::string& jobId, uint64_t tile, const std::string& error);
   /// Tiles whose current lease expired before nowMs, returned to the queue: (job, tile, attempts).
   std::vector<std::tuple<std::string, uint64_t, int>> expireLeases(int64_t nowMs);
+  /// Tiles done (acknowledged or untouched), in order.
   std::vector<uint64_t> doneTiles(const std::string& jobId);
   int tileAttempts(const std::string& jobId, uint64_t tile);
   void cancelTiles(const std::string& jobId);

@@ -28,9 +28,14 @@
 #include "cpvs/bake/bake.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/scene/source.h"
+#include "bench_common.h"
 
 namespace cpvs {
 namespace {
+
+using namespace bench;
+
+std::string seconds(double s) { return format("%.3f", s); }
 
 // ---------------------------------------------------------------------------------------
 // Configurations
@@ -98,22 +103,6 @@ const char* kUsage =
     "  --threads N         worker threads (default: all cores)\n"
     "  --help              this text\n";
 
-double parseDouble(const std::string& text, const std::string& what) {
-  double v = 0;
-  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || end != text.data() + text.size() || !std::isfinite(v))
-    throw InputError(what + ": '" + text + "' is not a finite number");
-  return v;
-}
-
-int parsePositive(const std::string& text, const std::string& what) {
-  int v = 0;
-  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || end != text.data() + text.size() || v < 1)
-    throw InputError(what + ": '" + text + "' is not a positive whole number");
-  return v;
-}
-
 Args parseArgs(int argc, char** argv) {
   Args a;
   for (int i = 1; i < argc; ++i) {
@@ -148,46 +137,6 @@ Args parseArgs(int argc, char** argv) {
     }
   }
   return a;
-}
-
-// ---------------------------------------------------------------------------------------
-// Scenes
-
-
-struct BenchScene {
-  std::string label;  // short name for the tables
-  Scene scene;
-  SceneStats stats;
-  // "closed" when every triangle is in a closed part, "open" when none is: the paper's
-  // targets are stated for one kind or the other.
-  std::string kind;
-};
-
-// Resolves a name or path; returns nothing (after saying why) when a file is absent, so
-// that a checkout without the shared scenes still benchmarks the procedural city.
-std::optional<BenchScene> openBenchScene(const std::string& spec, std::vector<std::string>& notes) {
-  std::string path = spec, label = spec;
-  if (spec == "bunny") {
-    path = testing::sharedScenesDir() + "/stanford-bunny/bunny.obj";
-  } else if (spec == "teapots") {
-    path = testing::sharedScenesDir() + "/assimp-testmodels/teapots.DAE";
-  } else if (spec == "city" || spec.starts_with("city:")) {
-    path.clear();
-  } else {
-    label = std::filesystem::path(spec).stem().string();
-  }
-  if (!path.empty() && !std::filesystem::is_regular_file(path)) {
-    notes.push_back("skipped " + label + ": " + path + " not found");
-    std::fprintf(stderr, "bench_bake: skipping %s: %s not found\n", label.c_str(), path.c_str());
-    return std::nullopt;
-  }
-  BenchScene s;
-  s.label = label;
-  s.scene = openScene(path.empty() ? spec : path, &s.stats);
-  s.kind = s.stats.closedTriangles == s.stats.triangles ? "closed"
-           : s.stats.closedTriangles == 0                ? "open"
-                                                         : "mixed";
-  return s;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -231,8 +180,6 @@ struct Row {
   uint64_t shadowMapBytes() const { return 2 * resolution() * resolution(); }  // 16-bit depth per texel
 };
 
-double ratio(double num, double den) { return den > 0 ? num / den : NAN; }
-
 double cullSpeedup(const Row& r) { return ratio(r.m[kCullOff].construction(), r.m[kBaseline].construction()); }
 double topDownSpeedup(const Row& r) {
   return ratio(r.m[kBottomUp].stage("compress"), r.m[kBaseline].stage("compress"));
@@ -248,47 +195,7 @@ double embreeRenderRatio(const Row& r) {
 double exactBytesRatio(const Row& r) { return ratio(double(r.m[kBaseline].bytes), double(r.m[kApproxExit].bytes)); }
 
 // ---------------------------------------------------------------------------------------
-// Formatting
-
-std::string format(const char* fmt, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, fmt, v);
-  return buf;
-}
-
-std::string resolutionLabel(int log2R) {
-  return log2R >= 10 ? std::to_string(1u << (log2R - 10)) + "K" : std::to_string(1u << log2R);
-}
-
-std::string humanBytes(uint64_t bytes) {
-  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
-  double v = double(bytes);
-  int u = 0;
-  while (v >= 1024 && u < 4) v /= 1024, ++u;
-  return format(u == 0 ? "%.0f" : (v < 10 ? "%.2f" : (v < 100 ? "%.1f" : "%.0f")), v) + " " + units[u];
-}
-
-std::string times(double r) { return std::isnan(r) ? "n/a" : format(r < 10 ? "%.2fx" : "%.1fx", r); }
-std::string seconds(double s) { return format("%.3f", s); }
-
-std::string cpuModel() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind("model name", 0) == 0) {
-      auto colon = line.find(':');
-      if (colon != std::string::npos) return line.substr(line.find_first_not_of(" \t", colon + 1));
-    }
-  }
-  return "unknown CPU";
-}
-
-std::string now() {
-  std::time_t t = std::time(nullptr);
-  char buf[64];
-  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M %Z", std::localtime(&t));
-  return buf;
-}
+// Tables
 
 void printMainTable(const std::vector<Row>& rows) {
   std::printf(
@@ -375,7 +282,7 @@ int run(const Args& args) {
   std::vector<std::string> notes;
   std::vector<BenchScene> scenes;
   for (const auto& spec : args.scenes)
-    if (auto s = openBenchScene(spec, notes)) scenes.push_back(std::move(*s));
+    if (auto s = openBenchScene(spec, "bench_bake", notes)) scenes.push_back(std::move(*s));
 
   std::vector<Row> rows;
   for (const BenchScene& bs : scenes) {

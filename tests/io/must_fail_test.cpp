@@ -100,6 +100,8 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
       {"resolution", [](Bytes& b) { put<int32_t>(b, kLog2R, 30); }, "resolution 2^30 is out of range"},
       {"closed mode", [](Bytes& b) { b[kOptions] = 3; }, "options hold an unknown value"},
       {"hash kind", [](Bytes& b) { b[kOptions + 5] = 2; }, "options hold an unknown value"},
+      {"renderer", [](Bytes& b) { b[kOptions + 6] = 2; }, "options hold an unknown value"},
+      {"reserved byte", [](Bytes& b) { b[kOptions + 7] = 1; }, "options hold an unknown value"},
       {"tile size", [](Bytes& b) { put<int32_t>(b, kTile, 2); }, "tile size 2^2 is out of range"},
       {"root code", [](Bytes& b) { put<uint32_t>(b, kRootCode, 3); }, "root reference is invalid"},
       {"root index", [](Bytes& b) { put<uint32_t>(b, kRootIndex, 1000000); }, "root reference is invalid"},
@@ -123,6 +125,19 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
       {"version", [](Bytes& b) { put<uint32_t>(b, 4, 9); }, "format version 9 is not supported"},
   };
   expectEveryCaseRejected(valid, cases, [](const Bytes& b) { decodeCpvs(b.data(), b.size(), "damaged.cpvs"); });
+}
+
+// The renderer is the byte that files written before it held as 0: they read as Embree's,
+// which made them.
+TEST(CpvsHeader, RendererRoundTripsAndZeroIsEmbree) {
+  CpvsArtifact art = sampleArtifact();
+  for (Renderer r : {Renderer::Raster, Renderer::Embree}) {
+    art.options.renderer = r;
+    const Bytes bytes = encodeCpvs(art, false);
+    EXPECT_EQ(bytes[kOptions + 6], uint8_t(r));
+    EXPECT_EQ(decodeCpvs(bytes.data(), bytes.size(), "r.cpvs").options.renderer, r);
+  }
+  static_assert(int(Renderer::Embree) == 0);
 }
 
 // Byte offsets of the sub-DAG header (sub_dag_file.h).

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "scene_testing.h"
+#include "cpvs/scene/boxes.h"
 #include "coordinator/coordinator.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/base/error.h"
@@ -88,6 +89,52 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   } catch (const client::FarmCallError& e) {
     EXPECT_EQ(e.kind(), net::ErrorKind::Unavailable);  // the server is shut down by now
   }
+}
+
+// Tiles no triangle touches are never leased: the coordinator merges them as all lit, and
+// the job still gives the local bytes, with either renderer.
+TEST(InProcessFarm, UntouchedTilesAreNotLeasedAndBothRenderersGiveTheLocalBytes) {
+  TempDir dir("cpvs_in_process_untouched");
+  Scene boxes;
+  appendBox(boxes, {0, 0, 0}, {1, 1, 1});
+  appendBox(boxes, {9, 0, 9}, {10, 3, 10});
+  finalizeScene(boxes);
+  const std::string obj = dir / "boxes.obj";
+  writeObj(obj, boxes);
+
+  InProcessFarm farm(dir / "data");
+  worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
+  wc.workerId = "in-process";
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+  const client::FarmClient::UploadResult up = farm.client.uploadScene(obj);
+  const Scene scene = loadScene(obj);
+  for (Renderer renderer : {Renderer::Raster, Renderer::Embree}) {
+    pb::BakeSpec spec;
+    spec.set_scene_hash(up.sceneHash);
+    *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+    spec.set_resolution("256");
+    spec.mutable_options()->set_tile_size(32);
+    spec.mutable_options()->set_renderer(pb::Renderer(int(renderer)));
+    const pb::JobStatus done =
+        farm.client.watch(farm.client.submit(std::string("untouched-") + optionName(renderer), spec).job_id());
+    ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
+    EXPECT_EQ(done.tiles_total(), 64u);
+    EXPECT_GT(done.tiles_untouched(), 20u) << "the space between the boxes is empty";
+    EXPECT_LT(done.tiles_untouched(), 64u);
+    farm.client.download(done.job_id(), dir / "farm.cpvs");
+
+    CpvsArtifact local;
+    local.grid = makeGrid(scene, LightFrame::fromDirection({0.2, -1, 0.1}), 8);
+    local.options.log2TileSize = 5;
+    local.options.renderer = renderer;
+    local.sceneHash = sceneHash(scene);
+    local.dag = bakeWith(scene, local.grid, local.options);
+    EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true)) << optionName(renderer);
+  }
+  tileWorker.stop();
+  workerThread.join();
+  farm.server.shutdown(1);
 }
 
 TEST(InProcessFarm, UnknownJobsAndRefusalsAreTheirKinds) {
@@ -175,6 +222,33 @@ TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
   EXPECT_TRUE(store.completeTile("low", b->tile));
   EXPECT_FALSE(store.completeTile("low", b->tile));  // the first result stands
   EXPECT_EQ(store.job("low")->tilesDone, 1u);
+}
+
+// A store of schema 2 (before the renderer column) is upgraded in place: its jobs were
+// baked by Embree, and they keep every other field.
+TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
+  TempDir dir("cpvs_farm_store_v2");
+  const std::string path = dir / "farm.sqlite";
+  {
+    server::FarmStore store(path);
+    server::JobRecord j = sampleJob("old", 0, 2);
+    j.options.renderer = Renderer::Raster;
+    store.createJob(j);
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN renderer; PRAGMA user_version = 2", nullptr, nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+  server::FarmStore store(path);
+  const auto back = store.job("old");
+  ASSERT_TRUE(back.has_value());
+  EXPECT_EQ(back->options.renderer, Renderer::Embree);
+  EXPECT_EQ(back->grid.log2Resolution, 10);
+  EXPECT_EQ(back->tilesTotal, 2u);
+  server::JobRecord fresh = sampleJob("new", 0, 1);
+  store.createJob(fresh);
+  EXPECT_EQ(store.job("new")->options.renderer, Renderer::Raster);
 }
 
 TEST(FarmStore, ADatabaseOfAnotherSchemaIsRefusedWithWhatToDo) {

@@ -14,21 +14,11 @@
 
 namespace cpvs {
 
-Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
-             StageTimes* times) {
-  StageTimes local;
-  StageTimes& st = times ? *times : local;
-  const OrthoGrid& grid = scene.grid();
-  const int t = TilePlan(grid.log2Resolution, options.log2TileSize).log2TileSize();
-  const uint32_t T = uint32_t(1) << t;
-  const uint32_t R = uint32_t(grid.resolution());
+namespace {
 
-  ColumnMasks masks;
-  if (scene.touchesTile(tileX, tileY, t)) {
-    scene.columnMasks(options, tileX * T, tileY * T, T, T, masks, st);
-  } else {
-    litColumnMasks(T, T, R, masks);
-  }
+// Insertion and compression of a tile's resolved masks.
+Dag buildTile(const ColumnMasks& masks, const OrthoGrid& grid, int log2T, uint64_t tileX, uint64_t tileY,
+              const BakeOptions& options, StageTimes& st) {
   auto start = std::chrono::steady_clock::now();
   MinMaxPyramid pyramid;
   buildMinMaxPyramid(masks, pyramid);
@@ -36,7 +26,7 @@ Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeO
 
   start = std::chrono::steady_clock::now();
   Dag dag;
-  insertTile(masks, pyramid, grid.log2Resolution, t, tileX, tileY, options.cull, dag, &st.insert);
+  insertTile(masks, pyramid, grid.log2Resolution, log2T, tileX, tileY, options.cull, dag, &st.insert);
   st.add("insert", secondsSince(start));
 
   start = std::chrono::steady_clock::now();
@@ -46,6 +36,32 @@ Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeO
   }
   st.add("compress", secondsSince(start));
   return dag;
+}
+
+}  // namespace
+
+Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
+             StageTimes* times) {
+  const OrthoGrid& grid = scene.grid();
+  const int t = TilePlan(grid.log2Resolution, options.log2TileSize).log2TileSize();
+  if (!scene.touchesTile(tileX, tileY, t)) return bakeUntouchedTile(grid, tileX, tileY, options, times);
+  StageTimes local;
+  StageTimes& st = times ? *times : local;
+  const uint32_t T = uint32_t(1) << t;
+  ColumnMasks masks;
+  scene.columnMasks(options, tileX * T, tileY * T, T, T, masks, st);
+  return buildTile(masks, grid, t, tileX, tileY, options, st);
+}
+
+Dag bakeUntouchedTile(const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
+                      StageTimes* times) {
+  StageTimes local;
+  StageTimes& st = times ? *times : local;
+  const int t = TilePlan(grid.log2Resolution, options.log2TileSize).log2TileSize();
+  const uint32_t T = uint32_t(1) << t;
+  ColumnMasks masks;
+  litColumnMasks(T, T, uint32_t(grid.resolution()), masks);
+  return buildTile(masks, grid, t, tileX, tileY, options, st);
 }
 
 Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* times, const ProgressFn& progress) {

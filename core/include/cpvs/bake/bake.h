@@ -20,6 +20,12 @@ namespace cpvs {
 Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
              StageTimes* times = nullptr);
 
+/// The sub-DAG of a tile no triangle touches (BakeScene::touchesTile is false): all lit,
+/// the bytes bakeTile gives it, made without the scene. What the farm's coordinator merges
+/// for such tiles instead of leasing them.
+Dag bakeUntouchedTile(const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
+                      StageTimes* times = nullptr);
+
 /// Bakes the whole grid: every tile (bakeTile), merged as they complete (StreamingMerger),
 /// then the levels above the tile roots. Tiles run one after another, each stage inside
 /// parallel (two tiles at once were measured slower on two cores: 6.6 s against 5.2 s for

@@ -1,0 +1,45 @@
+// What the benchmark programs share: the machine they ran on, the named scenes, numbers
+// on the command line and in tables.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cpvs/scene/scene.h"
+
+namespace cpvs::bench {
+
+/// The CPU model as /proc/cpuinfo names it.
+std::string cpuModel();
+/// The local time, for the report's header.
+std::string now();
+
+/// A scene of a benchmark: a short name for the tables and what kind of geometry it is.
+struct BenchScene {
+  std::string label;
+  Scene scene;
+  SceneStats stats;
+  // "closed" when every triangle is in a closed part, "open" when none is, else "mixed".
+  std::string kind;
+};
+
+/// Resolves a name (bunny, teapots: shared scenes beside the project; city or
+/// city:BLOCKS[:SEED]: procedural) or a path. Returns nothing, after a line on stderr and
+/// one in `notes`, when a file is absent, so that a checkout without the shared scenes
+/// still benchmarks the city.
+std::optional<BenchScene> openBenchScene(const std::string& spec, const std::string& program,
+                                         std::vector<std::string>& notes);
+
+double parseDouble(const std::string& text, const std::string& what);
+int parsePositive(const std::string& text, const std::string& what);
+
+std::string format(const char* fmt, double v);
+/// 16K, 256K, or 512 below 1K.
+std::string resolutionLabel(int log2R);
+std::string humanBytes(uint64_t bytes);
+/// A ratio as "12.3x", "n/a" for NaN.
+std::string times(double ratio);
+double ratio(double num, double den);
+
+}  // namespace cpvs::bench
