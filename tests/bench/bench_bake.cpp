@@ -77,6 +77,8 @@ constexpr auto kStages = kBakeGridStages;
 struct Args {
   std::vector<std::string> scenes{"bunny", "city", "teapots"};
   std::vector<int> log2Resolutions{10, 11, 12, 13, 14};
+  std::vector<int> log2Large{15, 16, 18};  // the baseline alone; above 64K a sample of tiles
+  int sampleTiles = 16;
   Vec3 sunDir{0.35, -1.0, 0.25};  // oblique: no face of the city's boxes is parallel to it
   int repeat = 1;
   int threads = 0;
@@ -98,6 +100,11 @@ const char* kUsage =
     "                      scenes beside the project), city or city:BLOCKS[:SEED]\n"
     "                      (procedural); anything else is a scene file\n"
     "  --scene PATH        adds one scene (repeatable), e.g. an open scene\n"
+    "  --large LIST        resolutions baked with the baseline options only, in a table of\n"
+    "                      their own (default 32K,64K,256K; 'none' for none). Above 64K a\n"
+    "                      fixed sample of the tiles no triangle leaves untouched is baked\n"
+    "                      and the whole bake extrapolated from it, which the table says\n"
+    "  --sample-tiles N    tiles of that sample (default 16)\n"
     "  --sun-dir X,Y,Z     light direction into the scene (default 0.35,-1,0.25)\n"
     "  --repeat N          bake each configuration N times, keep the fastest (default 1)\n"
     "  --threads N         worker threads (default: all cores)\n"
@@ -128,6 +135,12 @@ Args parseArgs(int argc, char** argv) {
       if (parts.size() != 3) throw InputError("--sun-dir: expected X,Y,Z, got '" + value + "'");
       a.sunDir = {parseDouble(parts[0], "--sun-dir"), parseDouble(parts[1], "--sun-dir"),
                   parseDouble(parts[2], "--sun-dir")};
+    } else if (opt == "--large") {
+      a.log2Large.clear();
+      if (value != "none")
+        for (const auto& r : splitList(value)) a.log2Large.push_back(parseResolution(r));
+    } else if (opt == "--sample-tiles") {
+      a.sampleTiles = parsePositive(value, "--sample-tiles");
     } else if (opt == "--repeat") {
       a.repeat = parsePositive(value, "--repeat");
     } else if (opt == "--threads") {
@@ -179,6 +192,94 @@ struct Row {
   uint64_t resolution() const { return uint64_t(1) << log2R; }
   uint64_t shadowMapBytes() const { return 2 * resolution() * resolution(); }  // 16-bit depth per texel
 };
+
+// A large grid, baked whole or from a sample of its touched tiles.
+struct LargeRow {
+  std::string scene;
+  int log2R = 0;
+  uint64_t tiles = 0, untouched = 0, sampled = 0;  // sampled 0: the whole bake
+  StageTimes times;                                // the whole bake's, or extrapolated
+  double total = 0, perTouchedTile = 0;
+  uint64_t bytes = 0;                              // whole bakes only
+};
+
+// The paper's ClosedCity (closed, exact exit by depth peeling) on an i7-3930K and a GTX
+// 980: Table 1's total and Table 3's "render maps", at 4K, 16K, 64K, 256K (seconds).
+struct PaperFigure {
+  int log2R;
+  double total, render;
+};
+constexpr PaperFigure kPaperClosedCity[] = {{12, 0.0405, 0.0223}, {14, 0.328, 0.170}, {16, 2.69, 1.52}, {18, 31.7, 20.4}};
+
+LargeRow measureLarge(const BenchScene& bs, const LightFrame& frame, int log2R, int sampleTiles) {
+  LargeRow row;
+  row.scene = bs.label;
+  row.log2R = log2R;
+  const OrthoGrid grid = makeGrid(bs.scene, frame, log2R);
+  const BakeOptions options;
+  const BakeScene prepared(bs.scene, grid, options.renderer);
+  const TilePlan plan(log2R, options.log2TileSize);
+  row.tiles = plan.count();
+  std::vector<uint64_t> touched;
+  for (uint64_t i = 0; i < plan.count(); ++i)
+    if (prepared.touchesTile(plan.tile(i).x, plan.tile(i).y, plan.log2TileSize())) touched.push_back(i);
+  row.untouched = row.tiles - touched.size();
+  const auto start = std::chrono::steady_clock::now();
+  if (log2R <= 16 || touched.size() <= size_t(sampleTiles)) {
+    Dag dag = bakeGrid(prepared, options, &row.times);
+    row.total = secondsSince(start);
+    row.bytes = dag.bytes();
+    row.perTouchedTile = touched.empty() ? 0 : (row.total - row.times.seconds["merge"]) / double(touched.size());
+    return row;
+  }
+  // Evenly spaced touched tiles, the same every run; one untouched tile stands for all.
+  row.sampled = uint64_t(sampleTiles);
+  StageTimes sample, lit;
+  for (int k = 0; k < sampleTiles; ++k) {
+    const TileCoord t = plan.tile(touched[size_t(k) * touched.size() / size_t(sampleTiles)]);
+    (void)bakeTile(prepared, t.x, t.y, options, &sample);
+  }
+  double litSeconds = 0;
+  if (row.untouched > 0) {
+    const auto litStart = std::chrono::steady_clock::now();
+    for (uint64_t i = 0; i < plan.count(); ++i)
+      if (!prepared.touchesTile(plan.tile(i).x, plan.tile(i).y, plan.log2TileSize())) {
+        (void)bakeUntouchedTile(grid, plan.tile(i).x, plan.tile(i).y, options, &lit);
+        break;
+      }
+    litSeconds = secondsSince(litStart);
+  }
+  const double scale = double(touched.size()) / double(sampleTiles);
+  for (const auto& [stage, s] : sample.seconds) row.times.seconds[stage] = s * scale;
+  for (const auto& [stage, s] : lit.seconds) row.times.seconds[stage] += s * double(row.untouched);
+  double sampledSeconds = 0;
+  for (const auto& [stage, s] : sample.seconds) sampledSeconds += s;
+  row.perTouchedTile = sampledSeconds / double(sampleTiles);
+  row.total = row.perTouchedTile * double(touched.size()) + litSeconds * double(row.untouched);
+  return row;
+}
+
+void printLargeTable(const std::vector<LargeRow>& rows) {
+  std::printf("| scene | R | tiles | untouched | baked | render s | masks s | insert s | compress s | merge s | total s "
+              "| s per touched tile | DAG | paper ClosedCity total / render s |\n");
+  std::printf("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const LargeRow& r : rows) {
+    auto stage = [&](const char* s) {
+      auto it = r.times.seconds.find(s);
+      return it == r.times.seconds.end() ? 0.0 : it->second;
+    };
+    std::string paper = "-";
+    for (const PaperFigure& p : kPaperClosedCity)
+      if (p.log2R == r.log2R) paper = format("%.3g", p.total) + " / " + format("%.3g", p.render);
+    std::printf("| %s | %s | %llu | %llu | %s | %.1f | %.1f | %.1f | %.1f | %s | %s%.1f | %.3f | %s | %s |\n",
+                r.scene.c_str(), resolutionLabel(r.log2R).c_str(), (unsigned long long)r.tiles,
+                (unsigned long long)r.untouched,
+                r.sampled ? ("sample of " + std::to_string(r.sampled) + ", extrapolated").c_str() : "all", stage("render"),
+                stage("masks"), stage("insert"), stage("compress"),
+                r.sampled ? "not run" : format("%.1f", stage("merge")).c_str(), r.sampled ? "~" : "", r.total,
+                r.perTouchedTile, r.sampled ? "-" : humanBytes(r.bytes).c_str(), paper.c_str());
+  }
+}
 
 double cullSpeedup(const Row& r) { return ratio(r.m[kCullOff].construction(), r.m[kBaseline].construction()); }
 double topDownSpeedup(const Row& r) {
@@ -311,6 +412,13 @@ int run(const Args& args) {
       rows.push_back(std::move(row));
     }
   }
+  std::vector<LargeRow> large;
+  for (const BenchScene& bs : scenes)
+    for (int log2R : args.log2Large) {
+      large.push_back(measureLarge(bs, frame, log2R, args.sampleTiles));
+      std::fprintf(stderr, "bench_bake: %s %s baseline %s%.1f s\n", bs.label.c_str(), resolutionLabel(log2R).c_str(),
+                   large.back().sampled ? "~" : "", large.back().total);
+    }
 
   // The report: machine and settings, then the tables, then the targets and any warnings.
   std::printf("Machine: %s, %u hardware threads, %d used; %s\n", cpuModel().c_str(),
@@ -330,6 +438,13 @@ int run(const Args& args) {
       "masks seconds of the Embree renderer / the rasterizer (whose masks are built in its render stage).\n\n");
   printRawTable(rows, configs);
   std::printf("\n");
+  if (!large.empty()) {
+    std::printf("Large grids, baseline options only; an extrapolated row bakes the sample's tiles and one untouched "
+                "tile and scales them to all (no merge). The paper's figures (ClosedCity, GTX 980) are for its own "
+                "city, beside ours for scale:\n\n");
+    printLargeTable(large);
+    std::printf("\n");
+  }
   printTargets(rows);
   if (!notes.empty()) std::printf("\n");
   for (const auto& n : notes) std::printf("%s\n", n.c_str());
