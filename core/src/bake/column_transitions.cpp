@@ -29,30 +29,26 @@ void ColumnTransitionsImpl(const uint32_t* lo, const uint32_t* hi, uint32_t R, U
   const auto* hiS = reinterpret_cast<const int32_t*>(hi);
   const auto* nextS = rule == UndefinedRule::New ? hiS : loS;
   const auto none = hn::Set(d, int32_t(R));
-  // The smallest key among the texels whose bit in `mask` is clear.
-  auto smallestOutside = [&](const int32_t* key, uint64_t mask) {
-    auto best = none;
-    for (size_t i = 0; i < 64; i += lanes) {
-      uint8_t clear[8];
-      const uint64_t word = ~mask >> i;
-      for (int b = 0; b < 8; ++b) clear[b] = uint8_t(word >> (8 * b));
-      best = hn::Min(best, hn::IfThenElse(hn::LoadMaskBits(d, clear), hn::LoadU(d, key + i), none));
-    }
-    return uint32_t(hn::GetLane(hn::MinOfLanes(d, best)));
-  };
   firstShadow = fullShadow = R;
+  auto best = none;
+  for (size_t i = 0; i < 64; i += lanes) best = hn::Min(best, hn::LoadU(d, hiS + i));
+  uint32_t k = uint32_t(hn::GetLane(hn::MinOfLanes(d, best)));
   uint64_t mask = 0;
-  uint32_t k = smallestOutside(hiS, 0);
+  // One pass per step: the texels that may be shadowed at k (lo <= k, as lo < k + 1:
+  // Highway 1.0 has no integer Le), and the smallest key of the others, the next step.
   while (k < R) {
-    const auto above = hn::Set(d, int32_t(k + 1));  // lo <= k as lo < k + 1 (Highway 1.0 has no integer Le)
+    const auto above = hn::Set(d, int32_t(k + 1));
     uint64_t m = 0;
+    best = none;
     for (size_t i = 0; i < 64; i += lanes) {
+      const auto inside = hn::Lt(hn::LoadU(d, loS + i), above);
       uint8_t bits[8] = {};
-      hn::StoreMaskBits(d, hn::Lt(hn::LoadU(d, loS + i), above), bits);
+      hn::StoreMaskBits(d, inside, bits);
       uint64_t word = 0;
       for (size_t b = 0; b < (lanes + 7) / 8; ++b) word |= uint64_t(bits[b]) << (8 * b);
       if (lanes < 64) word &= (uint64_t(1) << lanes) - 1;
       m |= word << i;
+      best = hn::Min(best, hn::IfThenElse(inside, none, hn::LoadU(d, nextS + i)));
     }
     if (m != mask) {
       if (mask == 0) firstShadow = k;
@@ -64,7 +60,7 @@ void ColumnTransitionsImpl(const uint32_t* lo, const uint32_t* hi, uint32_t R, U
       fullShadow = k;
       return;
     }
-    k = smallestOutside(nextS, mask);
+    k = uint32_t(hn::GetLane(hn::MinOfLanes(d, best)));
   }
 }
 
