@@ -160,7 +160,8 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"duck", "assimp-testmodels/duck.dae", {-1, -0.4, 0.2}},
                       Case{"teapots_open", "assimp-testmodels/teapots.DAE", {0.2, -1, 0.6}},
                       Case{"spider_mixed", "assimp-testmodels/spider.obj", {0.5, -1, 0.1}},
-                      Case{"shouse_open", "openarena/oa_shouse.obj", {0.4, -1, 0.3}}),
+                      Case{"shouse_open", "openarena/oa_shouse.obj", {0.4, -1, 0.3}},
+                      Case{"loinesg_city", "loinesg-city/city.obj", {0.505259, -0.379456, 0.775066}}),
     [](const auto& info) { return info.param.name; });
 
 // The crossing order both renderers share, against its plain statement: std::sort, then
