@@ -24,6 +24,7 @@
 #include "cpvs/bake/stage_times.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/base/parse.h"
+#include "cpvs/base/text.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/light/frame.h"
 #include "cpvs/light/ortho_grid.h"
@@ -71,7 +72,7 @@ void runFarmCommand(int& status, F&& body) {
   try {
     status = body();
   } catch (const FarmCallError& e) {
-    std::fprintf(stderr, "cpvs: %s\n", e.what());
+    std::fprintf(stderr, "cpvs: %s\n", loggable(e.what(), 2000).c_str());
     status = e.callerCanFix() ? 2 : 4;
   }
 }
@@ -152,7 +153,7 @@ pb::JobStatus followJob(FarmClient& client, const std::string& jobId, bool show)
 
 void printDone(const pb::JobStatus& s) {
   const uint64_t R = s.resolution();
-  std::printf("Job %s done: %llu^3 in %llu tile%s, %.2f s\n", s.job_id().c_str(), static_cast<unsigned long long>(R),
+  std::printf("Job %s done: %llu^3 in %llu tile%s, %.2f s\n", loggable(s.job_id()).c_str(), static_cast<unsigned long long>(R),
               static_cast<unsigned long long>(s.tiles_total()), s.tiles_total() == 1 ? "" : "s", s.seconds_elapsed());
   auto stages = stagesOf(s);
   if (!stages.empty()) {
@@ -174,11 +175,11 @@ void printDone(const pb::JobStatus& s) {
 /// message on stderr).
 int finalExitStatus(const pb::JobStatus& s) {
   if (s.state() == pb::JOB_FAILED) {
-    std::fprintf(stderr, "cpvs: job %s failed: %s\n", s.job_id().c_str(), s.error().c_str());
+    std::fprintf(stderr, "cpvs: job %s failed: %s\n", loggable(s.job_id()).c_str(), loggable(s.error(), 2000).c_str());
     return 1;
   }
   if (s.state() == pb::JOB_CANCELLED) {
-    std::fprintf(stderr, "cpvs: job %s was cancelled\n", s.job_id().c_str());
+    std::fprintf(stderr, "cpvs: job %s was cancelled\n", loggable(s.job_id()).c_str());
     return 1;
   }
   return 0;
@@ -308,7 +309,7 @@ int runSubmit(const SubmitArgs& a, const CLI::App& c) {
     if (a.json)
       std::cout << statusJson(status, "", true) << "\n";
     else
-      std::printf("%s\n", status.job_id().c_str());
+      std::printf("%s\n", loggable(status.job_id()).c_str());
     return 0;
   }
 
@@ -350,13 +351,14 @@ int runJobs(const JobsArgs& a) {
     return 0;
   }
   int idWidth = 3;
-  for (const auto& j : jobs) idWidth = std::max(idWidth, int(j.job_id().size()));
+  // What the coordinator sends reaches the terminal escaped (R26): names are free text.
+  for (const auto& j : jobs) idWidth = std::max(idWidth, int(loggable(j.job_id()).size()));
   std::printf("%-*s  %-9s  %13s  %10s  %8s  %s\n", idWidth, "JOB", "STATE", "TILES", "RESOLUTION", "ELAPSED", "NAME");
   for (const auto& j : jobs) {
     std::string tiles = std::to_string(j.tiles_done()) + "/" + std::to_string(j.tiles_total());
-    std::printf("%-*s  %-9s  %13s  %10llu  %8s  %s\n", idWidth, j.job_id().c_str(), net::jobStateName(j.state()),
+    std::printf("%-*s  %-9s  %13s  %10llu  %8s  %s\n", idWidth, loggable(j.job_id()).c_str(), net::jobStateName(j.state()),
                 tiles.c_str(), static_cast<unsigned long long>(j.resolution()),
-                formatSeconds(j.seconds_elapsed()).c_str(), j.spec().name().c_str());
+                formatSeconds(j.seconds_elapsed()).c_str(), loggable(j.spec().name()).c_str());
   }
   return 0;
 }

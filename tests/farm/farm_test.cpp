@@ -197,6 +197,19 @@ TEST_F(FarmTest, JobFileInJsonFormWithFlagsOverridingIt) {
   ASSERT_EQ(all.size(), 1u);
   EXPECT_EQ(all[0].spec().name(), "from a file");
   EXPECT_EQ(all[0].spec().priority(), 3);
+
+  // R26: a job name with a terminal escape and a line break reaches `cpvs jobs` escaped:
+  // no ESC byte, no forged line.
+  std::ofstream(path("evil.json")) << R"({"sun_direction": {"x": 0.3, "y": -1, "z": 0.2}, "resolution": "512",
+                                        "name": "evil\u001b[2J\nfake 0 done"})";
+  Ran evil = runCli("submit --server " + address + " --token " + kClientToken + " " + path("city.obj") + " --job " +
+                    path("evil.json") + " --quiet");
+  ASSERT_EQ(evil.status, 0) << evil.out;
+  Ran listed = runCli("jobs --all --server " + address + " --token " + kClientToken);
+  ASSERT_EQ(listed.status, 0) << listed.out;
+  EXPECT_NE(listed.out.find("evil\\x1B[2J\\x0Afake"), std::string::npos) << listed.out;
+  EXPECT_EQ(listed.out.find('\x1b'), std::string::npos) << listed.out;
+  EXPECT_EQ(listed.out.find("\nfake 0 done"), std::string::npos) << listed.out;
 }
 
 /// Tiles done in the coordinator's database: acknowledged, or untouched by any triangle.
