@@ -74,15 +74,10 @@ constexpr auto kStages = kBakeGridStages;
 // ---------------------------------------------------------------------------------------
 // Command line
 
-struct Args {
-  std::vector<std::string> scenes{"bunny", "city", "teapots"};
-  std::vector<int> log2Resolutions{10, 11, 12, 13, 14};
+struct Args : CommonArgs {
   std::vector<int> log2Large{15, 16, 18};  // the baseline alone; above 64K a sample of tiles
   int sampleTiles = 16;
-  Vec3 sunDir{0.35, -1.0, 0.25};  // oblique: no face of the city's boxes is parallel to it
-  int repeat = 1;
-  int threads = 0;
-  bool help = false;
+  Args() { log2Resolutions = {10, 11, 12, 13, 14}; }
 };
 
 const char* kUsage =
@@ -112,43 +107,18 @@ const char* kUsage =
 
 Args parseArgs(int argc, char** argv) {
   Args a;
-  for (int i = 1; i < argc; ++i) {
-    const std::string opt = argv[i];
-    if (opt == "--help" || opt == "-h") {
-      a.help = true;
-      continue;
-    }
-    if (i + 1 >= argc) throw InputError("missing value after " + opt + " (see --help)");
-    const std::string value = argv[++i];
-    if (opt == "--resolutions") {
-      a.log2Resolutions.clear();
-      for (const auto& r : splitList(value)) a.log2Resolutions.push_back(parseResolution(r));
-      if (a.log2Resolutions.empty()) throw InputError("--resolutions: empty list");
-    } else if (opt == "--scenes") {
-      a.scenes = splitList(value);
-      if (a.scenes.empty()) throw InputError("--scenes: empty list");
-    } else if (opt == "--scene") {
-      // --scene alone adds to the defaults; with --scenes it adds to that list.
-      a.scenes.push_back(value);
-    } else if (opt == "--sun-dir") {
-      auto parts = splitList(value);
-      if (parts.size() != 3) throw InputError("--sun-dir: expected X,Y,Z, got '" + value + "'");
-      a.sunDir = {parseDouble(parts[0], "--sun-dir"), parseDouble(parts[1], "--sun-dir"),
-                  parseDouble(parts[2], "--sun-dir")};
-    } else if (opt == "--large") {
+  parseBenchArgs(argc, argv, a, [&](const std::string& opt, const std::string& value) {
+    if (opt == "--large") {
       a.log2Large.clear();
       if (value != "none")
         for (const auto& r : splitList(value)) a.log2Large.push_back(parseResolution(r));
     } else if (opt == "--sample-tiles") {
       a.sampleTiles = parsePositive(value, "--sample-tiles");
-    } else if (opt == "--repeat") {
-      a.repeat = parsePositive(value, "--repeat");
-    } else if (opt == "--threads") {
-      a.threads = parsePositive(value, "--threads");
     } else {
-      throw InputError("unknown option: " + opt + " (see --help)");
+      return false;
     }
-  }
+    return true;
+  });
   return a;
 }
 
@@ -220,10 +190,10 @@ LargeRow measureLarge(const BenchScene& bs, const LightFrame& frame, int log2R, 
   const BakeScene prepared(bs.scene, grid, options.renderer);
   const TilePlan plan(log2R, options.log2TileSize);
   row.tiles = plan.count();
-  std::vector<uint64_t> touched;
+  std::vector<uint64_t> touched, untouched;
   for (uint64_t i = 0; i < plan.count(); ++i)
-    if (prepared.touchesTile(plan.tile(i).x, plan.tile(i).y, plan.log2TileSize())) touched.push_back(i);
-  row.untouched = row.tiles - touched.size();
+    (prepared.touchesTile(plan.tile(i).x, plan.tile(i).y, plan.log2TileSize()) ? touched : untouched).push_back(i);
+  row.untouched = untouched.size();
   const auto start = std::chrono::steady_clock::now();
   if (log2R <= 16 || touched.size() <= size_t(sampleTiles)) {
     Dag dag = bakeGrid(prepared, options, &row.times);
@@ -240,13 +210,10 @@ LargeRow measureLarge(const BenchScene& bs, const LightFrame& frame, int log2R, 
     (void)bakeTile(prepared, t.x, t.y, options, &sample);
   }
   double litSeconds = 0;
-  if (row.untouched > 0) {
+  if (!untouched.empty()) {
     const auto litStart = std::chrono::steady_clock::now();
-    for (uint64_t i = 0; i < plan.count(); ++i)
-      if (!prepared.touchesTile(plan.tile(i).x, plan.tile(i).y, plan.log2TileSize())) {
-        (void)bakeUntouchedTile(grid, plan.tile(i).x, plan.tile(i).y, options, &lit);
-        break;
-      }
+    const TileCoord t = plan.tile(untouched.front());
+    (void)bakeUntouchedTile(grid, t.x, t.y, options, &lit);
     litSeconds = secondsSince(litStart);
   }
   const double scale = double(touched.size()) / double(sampleTiles);

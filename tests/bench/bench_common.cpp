@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "cpvs/base/error.h"
+#include "cpvs/base/parse.h"
 #include "cpvs/scene/source.h"
 #include "scene_testing.h"
 
@@ -56,6 +57,40 @@ std::optional<BenchScene> openBenchScene(const std::string& spec, const std::str
            : s.stats.closedTriangles == 0                ? "open"
                                                          : "mixed";
   return s;
+}
+
+void parseBenchArgs(int argc, char** argv, CommonArgs& a,
+                    const std::function<bool(const std::string& option, const std::string& value)>& other) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string opt = argv[i];
+    if (opt == "--help" || opt == "-h") {
+      a.help = true;
+      continue;
+    }
+    if (i + 1 >= argc) throw InputError("missing value after " + opt + " (see --help)");
+    const std::string value = argv[++i];
+    if (opt == "--resolutions") {
+      a.log2Resolutions.clear();
+      for (const auto& r : splitList(value)) a.log2Resolutions.push_back(parseResolution(r));
+      if (a.log2Resolutions.empty()) throw InputError("--resolutions: empty list");
+    } else if (opt == "--scenes") {
+      a.scenes = splitList(value);
+      if (a.scenes.empty()) throw InputError("--scenes: empty list");
+    } else if (opt == "--scene") {
+      // --scene alone adds to the defaults; with --scenes it adds to that list.
+      a.scenes.push_back(value);
+    } else if (opt == "--sun-dir") {
+      auto parts = splitList(value);
+      if (parts.size() != 3) throw InputError("--sun-dir: expected X,Y,Z, got '" + value + "'");
+      a.sunDir = {parseDouble(parts[0], "--sun-dir"), parseDouble(parts[1], "--sun-dir"), parseDouble(parts[2], "--sun-dir")};
+    } else if (opt == "--repeat") {
+      a.repeat = parsePositive(value, "--repeat");
+    } else if (opt == "--threads") {
+      a.threads = parsePositive(value, "--threads");
+    } else if (!other(opt, value)) {
+      throw InputError("unknown option: " + opt + " (see --help)");
+    }
+  }
 }
 
 double parseDouble(const std::string& text, const std::string& what) {

@@ -2,10 +2,12 @@
 // on the command line and in tables.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "cpvs/base/vec3.h"
 #include "cpvs/scene/scene.h"
 
 namespace cpvs::bench {
@@ -30,6 +32,23 @@ struct BenchScene {
 /// still benchmarks the city.
 std::optional<BenchScene> openBenchScene(const std::string& spec, const std::string& program,
                                          std::vector<std::string>& notes);
+
+/// The options every benchmark takes; a program's own Args derive from it and set the
+/// defaults.
+struct CommonArgs {
+  std::vector<std::string> scenes{"bunny", "city", "teapots"};
+  std::vector<int> log2Resolutions;
+  Vec3 sunDir{0.35, -1.0, 0.25};  // oblique: no face of the city's boxes is parallel to it
+  int repeat = 1;
+  int threads = 0;
+  bool help = false;
+};
+
+/// Parses --help, --resolutions, --scenes, --scene, --sun-dir, --repeat and --threads into
+/// `common`; any other "--option value" goes to `other`, which returns false for an option
+/// it does not know. InputError for a bad value or an unknown option.
+void parseBenchArgs(int argc, char** argv, CommonArgs& common,
+                    const std::function<bool(const std::string& option, const std::string& value)>& other);
 
 double parseDouble(const std::string& text, const std::string& what);
 int parsePositive(const std::string& text, const std::string& what);

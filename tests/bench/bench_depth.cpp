@@ -291,13 +291,11 @@ void bandwidthFloor(std::vector<uint32_t>& a, std::vector<uint32_t>& b, size_t t
 enum Variant { kE0Fast, kE0Robust, kE1, kLegacy, kEmbree, kRaster, kMasks, kFused, kFloor, kVariants };
 constexpr const char* kVariantNames[kVariants] = {"E0-fast", "E0-robust", "E1", "P", "P'", "Z", "M", "ZF", "B"};
 
-struct Args {
-  std::vector<std::string> scenes{"bunny", "city", "teapots"};
-  std::vector<int> log2Resolutions{12, 14};
-  Vec3 sunDir{0.35, -1.0, 0.25};
-  int repeat = 3;
-  int threads = 0;
-  bool help = false;
+struct Args : CommonArgs {
+  Args() {
+    log2Resolutions = {12, 14};
+    repeat = 3;
+  }
 };
 
 const char* kUsage =
@@ -321,33 +319,7 @@ const char* kUsage =
 
 Args parseArgs(int argc, char** argv) {
   Args a;
-  for (int i = 1; i < argc; ++i) {
-    const std::string opt = argv[i];
-    if (opt == "--help" || opt == "-h") {
-      a.help = true;
-      continue;
-    }
-    if (i + 1 >= argc) throw InputError("missing value after " + opt + " (see --help)");
-    const std::string value = argv[++i];
-    if (opt == "--resolutions") {
-      a.log2Resolutions.clear();
-      for (const auto& r : splitList(value)) a.log2Resolutions.push_back(parseResolution(r));
-      if (a.log2Resolutions.empty()) throw InputError("--resolutions: empty list");
-    } else if (opt == "--scenes") {
-      a.scenes = splitList(value);
-      if (a.scenes.empty()) throw InputError("--scenes: empty list");
-    } else if (opt == "--sun-dir") {
-      auto parts = splitList(value);
-      if (parts.size() != 3) throw InputError("--sun-dir: expected X,Y,Z, got '" + value + "'");
-      a.sunDir = {parseDouble(parts[0], "--sun-dir"), parseDouble(parts[1], "--sun-dir"), parseDouble(parts[2], "--sun-dir")};
-    } else if (opt == "--repeat") {
-      a.repeat = parsePositive(value, "--repeat");
-    } else if (opt == "--threads") {
-      a.threads = parsePositive(value, "--threads");
-    } else {
-      throw InputError("unknown option: " + opt + " (see --help)");
-    }
-  }
+  parseBenchArgs(argc, argv, a, [](const std::string&, const std::string&) { return false; });
   return a;
 }
 
