@@ -166,6 +166,29 @@ CpvsArtifact sampleArtifact() {
   return art;
 }
 
+// Every depth of the pointer grid (none at 8^3, 1 to 5 levels above): the packed walk
+// answers every voxel as the levels do, and the words read back through the validating
+// reader as the same DAG, which repacks to the same words.
+TEST(PackedDag, PointerGridOfEveryDepthAnswersAsTheLevels) {
+  for (int log2R = 3; log2R <= 8; ++log2R) {
+    const uint32_t R = 1u << log2R;
+    TexelSlices d = syntheticSlices(R, log2R % 2 == 0, 40 + log2R);
+    const Dag dag = buildTiled(d, log2R, log2R, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
+    const PackedDag packed(dag);
+    EXPECT_EQ(int(packed.header().gridLevels), std::min(5, log2R - 3));
+    EXPECT_EQ(packed.arrayBytes() % 8, 0u);
+    uint64_t differ = 0;
+    for (uint64_t z = 0; z < R; ++z)
+      for (uint64_t y = 0; y < R; ++y)
+        for (uint64_t x = 0; x < R; ++x) differ += dagVoxelShadowed(dag, x, y, z) != packed.voxelShadowed(x, y, z);
+    EXPECT_EQ(differ, 0u) << "2^" << log2R;
+    Dag back;
+    const PackedDag again = PackedDag::fromWords(packed.words(), back);
+    EXPECT_EQ(again.words(), packed.words());
+    expectSameDag(dag, back);
+  }
+}
+
 // A DAG whose root is a whole-lit or whole-shadowed code, and one that is not complete.
 TEST(PackedDag, HomogeneousRootsAndIncompleteDags) {
   for (uint32_t code : {uint32_t(kLit), uint32_t(kShadowed)}) {

@@ -1,4 +1,5 @@
-// libFuzzer target: the .cpvs artifact reader and the sub-DAG reader on arbitrary bytes.
+// libFuzzer target: the .cpvs artifact reader (both versions: the level section and the
+// packed section) and the sub-DAG reader on arbitrary bytes.
 // Both check a checksum first, which random bytes never pass; so every input is also
 // tried with its last 8 bytes replaced by the right checksum, which lets the fuzzer
 // reach the structural validation behind it. Whatever decodes is then walked.
@@ -15,11 +16,10 @@
 
 namespace {
 
-void walk(const cpvs::Dag& dag) {
+void walk(const cpvs::Dag& dag, const cpvs::PackedDag& packed) {
   // Every voxel of a small grid, or a sample of a large one: any read out of bounds
-  // shows up under the address sanitizer. The packed layout the queries walk answers as
-  // the reference walk does.
-  const cpvs::PackedDag packed(dag);
+  // shows up under the address sanitizer. The packed words as the file held them (what
+  // a GPU takes as it is) answer as the reference walk over the levels does.
   const uint64_t R = uint64_t(1) << dag.log2Resolution;
   const uint64_t step = R <= 16 ? 1 : R / 7;
   for (uint64_t x = 0; x < R; x += step)
@@ -31,7 +31,7 @@ void walk(const cpvs::Dag& dag) {
 void tryDecode(const uint8_t* data, size_t size) {
   try {
     cpvs::CpvsArtifact a = cpvs::decodeCpvs(data, size, "fuzz");
-    walk(a.dag);
+    walk(a.dag, a.packed);
     (void)cpvs::encodeCpvs(a, false);
   } catch (const cpvs::InputError&) {
   }

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the fuzz targets with clang (libFuzzer + ASan + UBSan) into build/fuzz and runs
-# each for SECONDS (default 15). Seeds: small .cpvs files and sub-DAGs made by the main
-# build's `cpvs`, when it exists. A crash or sanitizer report fails the run and leaves the
+# each for SECONDS (default 15). Seeds: small .cpvs files made by the main build's `cpvs`
+# (the current format version) when it exists, and a version 1 file from tests/io/data. A crash or sanitizer report fails the run and leaves the
 # input in build/fuzz/artifacts/.
 #   bash tests/fuzz/run.sh 15      # the bounded run of the test suite
 #   bash tests/fuzz/run.sh 3600    # a longer run
@@ -18,10 +18,13 @@ if [ ! -f "$out/build.ninja" ]; then
 fi
 ninja -C "$out" -j "${CPVS_JOBS:-2}" >/dev/null
 mkdir -p "$out/corpus-cpvs" "$out/corpus-scene" "$out/artifacts"
-if [ -x build/client/cpvs ] && [ -z "$(ls -A "$out/corpus-cpvs")" ]; then
-  build/client/cpvs bake city:1 --sun-dir 0.3,-1,0.2 -r 64 --tile-size 64 -q -o "$out/corpus-cpvs/city64.cpvs" >/dev/null
-  build/client/cpvs bake city:1 --sun-dir 0,-1,0 -r 32 --no-zstd -q -o "$out/corpus-cpvs/city32-raw.cpvs" >/dev/null
+cli=build/client/cli/cpvs
+if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64.cpvs" ]; then
+  "$cli" bake city:1 --sun-dir 0.3,-1,0.2 -r 64 --tile-size 64 -q -o "$out/corpus-cpvs/seed-city64.cpvs" >/dev/null
+  "$cli" bake city:1 --sun-dir 0,-1,0 -r 32 --no-zstd -q -o "$out/corpus-cpvs/seed-city32-raw.cpvs" >/dev/null
+  "$cli" bake city:1 --sun-dir 0.1,-1,0.5 -r 8 --no-zstd -q -o "$out/corpus-cpvs/seed-city8-raw.cpvs" >/dev/null
 fi
+cp -n tests/io/data/city-256-v1.cpvs "$out/corpus-cpvs/seed-city256-v1.cpvs"
 for target in fuzz_cpvs_reader fuzz_scene_input; do
   corpus="$out/corpus-${target#fuzz_}"
   [ "$target" = fuzz_cpvs_reader ] && corpus="$out/corpus-cpvs"

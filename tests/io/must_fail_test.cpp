@@ -11,6 +11,8 @@
 #include <vector>
 
 #include "cpvs/base/error.h"
+#include "cpvs/base/file.h"
+#include "cpvs/dag/packed_dag.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/io/sub_dag_file.h"
 #include "dag_testing.h"
@@ -77,22 +79,16 @@ CpvsArtifact sampleArtifact() {
   return art;
 }
 
-// Byte offsets of the .cpvs header (cpvs_file.h), version 1.
-constexpr size_t kDir = 12, kExtent = 132, kLog2R = 148, kOptions = 152, kTile = 160, kRootCode = 180,
-                 kRootIndex = 184, kLevelCount = 188, kLeafCount = 192, kLevelSizes = 200;
+// Byte offsets of the .cpvs header (cpvs_file.h), the same in versions 1 and 2.
+constexpr size_t kDir = 12, kExtent = 132, kLog2R = 148, kOptions = 152, kTile = 160;
+// Version 2: the word count, the section's size and stored size, then the packed words.
+constexpr size_t kWordCount = 180, kSectionSize = 188, kWords = 204;
+// Version 1: the root, then the level table.
+constexpr size_t kRootCode = 180, kRootIndex = 184, kLevelCount = 188, kLeafCount = 192, kLevelSizes = 200;
 
-TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
-  const CpvsArtifact art = sampleArtifact();
-  const Bytes valid = encodeCpvs(art, false);
-  const int levels = int(art.dag.levels.size());
-  const size_t payloadSize = kLevelSizes + 16 * size_t(levels), payload = payloadSize + 16;
-  const uint64_t leaves = art.dag.leaves.size();
-  // Level 0 starts after the leaves: its codes, padded to 4 bytes, then its child indices.
-  const size_t level0Codes = payload + 8 * leaves;
-  const size_t level0Children = level0Codes + ((art.dag.levels[0].size() * 2 + 3) & ~size_t(3));
-  ASSERT_GT(art.dag.levels[0].children.size(), 0u);
-
-  const std::vector<Case> cases{
+// The cases every version shares: the header before the DAG, the container around it.
+std::vector<Case> headerCases() {
+  return {
       {"flags", [](Bytes& b) { put<uint32_t>(b, 8, 6); }, "unknown flags 6"},
       {"light direction", [](Bytes& b) { put<double>(b, kDir, get<double>(b, kDir) * 2); }, "not a unit vector"},
       {"non-finite extent", [](Bytes& b) { put<double>(b, kExtent, 1.0 / 0.0); }, "non-finite"},
@@ -103,6 +99,91 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
       {"renderer", [](Bytes& b) { b[kOptions + 6] = 2; }, "options hold an unknown value"},
       {"reserved byte", [](Bytes& b) { b[kOptions + 7] = 1; }, "options hold an unknown value"},
       {"tile size", [](Bytes& b) { put<int32_t>(b, kTile, 2); }, "tile size 2^2 is out of range"},
+      {"trailing bytes", [](Bytes& b) { b.insert(b.end() - 8, {0, 0, 0, 0}); }, "unexpected bytes after the payload"},
+      {"magic", [](Bytes& b) { b[0] = 'X'; }, "not a .cpvs file"},
+      {"version", [](Bytes& b) { put<uint32_t>(b, 4, 9); }, "format version 9 is not supported (this build reads versions 1 to 2)"},
+  };
+}
+
+const auto decodeDamaged = [](const Bytes& b) { decodeCpvs(b.data(), b.size(), "damaged.cpvs"); };
+
+TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
+  const CpvsArtifact art = sampleArtifact();
+  const Bytes valid = encodeCpvs(art, false);
+  ASSERT_EQ(get<uint32_t>(valid, 4), 2u);
+  const PackedDag packed(art.dag);
+  const PackedHeader& h = packed.header();
+  const uint32_t L = h.internalLevels;
+  ASSERT_GE(L, 2u);
+  ASSERT_EQ(get<uint64_t>(valid, kWordCount), packed.words().size());
+  auto word = [](uint32_t k) { return kWords + 4 * size_t(k); };
+  // Field k of the packed header, and the first child of the first node of a level.
+  auto field = [&](size_t offset) { return kWords + offset; };
+  const uint32_t level0Child = h.levelWord[0] + 1, level1Child = h.levelWord[1] + 1;
+  ASSERT_NE(packed.words()[h.levelWord[0]] & 0xAAAA, 0u);  // the first nodes have a kRef child
+  ASSERT_NE(packed.words()[h.levelWord[1]] & 0xAAAA, 0u);
+
+  std::vector<Case> cases = headerCases();
+  const std::vector<Case> packedCases{
+      {"word count", [](Bytes& b) { put<uint64_t>(b, kWordCount, 3); }, "packed DAG word count 3 is invalid"},
+      {"word count beyond 32 bits", [](Bytes& b) { put<uint64_t>(b, kWordCount, uint64_t(1) << 40); }, "is invalid"},
+      {"section size", [](Bytes& b) { put<uint64_t>(b, kSectionSize, get<uint64_t>(b, kSectionSize) + 4); },
+       "does not match the counts"},
+      {"layout version", [=](Bytes& b) { put<uint32_t>(b, word(0), 7); }, "layout version 7 is not supported"},
+      {"packed resolution", [=](Bytes& b) { put<uint32_t>(b, word(1), 7); }, "of resolution 2^7, the grid of 2^6"},
+      {"level count", [=](Bytes& b) { put<uint32_t>(b, word(2), L + 1); }, "level counts do not match"},
+      {"grid levels", [=](Bytes& b) { put<uint32_t>(b, word(3), 2); }, "level counts do not match"},
+      {"header word count", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, wordCount)), 1u << 30); },
+       "the header counts 1073741824 words"},
+      {"odd leaf word",
+       [=](Bytes& b) {
+         put<uint32_t>(b, field(offsetof(PackedHeader, leafWord)), h.leafWord + 1);
+         put<uint32_t>(b, field(offsetof(PackedHeader, leafCount)), h.leafCount);
+       },
+       "the leaves do not end the array"},
+      {"root code", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, rootCode)), 3); }, "root code is invalid"},
+      {"root word", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, rootWord)), h.rootWord + 1); },
+       "not a node of the level below"},
+      {"level start", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, levelWord)) + 4 * (L - 1), h.levelWord[L - 1] + 2); },
+       "does not start where the one above ends"},
+      {"level beyond the root", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, levelNodes)) + 4 * L, 1); },
+       "a level beyond the root is not empty"},
+      {"child code 3", [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[0]), get<uint32_t>(b, word(h.levelWord[0])) | 3); },
+       "invalid child code"},
+      {"code word above 16 bits", [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[0]), get<uint32_t>(b, word(h.levelWord[0])) | 0x10000); },
+       "invalid child code"},
+      {"leaf offset", [=](Bytes& b) { put<uint32_t>(b, word(level0Child), h.leafWord + 1); }, "a child offset is not a leaf"},
+      {"node offset", [=](Bytes& b) { put<uint32_t>(b, word(level1Child), h.levelWord[0] + 1); },
+       "not a node of the level below"},
+      {"pointer grid", [=](Bytes& b) { put<uint32_t>(b, word(h.gridWord), get<uint32_t>(b, word(h.gridWord)) ^ 1); },
+       "the pointer grid or the padding does not match"},
+      {"reserved word", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, reserved)), 1); },
+       "the pointer grid or the padding does not match"},
+  };
+  cases.insert(cases.end(), packedCases.begin(), packedCases.end());
+  expectEveryCaseRejected(valid, cases, decodeDamaged);
+}
+
+// A version 1 file (the reader goes on reading them): one written by the last build of
+// version 1 (city:3:7, 256^3, sun at 40/30 degrees, no zstd) reads, with the DAG size that
+// build printed, and packs to the words version 2 writes; then its level table damaged.
+TEST(MustFail, CpvsVersion1FieldsDamagedBehindAValidChecksum) {
+  const Bytes valid = readFile(CPVS_SOURCE_DIR "/tests/io/data/city-256-v1.cpvs");
+  ASSERT_EQ(get<uint32_t>(valid, 4), 1u);
+  const CpvsArtifact art = decodeCpvs(valid.data(), valid.size(), "v1.cpvs");
+  EXPECT_EQ(art.grid.log2Resolution, 8);
+  EXPECT_EQ(art.dag.bytes(), 45236u);  // as the version 1 build printed it
+  EXPECT_EQ(art.packed.words(), PackedDag(art.dag).words());
+  const int levels = int(art.dag.levels.size());
+  const size_t payloadSize = kLevelSizes + 16 * size_t(levels), payload = payloadSize + 16;
+  const uint64_t leaves = art.dag.leaves.size();
+  // Level 0 starts after the leaves: its codes, padded to 4 bytes, then its child indices.
+  const size_t level0Codes = payload + 8 * leaves;
+  const size_t level0Children = level0Codes + ((art.dag.levels[0].size() * 2 + 3) & ~size_t(3));
+  ASSERT_GT(art.dag.levels[0].children.size(), 0u);
+
+  std::vector<Case> cases = headerCases();
+  const std::vector<Case> levelCases{
       {"root code", [](Bytes& b) { put<uint32_t>(b, kRootCode, 3); }, "root reference is invalid"},
       {"root index", [](Bytes& b) { put<uint32_t>(b, kRootIndex, 1000000); }, "root reference is invalid"},
       {"level count", [](Bytes& b) { put<uint32_t>(b, kLevelCount, get<uint32_t>(b, kLevelCount) + 1); }, "levels where"},
@@ -120,11 +201,9 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
       {"child code 3", [=](Bytes& b) { put<uint16_t>(b, level0Codes, uint16_t(get<uint16_t>(b, level0Codes) | 3)); },
        "invalid child code"},
       {"child index", [=](Bytes& b) { put<uint32_t>(b, level0Children, uint32_t(leaves)); }, "out of range"},
-      {"trailing bytes", [](Bytes& b) { b.insert(b.end() - 8, {0, 0, 0, 0}); }, "unexpected bytes after the payload"},
-      {"magic", [](Bytes& b) { b[0] = 'X'; }, "not a .cpvs file"},
-      {"version", [](Bytes& b) { put<uint32_t>(b, 4, 9); }, "format version 9 is not supported"},
   };
-  expectEveryCaseRejected(valid, cases, [](const Bytes& b) { decodeCpvs(b.data(), b.size(), "damaged.cpvs"); });
+  cases.insert(cases.end(), levelCases.begin(), levelCases.end());
+  expectEveryCaseRejected(valid, cases, decodeDamaged);
 }
 
 // The renderer is the byte that files written before it held as 0: they read as Embree's,

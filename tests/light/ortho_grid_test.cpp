@@ -91,11 +91,34 @@ TEST(OrthoGrid, NormalOffsetMovesTheLargestVoxelComponentByTheGivenVoxels) {
   const Vec3 w = g.origin + Vec3{1, 2, 3};
   for (const Vec3& n : {Vec3{0, 1, 0}, Vec3{0.2, 0.3, -0.9}, Vec3{1e-300, 0, 0}}) {
     const Vec3 d = g.offsetVoxel(w, n, 2.5) - g.voxelFromWorld(w);
-    EXPECT_NEAR(std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)}), 2.5, 1e-9);
+    // At least the voxels asked for, at most 1/256 more (the reciprocal is rounded up).
+    const double moved = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+    EXPECT_GE(moved, 2.5 - 1e-9);
+    EXPECT_LE(moved, 2.5 * (1 + 1.0 / 256) + 1e-9);
     EXPECT_GT(dot(g.worldFromVoxel(g.offsetVoxel(w, n, 2.5)) - w, n), 0);  // towards the normal
   }
   EXPECT_EQ(g.offsetVoxel(w, {}, 2.5), g.voxelFromWorld(w));
   EXPECT_EQ(g.offsetVoxel(w, {std::nan(""), 0, 0}, 2.5), g.voxelFromWorld(w));
+}
+
+// The offset's scale against a plain division, over many magnitudes and every table
+// entry: never below voxels / m, never more than 1/256 above it; 0 outside its range.
+TEST(LookupMapping, NormalOffsetScaleBoundsTheQuotient) {
+  uint64_t state = 12345;
+  for (int i = 0; i < 100000; ++i) {
+    state = state * 6364136223846793005u + 1442695040888963407u;
+    const double m = std::ldexp(1.0 + double(state >> 11) * 0x1p-53, int(state % 200) - 100);
+    for (double voxels : {1.5, 2.5, 5.5}) {
+      const double s = normalOffsetScale(m, voxels), q = voxels / m;
+      ASSERT_GE(s, q * (1 - 1e-15)) << m;
+      ASSERT_LE(s, q * (1 + 1.0 / 256) * (1 + 1e-15)) << m;
+    }
+  }
+  EXPECT_EQ(normalOffsetScale(0x1p-1001, 1.5), 0);
+  EXPECT_EQ(normalOffsetScale(0x1p1000, 1.5), 0);
+  EXPECT_EQ(normalOffsetScale(std::nan(""), 1.5), 0);
+  EXPECT_EQ(normalOffsetScale(1.0, 1.5), 1.5);
+  EXPECT_EQ(normalOffsetScale(0.5, 1.5), 3.0);
 }
 
 TEST(OrthoGrid, ChecksWhatFilesAndMessagesCarry) {

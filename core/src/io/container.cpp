@@ -17,14 +17,16 @@ std::vector<uint8_t> sealContainer(ByteWriter&& w) {
 }
 
 ByteReader openContainer(const uint8_t* data, size_t size, const std::string& source, const ContainerKind& kind,
-                         uint32_t knownFlags, uint32_t& flags) {
+                         uint32_t knownFlags, uint32_t& flags, uint32_t& version) {
   const std::string noun = kind.noun;
   ByteReader r(data, size, source);
   if (std::memcmp(r.take(4, "magic number"), kind.magic, 4) != 0) r.fail("not a " + noun + " (bad magic number)");
-  const uint32_t version = r.get<uint32_t>("header");
-  if (version != kind.version)
-    r.fail(noun + " format version " + std::to_string(version) + " is not supported (this build reads version " +
-           std::to_string(kind.version) + ")");
+  version = r.get<uint32_t>("header");
+  if (version < kind.minVersion || version > kind.version)
+    r.fail(noun + " format version " + std::to_string(version) + " is not supported (this build reads version" +
+           (kind.minVersion == kind.version ? " " + std::to_string(kind.version)
+                                            : "s " + std::to_string(kind.minVersion) + " to " + std::to_string(kind.version)) +
+           ")");
   if (size < r.pos() + 8) r.fail("truncated: no room for the checksum");
   uint64_t stored;
   std::memcpy(&stored, data + size - 8, 8);

@@ -16,8 +16,9 @@ namespace cpvs {
 /// What distinguishes one artifact kind from another.
 struct ContainerKind {
   char magic[4];
-  uint32_t version;  // the one version this build writes and reads
-  const char* noun;  // for messages: ".cpvs file", "sub-DAG"
+  uint32_t version;     // the version this build writes
+  uint32_t minVersion;  // the oldest it still reads (versions in between are read too)
+  const char* noun;     // for messages: ".cpvs file", "sub-DAG"
 };
 
 /// Flag bit: the body's sections are zstd-compressed.
@@ -28,12 +29,12 @@ void beginContainer(ByteWriter& w, const ContainerKind& kind, uint32_t flags);
 /// Ends it with the checksum of everything written so far; returns the bytes.
 std::vector<uint8_t> sealContainer(ByteWriter&& w);
 
-/// Checks magic, version, then the checksum (before anything else is trusted, so that
+/// Checks magic, version (returned in `version`), then the checksum (before anything else is trusted, so that
 /// every later check reports real damage, not a random bit flip), then that `flags`
 /// holds no bit outside `knownFlags`. Returns a reader over the body (from the flags on,
 /// checksum excluded), positioned after the flags. FormatError naming `source` otherwise.
 ByteReader openContainer(const uint8_t* data, size_t size, const std::string& source, const ContainerKind& kind,
-                         uint32_t knownFlags, uint32_t& flags);
+                         uint32_t knownFlags, uint32_t& flags, uint32_t& version);
 
 /// Writes a section: its size, the size stored, then its bytes, zstd-compressed when
 /// `zstd` (level 9).

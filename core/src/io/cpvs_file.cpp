@@ -6,13 +6,14 @@
 #include "io/level_section.h"
 
 #include <cmath>
+#include <cstring>
 #include <string>
 
 namespace cpvs {
 
 namespace {
 
-constexpr ContainerKind kCpvsKind{{'C', 'P', 'V', 'S'}, kCpvsFormatVersion, ".cpvs file"};
+constexpr ContainerKind kCpvsKind{{'C', 'P', 'V', 'S'}, kCpvsFormatVersion, kCpvsOldestFormatVersion, ".cpvs file"};
 
 }  // namespace
 
@@ -44,15 +45,18 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   w.put<int32_t>(o.log2TileSize);
   w.put(a.sceneHash.lo);
   w.put(a.sceneHash.hi);
-  w.put<uint32_t>(dag.roots[0].ref.code);
-  w.put<uint32_t>(dag.roots[0].ref.index);
-  writeDagLevels(dag, zstd, w);
+  const PackedDag packed(dag);
+  const std::vector<uint32_t>& words = packed.words();
+  w.put<uint64_t>(words.size());
+  std::vector<uint8_t> bytes(words.size() * 4);
+  std::memcpy(bytes.data(), words.data(), bytes.size());
+  writeSection(w, bytes, zstd);
   return sealContainer(std::move(w));
 }
 
 CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& source) {
-  uint32_t flags = 0;
-  ByteReader h = openContainer(data, size, source, kCpvsKind, kContainerZstd, flags);
+  uint32_t flags = 0, version = 0;
+  ByteReader h = openContainer(data, size, source, kCpvsKind, kContainerZstd, flags, version);
 
   CpvsArtifact a;
   OrthoGrid& g = a.grid;
@@ -93,17 +97,36 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
   a.sceneHash.lo = h.get<uint64_t>("header");
   a.sceneHash.hi = h.get<uint64_t>("header");
 
+  const bool zstd = (flags & kContainerZstd) != 0;
+  if (version >= 2) {
+    const uint64_t count = h.get<uint64_t>("packed DAG");
+    if (count < kPackedHeaderWords || count > UINT32_MAX) h.fail("packed DAG word count " + std::to_string(count) + " is invalid");
+    std::vector<uint8_t> storage;
+    const uint8_t* bytes = readSection(h, zstd, count * 4, "packed DAG", storage);
+    std::vector<uint32_t> words(count);
+    std::memcpy(words.data(), bytes, count * 4);
+    if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");
+    if (words[1] != uint32_t(g.log2Resolution))
+      h.fail("the packed DAG is of resolution 2^" + std::to_string(words[1]) + ", the grid of 2^" + std::to_string(g.log2Resolution));
+    try {
+      a.packed = PackedDag::fromWords(std::move(words), a.dag);
+    } catch (const InputError& e) {
+      h.fail(e.what());
+    }
+    return a;
+  }
   Dag& dag = a.dag;
   NodeRef root;
   root.code = h.get<uint32_t>("root");
   root.index = h.get<uint32_t>("root");
   const int levels = Dag::internalLevels(g.log2Resolution);
   dag.reset(g.log2Resolution, g.log2Resolution);
-  readDagLevels(h, (flags & kContainerZstd) != 0, levels, dag);
+  readDagLevels(h, zstd, levels, dag);
   if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");
   uint64_t top = levels == 0 ? dag.leaves.size() : dag.levels[levels - 1].size();
   if (root.code > kRef || (root.code == kRef && root.index >= top)) h.fail("root reference is invalid");
   dag.roots.push_back(Dag::Root{0, root});
+  a.packed = PackedDag(dag);
   return a;
 }
 

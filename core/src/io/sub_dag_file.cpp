@@ -10,7 +10,7 @@ namespace cpvs {
 
 namespace {
 
-constexpr ContainerKind kSubDagKind{{'C', 'P', 'V', 'T'}, 1, "sub-DAG"};
+constexpr ContainerKind kSubDagKind{{'C', 'P', 'V', 'T'}, 1, 1, "sub-DAG"};
 
 }  // namespace
 
@@ -30,8 +30,8 @@ std::vector<uint8_t> encodeSubDag(const Dag& dag, bool zstd) {
 }
 
 Dag decodeSubDag(const uint8_t* data, size_t size, const std::string& source, bool canonical, HashKind hash) {
-  uint32_t flags = 0;
-  ByteReader h = openContainer(data, size, source, kSubDagKind, kContainerZstd, flags);
+  uint32_t flags = 0, version = 0;
+  ByteReader h = openContainer(data, size, source, kSubDagKind, kContainerZstd, flags, version);
   int log2R = h.get<int32_t>("header"), log2Root = h.get<int32_t>("header");
   if (log2R < kMinLog2Resolution || log2R > kMaxLog2Resolution || log2Root < 3 || log2Root > log2R)
     h.fail("resolution 2^" + std::to_string(log2R) + " with roots of 2^" + std::to_string(log2Root) +

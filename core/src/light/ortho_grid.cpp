@@ -18,12 +18,13 @@ OrthoGrid OrthoGrid::withSide(uint64_t side) const {
   return g;
 }
 
-Vec3 OrthoGrid::voxelFromWorld(const Vec3& world) const {
-  const Vec3 p = world - origin;
+LookupMapping OrthoGrid::lookupMapping() const {
   const double r = cells();
-  return {(dot(p, frame.u) - u0) / extent * r, (dot(p, frame.v) - v0) / extent * r,
-          (dot(p, frame.dir) - d0) / depthExtent * r};
+  return {{origin.x, origin.y, origin.z}, {frame.u.x, frame.u.y, frame.u.z}, {frame.v.x, frame.v.y, frame.v.z},
+          {frame.dir.x, frame.dir.y, frame.dir.z}, {u0, v0, d0}, {r / extent, r / extent, r / depthExtent}};
 }
+
+Vec3 OrthoGrid::voxelFromWorld(const Vec3& world) const { return mappedVoxel(lookupMapping(), world); }
 
 Vec3 OrthoGrid::worldFromVoxel(const Vec3& voxel) const {
   const double r = cells();
@@ -32,10 +33,7 @@ Vec3 OrthoGrid::worldFromVoxel(const Vec3& voxel) const {
   return origin + frame.u * lu + frame.v * lv + frame.dir * ld;
 }
 
-Vec3 OrthoGrid::directionToVoxel(const Vec3& w) const {
-  const double r = cells();
-  return {dot(w, frame.u) / extent * r, dot(w, frame.v) / extent * r, dot(w, frame.dir) / depthExtent * r};
-}
+Vec3 OrthoGrid::directionToVoxel(const Vec3& w) const { return mappedDirection(lookupMapping(), w); }
 
 TexelMapping::TexelMapping(const OrthoGrid& g, const Vec3& relativeTo)
     : local0_(g.origin - relativeTo),
@@ -61,12 +59,7 @@ uint32_t OrthoGrid::sliceOfDepth(double t) const { return texelMapping(origin).s
 double OrthoGrid::depthOf(const Vec3& world) const { return dot(world - origin, frame.dir) - d0; }
 
 Vec3 OrthoGrid::offsetVoxel(const Vec3& world, const Vec3& normal, double voxels) const {
-  const Vec3 c = voxelFromWorld(world);
-  if (normal == Vec3{}) return c;
-  const Vec3 nv = directionToVoxel(normal);
-  const double m = std::max({std::abs(nv.x), std::abs(nv.y), std::abs(nv.z)});
-  if (!(m > 0) || !std::isfinite(m)) return c;
-  return c + nv * (voxels / m);
+  return mappedLookup(lookupMapping(), world, normal, voxels);
 }
 
 void checkGrid(const OrthoGrid& g, const std::string& source) {

@@ -1,30 +1,41 @@
-// A complete DAG flattened for lookups: the layout the CPU queries walk and the one a GPU
-// buffer takes as it is.
+// A complete DAG flattened for lookups (packed_layout.h): the layout the CPU queries
+// walk, the .cpvs file stores and a GPU buffer takes as it is.
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "cpvs/base/error.h"
 #include "cpvs/dag/child_codes.h"
 #include "cpvs/dag/dag.h"
+#include "cpvs/dag/packed_layout.h"
 
 namespace cpvs {
 
-/// Every internal node is one word of child codes (bits 0..15, as InternalLevel::codes)
-/// followed by the word offsets of its kRef children in `words` (for a node of size 8,
-/// whose children are leaves: their indices in `leaves`). A lookup then reads one array,
-/// one node after another, usually one cache line per level, where Dag's levels spread a
-/// node over three arrays (codes, childBegin, children).
+/// One array of 32-bit words: header, pointer grid, internal nodes (code word, then the
+/// word offsets of its kRef children), leaves as word pairs. A lookup reads one array,
+/// usually one cache line per level below the grid, where Dag's levels spread a node
+/// over three arrays (codes, childBegin, children).
 class PackedDag {
  public:
-  PackedDag() = default;
+  PackedDag() : PackedDag(emptyDag()) {}
   /// Flattens a complete DAG (one root of the grid's size). InputError when it holds
   /// more than 2^32 words (16 GiB).
   explicit PackedDag(const Dag& dag);
 
-  int log2Resolution() const { return log2Resolution_; }
-  uint64_t bytes() const { return words_.size() * 4 + leaves_.size() * 8; }
+  /// Adopts the words of a packed section as they were read, after checking every field,
+  /// code, offset and grid entry: the words must be exactly what packing the DAG they
+  /// describe gives. The DAG is returned in `dag` (levels as Dag holds them, no hashes).
+  /// InputError naming what is wrong otherwise.
+  static PackedDag fromWords(std::vector<uint32_t> words, Dag& dag);
+
+  const PackedHeader& header() const { return header_; }
+  int log2Resolution() const { return int(header_.log2Resolution); }
+  /// Bytes of the node data (8 per leaf, 4 per node word), as Dag::bytes() counts them.
+  uint64_t bytes() const { return nodeBytes_; }
+  /// Bytes of the whole array, header and pointer grid included: what a GPU holds.
+  uint64_t arrayBytes() const { return words_.size() * 4; }
 
   /// The 8x8 shadow mask (bit ty*8+tx set = shadowed) of the leaf slice holding voxel
   /// (x, y, z), each < 2^log2Resolution; all ones or zeros inside a homogeneous node. One
@@ -32,18 +43,19 @@ class PackedDag {
   /// footprint touches at most 4 slices instead of 81 walks (PCF 9x9 on the bunny, 1K-16K:
   /// 1.4-2.5 us per lookup with one walk per texel, 0.14-0.28 us with this).
   uint64_t leafSliceMask(uint64_t x, uint64_t y, uint64_t z) const {
-    uint32_t code = rootCode_, at = rootAt_;
-    for (int level = internalLevels_ - 1; level >= 0 && code == kRef; --level) {
+    const uint32_t* w = words_.data();
+    uint32_t at = w[header_.gridWord + gridCell(log2Resolution(), int(header_.gridLevels), x, y, z)];
+    if (at >= kGridShadowed) return at == kGridShadowed ? ~uint64_t{0} : 0;
+    for (int level = header_.cellLevel(); level >= 0; --level) {
       CPVS_DCHECK(at < words_.size());
-      const uint32_t codes = words_[at];
+      const uint32_t codes = w[at];
       const int c = childOfVoxel(level, x, y, z);
-      code = childCode(codes, c);
-      if (code != kRef) break;
-      at = words_[at + 1 + uint32_t(refRank(codes, c))];
+      const uint32_t code = childCode(codes, c);
+      if (code != kRef) return code == kShadowed ? ~uint64_t{0} : 0;
+      at = w[at + 1 + uint32_t(refRank(codes, c))];
     }
-    CPVS_DCHECK(code != kRef || at < leaves_.size());
-    if (code == kRef) return leaves_[at];
-    return code == kShadowed ? ~uint64_t{0} : 0;
+    CPVS_DCHECK(at + 1 < words_.size());
+    return uint64_t(w[at]) | uint64_t(w[at + 1]) << 32;
   }
   /// Shadow value of one voxel: true = shadowed.
   bool voxelShadowed(uint64_t x, uint64_t y, uint64_t z) const {
@@ -51,13 +63,14 @@ class PackedDag {
   }
 
   const std::vector<uint32_t>& words() const { return words_; }
-  const std::vector<uint64_t>& leaves() const { return leaves_; }
 
  private:
+  PackedDag(std::vector<uint32_t> words, uint64_t nodeBytes);
+  static Dag emptyDag();
+
   std::vector<uint32_t> words_;
-  std::vector<uint64_t> leaves_;
-  uint32_t rootCode_ = kLit, rootAt_ = 0;
-  int internalLevels_ = 0, log2Resolution_ = 0;
+  PackedHeader header_{};  // a copy of words_[0..48), read without aliasing the array
+  uint64_t nodeBytes_ = 0;
 };
 
 }  // namespace cpvs

@@ -8,11 +8,15 @@
 #include "cpvs/bake/options.h"
 #include "cpvs/base/file.h"
 #include "cpvs/dag/dag.h"
+#include "cpvs/dag/packed_dag.h"
 #include "cpvs/light/ortho_grid.h"
 
 namespace cpvs {
 
-constexpr uint32_t kCpvsFormatVersion = 1;
+/// Version 2 stores the DAG as its packed array (packed_layout.h); version 1 stored its
+/// levels and is still read.
+constexpr uint32_t kCpvsFormatVersion = 2;
+constexpr uint32_t kCpvsOldestFormatVersion = 1;
 
 /// A baked artifact: what was baked (grid, options, scene hash) and the complete DAG.
 struct CpvsArtifact {
@@ -20,12 +24,16 @@ struct CpvsArtifact {
   BakeOptions options;
   Hash128 sceneHash;
   Dag dag;  // complete: one root, log2RootSize == log2Resolution; hashes not stored
+  /// The same DAG packed for lookups: decodeCpvs fills it with the file's words as they
+  /// are (packing a version 1 file's levels); encodeCpvs ignores it and packs `dag`.
+  PackedDag packed;
 };
 
 /// Serializes an artifact. Layout (little-endian): a fixed header with magic "CPVS",
-/// version, flags, the grid and options, the root and the level sizes; the payload
-/// (leaves, then per level the 16-bit codes padded to 4 bytes and the 32-bit child
-/// indices), optionally zstd-compressed; an XXH3-64 checksum of everything before it.
+/// version, flags, the grid and options; the word count of the packed DAG and its words
+/// (packed_layout.h: a header, the pointer grid, the nodes, the leaves), optionally
+/// zstd-compressed; an XXH3-64 checksum of everything before it. (Version 1 held the
+/// root, the level sizes and per level the 16-bit codes and 32-bit child indices.)
 std::vector<uint8_t> encodeCpvs(const CpvsArtifact& artifact, bool zstd);
 
 /// Parses and validates an artifact: every size against the data present, the checksum,

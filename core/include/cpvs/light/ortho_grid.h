@@ -8,6 +8,7 @@
 #include "cpvs/base/limits.h"
 #include "cpvs/light/frame.h"
 #include "cpvs/light/grid.h"
+#include "cpvs/light/lookup_mapping.h"
 
 namespace cpvs {
 
@@ -72,6 +73,9 @@ class OrthoGrid final : public LightGrid {
   uint32_t sliceOfDepth(double t) const override;
   double depthOf(const Vec3& world) const override;
   Vec3 offsetVoxel(const Vec3& world, const Vec3& normal, double voxels) const override;
+  /// The constants of voxelFromWorld, directionToVoxel and offsetVoxel (lookup_mapping.h),
+  /// as a GPU lookup takes them.
+  LookupMapping lookupMapping() const;
   /// A world-space direction in voxel units per world unit along each axis.
   Vec3 directionToVoxel(const Vec3& worldDir) const;
   /// The texel rays and slices for an inner loop (rays relative to `relativeTo`).

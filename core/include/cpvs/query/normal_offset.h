@@ -40,6 +40,8 @@ struct VoxelCoord {
 
 /// floor(v) as an integer, clamped far outside any grid so that the conversion stays
 /// defined for any finite or infinite input (NaN gives the lower clamp).
-inline int64_t floorToVoxel(double v) { return int64_t(std::floor(std::clamp(v, -1e15, 1e15))); }
+inline int64_t floorToVoxel(double v) {
+  return std::isnan(v) ? int64_t(-1e15) : int64_t(std::floor(std::clamp(v, -1e15, 1e15)));
+}
 
 }  // namespace cpvs
