@@ -53,7 +53,7 @@ int runQuery(const QueryArgs& a) {
   if (!a.pointsCsv.empty() && !a.normal.empty())
     throw InputError("--normal goes with --point; in --points files put the normal in columns 4-6");
   CpvsArtifact art = readCpvs(a.file);
-  ShadowQuery q(art.grid, PackedDag(art.dag));
+  ShadowQuery q(art.grid, std::move(art.packed));
   if (!a.point.empty()) {
     Vec3 p = parseVec3(a.point, "--point");
     Vec3 n = a.normal.empty() ? Vec3{} : parseVec3(a.normal, "--normal");

@@ -56,7 +56,7 @@ int runRender(const RenderArgs& a) {
   CpvsArtifact art = readCpvs(a.file);
   Scene scene = openMatchingScene(a.scene, art);
   RayScene rays(scene, art.grid.origin);
-  ShadowQuery q(art.grid, PackedDag(art.dag));
+  ShadowQuery q(art.grid, std::move(art.packed));
   const Vec3 L = art.grid.frame.dir;
   Camera cam = a.camera.empty() ? defaultCamera(scene, L, double(w) / h) : Camera::parse(a.camera);
   CameraHits hits = traceCamera(scene, rays, cam, w, h);

@@ -26,7 +26,7 @@ int runVerify(const VerifyArgs& a) {
   CpvsArtifact art = readCpvs(a.file);
   Scene scene = openMatchingScene(a.scene, art);
   RayScene rays(scene, art.grid.origin);
-  ShadowQuery q(art.grid, PackedDag(art.dag));
+  ShadowQuery q(art.grid, std::move(art.packed));
   VerifyResult r = verifyArtifact(q, art.options.closed, scene, rays, a.samples, a.seed);
   if (a.json) {
     std::ostringstream s;

@@ -19,8 +19,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    const cpvs::CpvsArtifact art = cpvs::readCpvs(argv[1]);
-    const cpvs::ShadowQuery query(art.grid, cpvs::PackedDag(art.dag));
+    cpvs::CpvsArtifact art = cpvs::readCpvs(argv[1]);
+    const cpvs::ShadowQuery query(art.grid, std::move(art.packed));
     std::vector<cpvs::Vec3> points, normals;
     std::string line;
     for (int row = 1; std::getline(std::cin, line); ++row) {

@@ -37,11 +37,11 @@ Vec3 ShadowQuery::offsetPoint(const Vec3& p, const Vec3& n, PcfWidth pcf) const 
   return grid_.worldFromVoxel(grid_.offsetVoxel(p, n, normalOffsetVoxels(pcf.width())));
 }
 
-float ShadowQuery::filtered(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
+uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
   const VoxelCoord v = voxelOf(p, n, pcf);
   const int64_t r = pcf.radius(), texels = pcf.texels();
   // Outside the grid is lit (as in voxelShadowed); beyond its far end is its last slice.
-  if (v.z < 0) return 1.0f;
+  if (v.z < 0) return uint32_t(texels);
   const uint64_t z = uint64_t(std::min(v.z, R_ - 1));
   const int64_t x0 = std::max<int64_t>(v.x - r, 0), x1 = std::min<int64_t>(v.x + r, R_ - 1);
   const int64_t y0 = std::max<int64_t>(v.y - r, 0), y1 = std::min<int64_t>(v.y + r, R_ - 1);
@@ -57,7 +57,7 @@ float ShadowQuery::filtered(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
       shadowed += std::popcount(dag_.leafSliceMask(uint64_t(bx) * 8, uint64_t(by) * 8, z) & footprint);
     }
   }
-  return float(texels - shadowed) / float(texels);
+  return uint32_t(texels - shadowed);
 }
 
 void ShadowQuery::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,

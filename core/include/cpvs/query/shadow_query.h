@@ -12,7 +12,7 @@
 namespace cpvs {
 
 /// Answers shadow queries on a complete DAG. Owns what it walks: the grid and the packed
-/// DAG, moved in (build one from an artifact with ShadowQuery(art.grid, PackedDag(art.dag))).
+/// DAG, moved in (from an artifact: ShadowQuery(art.grid, std::move(art.packed))).
 /// Walking the packed form instead of Dag's levels: batched binary lookups on the Quake 3
 /// house took 409 ns at 16K and 276 ns at 8K walking Dag's levels, 235 ns and 206 ns
 /// walking the packed copy (same machine, same day, `cpvs accuracy`); small DAGs that stay
@@ -38,8 +38,14 @@ class ShadowQuery {
 
   /// Binary visibility: 1 = lit, 0 = shadowed.
   float visibility(const Vec3& p, const Vec3& n = {}) const { return filtered(p, n, kBinary); }
+  /// How many of the pcf x pcf texels around the lookup voxel (same slice) are lit:
+  /// texels outside the grid in x or y count as lit, a footprint in front of the grid is
+  /// lit, beyond its far end is its last slice. What a GPU lookup answers.
+  uint32_t litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
   /// Fraction of the pcf x pcf texels around the lookup voxel (same slice) that are lit.
-  float filtered(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
+  float filtered(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
+    return float(litTexels(p, n, pcf)) / float(pcf.texels());
+  }
 
   /// Many queries at once, multithreaded; normals may be empty (no offset). InputError
   /// for an invalid pcf or a normal count that is neither 0 nor the point count.
