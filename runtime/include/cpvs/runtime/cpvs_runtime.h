@@ -1,0 +1,83 @@
+/* cpvs_runtime's C API: opaque handles, explicit status codes, for engines whose plugin
+ * interfaces are C. Every function returns a CpvsStatus (or a value that cannot fail);
+ * on failure cpvsGetLastError() describes it (per thread, valid until the thread's next
+ * call). Handles are not thread-safe: one thread at a time per handle. A CpvsDevice must
+ * outlive the CpvsShadows made on it. */
+#ifndef CPVS_RUNTIME_H
+#define CPVS_RUNTIME_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum CpvsStatus {
+  CPVS_OK = 0,
+  CPVS_ERROR_INVALID_ARGUMENT = 1, /* a null, out-of-range or inconsistent argument */
+  CPVS_ERROR_FILE = 2,             /* a file cannot be read or written */
+  CPVS_ERROR_CORRUPT_ARTIFACT = 3, /* not a valid .cpvs: truncated, damaged, foreign */
+  CPVS_ERROR_NO_VULKAN = 4,        /* no Vulkan loader, or no driver behind it */
+  CPVS_ERROR_NO_DEVICE = 5,        /* no device, none selected, or none with 64-bit floats */
+  CPVS_ERROR_DEVICE_LOST = 6,      /* the device stopped answering */
+  CPVS_ERROR_OUT_OF_MEMORY = 7,
+  CPVS_ERROR_FARM = 8,             /* the farm refused the request or could not be reached */
+  CPVS_ERROR_INTERNAL = 9
+} CpvsStatus;
+
+typedef struct CpvsDevice_T* CpvsDevice;
+typedef struct CpvsShadows_T* CpvsShadows;
+
+/* How cpvsNewDevice picks a device; a null pointer means all defaults. */
+typedef struct CpvsDeviceDesc {
+  const char* select;       /* a device whose name contains this; NULL: CPVS_DEVICE, else the best */
+  int validation;           /* nonzero: the Khronos validation layer, its reports collected */
+  uint64_t maxBindingBytes; /* 0: the device's maxStorageBufferRange */
+} CpvsDeviceDesc;
+
+/* cpvsOpenShadows flags. */
+#define CPVS_FALLBACK_CPU 1u /* answer on the CPU when the device cannot (none, lost) */
+
+/* A headless device the library creates: the first discrete GPU, then integrated, then
+ * virtual, then a CPU device (lavapipe). */
+CpvsStatus cpvsNewDevice(const CpvsDeviceDesc* desc, CpvsDevice* device);
+/* The application's own device (created with shaderFloat64, queueFamily with compute).
+ * getInstanceProcAddr: its PFN_vkGetInstanceProcAddr, or NULL for libvulkan.so.1's. */
+CpvsStatus cpvsNewDeviceFromVulkan(void* instance, void* physicalDevice, void* vkDevice, uint32_t queueFamily,
+                                   void* getInstanceProcAddr, CpvsDevice* device);
+void cpvsReleaseDevice(CpvsDevice device);
+/* The device's name; "" for NULL. Valid while the device lives. */
+const char* cpvsGetDeviceName(CpvsDevice device);
+/* How many messages the validation layer reported (errors and warnings). */
+size_t cpvsGetValidationMessageCount(CpvsDevice device);
+/* Tests only: every later submission on the device fails as a lost device does. */
+void cpvsSimulateDeviceLossForTests(CpvsDevice device);
+
+/* Opens a .cpvs and uploads it to `device` (NULL: lookups on the CPU). With
+ * CPVS_FALLBACK_CPU, a failed upload leaves the shadows on the CPU instead of failing. */
+CpvsStatus cpvsOpenShadows(const char* path, CpvsDevice device, uint32_t flags, CpvsShadows* shadows);
+/* Fetches a finished farm job's artifact into cacheDir (kept under its content hash;
+ * answered from there when fetched before) and writes its path into pathOut. */
+CpvsStatus cpvsFetchShadows(const char* address, const char* tokenOrNull, const char* caFileOrNull, const char* jobId,
+                            const char* cacheDir, char* pathOut, size_t pathCapacity);
+void cpvsReleaseShadows(CpvsShadows shadows);
+/* 1 when lookups run on the device, 0 on the CPU. */
+int cpvsShadowsOnDevice(CpvsShadows shadows);
+
+/* count queries: points (3 doubles each, world space), normals (3 each, or NULL: no
+ * offset), filter width pcf (odd, 1 to 9). litTexels[i] receives how many of the
+ * pcf x pcf texels are lit (for pcf 1: 1 lit, 0 shadowed), as the CPU reference answers. */
+CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* points, const double* normals, int pcf,
+                            uint32_t* litTexels);
+
+/* The message of this thread's last failure ("" when none). */
+const char* cpvsGetLastError(void);
+/* "ok", "no-device", ... */
+const char* cpvsGetStatusName(CpvsStatus status);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* CPVS_RUNTIME_H */

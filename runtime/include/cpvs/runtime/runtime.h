@@ -1,0 +1,195 @@
+// cpvs_runtime: what a game or a viewer links to use baked shadows. Open a .cpvs (or
+// fetch a farm job's artifact into a local cache), upload its packed words to a Vulkan
+// device as they are, and answer batches of shadow queries in a compute shader; or on
+// the CPU, with the same answers, where no device exists. Links the query, dag, io and
+// base layers and the farm client, never the baker. The C API (cpvs_runtime.h) wraps
+// this for engines with C plugin interfaces.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cpvs/base/vec3.h"
+#include "cpvs/dag/packed_dag.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/query/shadow_query.h"
+
+// Vulkan handles as the application has them, without including vulkan.h here.
+typedef struct VkInstance_T* VkInstance;
+typedef struct VkPhysicalDevice_T* VkPhysicalDevice;
+typedef struct VkDevice_T* VkDevice;
+
+namespace cpvs::runtime {
+
+/// Why a runtime call failed; the C API returns the same numbers (cpvs_runtime.h).
+enum class Status : int {
+  Ok = 0,
+  InvalidArgument = 1,  // a null, out-of-range or inconsistent argument
+  FileError = 2,        // a file cannot be read or written
+  CorruptArtifact = 3,  // the bytes are not a valid .cpvs (truncated, damaged, foreign)
+  NoVulkan = 4,         // no Vulkan loader, or it has no usable driver
+  NoDevice = 5,         // no device, none that matches the selection, or one without 64-bit floats
+  DeviceLost = 6,       // the device stopped answering (driver reset, removal)
+  OutOfMemory = 7,      // host or device memory
+  FarmError = 8,        // the farm refused the request or could not be reached
+  Internal = 9,
+};
+
+/// "no-device" and the like.
+const char* statusName(Status s);
+
+class RuntimeError : public std::runtime_error {
+ public:
+  RuntimeError(Status status, const std::string& what) : std::runtime_error(what), status_(status) {}
+  Status status() const { return status_; }
+
+ private:
+  Status status_;
+};
+
+/// A baked artifact opened for lookups: its grid, its packed words (as the file holds
+/// them) and the CPU reference over them. Immutable; share it between devices.
+class ShadowArtifact {
+ public:
+  /// Reads and validates a .cpvs file. FileError when it cannot be read, CorruptArtifact
+  /// when it is not a valid artifact.
+  static std::shared_ptr<const ShadowArtifact> open(const std::string& path);
+  static std::shared_ptr<const ShadowArtifact> fromBytes(const std::vector<uint8_t>& bytes, const std::string& source);
+
+  const OrthoGrid& grid() const { return query_.grid(); }
+  const PackedDag& packed() const { return query_.dag(); }
+  const ShadowQuery& cpu() const { return query_; }
+
+  explicit ShadowArtifact(ShadowQuery query) : query_(std::move(query)) {}
+
+ private:
+  ShadowQuery query_;
+};
+
+/// Fetches the artifact of a finished farm job into `cacheDir`, where it is kept under
+/// its content hash (XXH3-128, 32 hex digits, ".cpvs"), and returns its path. A job
+/// fetched before is answered from the cache, after checking the file against its hash,
+/// without a call to the farm. An interrupted download resumes where it stopped.
+/// FarmError when the farm refuses or cannot be reached (or the job is not done),
+/// CorruptArtifact when what arrived does not match its checksum, FileError for the cache.
+struct FarmAddress {
+  std::string address;  // HOST:PORT of the coordinator
+  std::string token;    // bearer token; empty = none
+  std::string caFile;   // PEM roots to trust: TLS when set, plaintext otherwise
+};
+std::string fetchArtifact(const FarmAddress& farm, const std::string& jobId, const std::string& cacheDir,
+                          bool* fromCache = nullptr);
+
+/// Lit texel counts, on the CPU, for each (point, normal): ShadowQuery::litTexels over all
+/// cores. normals empty (no offset) or one per point.
+void cpuLitTexels(const ShadowArtifact& artifact, const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
+                  int pcf, std::vector<uint32_t>& out);
+
+/// How a device is picked and set up.
+struct DeviceOptions {
+  /// A device whose name contains this text; empty: the CPVS_DEVICE environment variable,
+  /// else the first discrete GPU, then integrated, then virtual, then a CPU device.
+  std::string select;
+  /// Khronos validation layer on, its reports collected (also: CPVS_VALIDATION=1).
+  bool validation = false;
+  /// Split the words across storage bindings of at most this many bytes (0: the device's
+  /// maxStorageBufferRange). For tests of the split on devices whose limit is large.
+  uint64_t maxBindingBytes = 0;
+  /// The Vulkan loader library (empty: CPVS_VULKAN_LOADER, else libvulkan.so.1).
+  std::string loader;
+};
+
+/// A Vulkan device and queue for lookups: created headless by the library, or the
+/// application's own (which must have been created with shaderFloat64 enabled and a
+/// queue family with compute).
+class GpuDevice {
+ public:
+  static std::unique_ptr<GpuDevice> create(const DeviceOptions& options = {});
+  struct External {
+    VkInstance instance = nullptr;
+    VkPhysicalDevice physicalDevice = nullptr;
+    VkDevice device = nullptr;
+    uint32_t queueFamily = 0;
+    void* getInstanceProcAddr = nullptr;  // PFN_vkGetInstanceProcAddr; null: the loader's
+  };
+  static std::unique_ptr<GpuDevice> adopt(const External& external, const DeviceOptions& options = {});
+  ~GpuDevice();
+  GpuDevice(const GpuDevice&) = delete;
+  GpuDevice& operator=(const GpuDevice&) = delete;
+
+  std::string name() const;
+  /// "discrete GPU", "integrated GPU", "virtual GPU", "CPU" or "other".
+  std::string type() const;
+  uint64_t maxStorageBufferRange() const;
+  /// Everything the validation layer reported (errors and warnings), when it is on.
+  std::vector<std::string> validationMessages() const;
+  /// Makes every later submission fail as a lost device does (VK_ERROR_DEVICE_LOST).
+  void simulateDeviceLossForTests();
+
+  struct Impl;
+  Impl& impl() const { return *impl_; }
+
+ private:
+  explicit GpuDevice(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+/// An artifact uploaded to a device: the packed words in one device buffer (one copy,
+/// no repacking), bound as one storage buffer, or as up to 8 where the array exceeds the
+/// binding limit; the mapping in a uniform buffer.
+class GpuShadows {
+ public:
+  GpuShadows(GpuDevice& device, std::shared_ptr<const ShadowArtifact> artifact);
+  ~GpuShadows();
+  GpuShadows(const GpuShadows&) = delete;
+  GpuShadows& operator=(const GpuShadows&) = delete;
+
+  /// Lit texel counts of the pcf x pcf footprint, as cpuLitTexels answers them.
+  /// DeviceLost (and nothing in `out`) when the device stops answering.
+  void litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
+                 std::vector<uint32_t>& out);
+  /// Device time of the lookups of the last litTexels call (GPU timestamps), ns.
+  double lastDeviceNanoseconds() const;
+  int wordBindings() const;
+  const ShadowArtifact& artifact() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Where lookups run.
+enum class Backend { Auto, Gpu, Cpu };
+
+/// The front most callers use: an artifact answered on a device when `backend` allows one
+/// and one can be had, else on the CPU (Auto); Gpu fails instead of falling back.
+class ShadowLookups {
+ public:
+  ShadowLookups(std::shared_ptr<const ShadowArtifact> artifact, Backend backend = Backend::Auto,
+                const DeviceOptions& options = {});
+  ~ShadowLookups();
+
+  bool onGpu() const { return gpu_ != nullptr; }
+  /// The device's name, or "CPU (N threads)".
+  std::string deviceName() const;
+  /// Why the GPU is not used (empty when it is, or when the CPU was asked for).
+  const std::string& fallbackReason() const { return fallbackReason_; }
+  void litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf, std::vector<uint32_t>& out);
+  /// lit / pcf^2 (1 lit, 0 shadowed for pcf 1), as ShadowQuery::filtered.
+  void visibility(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf, std::vector<float>& out);
+  const ShadowArtifact& artifact() const { return *artifact_; }
+  GpuDevice* device() const { return device_.get(); }
+
+ private:
+  std::shared_ptr<const ShadowArtifact> artifact_;
+  std::unique_ptr<GpuDevice> device_;
+  std::unique_ptr<GpuShadows> gpu_;
+  Backend backend_;
+  std::string fallbackReason_;
+};
+
+}  // namespace cpvs::runtime

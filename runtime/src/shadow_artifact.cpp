@@ -1,0 +1,99 @@
+// Opening artifacts, the CPU path, and the front that picks a device or the CPU.
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <optional>
+
+#include "cpvs/base/error.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/runtime/runtime.h"
+
+namespace cpvs::runtime {
+
+std::shared_ptr<const ShadowArtifact> ShadowArtifact::fromBytes(const std::vector<uint8_t>& bytes, const std::string& source) {
+  try {
+    CpvsArtifact a = decodeCpvs(bytes.data(), bytes.size(), source);
+    return std::make_shared<const ShadowArtifact>(ShadowQuery(a.grid, std::move(a.packed)));
+  } catch (const InputError& e) {
+    throw RuntimeError(Status::CorruptArtifact, e.what());
+  }
+}
+
+std::shared_ptr<const ShadowArtifact> ShadowArtifact::open(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw RuntimeError(Status::FileError, "cannot open " + path + ": " + std::strerror(errno));
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw RuntimeError(Status::FileError, "cannot read " + path);
+  return fromBytes(bytes, path);
+}
+
+void cpuLitTexels(const ShadowArtifact& artifact, const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
+                  int pcf, std::vector<uint32_t>& out) {
+  if (!normals.empty() && normals.size() != points.size())
+    throw RuntimeError(Status::InvalidArgument, std::to_string(normals.size()) + " normals for " + std::to_string(points.size()) + " points");
+  std::optional<PcfWidth> width;
+  try {
+    width.emplace(pcf);
+  } catch (const InputError& e) {
+    throw RuntimeError(Status::InvalidArgument, e.what());
+  }
+  out.resize(points.size());
+  const ShadowQuery& q = artifact.cpu();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 1024), [&](const auto& range) {
+    for (size_t i = range.begin(); i != range.end(); ++i)
+      out[i] = q.litTexels(points[i], normals.empty() ? Vec3{} : normals[i], *width);
+  });
+}
+
+ShadowLookups::ShadowLookups(std::shared_ptr<const ShadowArtifact> artifact, Backend backend, const DeviceOptions& options)
+    : artifact_(std::move(artifact)), backend_(backend) {
+  if (!artifact_) throw RuntimeError(Status::InvalidArgument, "no artifact");
+  if (backend == Backend::Cpu) return;
+  try {
+    device_ = GpuDevice::create(options);
+    gpu_ = std::make_unique<GpuShadows>(*device_, artifact_);
+  } catch (const RuntimeError& e) {
+    if (backend == Backend::Gpu) throw;
+    gpu_.reset();
+    device_.reset();
+    fallbackReason_ = e.what();
+  }
+}
+
+ShadowLookups::~ShadowLookups() = default;
+
+std::string ShadowLookups::deviceName() const {
+  if (gpu_) return device_->name() + " (" + device_->type() + ", Vulkan)";
+  return "CPU (" + std::to_string(tbb::info::default_concurrency()) + " threads)";
+}
+
+void ShadowLookups::litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
+                              std::vector<uint32_t>& out) {
+  if (gpu_) {
+    try {
+      gpu_->litTexels(points, normals, pcf, out);
+      return;
+    } catch (const RuntimeError& e) {
+      // A device that is lost stays lost: from here on the CPU answers, as Auto promised.
+      if (e.status() != Status::DeviceLost || backend_ != Backend::Auto) throw;
+      fallbackReason_ = e.what();
+      gpu_.reset();
+      device_.reset();
+    }
+  }
+  cpuLitTexels(*artifact_, points, normals, pcf, out);
+}
+
+void ShadowLookups::visibility(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
+                               std::vector<float>& out) {
+  std::vector<uint32_t> lit;
+  litTexels(points, normals, pcf, lit);
+  out.resize(lit.size());
+  const float texels = float(pcf * pcf);
+  for (size_t i = 0; i < lit.size(); ++i) out[i] = float(lit[i]) / texels;
+}
+
+}  // namespace cpvs::runtime
