@@ -10,6 +10,7 @@
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
+#include "cpvs/runtime/runtime.h"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -38,6 +39,15 @@ int main(int argc, char** argv) {
   } catch (const cpvs::InputError& e) {
     std::fprintf(stderr, "cpvs: %s\n", e.what());
     return 2;
+  } catch (const cpvs::runtime::RuntimeError& e) {
+    using cpvs::runtime::Status;
+    const Status s = e.status();
+    if (s == Status::NoVulkan || s == Status::NoDevice || s == Status::DeviceLost) {
+      std::fprintf(stderr, "cpvs: --gpu: %s (leave out --gpu to look up on the CPU)\n", e.what());
+      return 5;
+    }
+    std::fprintf(stderr, "cpvs: %s\n", e.what());
+    return s == Status::InvalidArgument || s == Status::FileError || s == Status::CorruptArtifact ? 2 : 3;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "cpvs: internal error: %s\n", e.what());
     return 3;

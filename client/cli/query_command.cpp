@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "cpvs/base/error.h"
 #include "cpvs/query/shadow_query.h"
+#include "cpvs/runtime/runtime.h"
 
 namespace cpvs::cli {
 
@@ -16,6 +17,7 @@ namespace {
 struct QueryArgs {
   std::string file, point, normal, pointsCsv;
   int pcf = 1;
+  bool gpu = false;
 };
 
 /// Reads "x,y,z" or "x,y,z,nx,ny,nz" per line; blank lines and lines starting with '#'
@@ -53,11 +55,23 @@ int runQuery(const QueryArgs& a) {
   if (!a.pointsCsv.empty() && !a.normal.empty())
     throw InputError("--normal goes with --point; in --points files put the normal in columns 4-6");
   CpvsArtifact art = readCpvs(a.file);
-  ShadowQuery q(art.grid, std::move(art.packed));
+  auto artifact = std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, std::move(art.packed)));
+  const ShadowQuery& q = artifact->cpu();
+  std::unique_ptr<runtime::ShadowLookups> gpu;
+  if (a.gpu) {
+    gpu = std::make_unique<runtime::ShadowLookups>(artifact, runtime::Backend::Gpu);
+    std::fprintf(stderr, "Looking up on %s\n", gpu->deviceName().c_str());
+  }
+  auto lookup = [&](const std::vector<Vec3>& points, const std::vector<Vec3>& normals, std::vector<float>& out) {
+    if (gpu) gpu->visibility(points, normals, a.pcf, out);
+    else q.batch(points, normals, a.pcf, out);
+  };
   if (!a.point.empty()) {
     Vec3 p = parseVec3(a.point, "--point");
     Vec3 n = a.normal.empty() ? Vec3{} : parseVec3(a.normal, "--normal");
-    float vis = q.filtered(p, n, a.pcf);
+    std::vector<float> one;
+    lookup({p}, {n}, one);
+    const float vis = one.at(0);
     VoxelCoord v = q.voxelOf(p, n, a.pcf);
     std::printf("%s  visibility %.4g  (voxel %lld, %lld, %lld)\n", vis == 1.0f ? "lit" : (vis == 0.0f ? "shadowed" : "partly lit"),
                 vis, static_cast<long long>(v.x), static_cast<long long>(v.y), static_cast<long long>(v.z));
@@ -66,7 +80,7 @@ int runQuery(const QueryArgs& a) {
   std::vector<Vec3> points, normals;
   readPointsCsv(a.pointsCsv, points, normals);
   std::vector<float> out;
-  q.batch(points, normals, a.pcf, out);
+  lookup(points, normals, out);
   std::printf("x,y,z,visibility\n");
   for (size_t i = 0; i < points.size(); ++i)
     std::printf("%.9g,%.9g,%.9g,%.6g\n", points[i].x, points[i].y, points[i].z, out[i]);
@@ -85,6 +99,9 @@ void addQueryCommand(CLI::App& app, int& status) {
   c->add_option("--points", a->pointsCsv, "CSV file of x,y,z or x,y,z,nx,ny,nz rows");
   c->add_option("--pcf", a->pcf, "Filter width in texels: 1, 3, 5, 7 or 9")
       ->check(CLI::IsMember({1, 3, 5, 7, 9}))->capture_default_str();
+  c->add_flag("--gpu", a->gpu,
+              "Look up on a Vulkan device (headless; CPVS_DEVICE picks one by name): the same answers as the "
+              "CPU's. Exit status 5 when there is none");
   c->callback([a, &status] { status = runQuery(*a); });
 }
 

@@ -10,6 +10,7 @@
 #include "commands.h"
 #include "cpvs/base/error.h"
 #include "cpvs/eval/render.h"
+#include "cpvs/runtime/runtime.h"
 
 namespace cpvs::cli {
 
@@ -18,8 +19,24 @@ namespace {
 struct RenderArgs {
   std::string file, scene, camera, out, size = "960x600";
   int pcf = 3;
-  bool reference = false;
+  bool reference = false, gpu = false;
 };
+
+// The visibility of every pixel that sees a surface, looked up on a Vulkan device.
+std::vector<float> gpuVisibility(const CameraHits& hits, runtime::ShadowLookups& lookups, int pcf) {
+  std::vector<Vec3> points, normals;
+  std::vector<size_t> at;
+  for (size_t i = 0; i < hits.pixels.size(); ++i)
+    if (hits.pixels[i].hit) {
+      points.push_back(hits.pixels[i].point);
+      normals.push_back(hits.pixels[i].normal);
+      at.push_back(i);
+    }
+  std::vector<float> seen, vis(hits.pixels.size(), 1.0f);
+  lookups.visibility(points, normals, pcf, seen);
+  for (size_t k = 0; k < at.size(); ++k) vis[at[k]] = seen[k];
+  return vis;
+}
 
 void parseSize(const std::string& text, int& w, int& h) {
   size_t x = text.find('x');
@@ -56,18 +73,24 @@ int runRender(const RenderArgs& a) {
   CpvsArtifact art = readCpvs(a.file);
   Scene scene = openMatchingScene(a.scene, art);
   RayScene rays(scene, art.grid.origin);
-  ShadowQuery q(art.grid, std::move(art.packed));
   const Vec3 L = art.grid.frame.dir;
+  const OrthoGrid grid = art.grid;
+  auto artifact = std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, std::move(art.packed)));
+  const ShadowQuery& q = artifact->cpu();
+  std::unique_ptr<runtime::ShadowLookups> gpu;
+  if (a.gpu) gpu = std::make_unique<runtime::ShadowLookups>(artifact, runtime::Backend::Gpu);
   Camera cam = a.camera.empty() ? defaultCamera(scene, L, double(w) / h) : Camera::parse(a.camera);
   CameraHits hits = traceCamera(scene, rays, cam, w, h);
-  std::vector<float> vis = cpvsVisibility(hits, q, a.pcf);
+  auto lookup = [&](int pcf) { return gpu ? gpuVisibility(hits, *gpu, pcf) : cpvsVisibility(hits, q, pcf); };
+  std::vector<float> vis = lookup(a.pcf);
   writeBoth(base, shadeHits(hits, vis, L));
-  std::printf("Wrote %s.png and %s.exr (CPVS shadows, PCF %d)\n", base.c_str(), base.c_str(), a.pcf);
+  std::printf("Wrote %s.png and %s.exr (CPVS shadows, PCF %d, looked up on %s)\n", base.c_str(), base.c_str(), a.pcf,
+              gpu ? gpu->deviceName().c_str() : "the CPU");
   if (a.reference) {
-    std::vector<float> exact = exactVisibility(hits, rays, art.grid);
+    std::vector<float> exact = exactVisibility(hits, rays, grid);
     writeBoth(base + "-reference", shadeHits(hits, exact, L));
     // The difference compares binary lookups so that a filtered edge is not counted.
-    std::vector<float> binary = a.pcf == 1 ? vis : cpvsVisibility(hits, q, 1);
+    std::vector<float> binary = a.pcf == 1 ? vis : lookup(1);
     uint64_t compared = 0, differing = 0;
     writeBoth(base + "-diff", differenceImage(hits, binary, exact, L, &compared, &differing));
     std::printf("Wrote %s-reference.png/.exr (exact ray-traced shadows) and %s-diff.png/.exr\n", base.c_str(),
@@ -95,6 +118,9 @@ void addRenderCommand(CLI::App& app, int& status) {
   c->add_option("--size", a->size, "Image size WIDTHxHEIGHT")->capture_default_str();
   c->add_option("--pcf", a->pcf, "Filter width in texels: 1, 3, 5, 7 or 9")
       ->check(CLI::IsMember({1, 3, 5, 7, 9}))->capture_default_str();
+  c->add_flag("--gpu", a->gpu,
+              "Look the shadows up on a Vulkan device (headless; CPVS_DEVICE picks one by name): the same "
+              "picture as the CPU's. Exit status 5 when there is none");
   c->add_flag("--reference", a->reference,
               "Also render exact ray-traced shadows (NAME-reference) and the difference (NAME-diff)");
   c->callback([a, &status] { status = runRender(*a); });

@@ -152,6 +152,39 @@ TEST_F(Cli, RenderWritesPicturesAndReference) {
   EXPECT_GT(maxL, 0.3f);
 }
 
+// --gpu (lavapipe here): the same picture bytes and the same CSV as the CPU path; no
+// Vulkan loader: exit status 5 and a message that says what to do.
+TEST_F(Cli, GpuLookupsGiveTheSamePictureAndAnswers) {
+  for (const char* pcf : {"1", "9"}) {
+    const std::string cpu = path(std::string("cpu") + pcf + ".png"), gpu = path(std::string("gpu") + pcf + ".png");
+    CliRun a = cpvs("render " + path("c.cpvs") + " city:3 --size 160x100 --pcf " + pcf + " --out " + cpu);
+    ASSERT_EQ(a.status, 0) << a.out;
+    CliRun b = cpvs("render " + path("c.cpvs") + " city:3 --size 160x100 --gpu --pcf " + pcf + " --out " + gpu);
+    ASSERT_EQ(b.status, 0) << b.out;
+    EXPECT_NE(b.out.find("Vulkan"), std::string::npos) << b.out;
+    std::ifstream x(cpu, std::ios::binary), y(gpu, std::ios::binary);
+    const std::string bytesA((std::istreambuf_iterator<char>(x)), {}), bytesB((std::istreambuf_iterator<char>(y)), {});
+    EXPECT_GT(bytesA.size(), 1000u);
+    EXPECT_EQ(bytesA, bytesB) << "PCF " << pcf << ": the GPU picture differs from the CPU's";
+  }
+  std::ofstream csv(path("g.csv"));
+  csv << "x,y,z,nx,ny,nz\n";
+  for (int i = 0; i < 400; ++i) csv << (i * 7) % 90 << "," << (i % 13) * 3 - 5 << "," << (i * 11) % 90 << ",0,1,0\n";
+  csv.close();
+  CliRun cpuCsv = cpvs("query " + path("c.cpvs") + " --points " + path("g.csv") + " --pcf 5");
+  CliRun gpuCsv = cpvs("query " + path("c.cpvs") + " --points " + path("g.csv") + " --pcf 5 --gpu");
+  ASSERT_EQ(cpuCsv.status, 0) << cpuCsv.out;
+  ASSERT_EQ(gpuCsv.status, 0) << gpuCsv.out;
+  const std::string header = "x,y,z,visibility";
+  ASSERT_NE(gpuCsv.out.find(header), std::string::npos);
+  EXPECT_EQ(cpuCsv.out, gpuCsv.out.substr(gpuCsv.out.find(header)));  // after "Looking up on ..."
+  CliRun none = testing::runShell("CPVS_VULKAN_LOADER=/nonexistent/libvulkan.so.1 timeout 120 '" CPVS_CLI "' query " +
+                                  path("c.cpvs") + " --point 1,2,3 --gpu 2>&1");
+  EXPECT_EQ(none.status, 5) << none.out;
+  EXPECT_NE(none.out.find("no Vulkan loader"), std::string::npos) << none.out;
+  EXPECT_NE(none.out.find("leave out --gpu"), std::string::npos) << none.out;
+}
+
 // Bad input: exit status 2 and a message that names what is wrong.
 struct BadCase {
   const char* args;
