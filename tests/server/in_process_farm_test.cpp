@@ -23,6 +23,7 @@
 #include "cpvs/scene/source.h"
 #include "rpc/farm_server.h"
 #include "store/farm_store.h"
+#include "cpvs/runtime/runtime.h"
 #include "farm_testing.h"
 #include "tile_worker.h"
 
@@ -69,9 +70,41 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   EXPECT_EQ(done.tiles_total(), 16u);
   farmClient.download(submitted.job_id(), dir / "farm.cpvs");
 
+  // The runtime fetches it into its cache under its content hash, then answers from the
+  // cache; an unknown job is the farm's refusal.
+  const runtime::FarmAddress address{farm.server.address(), "", ""};
+  bool fromCache = true;
+  const std::string cached = runtime::fetchArtifact(address, submitted.job_id(), dir / "runtime-cache", &fromCache);
+  EXPECT_FALSE(fromCache);
+  const std::vector<uint8_t> farmBytes = readFile(dir / "farm.cpvs");
+  EXPECT_EQ(readFile(cached), farmBytes);
+  EXPECT_EQ(cached, (dir / "runtime-cache") + "/" + contentHash(farmBytes.data(), farmBytes.size()).hex() + ".cpvs");
+  EXPECT_EQ(runtime::fetchArtifact(address, submitted.job_id(), dir / "runtime-cache", &fromCache), cached);
+  EXPECT_TRUE(fromCache);
+  try {
+    runtime::fetchArtifact(address, "no-such-job", dir / "runtime-cache");
+    ADD_FAILURE() << "fetched an unknown job";
+  } catch (const runtime::RuntimeError& e) {
+    EXPECT_EQ(e.status(), runtime::Status::FarmError);
+    EXPECT_NE(std::string(e.what()).find("no-such-job"), std::string::npos) << e.what();
+  }
+
   tileWorker.stop();
   workerThread.join();
   farm.server.shutdown(1);
+
+  // With the farm gone the cache still answers; a damaged cached file is not trusted.
+  EXPECT_EQ(runtime::fetchArtifact(address, submitted.job_id(), dir / "runtime-cache", &fromCache), cached);
+  EXPECT_TRUE(fromCache);
+  std::vector<uint8_t> damaged = farmBytes;
+  damaged[damaged.size() / 2] ^= 1;
+  writeFileAtomic(cached, damaged);
+  try {
+    runtime::fetchArtifact(address, submitted.job_id(), dir / "runtime-cache", &fromCache);
+    ADD_FAILURE() << "a damaged cached artifact was returned";
+  } catch (const runtime::RuntimeError& e) {
+    EXPECT_EQ(e.status(), runtime::Status::FarmError) << e.what();  // it went to the farm, which is down
+  }
 
   // The same bake in this process, from the same file.
   const Scene scene = loadScene(obj);
