@@ -1,0 +1,124 @@
+#include "frame_timing.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+
+#include "cpvs/base/error.h"
+
+namespace cpvs::bench {
+
+namespace {
+
+constexpr char kMagic[8] = {'C', 'P', 'V', 'S', 'F', 'R', 'M', '1'};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+double millisecondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
+std::string fixed(const char* fmt, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, fmt, v);
+  return buf;
+}
+
+int8_t quantize(double v) { return int8_t(std::lround(std::clamp(v, -1.0, 1.0) * 127)); }
+
+}  // namespace
+
+void writeFrame(const std::string& path, const Frame& f) {
+  std::ofstream out(path, std::ios::binary);
+  const uint64_t n = f.points.size();
+  out.write(kMagic, 8);
+  out.write(reinterpret_cast<const char*>(&n), 8);
+  for (uint64_t i = 0; i < n; ++i) {
+    const float p[3] = {float(f.points[i].x), float(f.points[i].y), float(f.points[i].z)};
+    const Vec3 nn = f.normals.empty() ? Vec3{} : f.normals[i];
+    const int8_t q[3] = {quantize(nn.x), quantize(nn.y), quantize(nn.z)};
+    out.write(reinterpret_cast<const char*>(p), sizeof p);
+    out.write(reinterpret_cast<const char*>(q), sizeof q);
+  }
+  if (!out) throw InputError("cannot write " + path);
+}
+
+Frame readFrame(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[8];
+  uint64_t n = 0;
+  if (!in.read(magic, 8) || std::memcmp(magic, kMagic, 8) != 0 || !in.read(reinterpret_cast<char*>(&n), 8))
+    throw InputError(path + ": not a frame file");
+  if (n > (uint64_t(1) << 28)) throw InputError(path + ": " + std::to_string(n) + " points is too many");
+  Frame f;
+  f.points.resize(n);
+  f.normals.resize(n);
+  for (uint64_t i = 0; i < n; ++i) {
+    float p[3];
+    int8_t q[3];
+    if (!in.read(reinterpret_cast<char*>(p), sizeof p) || !in.read(reinterpret_cast<char*>(q), sizeof q))
+      throw InputError(path + ": truncated at point " + std::to_string(i));
+    f.points[i] = {p[0], p[1], p[2]};
+    f.normals[i] = {q[0] / 127.0, q[1] / 127.0, q[2] / 127.0};
+  }
+  return f;
+}
+
+void printTimingHeader() {
+  std::printf("| scene | R | DAG | array | queries | lookup | device ms/frame | ns/query | Mq/s | wall ms | CPU ms/frame | CPU ns/query | device/CPU | answers |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+}
+
+void printTimingRows(const std::string& scene, const std::string& resolution, uint64_t dagBytes,
+                     const std::shared_ptr<const runtime::ShadowArtifact>& artifact, const Frame& frame,
+                     runtime::GpuDevice* device, int repeat) {
+  std::unique_ptr<runtime::GpuShadows> gpu;
+  if (device) gpu = std::make_unique<runtime::GpuShadows>(*device, artifact);
+  const double n = double(frame.points.size());
+  for (int pcf : {1, 9}) {
+    std::vector<uint32_t> onCpu, onGpu;
+    runtime::cpuLitTexels(*artifact, frame.points, frame.normals, pcf, onCpu);  // warm-up, and the reference
+    std::vector<double> cpuMs, devMs, wallMs;
+    for (int r = 0; r < repeat; ++r) {
+      const auto t = std::chrono::steady_clock::now();
+      runtime::cpuLitTexels(*artifact, frame.points, frame.normals, pcf, onCpu);
+      cpuMs.push_back(millisecondsSince(t));
+    }
+    std::string answers = "CPU only";
+    if (gpu) {
+      gpu->litTexels(frame.points, frame.normals, pcf, onGpu);  // warm-up
+      uint64_t differ = 0;
+      for (size_t i = 0; i < onCpu.size(); ++i) differ += onGpu[i] != onCpu[i];
+      answers = differ == 0 ? "identical" : std::to_string(differ) + " differ";
+      for (int r = 0; r < repeat; ++r) {
+        const auto t = std::chrono::steady_clock::now();
+        gpu->litTexels(frame.points, frame.normals, pcf, onGpu);
+        wallMs.push_back(millisecondsSince(t));
+        devMs.push_back(gpu->lastDeviceNanoseconds() * 1e-6);
+      }
+    }
+    const double cpu = median(cpuMs), dev = median(devMs);
+    auto mib = [](uint64_t b) { return fixed("%.2f MiB", double(b) / (1 << 20)); };
+    std::printf("| %s | %s | %s | %s | %.0f | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", scene.c_str(),
+                resolution.c_str(), mib(dagBytes).c_str(), mib(artifact->packed().arrayBytes()).c_str(), n,
+                pcf == 1 ? "binary" : "9x9 PCF", gpu ? fixed("%.3f", dev).c_str() : "-",
+                gpu ? fixed("%.2f", dev * 1e6 / n).c_str() : "-", gpu ? fixed("%.0f", n / (dev * 1e3)).c_str() : "-",
+                gpu ? fixed("%.1f", median(wallMs)).c_str() : "-", fixed("%.1f", cpu).c_str(),
+                fixed("%.1f", cpu * 1e6 / n).c_str(), gpu ? fixed("%.2fx", cpu / dev).c_str() : "-", answers.c_str());
+    std::fflush(stdout);
+  }
+}
+
+void printTimingFooter() {
+  std::printf("\ndevice/CPU: CPU time over device time (above 1: the device is faster). Device ms: GPU timestamps around\n"
+              "the dispatches; wall ms adds the copies of queries and answers and the submission. The CPU runs the\n"
+              "same lookups (ShadowQuery::litTexels) on every core; `answers` compares the two, point by point.\n");
+}
+
+}  // namespace cpvs::bench

@@ -1,0 +1,36 @@
+// Timing one frame's lookups on a Vulkan device and on the CPU, and the frame files that
+// carry a frame to a machine with a GPU (tests/gpu/device-check.sh): what bench_gpu_query
+// and gpu_frame_timing share. Links the runtime only, so the program that runs on that
+// machine carries no baker.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cpvs/base/vec3.h"
+#include "cpvs/runtime/runtime.h"
+
+namespace cpvs::bench {
+
+/// The points of one frame and their normals.
+struct Frame {
+  std::vector<Vec3> points, normals;
+};
+
+/// A frame file: "CPVSFRM1", the point count (uint64), then per point its position as
+/// three floats and its normal as three int8 (times 127). Positions and normals are
+/// what the lookups of both paths read, so rounding them changes no comparison.
+void writeFrame(const std::string& path, const Frame& frame);
+Frame readFrame(const std::string& path);
+
+/// The Markdown table's header and one pair of rows (binary, 9x9 PCF) for an artifact:
+/// device time from GPU timestamps and wall time, CPU time, their ratio, and whether the
+/// answers are identical. `device` may be null (CPU only).
+void printTimingHeader();
+void printTimingRows(const std::string& scene, const std::string& resolution, uint64_t dagBytes,
+                     const std::shared_ptr<const runtime::ShadowArtifact>& artifact, const Frame& frame,
+                     runtime::GpuDevice* device, int repeat);
+void printTimingFooter();
+
+}  // namespace cpvs::bench

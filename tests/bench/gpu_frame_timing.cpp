@@ -1,0 +1,70 @@
+// The lookups of bench_gpu_query from files, for a machine with a GPU and nothing else:
+// every NAME.cpvs in DIR with its NAME.frame (bench_gpu_query --save DIR writes them),
+// timed on a Vulkan device and on the CPU. Links the runtime only (tests/gpu/device-check.sh
+// carries it with its libraries).
+//   gpu_frame_timing DIR [--device TEXT] [--repeat N]
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "frame_timing.h"
+
+int main(int argc, char** argv) {
+  using namespace cpvs;
+  std::string dir, select;
+  int repeat = 20;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--device" && i + 1 < argc) select = argv[++i];
+    else if (arg == "--repeat" && i + 1 < argc) repeat = std::max(1, std::atoi(argv[++i]));
+    else if (arg == "--help" || arg[0] == '-') {
+      std::printf("usage: gpu_frame_timing DIR [--device TEXT] [--repeat N]\n");
+      return arg == "--help" ? 0 : 2;
+    } else dir = arg;
+  }
+  try {
+    std::vector<std::filesystem::path> artifacts;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+      if (e.path().extension() == ".cpvs") artifacts.push_back(e.path());
+    std::sort(artifacts.begin(), artifacts.end());
+    if (artifacts.empty()) throw std::runtime_error("no .cpvs files in " + dir);
+    std::string model = "unknown";
+    std::ifstream cpuinfo("/proc/cpuinfo");
+    for (std::string line; std::getline(cpuinfo, line);)
+      if (line.rfind("model name", 0) == 0) {
+        model = line.substr(line.find(':') + 2);
+        break;
+      }
+    std::printf("# Shadow lookups per frame\n\nCPU: %s\n", model.c_str());
+    runtime::DeviceOptions options;
+    options.select = select;
+    std::unique_ptr<runtime::GpuDevice> device;
+    try {
+      device = runtime::GpuDevice::create(options);
+      std::printf("Device: %s (%s), maxStorageBufferRange %llu bytes\n", device->name().c_str(), device->type().c_str(),
+                  static_cast<unsigned long long>(device->maxStorageBufferRange()));
+    } catch (const runtime::RuntimeError& e) {
+      std::printf("Device: none (%s); CPU figures only\n", e.what());
+    }
+    std::printf("Median of %d frames\n\n", repeat);
+    bench::printTimingHeader();
+    for (const auto& path : artifacts) {
+      auto artifact = runtime::ShadowArtifact::open(path.string());
+      std::filesystem::path framePath = path;
+      framePath.replace_extension(".frame");
+      const bench::Frame frame = bench::readFrame(framePath.string());
+      const std::string stem = path.stem().string();
+      const size_t dash = stem.rfind('-');
+      bench::printTimingRows(stem.substr(0, dash), stem.substr(dash + 1), artifact->packed().bytes(), artifact, frame,
+                             device.get(), repeat);
+    }
+    bench::printTimingFooter();
+    return device ? 0 : 3;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "gpu_frame_timing: %s\n", e.what());
+    return 2;
+  }
+}
