@@ -5,6 +5,8 @@
 // validation layer is on for every device made here and must report nothing.
 #include <gtest/gtest.h>
 
+#include <dlfcn.h>
+
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -17,6 +19,8 @@
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/runtime/cpvs_runtime.h"
 #include "cpvs/runtime/runtime.h"
+#define VK_NO_PROTOTYPES
+#include <vulkan/vulkan.h>
 #include "cpvs/scene/source.h"
 #include "scene_testing.h"
 
@@ -201,6 +205,13 @@ TEST(GpuLookups, DevicePicksAndRefusals) {
     EXPECT_NE(std::string(e.what()).find("matching \"no device has this name\""), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find(device().name()), std::string::npos) << "lists what it found: " << e.what();
   }
+  // The environment picks a device the same way.
+  setenv("CPVS_DEVICE", "no device has this name", 1);
+  EXPECT_THROW(GpuDevice::create(), RuntimeError);
+  CpvsDevice none = nullptr;
+  EXPECT_EQ(cpvsNewDevice(nullptr, &none), CPVS_ERROR_NO_DEVICE);
+  EXPECT_NE(std::string(cpvsGetLastError()).find("no usable Vulkan device"), std::string::npos) << cpvsGetLastError();
+  unsetenv("CPVS_DEVICE");
   DeviceOptions noLoader;
   noLoader.loader = "/nonexistent/libvulkan.so.1";
   try {
@@ -222,6 +233,54 @@ TEST(GpuLookups, DevicePicksAndRefusals) {
   ShadowLookups cpu(b.artifact, Backend::Cpu);
   EXPECT_FALSE(cpu.onGpu());
   EXPECT_TRUE(cpu.fallbackReason().empty());
+}
+
+// The application's own device: made here as an engine makes it (through the loader,
+// with shaderFloat64 on), handed to the runtime, which answers as the CPU does and leaves
+// the device to its owner.
+TEST(GpuLookups, TheApplicationsOwnDeviceAnswersAsTheCpu) {
+  void* loader = dlopen("libvulkan.so.1", RTLD_NOW | RTLD_LOCAL);
+  ASSERT_NE(loader, nullptr);
+  auto getInstance = reinterpret_cast<PFN_vkGetInstanceProcAddr>(dlsym(loader, "vkGetInstanceProcAddr"));
+  auto createInstance = reinterpret_cast<PFN_vkCreateInstance>(getInstance(nullptr, "vkCreateInstance"));
+  VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO, nullptr, "engine", 1, "engine", 1, VK_API_VERSION_1_1};
+  VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO, nullptr, 0, &app, 0, nullptr, 0, nullptr};
+  VkInstance instance = VK_NULL_HANDLE;
+  ASSERT_EQ(createInstance(&info, nullptr, &instance), VK_SUCCESS);
+  auto enumerate = reinterpret_cast<PFN_vkEnumeratePhysicalDevices>(getInstance(instance, "vkEnumeratePhysicalDevices"));
+  auto createDevice = reinterpret_cast<PFN_vkCreateDevice>(getInstance(instance, "vkCreateDevice"));
+  auto destroyInstance = reinterpret_cast<PFN_vkDestroyInstance>(getInstance(instance, "vkDestroyInstance"));
+  auto getDevice = reinterpret_cast<PFN_vkGetDeviceProcAddr>(getInstance(instance, "vkGetDeviceProcAddr"));
+  uint32_t count = 1;
+  VkPhysicalDevice physical = VK_NULL_HANDLE;
+  ASSERT_NE(enumerate(instance, &count, &physical), VK_ERROR_INITIALIZATION_FAILED);
+  ASSERT_EQ(count, 1u);
+  const float priority = 1;
+  VkDeviceQueueCreateInfo queue{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO, nullptr, 0, 0, 1, &priority};
+  VkPhysicalDeviceFeatures features{};
+  features.shaderFloat64 = VK_TRUE;
+  VkDeviceCreateInfo deviceInfo{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO, nullptr, 0, 1, &queue, 0, nullptr, 0, nullptr, &features};
+  VkDevice vkDevice = VK_NULL_HANDLE;
+  ASSERT_EQ(createDevice(physical, &deviceInfo, nullptr, &vkDevice), VK_SUCCESS);
+  {
+    const Baked b = bake("city:5", {0.3, -1, 0.2}, 11);
+    std::vector<Vec3> points, normals;
+    makeQueries(b, 20000, points, normals);
+    GpuDevice::External e{instance, physical, vkDevice, 0, reinterpret_cast<void*>(getInstance)};
+    auto adopted = GpuDevice::adopt(e);
+    GpuShadows gpu(*adopted, b.artifact);
+    std::vector<uint32_t> onGpu, onCpu;
+    for (int pcf : {1, 9}) {
+      gpu.litTexels(points, normals, pcf, onGpu);
+      cpuLitTexels(*b.artifact, points, normals, pcf, onCpu);
+      EXPECT_EQ(mismatches(onGpu, onCpu), 0u) << "pcf " << pcf;
+    }
+  }  // the runtime's objects go; the device stays the application's
+  auto destroyDevice = reinterpret_cast<PFN_vkDestroyDevice>(getDevice(vkDevice, "vkDestroyDevice"));
+  destroyDevice(vkDevice, nullptr);
+  destroyInstance(instance, nullptr);
+  GpuDevice::External none;
+  EXPECT_THROW(GpuDevice::adopt(none), RuntimeError);
 }
 
 // A lost device: a clear DeviceLost from GpuShadows, and the front that allowed a

@@ -81,6 +81,26 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   EXPECT_EQ(cached, (dir / "runtime-cache") + "/" + contentHash(farmBytes.data(), farmBytes.size()).hex() + ".cpvs");
   EXPECT_EQ(runtime::fetchArtifact(address, submitted.job_id(), dir / "runtime-cache", &fromCache), cached);
   EXPECT_TRUE(fromCache);
+  // A download that stopped half way resumes; one whose kept part is not the artifact's
+  // fails its checksum, is dropped, and the next fetch gets the artifact.
+  std::filesystem::create_directories(dir / "half/incoming");
+  const std::string part = (dir / "half/incoming/") + [&] {
+    std::string hex;
+    for (unsigned char c : submitted.job_id()) hex += {"0123456789abcdef"[c >> 4], "0123456789abcdef"[c & 15]};
+    return hex;
+  }() + ".cpvs.part";
+  writeFileAtomic(part, std::vector<uint8_t>(farmBytes.begin(), farmBytes.begin() + farmBytes.size() / 2));
+  EXPECT_EQ(readFile(runtime::fetchArtifact(address, submitted.job_id(), dir / "half", &fromCache)), farmBytes);
+  EXPECT_FALSE(fromCache);
+  std::filesystem::create_directories(dir / "garbled/incoming");
+  writeFileAtomic((dir / "garbled/incoming/") + part.substr(part.rfind('/') + 1), std::vector<uint8_t>(100, 7));
+  try {
+    runtime::fetchArtifact(address, submitted.job_id(), dir / "garbled");
+    ADD_FAILURE() << "a garbled part was accepted";
+  } catch (const runtime::RuntimeError& e) {
+    EXPECT_EQ(e.status(), runtime::Status::CorruptArtifact) << e.what();
+  }
+  EXPECT_EQ(readFile(runtime::fetchArtifact(address, submitted.job_id(), dir / "garbled")), farmBytes);
   try {
     runtime::fetchArtifact(address, "no-such-job", dir / "runtime-cache");
     ADD_FAILURE() << "fetched an unknown job";
