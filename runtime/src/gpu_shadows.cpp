@@ -63,7 +63,10 @@ struct GpuShadows::Impl {
   void upload();
   void createPipeline();
   void ensureCapacity(uint64_t n);
-  void writeStorage(uint32_t binding, VkBuffer buffer, VkDeviceSize offset, VkDeviceSize range);
+  void writeDescriptor(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize offset, VkDeviceSize range);
+  void writeStorage(uint32_t binding, VkBuffer buffer, VkDeviceSize offset, VkDeviceSize range) {
+    writeDescriptor(binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, buffer, offset, range);
+  }
 };
 
 void GpuShadows::Impl::upload() {
@@ -145,14 +148,7 @@ void GpuShadows::Impl::createPipeline() {
   alloc.pSetLayouts = &setLayout;
   g.check(g.vkd.vkAllocateDescriptorSets(g.device, &alloc, &set), "vkAllocateDescriptorSets");
 
-  VkDescriptorBufferInfo mappingInfo{mapping.buffer, 0, sizeof(MappingBlock)};
-  VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  write.dstSet = set;
-  write.dstBinding = kMappingBinding;
-  write.descriptorCount = 1;
-  write.descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-  write.pBufferInfo = &mappingInfo;
-  g.vkd.vkUpdateDescriptorSets(g.device, 1, &write, 0, nullptr);
+  writeDescriptor(kMappingBinding, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, mapping.buffer, 0, sizeof(MappingBlock));
   // Binding k views words [k * wordsPerBinding, ...) of the one buffer; bindings past the
   // array's end (the 8-binding variant) view its last range and are never read.
   for (uint32_t k = 0; k < wordBindings; ++k) {
@@ -168,13 +164,14 @@ void GpuShadows::Impl::createPipeline() {
   }
 }
 
-void GpuShadows::Impl::writeStorage(uint32_t binding, VkBuffer buffer, VkDeviceSize offset, VkDeviceSize range) {
+void GpuShadows::Impl::writeDescriptor(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize offset,
+                                       VkDeviceSize range) {
   VkDescriptorBufferInfo info{buffer, offset, range};
   VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
   write.dstSet = set;
   write.dstBinding = binding;
   write.descriptorCount = 1;
-  write.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  write.descriptorType = type;
   write.pBufferInfo = &info;
   g.vkd.vkUpdateDescriptorSets(g.device, 1, &write, 0, nullptr);
 }

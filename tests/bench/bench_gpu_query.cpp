@@ -79,14 +79,7 @@ int run(int argc, char** argv) {
   runtime::DeviceOptions options;
   options.select = a.device;
   options.validation = a.validation;
-  std::unique_ptr<runtime::GpuDevice> device;
-  try {
-    device = runtime::GpuDevice::create(options);
-    std::printf("Device: %s (%s), maxStorageBufferRange %llu bytes\n", device->name().c_str(), device->type().c_str(),
-                static_cast<unsigned long long>(device->maxStorageBufferRange()));
-  } catch (const runtime::RuntimeError& e) {
-    std::printf("Device: none (%s); CPU figures only\n", e.what());
-  }
+  std::unique_ptr<runtime::GpuDevice> device = openTimingDevice(options);
   std::printf("Frame: %dx%d points a camera sees (sampleCameraViews of the default camera); median of %d frames\n\n",
               a.width, a.height, a.repeat);
   printTimingHeader();

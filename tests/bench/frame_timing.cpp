@@ -70,6 +70,18 @@ Frame readFrame(const std::string& path) {
   return f;
 }
 
+std::unique_ptr<runtime::GpuDevice> openTimingDevice(const runtime::DeviceOptions& options) {
+  try {
+    auto device = runtime::GpuDevice::create(options);
+    std::printf("Device: %s (%s), maxStorageBufferRange %llu bytes\n", device->name().c_str(), device->type().c_str(),
+                static_cast<unsigned long long>(device->maxStorageBufferRange()));
+    return device;
+  } catch (const runtime::RuntimeError& e) {
+    std::printf("Device: none (%s); CPU figures only\n", e.what());
+    return nullptr;
+  }
+}
+
 void printTimingHeader() {
   std::printf("| scene | R | DAG | array | queries | lookup | device ms/frame | ns/query | Mq/s | wall ms | CPU ms/frame | CPU ns/query | device/CPU | answers |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");

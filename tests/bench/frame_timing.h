@@ -24,6 +24,9 @@ struct Frame {
 void writeFrame(const std::string& path, const Frame& frame);
 Frame readFrame(const std::string& path);
 
+/// A device for the timing, with a line saying which (or why none: CPU figures only).
+std::unique_ptr<runtime::GpuDevice> openTimingDevice(const runtime::DeviceOptions& options);
+
 /// The Markdown table's header and one pair of rows (binary, 9x9 PCF) for an artifact:
 /// device time from GPU timestamps and wall time, CPU time, their ratio, and whether the
 /// answers are identical. `device` may be null (CPU only).

@@ -41,14 +41,7 @@ int main(int argc, char** argv) {
     std::printf("# Shadow lookups per frame\n\nCPU: %s\n", model.c_str());
     runtime::DeviceOptions options;
     options.select = select;
-    std::unique_ptr<runtime::GpuDevice> device;
-    try {
-      device = runtime::GpuDevice::create(options);
-      std::printf("Device: %s (%s), maxStorageBufferRange %llu bytes\n", device->name().c_str(), device->type().c_str(),
-                  static_cast<unsigned long long>(device->maxStorageBufferRange()));
-    } catch (const runtime::RuntimeError& e) {
-      std::printf("Device: none (%s); CPU figures only\n", e.what());
-    }
+    std::unique_ptr<runtime::GpuDevice> device = bench::openTimingDevice(options);
     std::printf("Median of %d frames\n\n", repeat);
     bench::printTimingHeader();
     for (const auto& path : artifacts) {
