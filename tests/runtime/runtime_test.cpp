@@ -275,6 +275,22 @@ TEST(GpuLookups, TheApplicationsOwnDeviceAnswersAsTheCpu) {
       cpuLitTexels(*b.artifact, points, normals, pcf, onCpu);
       EXPECT_EQ(mismatches(onGpu, onCpu), 0u) << "pcf " << pcf;
     }
+    // The same device through the C API.
+    CpvsDevice dev = nullptr;
+    ASSERT_EQ(cpvsNewDeviceFromVulkan(instance, physical, vkDevice, 0, reinterpret_cast<void*>(getInstance), &dev), CPVS_OK)
+        << cpvsGetLastError();
+    CpvsShadows shadows = nullptr;
+    ASSERT_EQ(cpvsOpenShadows(b.file.c_str(), dev, 0, &shadows), CPVS_OK) << cpvsGetLastError();
+    EXPECT_EQ(cpvsShadowsOnDevice(shadows), 1);
+    std::vector<double> p;
+    for (const Vec3& v : points) p.insert(p.end(), {v.x, v.y, v.z});
+    std::vector<uint32_t> viaC(points.size());
+    ASSERT_EQ(cpvsQueryShadows(shadows, points.size(), p.data(), nullptr, 3, viaC.data()), CPVS_OK);
+    cpuLitTexels(*b.artifact, points, {}, 3, onCpu);
+    EXPECT_EQ(viaC, onCpu);
+    cpvsReleaseShadows(shadows);
+    cpvsReleaseDevice(dev);
+    EXPECT_EQ(cpvsNewDeviceFromVulkan(nullptr, nullptr, nullptr, 0, nullptr, &dev), CPVS_ERROR_INVALID_ARGUMENT);
   }  // the runtime's objects go; the device stays the application's
   auto destroyDevice = reinterpret_cast<PFN_vkDestroyDevice>(getDevice(vkDevice, "vkDestroyDevice"));
   destroyDevice(vkDevice, nullptr);
