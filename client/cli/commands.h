@@ -14,6 +14,8 @@ void addInspectCommand(CLI::App& app, int& status);
 void addQueryCommand(CLI::App& app, int& status);
 void addVerifyCommand(CLI::App& app, int& status);
 void addRenderCommand(CLI::App& app, int& status);
+/// `sun` (sun_command.cpp): the sun's place for a place on Earth and an instant.
+void addSunCommand(CLI::App& app, int& status);
 /// `accuracy` (accuracy_command.cpp): bakes at several resolutions and measures them.
 void addAccuracyCommand(CLI::App& app, int& status);
 

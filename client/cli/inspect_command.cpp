@@ -28,7 +28,7 @@ int runInspect(const InspectArgs& a) {
   const BakeOptions& o = art.options;
   if (a.json) {
     std::ostringstream s;
-    s << "{\n  \"file\": " << jsonString(a.file) << ",\n  \"format_version\": " << kCpvsFormatVersion
+    s << "{\n  \"file\": " << jsonString(a.file) << ",\n  \"format_version\": " << art.formatVersion
       << ",\n  \"file_bytes\": " << bytes.size() << ",\n  \"resolution\": " << R << ",\n  \"scene_hash\": "
       << jsonString(art.sceneHash.hex()) << ",\n  \"light_dir\": [" << jsonNumber(g.frame.dir.x) << ", "
       << jsonNumber(g.frame.dir.y) << ", " << jsonNumber(g.frame.dir.z) << "],\n  \"grid\": {\"origin\": ["
@@ -51,7 +51,7 @@ int runInspect(const InspectArgs& a) {
     std::cout << s.str();
     return 0;
   }
-  std::printf("%s: CPVS format %u, %s on disk\n", a.file.c_str(), kCpvsFormatVersion, humanBytes(bytes.size()).c_str());
+  std::printf("%s: CPVS format %u, %s on disk\n", a.file.c_str(), art.formatVersion, humanBytes(bytes.size()).c_str());
   std::printf("  resolution   %llu^3 (texel %.6g, slice %.6g world units)\n", static_cast<unsigned long long>(R),
               g.texelSize(), g.sliceSize());
   std::printf("  light        (%.6f, %.6f, %.6f)\n", g.frame.dir.x, g.frame.dir.y, g.frame.dir.z);

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   cpvs::cli::addVerifyCommand(app, status);
   cpvs::cli::addRenderCommand(app, status);
   cpvs::cli::addAccuracyCommand(app, status);
+  cpvs::cli::addSunCommand(app, status);
   cpvs::cli::addSubmitCommand(app, status);
   cpvs::cli::addJobsCommand(app, status);
   cpvs::cli::addWatchCommand(app, status);

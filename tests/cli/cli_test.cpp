@@ -185,6 +185,33 @@ TEST_F(Cli, GpuLookupsGiveTheSamePictureAndAnswers) {
   EXPECT_NE(none.out.find("leave out --gpu"), std::string::npos) << none.out;
 }
 
+// `cpvs sun`: the SPA paper's example through the command line, night as a state (no
+// direction), and bad places and times refused with status 2.
+TEST_F(Cli, SunJsonContractAndNight) {
+  CliRun r = cpvs("sun --lat 39.742476 --lon -105.1786 --height 1830.14 --time 2003-10-17T12:30:30-07:00 "
+                  "--pressure 820 --temperature 11 --delta-t 67 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  json j = parse(r);
+  EXPECT_EQ(j["time_utc"], "2003-10-17T19:30:30Z");
+  EXPECT_NEAR(j["zenith_deg"].get<double>(), 50.11162, 0.001);
+  EXPECT_NEAR(j["azimuth_deg"].get<double>(), 194.34024, 0.001);
+  EXPECT_NEAR(j["elevation_deg"].get<double>(), 90 - 50.11162, 0.001);
+  EXPECT_EQ(j["night"], false);
+  ASSERT_EQ(j["direction"].size(), 3u);
+  EXPECT_LT(j["direction"][1].get<double>(), 0);  // down into the scene (Y up)
+  CliRun night = cpvs("sun --lat 80 --lon 0 --time 2024-12-21T12:00Z --json");
+  ASSERT_EQ(night.status, 0) << night.out;
+  EXPECT_EQ(parse(night)["night"], true);
+  EXPECT_TRUE(parse(night)["direction"].is_null());
+  CliRun text = cpvs("sun --lat 80 --lon 0 --time 2024-12-21T12:00Z");
+  EXPECT_NE(text.out.find("night"), std::string::npos) << text.out;
+  for (const char* bad : {"sun --lat 95 --lon 0 --time 2024-12-21T12:00Z", "sun --lat 10 --lon 0 --time 2024-12-21T12:00",
+                          "sun --lat 10 --lon 0 --time 2024-12-21T12:00Z --up +Y --north +Y"}) {
+    CliRun b = cpvs(bad);
+    EXPECT_EQ(b.status, 2) << bad << ": " << b.out;
+  }
+}
+
 // Bad input: exit status 2 and a message that names what is wrong.
 struct BadCase {
   const char* args;

@@ -59,6 +59,7 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
   ByteReader h = openContainer(data, size, source, kCpvsKind, kContainerZstd, flags, version);
 
   CpvsArtifact a;
+  a.formatVersion = version;
   OrthoGrid& g = a.grid;
   g.frame.dir = h.getVec("header");
   g.frame.u = h.getVec("header");

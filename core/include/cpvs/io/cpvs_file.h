@@ -27,6 +27,8 @@ struct CpvsArtifact {
   /// The same DAG packed for lookups: decodeCpvs fills it with the file's words as they
   /// are (packing a version 1 file's levels); encodeCpvs ignores it and packs `dag`.
   PackedDag packed;
+  /// The format version the file was written in (decodeCpvs); encodeCpvs writes the current.
+  uint32_t formatVersion = kCpvsFormatVersion;
 };
 
 /// Serializes an artifact. Layout (little-endian): a fixed header with magic "CPVS",
