@@ -1,8 +1,13 @@
 // The sub-DAG transfer format: round trips, and every kind of damage a merge must never
 // see is rejected with a message (truncation, bit flips, wrong order, foreign tiles).
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <xxhash.h>
 
 #include "cpvs/base/error.h"
+#include "cpvs/io/cpvs_file.h"
 #include "cpvs/io/sub_dag_file.h"
 #include "dag_testing.h"
 
@@ -64,6 +69,72 @@ TEST(SubDagFile, RejectsAnotherTilesRoots) {
   Dag missing = tile;
   missing.roots.pop_back();
   EXPECT_THROW(checkTileRoots(missing, 1, 0, 5, "tile"), InputError);
+}
+
+
+// R1: a sub-DAG whose level table asks for 4 GiB of leaves and whose zstd frame declares
+// them, in a handful of bytes (one RLE block). The reader must refuse it before it
+// allocates: a child process with 512 MiB of address space decodes it and must see an
+// InputError, not bad_alloc or the OOM killer. And a .cpvs whose packed section does the same.
+std::vector<uint8_t> bomb(bool cpvs) {
+  std::vector<uint8_t> b;
+  auto put32 = [&](uint32_t v) { b.insert(b.end(), (uint8_t*)&v, (uint8_t*)&v + 4); };
+  auto put64 = [&](uint64_t v) { b.insert(b.end(), (uint8_t*)&v, (uint8_t*)&v + 8); };
+  const uint64_t claimed = uint64_t(1) << 32;
+  if (cpvs) {
+    // A valid version 2 header from a real file, then a word count of 2^30 (4 GiB).
+    CpvsArtifact art;
+    art.dag.reset(6, 6);
+    art.dag.roots.push_back({0, {kLit, 0}});
+    art.grid.frame = LightFrame::fromDirection({0.3, -1, 0.2});
+    art.grid.log2Resolution = 6;
+    const std::vector<uint8_t> valid = encodeCpvs(art, true);
+    b.assign(valid.begin(), valid.begin() + 180);
+    put64(claimed / 4);
+  } else {
+    b.insert(b.end(), {'C', 'P', 'V', 'T'});
+    put32(1);  // version
+    put32(1);  // zstd
+    put32(6);  // log2R
+    put32(5);  // log2 root size
+    put64(0);  // no roots
+    put32(3);  // levels of a 2^5 root
+    put64(claimed / 8);  // leaves
+    for (int l = 0; l < 3; ++l) put64(0), put64(0);
+  }
+  put64(claimed);  // the section's size, as the counts require
+  const uint8_t frame[] = {0x28, 0xB5, 0x2F, 0xFD, 0xE0, 0, 0, 0, 0, 1, 0, 0, 0, 0x0B, 0, 0, 0x07};
+  put64(sizeof frame);
+  b.insert(b.end(), frame, frame + sizeof frame);
+  const uint64_t sum = XXH3_64bits(b.data(), b.size());
+  put64(sum);
+  return b;
+}
+
+TEST(SubDagFile, DecompressionBombsAreRefusedBeforeAllocating) {
+  for (bool cpvs : {false, true}) {
+    const std::vector<uint8_t> bytes = bomb(cpvs);
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      rlimit limit{512u << 20, 512u << 20};
+      setrlimit(RLIMIT_AS, &limit);
+      try {
+        if (cpvs) decodeCpvs(bytes.data(), bytes.size(), "bomb.cpvs");
+        else decodeSubDag(bytes.data(), bytes.size(), "bomb", true, HashKind::Xxh3);
+      } catch (const InputError& e) {
+        _exit(std::string(e.what()).find("times its size, refused") != std::string::npos ? 0 : 3);
+      } catch (const std::bad_alloc&) {
+        _exit(4);
+      }
+      _exit(5);
+    }
+    int status = 0;
+    ASSERT_EQ(waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFEXITED(status)) << (cpvs ? ".cpvs" : "sub-DAG") << ": killed by signal " << WTERMSIG(status);
+    EXPECT_EQ(WEXITSTATUS(status), 0) << (cpvs ? ".cpvs" : "sub-DAG")
+                                      << ": 3 another InputError, 4 bad_alloc, 5 accepted";
+  }
 }
 
 }  // namespace

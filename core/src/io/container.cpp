@@ -71,6 +71,9 @@ const uint8_t* readSection(ByteReader& r, bool zstd, uint64_t expectedSize, cons
   const unsigned long long content = ZSTD_getFrameContentSize(stored, storedSize);
   if (content == ZSTD_CONTENTSIZE_ERROR || content == ZSTD_CONTENTSIZE_UNKNOWN || content != size)
     r.fail("compressed " + name + " is damaged");
+  if (size > kSectionAlwaysAllowedBytes && size / kMaxSectionRatio > storedSize)
+    r.fail("compressed " + name + " claims " + std::to_string(size) + " bytes from " + std::to_string(storedSize) +
+           ": more than " + std::to_string(kMaxSectionRatio) + " times its size, refused");
   storage.resize(size);
   const size_t n = ZSTD_decompress(storage.data(), storage.size(), stored, storedSize);
   if (ZSTD_isError(n) || n != size) r.fail("compressed " + name + " is damaged");

@@ -40,9 +40,17 @@ ByteReader openContainer(const uint8_t* data, size_t size, const std::string& so
 /// `zstd` (level 9).
 void writeSection(ByteWriter& w, const std::vector<uint8_t>& bytes, bool zstd);
 
+/// A compressed section may hold this many bytes whatever its ratio...
+constexpr uint64_t kSectionAlwaysAllowedBytes = uint64_t(64) << 20;
+/// ...and beyond that at most this many times the bytes stored. Real DAG data compresses
+/// 2-10 times; a frame that declares more is a decompression bomb, refused before a byte
+/// is allocated.
+constexpr uint64_t kMaxSectionRatio = 1024;
+
 /// Reads a section whose size the caller already knows from counts it validated
 /// (`expectedSize`): the size must match, and a compressed section must declare and
-/// decompress to exactly that many bytes, so no allocation exceeds what the counts allow.
+/// decompress to exactly that many bytes within the ratio above, so no allocation
+/// exceeds what the counts and the stored bytes allow.
 /// `storage` receives decompressed bytes; the returned pointer is valid while `r`'s data
 /// and `storage` live. FormatError through `r` otherwise.
 const uint8_t* readSection(ByteReader& r, bool zstd, uint64_t expectedSize, const char* what,
