@@ -27,7 +27,8 @@ Coordinator::Coordinator(CoordinatorConfig config)
             JobLimits{config_.minLog2Resolution, config_.maxLog2Resolution, config_.maxActiveJobs,
                       config_.maxTilesPerJob}),
       leases_(store_, artifacts_, merges_, jobs_, feed_,
-              LeaseRules{config_.leaseSeconds, config_.maxAttempts, config_.maxTileSeconds}) {
+              LeaseRules{config_.leaseSeconds, config_.maxAttempts, config_.maxTileSeconds}),
+      tracks_(store_, jobs_, feed_) {
   // Resume: every acknowledged tile of an unfinished job goes back into its merge.
   size_t jobs = 0, tiles = 0;
   for (const auto& j : store_.jobs(false)) {
@@ -51,6 +52,7 @@ Coordinator::Coordinator(CoordinatorConfig config)
       fs::remove(entry.path(), ec);
   merges_.start();
   leases_.start();
+  tracks_.start();  // active tracks carry on from what the store holds
 }
 
 Coordinator::~Coordinator() { stop(); }
@@ -58,6 +60,7 @@ Coordinator::~Coordinator() { stop(); }
 void Coordinator::stop() {
   if (stopped_) return;
   stopped_ = true;
+  tracks_.stop();
   leases_.stop();
   merges_.stop();
   feed_.wakeAll();

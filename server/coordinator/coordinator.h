@@ -1,7 +1,8 @@
-// The coordinator's logic, free of gRPC, as five concerns wired together: the scene store
+// The coordinator's logic, free of gRPC, as six concerns wired together: the scene store
 // (uploads), the job service (lifecycle), the lease service (tiles out to workers, the
-// reaper), the merge scheduler (the streaming merge) and the artifact store (bytes on
-// disk), over the durable FarmStore. The services in rpc/ are a thin edge over it; errors
+// reaper), the merge scheduler (the streaming merge), the artifact store (bytes on disk)
+// and the track service (sun keyframes ahead, published as versions), over the durable
+// FarmStore. The services in rpc/ are a thin edge over it; errors
 // are FarmError values.
 #pragma once
 
@@ -17,6 +18,7 @@
 #include "coordinator/lease_service.h"
 #include "coordinator/merge_scheduler.h"
 #include "coordinator/scene_store.h"
+#include "coordinator/track_service.h"
 #include "cpvs/net/error_kind.h"
 #include "cpvs/v1/farm.pb.h"
 #include "store/farm_store.h"
@@ -49,6 +51,7 @@ class Coordinator {
   SceneStore& scenes() { return scenes_; }
   JobService& jobs() { return jobs_; }
   LeaseService& leases() { return leases_; }
+  TrackService& tracks() { return tracks_; }
 
   /// A counter bumped on every job change; waitForChange blocks until it passes `seen`
   /// or the timeout ends, and returns the current value.
@@ -67,6 +70,7 @@ class Coordinator {
   MergeScheduler merges_;
   JobService jobs_;
   LeaseService leases_;
+  TrackService tracks_;
   bool stopped_ = false;
 };
 

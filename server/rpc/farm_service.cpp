@@ -166,6 +166,82 @@ grpc::Status FarmService::DownloadArtifact(grpc::ServerContext* ctx, const pb::D
   });
 }
 
+grpc::Status FarmService::CreateTrack(grpc::ServerContext* ctx, const pb::CreateTrackRequest* req, pb::TrackStatus* out) {
+  return guarded(ctx, tokens_, Role::Client, "CreateTrack", [&] {
+    *out = c_.tracks().create(*req);
+    return grpc::Status::OK;
+  });
+}
+
+grpc::Status FarmService::ListTracks(grpc::ServerContext* ctx, const pb::ListJobsRequest* req, pb::ListTracksReply* out) {
+  return guarded(ctx, tokens_, Role::Client, "ListTracks", [&] {
+    for (auto& t : c_.tracks().list(req->include_finished())) *out->add_tracks() = std::move(t);
+    return grpc::Status::OK;
+  });
+}
+
+grpc::Status FarmService::CancelTrack(grpc::ServerContext* ctx, const pb::TrackRef* req, pb::TrackStatus* out) {
+  return guarded(ctx, tokens_, Role::Client, "CancelTrack", [&] {
+    *out = c_.tracks().cancel(req->track_id());
+    return grpc::Status::OK;
+  });
+}
+
+grpc::Status FarmService::Subscribe(grpc::ServerContext* ctx, const pb::SubscribeRequest* req,
+                                    grpc::ServerWriter<pb::VersionChunk>* writer) {
+  return guarded(ctx, tokens_, Role::Client, "Subscribe", [&] {
+    const std::string& id = req->track_id();
+    const pb::TrackStatus first = c_.tracks().status(id);  // NOT_FOUND for an unknown track
+    if (req->after_sequence() > first.latest_sequence())
+      throw FarmError(ErrorKind::OutOfRange, "after_sequence " + std::to_string(req->after_sequence()) +
+                                                 " is ahead of the track's latest version (" +
+                                                 std::to_string(first.latest_sequence()) + ")");
+    uint64_t after = req->after_sequence(), seen = 0;
+    while (!ctx->IsCancelled()) {
+      if (auto v = c_.tracks().versionAfter(id, after)) {
+        // One version at a time from the store: the stream holds one chunk, never a queue;
+        // a subscriber slower than the retention skips to the oldest version kept.
+        pb::TrackVersion info;
+        info.set_track_id(id);
+        info.set_sequence(v->sequence);
+        info.set_keyframe(v->keyframe);
+        info.set_instant_unix_ms(v->instantMs);
+        *info.mutable_sun_direction() = net::toProto(v->direction);
+        info.set_job_id(v->jobId);
+        info.set_checksum(v->checksum);
+        info.set_file_bytes(v->fileBytes);
+        std::string checksum;
+        const std::string path = c_.jobs().artifactPath(v->jobId, &checksum);
+        std::optional<net::ChunkSource> opened;
+        try {
+          opened = net::ChunkSource::ofFile(path);
+        } catch (const FarmError& e) {
+          spdlog::error("{}", e.what());
+          return grpc::Status(grpc::StatusCode::DATA_LOSS, "a version's artifact is missing or unreadable on the coordinator");
+        }
+        const net::ChunkSource& src = *opened;
+        const bool sent = net::sendChunks<pb::VersionChunk>(src, 0, *writer, [&](pb::VersionChunk& m, uint64_t at, bool head) {
+          if (head) *m.mutable_version() = info;
+          m.set_offset(at);
+          m.set_total_size(src.size());
+          m.set_last(at + std::min<uint64_t>(net::kChunkBytes, src.size() - at) == src.size());
+        });
+        if (!sent) return grpc::Status(grpc::StatusCode::CANCELLED, "the subscriber went away");
+        after = v->sequence;
+        continue;
+      }
+      // An ended track publishes nothing more: done once what it published is sent (looked
+      // at again, in case the last version came with the end).
+      if (c_.tracks().status(id).state() != pb::TRACK_ACTIVE) {
+        if (!c_.tracks().versionAfter(id, after)) return grpc::Status::OK;
+        continue;
+      }
+      seen = c_.waitForChange(seen, 1000);
+    }
+    return grpc::Status(grpc::StatusCode::CANCELLED, "the subscriber went away");
+  });
+}
+
 // --- Workers ----------------------------------------------------------------------------
 
 grpc::Status WorkerService::LeaseTile(grpc::ServerContext* ctx, const pb::LeaseRequest* req, pb::TileLease* out) {

@@ -21,6 +21,10 @@ class FarmService final : public pb::Farm::Service {
   grpc::Status ListJobs(grpc::ServerContext*, const pb::ListJobsRequest*, pb::ListJobsReply*) override;
   grpc::Status DownloadArtifact(grpc::ServerContext*, const pb::DownloadRequest*,
                                 grpc::ServerWriter<pb::ArtifactChunk>*) override;
+  grpc::Status CreateTrack(grpc::ServerContext*, const pb::CreateTrackRequest*, pb::TrackStatus*) override;
+  grpc::Status ListTracks(grpc::ServerContext*, const pb::ListJobsRequest*, pb::ListTracksReply*) override;
+  grpc::Status CancelTrack(grpc::ServerContext*, const pb::TrackRef*, pb::TrackStatus*) override;
+  grpc::Status Subscribe(grpc::ServerContext*, const pb::SubscribeRequest*, grpc::ServerWriter<pb::VersionChunk>*) override;
 
  private:
   Coordinator& c_;

@@ -88,8 +88,9 @@ constexpr int kJobColumnCount = 42;
 constexpr int kGridColumn = 16, kOptionsColumn = 34;
 
 /// The schema this build writes (PRAGMA user_version). 2: typed grid and option columns;
-/// 3: the renderer column (a version 2 store is upgraded in place: its jobs were Embree's).
-constexpr int kSchemaVersion = 3;
+/// 3: the renderer column (a version 2 store is upgraded in place: its jobs were Embree's);
+/// 4: sun tracks, keyframes and versions (tables added to a version 2 or 3 store).
+constexpr int kSchemaVersion = 4;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -183,7 +184,7 @@ FarmStore::FarmStore(const std::string& path) {
     const bool existing = t.i64(0) > 0;
     if (existing && version == 2) {
       exec("ALTER TABLE jobs ADD COLUMN renderer INTEGER NOT NULL DEFAULT 0");
-    } else if (existing && version != kSchemaVersion)
+    } else if (existing && version != kSchemaVersion && version != 3)
       throw std::runtime_error("the job store " + path + " has schema version " + std::to_string(version == 0 ? 1 : version) +
                                "; this cpvs-server reads version " + std::to_string(kSchemaVersion) +
                                ": finish its jobs with the server that made it, or start with an empty --data folder");
@@ -205,6 +206,17 @@ FarmStore::FarmStore(const std::string& path) {
       "CREATE TABLE IF NOT EXISTS leases(lease_id TEXT PRIMARY KEY, job_id TEXT, idx INTEGER, worker_id TEXT, "
       "granted_ms INTEGER)");
   exec("CREATE TABLE IF NOT EXISTS job_stages(job_id TEXT, stage TEXT, seconds REAL, PRIMARY KEY(job_id, stage))");
+  exec(
+      "CREATE TABLE IF NOT EXISTS tracks(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, spec BLOB, state INTEGER, "
+      "created_ms INTEGER, error TEXT, keyframes_total INTEGER, next_keyframe INTEGER, published INTEGER, "
+      "skipped INTEGER, latest_sequence INTEGER)");
+  exec(
+      "CREATE TABLE IF NOT EXISTS keyframes(track_id TEXT REFERENCES tracks(id), keyframe INTEGER, instant_ms "
+      "INTEGER, dir_x REAL, dir_y REAL, dir_z REAL, job_id TEXT, state INTEGER, PRIMARY KEY(track_id, keyframe))");
+  exec(
+      "CREATE TABLE IF NOT EXISTS versions(track_id TEXT REFERENCES tracks(id), sequence INTEGER, keyframe INTEGER, "
+      "instant_ms INTEGER, dir_x REAL, dir_y REAL, dir_z REAL, job_id TEXT, checksum TEXT, file_bytes INTEGER, "
+      "published_ms INTEGER, PRIMARY KEY(track_id, sequence))");
   exec(("PRAGMA user_version = " + std::to_string(kSchemaVersion)).c_str());
 }
 
@@ -485,6 +497,205 @@ void FarmStore::cancelTiles(const std::string& jobId) {
   Statement s(db_, "UPDATE tiles SET state = 3, lease_id = NULL WHERE job_id = ? AND state IN (0, 1)");
   s.text(1, jobId);
   s.run();
+}
+
+// --- Sun tracks -------------------------------------------------------------------------
+
+namespace {
+
+constexpr const char* kTrackColumns =
+    "id, request_id, spec, state, created_ms, error, keyframes_total, next_keyframe, published, skipped, latest_sequence";
+
+TrackRecord readTrack(Statement& s) {
+  TrackRecord t;
+  t.id = s.str(0);
+  t.requestId = s.str(1);
+  t.spec = s.str(2);
+  t.state = int(s.i64(3));
+  t.createdMs = s.i64(4);
+  t.error = s.str(5);
+  t.keyframesTotal = uint64_t(s.i64(6));
+  t.nextKeyframe = uint64_t(s.i64(7));
+  t.published = uint64_t(s.i64(8));
+  t.skipped = uint64_t(s.i64(9));
+  t.latestSequence = uint64_t(s.i64(10));
+  return t;
+}
+
+constexpr const char* kVersionColumns =
+    "track_id, sequence, keyframe, instant_ms, dir_x, dir_y, dir_z, job_id, checksum, file_bytes, published_ms";
+
+VersionRecord readVersion(Statement& s) {
+  VersionRecord v;
+  v.trackId = s.str(0);
+  v.sequence = uint64_t(s.i64(1));
+  v.keyframe = uint64_t(s.i64(2));
+  v.instantMs = s.i64(3);
+  v.direction = {s.f64(4), s.f64(5), s.f64(6)};
+  v.jobId = s.str(7);
+  v.checksum = s.str(8);
+  v.fileBytes = uint64_t(s.i64(9));
+  v.publishedMs = s.i64(10);
+  return v;
+}
+
+}  // namespace
+
+void FarmStore::createTrack(const TrackRecord& t) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, (std::string("INSERT INTO tracks(") + kTrackColumns + ") VALUES(?,?,?,?,?,?,?,?,?,?,?)").c_str());
+  s.text(1, t.id).text(2, t.requestId).bind(3, t.spec).bind(4, int64_t(t.state)).bind(5, t.createdMs).text(6, t.error);
+  s.bind(7, int64_t(t.keyframesTotal)).bind(8, int64_t(t.nextKeyframe)).bind(9, int64_t(t.published));
+  s.bind(10, int64_t(t.skipped)).bind(11, int64_t(t.latestSequence));
+  s.run();
+}
+
+std::optional<TrackRecord> FarmStore::track(const std::string& id) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, (std::string("SELECT ") + kTrackColumns + " FROM tracks WHERE id = ?").c_str());
+  s.text(1, id);
+  if (!s.step()) return std::nullopt;
+  return readTrack(s);
+}
+
+std::optional<TrackRecord> FarmStore::trackByRequest(const std::string& requestId) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, (std::string("SELECT ") + kTrackColumns + " FROM tracks WHERE request_id = ?").c_str());
+  s.text(1, requestId);
+  if (!s.step()) return std::nullopt;
+  return readTrack(s);
+}
+
+std::vector<TrackRecord> FarmStore::tracks(bool includeEnded) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, (std::string("SELECT ") + kTrackColumns + " FROM tracks" + (includeEnded ? "" : " WHERE state = 1") +
+                    " ORDER BY created_ms, id")
+                       .c_str());
+  std::vector<TrackRecord> out;
+  while (s.step()) out.push_back(readTrack(s));
+  return out;
+}
+
+void FarmStore::setTrackState(const std::string& id, int state, const std::string& error) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "UPDATE tracks SET state = ?, error = ? WHERE id = ?");
+  s.bind(1, int64_t(state)).text(2, error).text(3, id);
+  s.run();
+}
+
+void FarmStore::addKeyframe(const KeyframeRecord& k) {
+  std::lock_guard lock(mutex_);
+  Transaction tx(db_);
+  Statement s(db_,
+              "INSERT INTO keyframes(track_id, keyframe, instant_ms, dir_x, dir_y, dir_z, job_id, state) "
+              "VALUES(?,?,?,?,?,?,?,0)");
+  s.text(1, k.trackId).bind(2, int64_t(k.keyframe)).bind(3, k.instantMs).bind(4, k.direction.x);
+  s.bind(5, k.direction.y).bind(6, k.direction.z).text(7, k.jobId);
+  s.run();
+  Statement u(db_, "UPDATE tracks SET next_keyframe = ? WHERE id = ? AND next_keyframe <= ?");
+  u.bind(1, int64_t(k.keyframe + 1)).text(2, k.trackId).bind(3, int64_t(k.keyframe));
+  u.run();
+  tx.commit();
+}
+
+void FarmStore::advanceNextKeyframe(const std::string& trackId, uint64_t next) {
+  std::lock_guard lock(mutex_);
+  Statement u(db_, "UPDATE tracks SET next_keyframe = ? WHERE id = ? AND next_keyframe < ?");
+  u.bind(1, int64_t(next)).text(2, trackId).bind(3, int64_t(next));
+  u.run();
+}
+
+std::vector<KeyframeRecord> FarmStore::pendingKeyframes(const std::string& trackId) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_,
+              "SELECT keyframe, instant_ms, dir_x, dir_y, dir_z, job_id FROM keyframes WHERE track_id = ? AND state = 0 "
+              "ORDER BY keyframe");
+  s.text(1, trackId);
+  std::vector<KeyframeRecord> out;
+  while (s.step()) {
+    KeyframeRecord k;
+    k.trackId = trackId;
+    k.keyframe = uint64_t(s.i64(0));
+    k.instantMs = s.i64(1);
+    k.direction = {s.f64(2), s.f64(3), s.f64(4)};
+    k.jobId = s.str(5);
+    out.push_back(k);
+  }
+  return out;
+}
+
+void FarmStore::skipKeyframe(const std::string& trackId, uint64_t keyframe) {
+  std::lock_guard lock(mutex_);
+  Transaction tx(db_);
+  Statement s(db_, "UPDATE keyframes SET state = 2 WHERE track_id = ? AND keyframe = ? AND state = 0");
+  s.text(1, trackId).bind(2, int64_t(keyframe));
+  s.run();
+  if (sqlite3_changes(db_) > 0) {
+    Statement u(db_, "UPDATE tracks SET skipped = skipped + 1 WHERE id = ?");
+    u.text(1, trackId);
+    u.run();
+  }
+  tx.commit();
+}
+
+VersionRecord FarmStore::publishKeyframe(const std::string& trackId, uint64_t keyframe, const std::string& checksum,
+                                         uint64_t fileBytes, uint64_t keep, int64_t nowMs) {
+  std::lock_guard lock(mutex_);
+  Transaction tx(db_);
+  Statement k(db_,
+              "SELECT instant_ms, dir_x, dir_y, dir_z, job_id FROM keyframes WHERE track_id = ? AND keyframe = ? AND "
+              "state = 0");
+  k.text(1, trackId).bind(2, int64_t(keyframe));
+  if (!k.step()) throw std::runtime_error("keyframe " + std::to_string(keyframe) + " of track " + trackId + " is not pending");
+  VersionRecord v;
+  v.trackId = trackId;
+  v.keyframe = keyframe;
+  v.instantMs = k.i64(0);
+  v.direction = {k.f64(1), k.f64(2), k.f64(3)};
+  v.jobId = k.str(4);
+  v.checksum = checksum;
+  v.fileBytes = fileBytes;
+  v.publishedMs = nowMs;
+  Statement seq(db_, "SELECT latest_sequence FROM tracks WHERE id = ?");
+  seq.text(1, trackId);
+  seq.step();
+  v.sequence = uint64_t(seq.i64(0)) + 1;
+  Statement ins(db_, (std::string("INSERT INTO versions(") + kVersionColumns + ") VALUES(?,?,?,?,?,?,?,?,?,?,?)").c_str());
+  ins.text(1, trackId).bind(2, int64_t(v.sequence)).bind(3, int64_t(keyframe)).bind(4, v.instantMs);
+  ins.bind(5, v.direction.x).bind(6, v.direction.y).bind(7, v.direction.z).text(8, v.jobId).text(9, checksum);
+  ins.bind(10, int64_t(fileBytes)).bind(11, nowMs);
+  ins.run();
+  Statement mark(db_, "UPDATE keyframes SET state = 1 WHERE track_id = ? AND keyframe = ?");
+  mark.text(1, trackId).bind(2, int64_t(keyframe));
+  mark.run();
+  Statement t(db_, "UPDATE tracks SET latest_sequence = ?, published = published + 1 WHERE id = ?");
+  t.bind(1, int64_t(v.sequence)).text(2, trackId);
+  t.run();
+  Statement prune(db_, "DELETE FROM versions WHERE track_id = ? AND sequence <= ?");
+  prune.text(1, trackId).bind(2, int64_t(v.sequence) - int64_t(keep));
+  prune.run();
+  tx.commit();
+  return v;
+}
+
+std::optional<VersionRecord> FarmStore::versionAfter(const std::string& trackId, uint64_t sequence) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, (std::string("SELECT ") + kVersionColumns +
+                    " FROM versions WHERE track_id = ? AND sequence > ? ORDER BY sequence LIMIT 1")
+                       .c_str());
+  s.text(1, trackId).bind(2, int64_t(sequence));
+  if (!s.step()) return std::nullopt;
+  return readVersion(s);
+}
+
+bool FarmStore::jobWantedByAnotherTrack(const std::string& jobId, const std::string& trackId) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_,
+              "SELECT COUNT(*) FROM keyframes k JOIN tracks t ON t.id = k.track_id WHERE k.job_id = ? AND k.state = 0 "
+              "AND t.state = 1 AND t.id != ?");
+  s.text(1, jobId).text(2, trackId);
+  s.step();
+  return s.i64(0) > 0;
 }
 
 }  // namespace cpvs::server

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cpvs/bake/options.h"
+#include "cpvs/base/vec3.h"
 #include "cpvs/light/ortho_grid.h"
 
 struct sqlite3;
@@ -54,6 +55,37 @@ struct LeaseRecord {
   uint64_t tile = 0;
   int64_t deadlineMs = 0;  // 0 when no longer the tile's current lease
   int64_t grantedMs = 0;
+};
+
+/// A sun track (TrackService): its spec as sent, and how far it got. state holds the
+/// values of cpvs.v1.TrackState.
+struct TrackRecord {
+  std::string id, requestId, spec, error;
+  int state = 1;
+  int64_t createdMs = 0;
+  uint64_t keyframesTotal = 0;  // 0: a clock, unbounded
+  uint64_t nextKeyframe = 0;    // the next keyframe not yet submitted (or skipped as night)
+  uint64_t published = 0, skipped = 0, latestSequence = 0;
+};
+
+/// A keyframe submitted as a job: pending until published as a version or skipped.
+struct KeyframeRecord {
+  std::string trackId;
+  uint64_t keyframe = 0;
+  int64_t instantMs = 0;
+  Vec3 direction;
+  std::string jobId;
+  int state = 0;  // 0 pending, 1 published, 2 skipped
+};
+
+struct VersionRecord {
+  std::string trackId;
+  uint64_t sequence = 0, keyframe = 0;
+  int64_t instantMs = 0;
+  Vec3 direction;
+  std::string jobId, checksum;
+  uint64_t fileBytes = 0;
+  int64_t publishedMs = 0;
 };
 
 class FarmStore {
@@ -110,6 +142,28 @@ class FarmStore {
   std::vector<uint64_t> doneTiles(const std::string& jobId);
   int tileAttempts(const std::string& jobId, uint64_t tile);
   void cancelTiles(const std::string& jobId);
+
+  // Sun tracks, their keyframes and published versions.
+  void createTrack(const TrackRecord& t);
+  std::optional<TrackRecord> track(const std::string& id);
+  std::optional<TrackRecord> trackByRequest(const std::string& requestId);
+  std::vector<TrackRecord> tracks(bool includeEnded);
+  void setTrackState(const std::string& id, int state, const std::string& error);
+  /// Records a submitted keyframe and moves the track's next keyframe past it.
+  void addKeyframe(const KeyframeRecord& k);
+  /// Moves the next keyframe to `next` without submitting the ones before it (night, or
+  /// behind a clock).
+  void advanceNextKeyframe(const std::string& trackId, uint64_t next);
+  std::vector<KeyframeRecord> pendingKeyframes(const std::string& trackId);
+  void skipKeyframe(const std::string& trackId, uint64_t keyframe);
+  /// Publishes a pending keyframe as the track's next version (sequence latest + 1) and
+  /// drops versions older than the newest `keep`; returns the version.
+  VersionRecord publishKeyframe(const std::string& trackId, uint64_t keyframe, const std::string& checksum,
+                                uint64_t fileBytes, uint64_t keep, int64_t nowMs);
+  /// The first kept version after `sequence`.
+  std::optional<VersionRecord> versionAfter(const std::string& trackId, uint64_t sequence);
+  /// Whether an active track other than `trackId` still waits on the job.
+  bool jobWantedByAnotherTrack(const std::string& jobId, const std::string& trackId);
 
  private:
   void exec(const char* sql);

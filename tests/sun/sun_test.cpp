@@ -101,6 +101,12 @@ TEST(SunPosition, BadInputIsNamed) {
   EXPECT_EQ(formatUtcInstant(parseUtcInstant("2024-12-31T23:30:00-01:00")), "2025-01-01T00:30:00Z");
   EXPECT_EQ(formatUtcInstant(parseUtcInstant("2024-03-01 00:15+0530")), "2024-02-29T18:45:00Z");
   EXPECT_EQ(formatUtcInstant(parseUtcInstant("2016-12-31T23:59:60.5Z")), "2016-12-31T23:59:60.500Z");  // a leap second
+  // Unix milliseconds, and back, across eras and leap days.
+  EXPECT_EQ(unixMillis(parseUtcInstant("1970-01-01T00:00:00Z")), 0);
+  EXPECT_EQ(unixMillis(parseUtcInstant("2003-10-17T19:30:30Z")), 1066419030000);
+  EXPECT_EQ(unixMillis(parseUtcInstant("1969-12-31T23:59:59Z")), -1000);
+  for (const char* t : {"2024-02-29T12:34:56.789Z", "1900-03-01T00:00:00Z", "2400-12-31T23:59:59Z", "1969-07-20T20:17:40Z"})
+    EXPECT_EQ(formatUtcInstant(utcFromUnixMillis(unixMillis(parseUtcInstant(t)))), t);
 }
 
 }  // namespace

@@ -204,6 +204,76 @@ std::vector<pb::JobStatus> FarmClient::list(bool includeFinished) {
   return {reply.jobs().begin(), reply.jobs().end()};
 }
 
+pb::TrackStatus FarmClient::createTrack(const std::string& requestId, const pb::TrackSpec& spec) {
+  pb::CreateTrackRequest request;
+  request.set_request_id(requestId);
+  *request.mutable_spec() = spec;
+  return transport_->unary(&pb::Farm::Stub::CreateTrack, request);
+}
+
+std::vector<pb::TrackStatus> FarmClient::listTracks(bool includeEnded) {
+  pb::ListJobsRequest request;
+  request.set_include_finished(includeEnded);
+  const pb::ListTracksReply reply = transport_->unary(&pb::Farm::Stub::ListTracks, request);
+  return {reply.tracks().begin(), reply.tracks().end()};
+}
+
+pb::TrackStatus FarmClient::cancelTrack(const std::string& trackId) {
+  pb::TrackRef ref;
+  ref.set_track_id(trackId);
+  return transport_->unary(&pb::Farm::Stub::CancelTrack, ref);
+}
+
+uint64_t FarmClient::subscribe(const std::string& trackId, uint64_t afterSequence,
+                               const std::function<bool(const pb::TrackVersion&, const std::vector<uint8_t>&)>& onVersion) {
+  pb::SubscribeRequest request;
+  request.set_track_id(trackId);
+  request.set_after_sequence(afterSequence);
+  grpc::ClientContext ctx;
+  net::prepare(ctx, transport_->connection);
+  auto reader = transport_->stub->Subscribe(&ctx, request);
+  uint64_t last = afterSequence;
+  pb::VersionChunk chunk;
+  pb::TrackVersion version;
+  std::optional<net::ChunkReceiver> receiver;
+  std::vector<uint8_t> bytes;
+  auto broken = [&](const std::string& why) {
+    ctx.TryCancel();
+    reader->Finish();
+    return callError(net::ErrorKind::DataLoss, "the subscription to track " + trackId + ": " + why);
+  };
+  while (reader->Read(&chunk)) {
+    if (chunk.has_version()) {
+      if (receiver) throw broken("a version began before the one before it ended");
+      version = chunk.version();
+      if (version.sequence() <= last) throw broken("version " + std::to_string(version.sequence()) + " came out of order");
+      receiver.emplace(0, UINT64_MAX, net::ErrorKind::DataLoss, "version " + std::to_string(version.sequence()));
+      bytes.clear();
+    }
+    if (!receiver) throw broken("data came before its version");
+    try {
+      const uint64_t at = receiver->accept(chunk.total_size(), chunk.offset(), chunk.data().size());
+      bytes.resize(at + chunk.data().size());
+      std::memcpy(bytes.data() + at, chunk.data().data(), chunk.data().size());
+      if (chunk.last()) receiver->finish();
+    } catch (const net::FarmError& e) {
+      throw broken(e.what());
+    }
+    if (!chunk.last()) continue;
+    receiver.reset();
+    if (contentHash(bytes.data(), bytes.size()).hex() != version.checksum())
+      throw broken("version " + std::to_string(version.sequence()) + " does not match its checksum");
+    last = version.sequence();
+    if (!onVersion(version, bytes)) {
+      ctx.TryCancel();
+      reader->Finish();
+      return last;
+    }
+  }
+  check(reader->Finish());
+  return last;
+}
+
 void FarmClient::Transport::receiveArtifact(const std::string& jobId, const std::string& part, uint64_t offset, uint64_t& total,
                                  std::string& checksum) {
   pb::DownloadRequest request;

@@ -3,6 +3,7 @@
 #include <erfa.h>
 #include <erfam.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -92,6 +93,46 @@ std::string formatUtcInstant(const UtcInstant& t) {
   else
     std::snprintf(buf, sizeof buf, "%04d-%02d-%02dT%02d:%02d:%06.3fZ", t.year, t.month, t.day, t.hour, t.minute, t.second);
   return buf;
+}
+
+namespace {
+
+// Days from 1970-01-01 of a proleptic Gregorian date (H. Hinnant's algorithm).
+int64_t daysFromCivil(int64_t y, unsigned m, unsigned d) {
+  y -= m <= 2;
+  const int64_t era = (y >= 0 ? y : y - 399) / 400;
+  const unsigned yoe = unsigned(y - era * 400);
+  const unsigned doy = (153 * (m + (m > 2 ? -3 : 9)) + 2) / 5 + d - 1;
+  const unsigned doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+  return era * 146097 + int64_t(doe) - 719468;
+}
+
+}  // namespace
+
+int64_t unixMillis(const UtcInstant& t) {
+  const int64_t days = daysFromCivil(t.year, unsigned(t.month), unsigned(t.day));
+  const double seconds = std::min(t.second, 59.999);  // a leap second is the minute's last millisecond
+  return ((days * 24 + t.hour) * 60 + t.minute) * 60000 + int64_t(std::llround(seconds * 1000));
+}
+
+UtcInstant utcFromUnixMillis(int64_t ms) {
+  int64_t days = ms >= 0 ? ms / 86400000 : -((-ms + 86399999) / 86400000);
+  int64_t rest = ms - days * 86400000;
+  days += 719468;
+  const int64_t era = (days >= 0 ? days : days - 146096) / 146097;
+  const unsigned doe = unsigned(days - era * 146097);
+  const unsigned yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
+  const unsigned doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+  const unsigned mp = (5 * doy + 2) / 153;
+  UtcInstant t;
+  t.day = int(doy - (153 * mp + 2) / 5 + 1);
+  t.month = int(mp < 10 ? mp + 3 : mp - 9);
+  t.year = int(int64_t(yoe) + era * 400 + (t.month <= 2));
+  t.hour = int(rest / 3600000);
+  rest -= int64_t(t.hour) * 3600000;
+  t.minute = int(rest / 60000);
+  t.second = double(rest - int64_t(t.minute) * 60000) / 1000.0;
+  return t;
 }
 
 Vec3 SceneAxes::parseAxis(const std::string& text, const std::string& what) {

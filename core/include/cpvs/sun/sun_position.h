@@ -3,6 +3,7 @@
 // the direction of its light in a scene's axes, for a bake.
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
 
@@ -22,6 +23,10 @@ struct UtcInstant {
 UtcInstant parseUtcInstant(const std::string& text, const std::string& what = "--time");
 /// "2003-10-17T19:30:30Z" (fractional seconds when there are any).
 std::string formatUtcInstant(const UtcInstant& t);
+/// Milliseconds since 1970-01-01T00:00:00Z as Unix time counts them (no leap seconds),
+/// and back: how instants are stored and stepped.
+int64_t unixMillis(const UtcInstant& t);
+UtcInstant utcFromUnixMillis(int64_t ms);
 
 /// A place: geodetic latitude and longitude (degrees, north and east positive) and height
 /// above the WGS84 ellipsoid (metres).

@@ -102,6 +102,18 @@ class FarmClient {
   /// for the next attempt and throws FarmCallError.
   DownloadResult download(const std::string& jobId, const std::string& outPath);
 
+  /// Creates a sun track (idempotent by request id, as submit).
+  pb::TrackStatus createTrack(const std::string& requestId, const pb::TrackSpec& spec);
+  std::vector<pb::TrackStatus> listTracks(bool includeEnded);
+  pb::TrackStatus cancelTrack(const std::string& trackId);
+  /// Follows a track from after `afterSequence` (0: the oldest version kept): calls
+  /// `onVersion` with each version and its whole artifact, checked against its checksum,
+  /// in order, as they are published; returns the last sequence received when the track
+  /// ends or `onVersion` returns false. Resume after a failure with that sequence: no
+  /// version is lost or repeated. FarmCallError when the call fails.
+  uint64_t subscribe(const std::string& trackId, uint64_t afterSequence,
+                     const std::function<bool(const pb::TrackVersion&, const std::vector<uint8_t>&)>& onVersion);
+
  private:
   struct Transport;  // channel, stub and the streams over them (src/farm_client.cpp)
   std::unique_ptr<Transport> transport_;

@@ -1,0 +1,73 @@
+// Sun tracks: a scene, options, a resolution and a sun path (a place through a span of
+// time, a list of directions, or a game clock). The service keeps the next keyframes of
+// every active track submitted as bake jobs at a priority below interactive bakes (whose
+// tiles are leased first, so they preempt between tiles), publishes each finished
+// keyframe, in order, as the track's next version, and keeps the newest versions for
+// subscribers. A keyframe is a job whose request id is named by its content (scene,
+// resolution, options, quantized direction), so a keyframe baked before, by this track
+// or another, is the same job and is not baked again.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "coordinator/change_feed.h"
+#include "coordinator/job_service.h"
+#include "cpvs/base/vec3.h"
+#include "cpvs/v1/farm.pb.h"
+#include "store/farm_store.h"
+
+namespace cpvs::server {
+
+struct TrackLimits {
+  uint64_t maxKeyframes = 10000;  // of a bounded track
+  uint32_t maxAhead = 16;
+  uint32_t maxKeep = 1024;
+};
+
+/// Priority of keyframe jobs: below every interactive bake's default (0).
+constexpr int kKeyframePriority = -100;
+
+class TrackService {
+ public:
+  TrackService(FarmStore& store, JobService& jobs, ChangeFeed& feed, TrackLimits limits = {});
+  ~TrackService() { stop(); }
+
+  /// Validates the spec (a path with keyframes above the horizon, within the limits) and
+  /// submits its first keyframes; idempotent by request id like SubmitBake.
+  pb::TrackStatus create(const pb::CreateTrackRequest& request);
+  pb::TrackStatus status(const std::string& trackId);
+  std::vector<pb::TrackStatus> list(bool includeEnded);
+  /// Ends the track; its pending keyframe jobs that no other track waits for are cancelled.
+  pb::TrackStatus cancel(const std::string& trackId);
+  /// The first kept version after `sequence`; nullopt when there is none yet.
+  std::optional<VersionRecord> versionAfter(const std::string& trackId, uint64_t sequence);
+
+  /// One pass over the active tracks: publishes finished keyframes in order, skips failed
+  /// ones, submits the next ones. The service's thread runs it on every job change and at
+  /// least every 250 ms; tests may call it directly.
+  void tick();
+  void start();
+  void stop();
+
+ private:
+  pb::TrackStatus toStatus(const TrackRecord& t) const;
+  void advance(const TrackRecord& t);
+  /// Submits keyframe `k`'s job; returns its id.
+  std::string submitKeyframe(const pb::TrackSpec& spec, const Vec3& direction);
+
+  FarmStore& store_;
+  JobService& jobs_;
+  ChangeFeed& feed_;
+  TrackLimits limits_;
+  std::mutex tickMutex_;  // one pass at a time (the thread's, a test's, create's)
+  std::thread thread_;
+  bool stopping_ = false;
+};
+
+}  // namespace cpvs::server

@@ -1,0 +1,247 @@
+// Sun tracks through the coordinator, its RPCs and the client library in one process:
+// keyframes baked ahead as jobs and published in order; a subscriber receives every
+// version, byte-identical to a local bake of its direction, and resumes after a
+// disconnect and after a coordinator restart with no gap and no duplicate; keyframes are
+// shared between tracks; night keyframes are left out; bad specs are refused with their
+// kind and change nothing.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <thread>
+
+#include "cpvs/bake/bake.h"
+#include "cpvs/base/error.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/net/convert.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/scene/obj_writer.h"
+#include "cpvs/scene/source.h"
+#include "cpvs/sun/sun_position.h"
+#include "farm_testing.h"
+#include "scene_testing.h"
+
+namespace cpvs {
+namespace {
+
+using testing::InProcessFarm;
+using testing::TempDir;
+namespace pb = ::cpvs::v1;
+
+Vec3 quantized(const Vec3& d) {
+  const Vec3 u = d / length(d);
+  auto q = [](double v) { return std::round(v * 1e9) / 1e9; };
+  return {q(u.x), q(u.y), q(u.z)};
+}
+
+// The local bake of one keyframe's direction, as the farm's artifact is written.
+std::vector<uint8_t> localBytes(const Scene& scene, const Vec3& direction) {
+  CpvsArtifact a;
+  a.grid = makeGrid(scene, LightFrame::fromDirection(direction), 7);
+  a.sceneHash = sceneHash(scene);
+  a.dag = testing::bakeWith(scene, a.grid, a.options);
+  return encodeCpvs(a, true);
+}
+
+pb::TrackSpec directionTrack(const std::string& sceneHash, const std::vector<Vec3>& dirs) {
+  pb::TrackSpec spec;
+  spec.set_scene_hash(sceneHash);
+  spec.set_resolution("128");
+  spec.set_name("three suns");
+  spec.set_keyframes_ahead(1);
+  for (const Vec3& d : dirs) *spec.mutable_directions()->add_directions() = net::toProto(d);
+  return spec;
+}
+
+struct Received {
+  std::vector<pb::TrackVersion> versions;
+  std::vector<std::vector<uint8_t>> bytes;
+};
+
+TEST(Tracks, VersionsArriveInOrderAndResumeAcrossDisconnectsAndRestarts) {
+  TempDir dir("cpvs_track_test");
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:2:5"));
+  const Scene scene = loadScene(obj);
+  const std::vector<Vec3> dirs{{0.3, -1, 0.2}, {0.2, -1, 0.3}, {-0.1, -1, 0.4}};
+  std::string trackId;
+  {
+    // A coordinator with no worker: the track is created and its first keyframe waits.
+    auto farm = std::make_unique<InProcessFarm>(dir / "data");
+    const std::string hash = farm->client.uploadScene(obj).sceneHash;
+    const pb::TrackStatus created = farm->client.createTrack("track-1", directionTrack(hash, dirs));
+    trackId = created.track_id();
+    EXPECT_EQ(created.state(), pb::TRACK_ACTIVE);
+    EXPECT_EQ(created.keyframes_total(), 3u);
+    EXPECT_EQ(farm->client.createTrack("track-1", directionTrack(hash, dirs)).track_id(), trackId);  // a retry
+    pb::TrackSpec other = directionTrack(hash, dirs);
+    other.set_name("another");
+    EXPECT_THROW(farm->client.createTrack("track-1", other), client::FarmCallError);
+    const auto jobs = farm->client.list(false);
+    ASSERT_EQ(jobs.size(), 1u);  // one keyframe ahead
+    EXPECT_LT(jobs[0].spec().priority(), 0);  // below interactive bakes
+    farm->server.shutdown(1);
+  }
+  // Restarted on the same folder, with a worker: the track carries on.
+  InProcessFarm farm(dir / "data");
+  worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
+  wc.threads = 2;
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+
+  // A subscriber that goes away after the first version...
+  Received got;
+  auto keep = [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
+    got.versions.push_back(v);
+    got.bytes.push_back(b);
+    return got.versions.size() != 1;
+  };
+  EXPECT_EQ(farm.client.subscribe(trackId, 0, keep), 1u);
+  // ...and comes back with its token: exactly the rest, then the stream ends with the track.
+  EXPECT_EQ(farm.client.subscribe(trackId, 1, keep), 3u);
+  ASSERT_EQ(got.versions.size(), 3u);
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(got.versions[i].sequence(), i + 1);
+    EXPECT_EQ(got.versions[i].keyframe(), i);
+    EXPECT_EQ(got.bytes[i], localBytes(scene, quantized(dirs[i]))) << "keyframe " << i;
+  }
+  const pb::TrackStatus done = farm.client.listTracks(true).at(0);
+  EXPECT_EQ(done.state(), pb::TRACK_FINISHED);
+  EXPECT_EQ(done.keyframes_published(), 3u);
+  EXPECT_EQ(done.latest_sequence(), 3u);
+
+  // A second track over the same suns bakes nothing new: its keyframes are the same jobs.
+  const size_t jobsBefore = farm.client.list(true).size();
+  pb::TrackSpec again = directionTrack(farm.client.listTracks(true).at(0).spec().scene_hash(), dirs);
+  again.set_name("again");
+  const std::string second = farm.client.createTrack("track-2", again).track_id();
+  Received twice;
+  farm.client.subscribe(second, 0, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
+    twice.versions.push_back(v);
+    twice.bytes.push_back(b);
+    return true;
+  });
+  ASSERT_EQ(twice.versions.size(), 3u);
+  EXPECT_EQ(twice.versions[2].job_id(), got.versions[2].job_id());
+  EXPECT_EQ(twice.bytes, got.bytes);
+  EXPECT_EQ(farm.client.list(true).size(), jobsBefore);
+
+  // Tokens from the future and unknown tracks are refused.
+  try {
+    farm.client.subscribe(trackId, 9, keep);
+    ADD_FAILURE() << "a token from the future was accepted";
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::OutOfRange) << e.what();
+  }
+  try {
+    farm.client.subscribe("t-none", 0, keep);
+    ADD_FAILURE() << "an unknown track was followed";
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::NotFound) << e.what();
+  }
+  tileWorker.stop();
+  workerThread.join();
+}
+
+// A place through an evening: keyframes every two hours from 16:00 to 22:00 in Golden
+// (UTC-6 in June); the last is after sunset and is left out, never baked.
+TEST(Tracks, APlaceThroughTimeLeavesOutTheNight) {
+  TempDir dir("cpvs_track_place_test");
+  InProcessFarm farm(dir / "data");
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:2:5"));
+  const Scene scene = loadScene(obj);
+  pb::TrackSpec spec;
+  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
+  spec.set_resolution("128");
+  spec.set_keyframes_ahead(4);
+  pb::PlacePath& p = *spec.mutable_place();
+  p.set_latitude_deg(39.742476);
+  p.set_longitude_deg(-105.1786);
+  p.set_start_utc("2024-06-21T16:00:00-06:00");
+  p.set_end_utc("2024-06-21T22:00:00-06:00");
+  p.set_step_seconds(7200);
+  worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+  const std::string id = farm.client.createTrack("evening", spec).track_id();
+  Received got;
+  farm.client.subscribe(id, 0, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
+    got.versions.push_back(v);
+    got.bytes.push_back(b);
+    return true;
+  });
+  tileWorker.stop();
+  workerThread.join();
+  ASSERT_EQ(got.versions.size(), 3u);
+  for (size_t i = 0; i < 3; ++i) {
+    const int64_t instant = unixMillis(parseUtcInstant("2024-06-21T16:00:00-06:00")) + int64_t(i) * 7200000;
+    EXPECT_EQ(got.versions[i].instant_unix_ms(), instant);
+    const SunPosition sun = sunPosition(utcFromUnixMillis(instant), {39.742476, -105.1786, 0});
+    EXPECT_FALSE(sun.night);
+    EXPECT_EQ(got.bytes[i], localBytes(scene, quantized(sun.direction))) << "keyframe " << i;
+  }
+  EXPECT_TRUE(sunPosition(parseUtcInstant("2024-06-21T22:00:00-06:00"), {39.742476, -105.1786, 0}).night);
+  EXPECT_EQ(farm.client.listTracks(true).at(0).state(), pb::TRACK_FINISHED);
+}
+
+// Bad specs: each refused with its kind and message, no track and no job created.
+TEST(Tracks, BadSpecsAreRefusedAndChangeNothing) {
+  TempDir dir("cpvs_track_bad_test");
+  InProcessFarm farm(dir / "data");
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:1:1"));
+  const std::string hash = farm.client.uploadScene(obj).sceneHash;
+  auto place = [&](const char* start, const char* end, double step, double lat) {
+    pb::TrackSpec s;
+    s.set_scene_hash(hash);
+    s.set_resolution("128");
+    pb::PlacePath& p = *s.mutable_place();
+    p.set_latitude_deg(lat);
+    p.set_start_utc(start);
+    p.set_end_utc(end);
+    p.set_step_seconds(step);
+    return s;
+  };
+  struct Bad {
+    pb::TrackSpec spec;
+    const char* message;
+  };
+  pb::TrackSpec noPath;
+  noPath.set_scene_hash(hash);
+  noPath.set_resolution("128");
+  pb::TrackSpec unknownScene = directionTrack(std::string(32, 'a'), {{0, -1, 0}});
+  pb::TrackSpec zeroDirection = directionTrack(hash, {{0, 0, 0}});
+  const std::vector<Bad> cases{
+      {place("2024-06-21T12:00Z", "2024-06-21T10:00Z", 600, 40), "is before start_utc"},
+      {place("2024-06-21T12:00Z", "2024-06-21T13:00Z", 0, 40), "step_seconds must be positive"},
+      {place("2024-06-21T00:00Z", "2024-06-22T00:00Z", 1, 40), "at most 10000"},
+      {place("2024-06-21T12:00Z", "2024-06-21T13:00Z", 600, 91), "latitude"},
+      {place("2024-12-21T00:00Z", "2024-12-22T00:00Z", 3600, 85), "below the horizon at every keyframe"},
+      {place("2024-06-21T12:00", "2024-06-21T13:00Z", 600, 40), "expected ISO 8601"},
+      {noPath, "no sun path"},
+      {zeroDirection, "zero or not finite"},
+      {unknownScene, ""},
+  };
+  int n = 0;
+  for (const Bad& b : cases) {
+    try {
+      farm.client.createTrack("bad-" + std::to_string(n++), b.spec);
+      ADD_FAILURE() << "accepted: " << b.message;
+    } catch (const client::FarmCallError& e) {
+      EXPECT_TRUE(e.callerCanFix()) << e.what();
+      EXPECT_NE(std::string(e.what()).find(b.message), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(farm.client.listTracks(true).empty());
+  EXPECT_TRUE(farm.client.list(true).empty());
+  try {
+    farm.client.cancelTrack("t-none");
+    ADD_FAILURE();
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::NotFound);
+  }
+}
+
+}  // namespace
+}  // namespace cpvs
