@@ -14,6 +14,8 @@ void addInspectCommand(CLI::App& app, int& status);
 void addQueryCommand(CLI::App& app, int& status);
 void addVerifyCommand(CLI::App& app, int& status);
 void addRenderCommand(CLI::App& app, int& status);
+/// `contact-sheet` (render_command.cpp): every version of a subscription in one picture.
+void addContactSheetCommand(CLI::App& app, int& status);
 /// `sun` (sun_command.cpp): the sun's place for a place on Earth and an instant.
 void addSunCommand(CLI::App& app, int& status);
 /// `accuracy` (accuracy_command.cpp): bakes at several resolutions and measures them.
@@ -28,5 +30,8 @@ void addJobsCommand(CLI::App& app, int& status);
 void addWatchCommand(CLI::App& app, int& status);
 void addCancelCommand(CLI::App& app, int& status);
 void addDownloadCommand(CLI::App& app, int& status);
+/// `track create | list | cancel` and `subscribe`: sun tracks (farm_commands.cpp).
+void addTrackCommand(CLI::App& app, int& status);
+void addSubscribeCommand(CLI::App& app, int& status);
 
 }  // namespace cpvs::cli

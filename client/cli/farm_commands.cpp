@@ -1,4 +1,5 @@
-// `cpvs submit | jobs | watch | cancel | download`: the bake farm from the command line.
+// `cpvs submit | jobs | watch | cancel | download | track | subscribe`: the bake farm from
+// the command line.
 // The transport is FarmClient; this file parses, prints and chooses exit statuses:
 // 0 success, 1 the job failed or was cancelled, 2 bad input or a request the farm refused,
 // 4 the farm could not be reached.
@@ -31,6 +32,7 @@
 #include "cpvs/scene/source.h"
 #include "cpvs/client/farm_client.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/sun/sun_position.h"
 
 namespace cpvs::cli {
 
@@ -467,6 +469,209 @@ void addDownloadCommand(CLI::App& app, int& status) {
   c->add_option("--out,-o", a->out, "Output .cpvs file (FILE.part while it arrives)")->required();
   c->add_flag("--quiet,-q", a->quiet, "Print nothing on success");
   c->callback([a, &status] { runFarmCommand(status, [&] { return runDownload(*a); }); });
+}
+
+// --- sun tracks -----------------------------------------------------------------------
+
+namespace {
+
+struct TrackCreateArgs {
+  ConnectionArgs conn;
+  std::string scene, resolution = "4K", name, requestId, directions, start, end, up, north;
+  OptionFlags options;
+  double latitude = NAN, longitude = NAN, height = 0, step = 0, rate = 0;
+  uint32_t ahead = 0, keep = 0;
+  bool json = false;
+};
+
+std::string trackJson(const pb::TrackStatus& t) {
+  static const char* states[] = {"unspecified", "active", "finished", "cancelled"};
+  std::ostringstream o;
+  o << "{\"track\": " << jsonString(t.track_id()) << ", \"name\": " << jsonString(t.spec().name())
+    << ", \"state\": " << jsonString(states[std::clamp(int(t.state()), 0, 3)])
+    << ", \"keyframes_total\": " << t.keyframes_total() << ", \"keyframes_published\": " << t.keyframes_published()
+    << ", \"keyframes_skipped\": " << t.keyframes_skipped() << ", \"latest_sequence\": " << t.latest_sequence()
+    << ", \"error\": " << jsonString(t.error()) << "}";
+  return o.str();
+}
+
+int runTrackCreate(const TrackCreateArgs& a, const CLI::App& c) {
+  auto given = [&](const char* option) { return c.count(option) > 0; };
+  pb::TrackSpec spec;
+  spec.set_resolution(a.resolution);
+  (void)parseResolution(a.resolution);
+  const BakeOptions flags = optionsOf(a.options);
+  pb::BakeOptions& o = *spec.mutable_options();
+  if (given("--closed")) o.set_closed(pb::ClosedMode(flags.closed));
+  if (given("--exit")) o.set_exit(pb::ExitMode(flags.exit));
+  if (given("--cull")) o.set_no_cull(!flags.cull);
+  if (given("--compress")) o.set_compress(pb::CompressMode(flags.compress));
+  if (given("--undefined")) o.set_undefined_rule(pb::UndefinedRule(flags.undefinedRule));
+  if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
+  if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
+  spec.set_name(a.name.empty() ? (isGeneratedScene(a.scene) ? a.scene : fs::path(a.scene).filename().string()) : a.name);
+  spec.set_keyframes_ahead(a.ahead);
+  spec.set_keep_versions(a.keep);
+  const bool place = given("--lat") || given("--lon") || given("--start");
+  if (place == !a.directions.empty())
+    throw InputError("give the sun path: --directions X,Y,Z;X,Y,Z;... or a place (--lat, --lon, --start, --step, and --end or --rate)");
+  if (!a.directions.empty()) {
+    std::stringstream list(a.directions);
+    for (std::string item; std::getline(list, item, ';');)
+      if (!item.empty()) *spec.mutable_directions()->add_directions() = net::toProto(parseVec3(item, "--directions"));
+  } else {
+    if (!given("--lat") || !given("--lon") || !given("--start") || !given("--step"))
+      throw InputError("a place path needs --lat, --lon, --start and --step");
+    if (given("--end") == given("--rate")) throw InputError("give --end (a span of time) or --rate (a game clock), not both");
+    pb::PlacePath p;
+    p.set_latitude_deg(a.latitude);
+    p.set_longitude_deg(a.longitude);
+    p.set_height_m(a.height);
+    p.set_start_utc(a.start);
+    p.set_end_utc(a.end);
+    p.set_step_seconds(a.step);
+    p.set_up(a.up);
+    p.set_north(a.north);
+    if (given("--rate")) {
+      *spec.mutable_clock()->mutable_place() = p;
+      spec.mutable_clock()->set_rate(a.rate);
+    } else {
+      *spec.mutable_place() = p;
+    }
+  }
+  FarmClient client(connectionOf(a.conn));
+  std::optional<TemporaryScene> generated;
+  std::string path = a.scene;
+  if (isGeneratedScene(a.scene)) {
+    generated.emplace(a.scene);
+    path = generated->path();
+  }
+  spec.set_scene_hash(client.uploadScene(path).sceneHash);
+  const pb::TrackStatus t = client.createTrack(a.requestId.empty() ? randomRequestId() : a.requestId, spec);
+  if (a.json) std::printf("%s\n", trackJson(t).c_str());
+  else
+    std::printf("%s  track of %s keyframes created; follow it: cpvs subscribe --server %s %s --out DIR\n",
+                t.track_id().c_str(), t.keyframes_total() ? std::to_string(t.keyframes_total()).c_str() : "unbounded",
+                a.conn.server.c_str(), t.track_id().c_str());
+  return 0;
+}
+
+struct TrackListArgs {
+  ConnectionArgs conn;
+  bool all = false, json = false;
+};
+
+int runTrackList(const TrackListArgs& a) {
+  FarmClient client(connectionOf(a.conn));
+  const auto tracks = client.listTracks(a.all);
+  if (a.json) {
+    std::printf("[");
+    for (size_t i = 0; i < tracks.size(); ++i) std::printf("%s\n  %s", i ? "," : "", trackJson(tracks[i]).c_str());
+    std::printf("%s]\n", tracks.empty() ? "" : "\n");
+    return 0;
+  }
+  std::printf("%-20s %-10s %-10s %-10s %s\n", "TRACK", "STATE", "PUBLISHED", "LATEST", "NAME");
+  static const char* states[] = {"?", "active", "finished", "cancelled"};
+  for (const auto& t : tracks)
+    std::printf("%-20s %-10s %-10s %-10llu %s\n", t.track_id().c_str(), states[std::clamp(int(t.state()), 0, 3)],
+                (std::to_string(t.keyframes_published()) + "/" +
+                 (t.keyframes_total() ? std::to_string(t.keyframes_total()) : std::string("-")))
+                    .c_str(),
+                static_cast<unsigned long long>(t.latest_sequence()), loggable(t.spec().name(), 80).c_str());
+  return 0;
+}
+
+struct TrackCancelArgs {
+  ConnectionArgs conn;
+  std::string track;
+};
+
+int runTrackCancel(const TrackCancelArgs& a) {
+  FarmClient client(connectionOf(a.conn));
+  const pb::TrackStatus t = client.cancelTrack(a.track);
+  std::printf("%s\n", trackJson(t).c_str());
+  return 0;
+}
+
+struct SubscribeArgs {
+  ConnectionArgs conn;
+  std::string track, out;
+  uint64_t after = 0, count = 0;
+  bool quiet = false;
+};
+
+int runSubscribe(const SubscribeArgs& a) {
+  FarmClient client(connectionOf(a.conn));
+  fs::create_directories(a.out);
+  uint64_t received = 0;
+  const uint64_t last = client.subscribe(a.track, a.after, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& bytes) {
+    char name[64];
+    std::snprintf(name, sizeof name, "version-%06llu.cpvs", static_cast<unsigned long long>(v.sequence()));
+    const std::string path = (fs::path(a.out) / name).string();
+    writeFileAtomic(path, bytes);
+    ++received;
+    note(a.quiet, "version " + std::to_string(v.sequence()) + " (keyframe " + std::to_string(v.keyframe()) +
+                      (v.instant_unix_ms() ? ", " + formatUtcInstant(utcFromUnixMillis(v.instant_unix_ms())) : std::string()) +
+                      ", " + humanBytes(bytes.size()) + ") -> " + path);
+    return a.count == 0 || received < a.count;
+  });
+  note(a.quiet, "received " + std::to_string(received) + " version(s); resume after --after " + std::to_string(last));
+  return 0;
+}
+
+}  // namespace
+
+void addTrackCommand(CLI::App& app, int& status) {
+  CLI::App* track = app.add_subcommand("track", "Sun tracks on a bake farm: keyframes baked ahead, published as versions");
+  track->require_subcommand(1);
+  auto a = std::make_shared<TrackCreateArgs>();
+  CLI::App* c = track->add_subcommand("create", "Create a sun track of a scene (uploaded unless the server has it)");
+  addConnectionOptions(c, a->conn);
+  c->add_option("scene", a->scene, "Scene file or city[:BLOCKS[:SEED]]")->required();
+  c->add_option("--resolution,-r", a->resolution, "Grid resolution of every keyframe")->capture_default_str();
+  addOptionFlags(c, a->options, "Tile size in texels of every keyframe's job");
+  c->add_option("--directions", a->directions, "A list of sun directions X,Y,Z;X,Y,Z;... (from the sun into the scene)");
+  c->add_option("--lat", a->latitude, "A place: latitude, degrees north");
+  c->add_option("--lon", a->longitude, "longitude, degrees east");
+  c->add_option("--height", a->height, "height above the WGS84 ellipsoid, metres");
+  c->add_option("--start", a->start, "The first keyframe's instant, ISO 8601 with a zone (a clock's time at creation)");
+  c->add_option("--end", a->end, "The last instant of a span of time (inclusive)");
+  c->add_option("--step", a->step, "Seconds between keyframes (of game time for a clock)");
+  c->add_option("--rate", a->rate, "A game clock running RATE times real time (a 24-minute day: 60), never ending");
+  c->add_option("--up", a->up, "The scene's up axis (default +Y)");
+  c->add_option("--north", a->north, "The scene's north axis (default -Z)");
+  c->add_option("--ahead", a->ahead, "Keyframes baked ahead of the last published (default 2)");
+  c->add_option("--keep", a->keep, "Versions kept for subscribers (default 16)");
+  c->add_option("--name", a->name, "Free text for listings (default: the scene's name)");
+  c->add_option("--request-id", a->requestId, "Idempotency key: creating again with it returns the same track");
+  c->add_flag("--json", a->json, "Print the track's status as JSON");
+  c->callback([a, c, &status] { runFarmCommand(status, [&] { return runTrackCreate(*a, *c); }); });
+
+  auto l = std::make_shared<TrackListArgs>();
+  CLI::App* lc = track->add_subcommand("list", "The farm's active tracks (--all: ended ones too)");
+  addConnectionOptions(lc, l->conn);
+  lc->add_flag("--all", l->all, "Finished and cancelled tracks too");
+  lc->add_flag("--json", l->json, "JSON: an array of {track, name, state, keyframes_total, keyframes_published, ...}");
+  lc->callback([l, &status] { runFarmCommand(status, [&] { return runTrackList(*l); }); });
+
+  auto x = std::make_shared<TrackCancelArgs>();
+  CLI::App* xc = track->add_subcommand("cancel", "End a track; its keyframe jobs no other track needs are cancelled");
+  addConnectionOptions(xc, x->conn);
+  xc->add_option("track", x->track, "Track id")->required();
+  xc->callback([x, &status] { runFarmCommand(status, [&] { return runTrackCancel(*x); }); });
+}
+
+void addSubscribeCommand(CLI::App& app, int& status) {
+  auto a = std::make_shared<SubscribeArgs>();
+  CLI::App* c = app.add_subcommand(
+      "subscribe", "Follow a sun track: write each version's .cpvs to DIR as it is published, until the track ends");
+  addConnectionOptions(c, a->conn);
+  c->add_option("track", a->track, "Track id")->required();
+  c->add_option("--out,-o", a->out, "Folder for version-NNNNNN.cpvs")->required();
+  c->add_option("--after", a->after, "The last version already held (resume token; default 0: from the oldest kept)");
+  c->add_option("--count", a->count, "Stop after this many versions (default: until the track ends)");
+  c->add_flag("--quiet,-q", a->quiet, "Print nothing but errors");
+  c->callback([a, &status] { runFarmCommand(status, [&] { return runSubscribe(*a); }); });
 }
 
 }  // namespace cpvs::cli

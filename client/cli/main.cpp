@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   cpvs::cli::addQueryCommand(app, status);
   cpvs::cli::addVerifyCommand(app, status);
   cpvs::cli::addRenderCommand(app, status);
+  cpvs::cli::addContactSheetCommand(app, status);
   cpvs::cli::addAccuracyCommand(app, status);
   cpvs::cli::addSunCommand(app, status);
   cpvs::cli::addSubmitCommand(app, status);
@@ -31,6 +32,8 @@ int main(int argc, char** argv) {
   cpvs::cli::addWatchCommand(app, status);
   cpvs::cli::addCancelCommand(app, status);
   cpvs::cli::addDownloadCommand(app, status);
+  cpvs::cli::addTrackCommand(app, status);
+  cpvs::cli::addSubscribeCommand(app, status);
   spdlog::set_pattern("[%H:%M:%S] %v");
   try {
     app.parse(argc, argv);

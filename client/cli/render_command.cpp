@@ -4,7 +4,9 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <algorithm>
 #include <memory>
+#include <optional>
 
 #include "cli_util.h"
 #include "commands.h"
@@ -104,7 +106,64 @@ int runRender(const RenderArgs& a) {
   return 0;
 }
 
+struct SheetArgs {
+  std::string dir, scene, camera, out, size = "320x200";
+  int columns = 4, pcf = 3;
+};
+
+// A contact sheet: every version-*.cpvs of a folder (what `cpvs subscribe` writes), in
+// order, rendered from one camera and laid out in rows: the sun moving through a track.
+int runSheet(const SheetArgs& a) {
+  int w = 0, h = 0;
+  parseSize(a.size, w, h);
+  if (a.columns < 1 || a.columns > 64) throw InputError("--columns must be 1..64");
+  namespace fs = std::filesystem;
+  std::vector<fs::path> files;
+  if (!fs::is_directory(a.dir)) throw InputError(a.dir + " is not a folder");
+  for (const auto& e : fs::directory_iterator(a.dir))
+    if (e.path().extension() == ".cpvs" && e.path().filename().string().rfind("version-", 0) == 0) files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  if (files.empty()) throw InputError("no version-*.cpvs files in " + a.dir + " (cpvs subscribe writes them)");
+  const int cols = std::min<int>(a.columns, int(files.size())), rows = int((files.size() + size_t(cols) - 1) / size_t(cols));
+  Image sheet;
+  sheet.width = cols * w;
+  sheet.height = rows * h;
+  sheet.pixels.assign(size_t(sheet.width) * size_t(sheet.height), Rgb{0.1f, 0.1f, 0.1f});
+  std::optional<Scene> scene;
+  std::optional<Camera> cam;
+  for (size_t k = 0; k < files.size(); ++k) {
+    CpvsArtifact art = readCpvs(files[k].string());
+    if (!scene) scene = openMatchingScene(a.scene, art);
+    if (!cam) cam = a.camera.empty() ? defaultCamera(*scene, art.grid.frame.dir, double(w) / h) : Camera::parse(a.camera);
+    const Vec3 L = art.grid.frame.dir;
+    RayScene rays(*scene, art.grid.origin);
+    ShadowQuery q(art.grid, std::move(art.packed));
+    const CameraHits hits = traceCamera(*scene, rays, *cam, w, h);
+    const Image img = shadeHits(hits, cpvsVisibility(hits, q, a.pcf), L);
+    const int x0 = int(k % size_t(cols)) * w, y0 = int(k / size_t(cols)) * h;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) sheet.pixels[size_t(y0 + y) * size_t(sheet.width) + size_t(x0 + x)] = img.pixels[size_t(y) * size_t(w) + size_t(x)];
+  }
+  writePng(a.out, sheet);
+  std::printf("Wrote %s: %zu versions, %d x %d\n", a.out.c_str(), files.size(), sheet.width, sheet.height);
+  return 0;
+}
+
 }  // namespace
+
+void addContactSheetCommand(CLI::App& app, int& status) {
+  auto a = std::make_shared<SheetArgs>();
+  CLI::App* c = app.add_subcommand("contact-sheet",
+                                   "One picture of every version a subscription wrote: the sun moving through a track");
+  c->add_option("dir", a->dir, "Folder of version-*.cpvs (cpvs subscribe --out)")->required();
+  c->add_option("scene", a->scene, "The scene they were baked from (file, or city[:BLOCKS[:SEED]])")->required();
+  c->add_option("--out,-o", a->out, "Output PNG")->required();
+  c->add_option("--size", a->size, "Size of each picture WIDTHxHEIGHT")->capture_default_str();
+  c->add_option("--columns", a->columns, "Pictures per row")->capture_default_str();
+  c->add_option("--camera", a->camera, "EX,EY,EZ,TX,TY,TZ[,FOV] (default: the first version's sunny-side view)");
+  c->add_option("--pcf", a->pcf, "Filter width")->check(CLI::IsMember({1, 3, 5, 7, 9}))->capture_default_str();
+  c->callback([a, &status] { status = runSheet(*a); });
+}
 
 void addRenderCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<RenderArgs>();
