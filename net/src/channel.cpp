@@ -17,6 +17,9 @@ std::shared_ptr<grpc::Channel> makeChannel(const Connection& c) {
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 250);
   args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 250);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 5000);
+  // A subscriber can wait hours for the next version: notice a dead connection meanwhile.
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, kKeepaliveMs);
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, kKeepaliveTimeoutMs);
   std::shared_ptr<grpc::ChannelCredentials> creds;
   if (c.caFile.empty()) {
     creds = grpc::InsecureChannelCredentials();

@@ -37,6 +37,9 @@ struct GpuDevice::Impl {
   bool lost = false, simulateLoss = false;
 
   mutable std::mutex messagesMutex;
+  /// Command pool and queue are used by one thread at a time (uploads of a new track
+  /// version while another thread queries).
+  std::mutex submitMutex;
   std::vector<std::string> messages;
 
   ~Impl();
@@ -56,6 +59,7 @@ struct GpuDevice::Impl {
 
 template <class Record>
 void GpuDevice::Impl::submitAndWait(Record&& record) {
+  std::lock_guard lock(submitMutex);
   VkCommandBuffer cmd = beginCommands();
   record(cmd);
   submitAndWaitRecorded(cmd);

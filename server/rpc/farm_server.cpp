@@ -15,6 +15,12 @@ FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const
   builder.AddListeningPort(listen, creds ? creds : grpc::InsecureServerCredentials(), &port_);
   // One server per port: gRPC's default SO_REUSEPORT would let a second bind it too (R14).
   builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+  // Clients ping open streams every kKeepaliveMs (net/channel.h); the server pings too,
+  // and drops a connection whose peer stopped answering.
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, net::kKeepaliveMs);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, net::kKeepaliveTimeoutMs);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, net::kKeepaliveMs / 2);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
   builder.SetMaxReceiveMessageSize(net::kMaxMessageBytes);
   builder.SetMaxSendMessageSize(net::kMaxMessageBytes);
   builder.RegisterService(&farm_);

@@ -17,6 +17,7 @@
 #include "cpvs/scene/import.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/scene/source.h"
+#include "cpvs/runtime/runtime.h"
 #include "cpvs/sun/sun_position.h"
 #include "farm_testing.h"
 #include "scene_testing.h"
@@ -183,6 +184,37 @@ TEST(Tracks, APlaceThroughTimeLeavesOutTheNight) {
   }
   EXPECT_TRUE(sunPosition(parseUtcInstant("2024-06-21T22:00:00-06:00"), {39.742476, -105.1786, 0}).night);
   EXPECT_EQ(farm.client.listTracks(true).at(0).state(), pb::TRACK_FINISHED);
+
+  // The runtime follows the track: a lookup at a keyframe's instant answers that
+  // keyframe; between two, their crossfade; before the first and after the last, those.
+  runtime::TrackFollower follower({farm.server.address(), "", ""}, id, runtime::Backend::Auto);
+  ASSERT_EQ(follower.waitForVersions(3, 60), 3u) << follower.lastError();
+  EXPECT_EQ(follower.lastSequence(), 3u);
+  ASSERT_EQ(follower.heldInstants().size(), 3u);
+  std::vector<Vec3> points, normals;
+  for (int i = 0; i < 400; ++i) {
+    points.push_back({double(i % 20) * 2.2 - 2, 0.3 + (i / 20) % 3, double(i / 20) * 2.1 - 2});
+    normals.push_back({0, 1, 0});
+  }
+  std::vector<std::vector<float>> each(3);
+  for (size_t k = 0; k < 3; ++k) {
+    auto art = runtime::ShadowArtifact::fromBytes(got.bytes[k], "version");
+    each[k].resize(points.size());
+    for (size_t i = 0; i < points.size(); ++i) each[k][i] = art->cpu().filtered(points[i], normals[i], 5);
+  }
+  EXPECT_NE(each[0], each[2]) << "the sun moved: the shadows must too";
+  const int64_t t0 = got.versions[0].instant_unix_ms(), t1 = got.versions[1].instant_unix_ms();
+  std::vector<float> vis;
+  for (size_t k = 0; k < 3; ++k) {
+    follower.visibility(points, normals, 5, got.versions[k].instant_unix_ms(), vis);
+    EXPECT_EQ(vis, each[k]) << "at keyframe " << k;
+  }
+  follower.visibility(points, normals, 5, t0 + (t1 - t0) / 4, vis);
+  for (size_t i = 0; i < points.size(); ++i) ASSERT_NEAR(vis[i], 0.75f * each[0][i] + 0.25f * each[1][i], 1e-6) << i;
+  follower.visibility(points, normals, 5, t0 - 3600000, vis);
+  EXPECT_EQ(vis, each[0]);
+  follower.visibility(points, normals, 5, got.versions[2].instant_unix_ms() + 3600000, vis);
+  EXPECT_EQ(vis, each[2]);
 }
 
 // Bad specs: each refused with its kind and message, no track and no job created.

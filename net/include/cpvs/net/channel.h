@@ -15,6 +15,11 @@ namespace cpvs::net {
 constexpr size_t kChunkBytes = 1 << 20;
 /// Largest message either side accepts: a chunk plus its envelope.
 constexpr int kMaxMessageBytes = int(kChunkBytes) + (64 << 10);
+/// Keepalive pings on long-lived streams (WatchJob, Subscribe): a client pings every
+/// kKeepaliveMs while a call is open and gives up after kKeepaliveTimeoutMs without an
+/// answer; the server accepts pings that often (gRPC's default refuses pings under 5
+/// minutes apart and closes the connection after two).
+constexpr int kKeepaliveMs = 30000, kKeepaliveTimeoutMs = 10000;
 
 /// A channel to the coordinator (proxies ignored: farms run on private networks).
 /// Throws InputError when the CA file cannot be read.

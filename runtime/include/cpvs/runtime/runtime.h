@@ -192,4 +192,40 @@ class ShadowLookups {
   std::string fallbackReason_;
 };
 
+/// Follows a farm's sun track: a background subscription (resumed after a lost
+/// connection from the last version held) uploads each new version as it arrives, and
+/// lookups for an instant answer the crossfade of the two versions around it:
+/// (1 - w) * before + w * after, w = how far the instant is between their instants (for
+/// a track of directions, instants are the versions' sequence numbers, in ms). A new
+/// version is made ready beside the old ones and swapped in under a lock held only for
+/// the swap: lookups never wait for an upload. Holds the newest three versions.
+class TrackFollower {
+ public:
+  TrackFollower(FarmAddress farm, std::string trackId, Backend backend = Backend::Auto, const DeviceOptions& options = {});
+  ~TrackFollower();
+  TrackFollower(const TrackFollower&) = delete;
+  TrackFollower& operator=(const TrackFollower&) = delete;
+
+  /// Waits until at least `count` versions arrived or the timeout passed; returns how
+  /// many arrived so far.
+  uint64_t waitForVersions(uint64_t count, double timeoutSeconds);
+  /// The last sequence received (the resume token).
+  uint64_t lastSequence() const;
+  /// Why the subscription last failed (empty while it is fine); it retries on its own.
+  std::string lastError() const;
+  /// Instants (Unix ms) of the versions held, oldest first.
+  std::vector<int64_t> heldInstants() const;
+
+  /// Visibility (lit fraction of the pcf x pcf footprint) at `instantMs`: the crossfade
+  /// of the held versions around it, the nearest alone outside them. InvalidArgument when
+  /// no version has arrived yet.
+  void visibility(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf, int64_t instantMs,
+                  std::vector<float>& out);
+
+  struct Impl;
+
+ private:
+  std::shared_ptr<Impl> impl_;
+};
+
 }  // namespace cpvs::runtime
