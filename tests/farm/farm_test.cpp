@@ -38,6 +38,13 @@ Ran runCli(const std::string& args) { return testing::runShell("timeout 300 '" C
 
 std::vector<uint8_t> bytesOf(const std::string& path) { return fs::exists(path) ? readFile(path) : std::vector<uint8_t>{}; }
 
+/// X,Y,Z with every digit a double needs to come back the same.
+std::string format3(const Vec3& v) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "%.17g,%.17g,%.17g", v.x, v.y, v.z);
+  return buf;
+}
+
 class FarmTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -260,6 +267,48 @@ TEST_F(FarmTest, CoordinatorKilledAndRestartedResumesWithoutRebuilding) {
   }
   EXPECT_LE(rebaked, 64 - acked.size());
   EXPECT_NE(servers_[1]->log().find("resuming 1 unfinished job"), std::string::npos) << servers_[1]->log();
+}
+
+// A sun track across processes: a coordinator, two workers and a subscriber on loopback.
+// The subscriber receives the first version and leaves; the coordinator is killed and
+// restarted on its folder; the subscriber comes back with its token and receives exactly
+// the rest; every version is byte-identical to a local bake of its direction. A worker's
+// token may not subscribe.
+TEST_F(FarmTest, ATrackSurvivesACoordinatorRestartAndItsSubscriberResumes) {
+  std::string address = startServer("s6");
+  startWorker(address, "tw1", {"--threads", "1"});
+  startWorker(address, "tw2", {"--threads", "1"});
+  const std::vector<Vec3> dirs{{0.3, -1, 0.2}, {0.2, -1, 0.3}, {-0.1, -1, 0.4}};
+  std::string list;
+  for (const Vec3& d : dirs) list += format3(d) + ";";
+  Ran created = runCli("track create --server " + address + " --token " + kClientToken + " " + path("city.obj") +
+                       " --resolution 1024 --tile-size 128 --ahead 1 --json --directions '" + list + "'");
+  ASSERT_EQ(created.status, 0) << created.out << servers_[0]->log();
+  const std::string track = json::parse(created.out.substr(created.out.find('{')))["track"];
+  const std::string out = path("versions");
+  const std::string follow = "subscribe --server " + address + " --token " + kClientToken + " " + track + " --out " + out;
+  Ran first = runCli(follow + " --count 1");
+  ASSERT_EQ(first.status, 0) << first.out;
+  ASSERT_TRUE(fs::exists(out + "/version-000001.cpvs")) << first.out;
+  EXPECT_EQ(servers_[0]->stop(SIGKILL), -SIGKILL);
+  startServer("s6", address);  // the same folder and port; the workers reconnect
+  Ran rest = runCli(follow + " --after 1");
+  ASSERT_EQ(rest.status, 0) << rest.out << servers_[1]->log();
+  EXPECT_NE(rest.out.find("received 2 version(s)"), std::string::npos) << rest.out;
+  for (size_t k = 0; k < dirs.size(); ++k) {
+    // The keyframe's direction as the coordinator names its job: unit, rounded to 1e-9.
+    const Vec3 u = dirs[k] / length(dirs[k]);
+    const Vec3 q{std::round(u.x * 1e9) / 1e9, std::round(u.y * 1e9) / 1e9, std::round(u.z * 1e9) / 1e9};
+    const std::string local = path("keyframe-" + std::to_string(k) + ".cpvs");
+    Ran baked = runCli("bake " + path("city.obj") + " --sun-dir " + format3(q) + " --resolution 1024 --tile-size 128 -q -o " + local);
+    ASSERT_EQ(baked.status, 0) << baked.out;
+    char name[32];
+    std::snprintf(name, sizeof name, "/version-%06zu.cpvs", k + 1);
+    EXPECT_EQ(bytesOf(out + name), bytesOf(local)) << "version " << k + 1;
+  }
+  Ran worker = runCli("subscribe --server " + address + " --token " + kWorkerToken + " " + track + " --out " + out);
+  EXPECT_EQ(worker.status, 2) << worker.out;
+  EXPECT_NE(worker.out.find("PERMISSION_DENIED"), std::string::npos) << worker.out;
 }
 
 }  // namespace
