@@ -217,6 +217,48 @@ TEST(Tracks, APlaceThroughTimeLeavesOutTheNight) {
   EXPECT_EQ(vis, each[2]);
 }
 
+// A game clock an hour of game time per real second, keyframes every half game hour:
+// the track keeps baking the keyframes around its clock; a subscriber gets them in
+// order, each half an hour of game time after the one before, never ending by itself.
+TEST(Tracks, AClockKeepsBakingAheadOfItsTime) {
+  TempDir dir("cpvs_track_clock_test");
+  InProcessFarm farm(dir / "data");
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:1:2"));
+  pb::TrackSpec spec;
+  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
+  spec.set_resolution("64");
+  spec.set_keyframes_ahead(2);
+  pb::PlacePath& p = *spec.mutable_clock()->mutable_place();
+  p.set_latitude_deg(0);
+  p.set_longitude_deg(0);
+  p.set_start_utc("2024-03-20T09:00:00Z");
+  p.set_step_seconds(1800);
+  spec.mutable_clock()->set_rate(3600);
+  worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+  const pb::TrackStatus created = farm.client.createTrack("clock", spec);
+  EXPECT_EQ(created.keyframes_total(), 0u);  // unbounded
+  Received got;
+  farm.client.subscribe(created.track_id(), 0, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
+    got.versions.push_back(v);
+    got.bytes.push_back(b);
+    return got.versions.size() < 4;
+  });
+  ASSERT_EQ(got.versions.size(), 4u);
+  for (size_t i = 1; i < got.versions.size(); ++i) {
+    EXPECT_EQ(got.versions[i].sequence(), got.versions[i - 1].sequence() + 1);
+    EXPECT_GT(got.versions[i].keyframe(), got.versions[i - 1].keyframe());
+    EXPECT_EQ(got.versions[i].instant_unix_ms() - got.versions[i - 1].instant_unix_ms(),
+              int64_t(got.versions[i].keyframe() - got.versions[i - 1].keyframe()) * 1800000);
+  }
+  EXPECT_EQ(farm.client.listTracks(false).at(0).state(), pb::TRACK_ACTIVE);  // a clock does not end
+  EXPECT_EQ(farm.client.cancelTrack(created.track_id()).state(), pb::TRACK_CANCELLED);
+  tileWorker.stop();
+  workerThread.join();
+}
+
 // Bad specs: each refused with its kind and message, no track and no job created.
 TEST(Tracks, BadSpecsAreRefusedAndChangeNothing) {
   TempDir dir("cpvs_track_bad_test");
