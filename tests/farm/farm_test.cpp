@@ -311,5 +311,35 @@ TEST_F(FarmTest, ATrackSurvivesACoordinatorRestartAndItsSubscriberResumes) {
   EXPECT_NE(worker.out.find("PERMISSION_DENIED"), std::string::npos) << worker.out;
 }
 
+// A worker SIGKILLed while it bakes a track's keyframe loses nothing: its lease expires,
+// another worker bakes the tile, and every version still arrives with the local bytes.
+TEST_F(FarmTest, AWorkerKilledMidTrackLosesNothing) {
+  std::string address = startServer("s7", "127.0.0.1:0", {"--lease-seconds", "1"});
+  ChildProcess& doomed = startWorker(address, "doomed7");
+  const Vec3 dirA{0.25, -1, 0.1}, dirB{-0.2, -1, 0.25};
+  Ran created = runCli("track create --server " + address + " --token " + kClientToken + " " + path("city.obj") +
+                       " --resolution 1024 --tile-size 128 --ahead 2 --json --directions '" + format3(dirA) + ";" +
+                       format3(dirB) + "'");
+  ASSERT_EQ(created.status, 0) << created.out;
+  const std::string track = json::parse(created.out.substr(created.out.find('{')))["track"];
+  ASSERT_TRUE(waitForTiles(address, 3, 60)) << servers_[0]->log();
+  doomed.stop(SIGKILL);
+  startWorker(address, "rescuer7");
+  const std::string out = path("versions7");
+  Ran all = runCli("subscribe --server " + address + " --token " + kClientToken + " " + track + " --out " + out);
+  ASSERT_EQ(all.status, 0) << all.out << servers_[0]->log();
+  EXPECT_NE(all.out.find("received 2 version(s)"), std::string::npos) << all.out;
+  size_t k = 0;
+  for (const Vec3& d : {dirA, dirB}) {
+    const Vec3 u = d / length(d);
+    const Vec3 q{std::round(u.x * 1e9) / 1e9, std::round(u.y * 1e9) / 1e9, std::round(u.z * 1e9) / 1e9};
+    const std::string local = path("keyframe7-" + std::to_string(k) + ".cpvs");
+    ASSERT_EQ(runCli("bake " + path("city.obj") + " --sun-dir " + format3(q) + " --resolution 1024 --tile-size 128 -q -o " + local).status, 0);
+    char name[32];
+    std::snprintf(name, sizeof name, "/version-%06zu.cpvs", ++k);
+    EXPECT_EQ(bytesOf(out + name), bytesOf(local)) << "version " << k;
+  }
+}
+
 }  // namespace
 }  // namespace cpvs
