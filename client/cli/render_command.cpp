@@ -107,8 +107,8 @@ int runRender(const RenderArgs& a) {
 }
 
 struct SheetArgs {
-  std::string dir, scene, camera, out, size = "320x200";
-  int columns = 4, pcf = 3;
+  std::string dir, scene, camera, out, animation, size = "320x200";
+  int columns = 4, pcf = 3, delayMs = 500;
 };
 
 // A contact sheet: every version-*.cpvs of a folder (what `cpvs subscribe` writes), in
@@ -131,6 +131,7 @@ int runSheet(const SheetArgs& a) {
   sheet.pixels.assign(size_t(sheet.width) * size_t(sheet.height), Rgb{0.1f, 0.1f, 0.1f});
   std::optional<Scene> scene;
   std::optional<Camera> cam;
+  std::vector<Image> frames;
   for (size_t k = 0; k < files.size(); ++k) {
     CpvsArtifact art = readCpvs(files[k].string());
     if (!scene) scene = openMatchingScene(a.scene, art);
@@ -140,12 +141,17 @@ int runSheet(const SheetArgs& a) {
     ShadowQuery q(art.grid, std::move(art.packed));
     const CameraHits hits = traceCamera(*scene, rays, *cam, w, h);
     const Image img = shadeHits(hits, cpvsVisibility(hits, q, a.pcf), L);
+    if (!a.animation.empty()) frames.push_back(img);
     const int x0 = int(k % size_t(cols)) * w, y0 = int(k / size_t(cols)) * h;
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) sheet.pixels[size_t(y0 + y) * size_t(sheet.width) + size_t(x0 + x)] = img.pixels[size_t(y) * size_t(w) + size_t(x)];
   }
   writePng(a.out, sheet);
   std::printf("Wrote %s: %zu versions, %d x %d\n", a.out.c_str(), files.size(), sheet.width, sheet.height);
+  if (!a.animation.empty()) {
+    writeAnimatedPng(a.animation, frames, a.delayMs);
+    std::printf("Wrote %s: an animated PNG of %zu frames, %d ms each\n", a.animation.c_str(), frames.size(), a.delayMs);
+  }
   return 0;
 }
 
@@ -162,6 +168,8 @@ void addContactSheetCommand(CLI::App& app, int& status) {
   c->add_option("--columns", a->columns, "Pictures per row")->capture_default_str();
   c->add_option("--camera", a->camera, "EX,EY,EZ,TX,TY,TZ[,FOV] (default: the first version's sunny-side view)");
   c->add_option("--pcf", a->pcf, "Filter width")->check(CLI::IsMember({1, 3, 5, 7, 9}))->capture_default_str();
+  c->add_option("--animation", a->animation, "Also write the versions as an animated PNG (APNG), one frame each");
+  c->add_option("--delay-ms", a->delayMs, "Milliseconds per frame of the animation")->check(CLI::Range(1, 65535))->capture_default_str();
   c->callback([a, &status] { status = runSheet(*a); });
 }
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <sys/wait.h>
+#include <zlib.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -210,6 +211,51 @@ TEST_F(Cli, SunJsonContractAndNight) {
     CliRun b = cpvs(bad);
     EXPECT_EQ(b.status, 2) << bad << ": " << b.out;
   }
+}
+
+// `contact-sheet`: versions (here two bakes under two suns) side by side, and as an APNG
+// whose chunks are in order, with valid CRCs, one fcTL per frame, sequence numbers 0..n-1,
+// and whose first frame a plain PNG reader shows.
+TEST_F(Cli, ContactSheetAndAnimation) {
+  const std::string dir = path("versions");
+  fs::create_directories(dir);
+  for (const char* v : {"1", "2"}) {
+    CliRun b = cpvs(std::string("bake city:3 --sun-elevation ") + (v[0] == '1' ? "25" : "60") +
+                    " -r 256 -q -o " + dir + "/version-00000" + v + ".cpvs");
+    ASSERT_EQ(b.status, 0) << b.out;
+  }
+  CliRun r = cpvs("contact-sheet " + dir + " city:3 --size 64x40 --columns 2 --out " + path("sheet.png") +
+                  " --animation " + path("anim.png") + " --delay-ms 250");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const Image sheet = readPng(path("sheet.png"));
+  EXPECT_EQ(sheet.width, 128);
+  EXPECT_EQ(sheet.height, 40);
+  const Image first = readPng(path("anim.png"));
+  EXPECT_EQ(first.width, 64);
+  std::ifstream in(path("anim.png"), std::ios::binary);
+  const std::string png((std::istreambuf_iterator<char>(in)), {});
+  ASSERT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  auto be = [&](size_t at) {
+    return uint32_t(uint8_t(png[at])) << 24 | uint32_t(uint8_t(png[at + 1])) << 16 | uint32_t(uint8_t(png[at + 2])) << 8 |
+           uint32_t(uint8_t(png[at + 3]));
+  };
+  std::vector<std::string> types;
+  std::vector<uint32_t> sequence;
+  for (size_t at = 8; at + 12 <= png.size();) {
+    const uint32_t n = be(at);
+    const std::string type = png.substr(at + 4, 4);
+    ASSERT_LE(at + 12 + n, png.size());
+    const uint32_t crc = uint32_t(crc32(0, reinterpret_cast<const Bytef*>(png.data() + at + 4), uInt(n + 4)));
+    EXPECT_EQ(be(at + 8 + n), crc) << type;
+    if (type == "fcTL" || type == "fdAT") sequence.push_back(be(at + 8));
+    if (type == "acTL") EXPECT_EQ(be(at + 8), 2u);
+    types.push_back(type);
+    at += 12 + n;
+  }
+  EXPECT_EQ(types, (std::vector<std::string>{"IHDR", "sRGB", "acTL", "fcTL", "IDAT", "fcTL", "fdAT", "IEND"}));
+  EXPECT_EQ(sequence, (std::vector<uint32_t>{0, 1, 2}));
+  CliRun none = cpvs("contact-sheet " + path("no-such-folder") + " city:3 --out " + path("x.png"));
+  EXPECT_EQ(none.status, 2) << none.out;
 }
 
 // Bad input: exit status 2 and a message that names what is wrong.

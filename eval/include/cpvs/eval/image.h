@@ -27,6 +27,9 @@ struct Image {
 void writeExr(const std::string& path, const Image& image);
 /// Writes an 8-bit sRGB PNG (values clamped to [0, 1] and gamma-encoded).
 void writePng(const std::string& path, const Image& image);
+/// Writes an animated PNG (APNG): every frame the same size, shown `delayMs` each, looping.
+/// Viewers without APNG show the first frame. InputError for no frames or mixed sizes.
+void writeAnimatedPng(const std::string& path, const std::vector<Image>& frames, int delayMs);
 /// Reads a PNG written by writePng back to linear values (for tests and comparisons).
 Image readPng(const std::string& path);
 
