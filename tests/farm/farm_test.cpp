@@ -341,5 +341,61 @@ TEST_F(FarmTest, AWorkerKilledMidTrackLosesNothing) {
   }
 }
 
+// A subscriber that stops reading: the coordinator writes under gRPC's flow control and
+// holds one version at a time, so its memory does not grow with the versions waiting;
+// once the subscriber reads again it gets all of them, in order.
+TEST_F(FarmTest, ASlowSubscriberDoesNotGrowTheCoordinator) {
+  std::string address = startServer("s8");
+  startWorker(address, "w8");
+  writeObj(path("big-city.obj"), openScene("city"));  // versions of about 1.3 MB at 4K
+  std::string dirs;
+  for (int k = 0; k < 10; ++k) dirs += format3({0.05 * k - 0.25, -1, 0.2}) + ";";
+  Ran created = runCli("track create --server " + address + " --token " + kClientToken + " " + path("big-city.obj") +
+                       " --resolution 4K --ahead 10 --json --directions '" + dirs + "'");
+  ASSERT_EQ(created.status, 0) << created.out;
+  const std::string track = json::parse(created.out.substr(created.out.find('{')))["track"];
+  // Wait until every version is published, so that all of them are ready to send at once.
+  for (int i = 0; i < 600; ++i) {
+    Ran listed = runCli("track list --all --json --server " + address + " --token " + kClientToken);
+    if (listed.out.find("\"finished\"") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  auto rss = [&] {
+    std::ifstream status("/proc/" + std::to_string(servers_[0]->pid()) + "/status");
+    for (std::string line; std::getline(status, line);)
+      if (line.rfind("VmRSS:", 0) == 0) return std::stoull(line.substr(6)) * 1024;
+    return 0ull;
+  };
+  net::Connection c{address, kClientToken, ""};
+  auto stub = v1::Farm::NewStub(net::makeChannel(c));
+  grpc::ClientContext ctx;
+  net::prepare(ctx, c, 120);
+  v1::SubscribeRequest req;
+  req.set_track_id(track);
+  auto reader = stub->Subscribe(&ctx, req);
+  v1::VersionChunk chunk;
+  ASSERT_TRUE(reader->Read(&chunk));
+  const uint64_t before = rss();
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // not reading while the rest waits
+  const uint64_t during = rss();
+  uint64_t bytes = chunk.data().size(), versions = chunk.last() ? 1 : 0, lastSequence = chunk.version().sequence();
+  while (reader->Read(&chunk)) {
+    bytes += chunk.data().size();
+    if (chunk.has_version()) {
+      EXPECT_EQ(chunk.version().sequence(), lastSequence + 1);
+      lastSequence = chunk.version().sequence();
+    }
+    versions += chunk.last() ? 1 : 0;
+  }
+  EXPECT_TRUE(reader->Finish().ok());
+  std::printf("coordinator RSS %llu -> %llu bytes while %llu bytes of versions waited\n",
+              static_cast<unsigned long long>(before), static_cast<unsigned long long>(during),
+              static_cast<unsigned long long>(bytes));
+  EXPECT_EQ(versions, 10u);
+  EXPECT_GT(bytes, uint64_t(8) << 20) << "the versions must be large enough for the check to mean something";
+  EXPECT_LT(during, before + bytes / 4) << "the coordinator grew from " << before << " to " << during << " bytes while "
+                                        << bytes << " bytes of versions waited for a subscriber";
+}
+
 }  // namespace
 }  // namespace cpvs

@@ -127,6 +127,20 @@ TEST(Tracks, VersionsArriveInOrderAndResumeAcrossDisconnectsAndRestarts) {
   EXPECT_EQ(twice.bytes, got.bytes);
   EXPECT_EQ(farm.client.list(true).size(), jobsBefore);
 
+  // Retention: a track that keeps two versions offers a late subscriber the newest two.
+  pb::TrackSpec kept = directionTrack(farm.client.listTracks(true).at(0).spec().scene_hash(), dirs);
+  kept.set_name("kept");
+  kept.set_keep_versions(2);
+  const std::string third = farm.client.createTrack("track-3", kept).track_id();
+  for (int i = 0; i < 300 && farm.client.listTracks(true).back().state() != pb::TRACK_FINISHED; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::vector<uint64_t> late;
+  farm.client.subscribe(third, 0, [&](const pb::TrackVersion& v, const std::vector<uint8_t>&) {
+    late.push_back(v.sequence());
+    return true;
+  });
+  EXPECT_EQ(late, (std::vector<uint64_t>{2, 3}));
+
   // Tokens from the future and unknown tracks are refused.
   try {
     farm.client.subscribe(trackId, 9, keep);
