@@ -79,11 +79,4 @@ int run(int argc, char** argv) {
 }  // namespace
 }  // namespace cpvs
 
-int main(int argc, char** argv) {
-  try {
-    return cpvs::run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_amortized: %s\n", e.what());
-    return 2;
-  }
-}
+int main(int argc, char** argv) { return cpvs::bench::benchMain("bench_amortized", cpvs::run, argc, argv); }

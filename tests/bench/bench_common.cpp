@@ -61,6 +61,15 @@ std::optional<BenchScene> openBenchScene(const std::string& spec, const std::str
   return s;
 }
 
+int benchMain(const char* program, int (*run)(int, char**), int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", program, e.what());
+    return 2;
+  }
+}
+
 void parseBenchArgs(int argc, char** argv, CommonArgs& a,
                     const std::function<bool(const std::string& option, const std::string& value)>& other) {
   for (int i = 1; i < argc; ++i) {

@@ -50,6 +50,10 @@ struct CommonArgs {
 void parseBenchArgs(int argc, char** argv, CommonArgs& common,
                     const std::function<bool(const std::string& option, const std::string& value)>& other);
 
+/// main() of a benchmark: runs `run`, and turns an exception into a line on stderr and
+/// exit status 2.
+int benchMain(const char* program, int (*run)(int, char**), int argc, char** argv);
+
 double parseDouble(const std::string& text, const std::string& what);
 int parsePositive(const std::string& text, const std::string& what);
 

@@ -159,11 +159,4 @@ int run(int argc, char** argv) {
 }  // namespace
 }  // namespace cpvs
 
-int main(int argc, char** argv) {
-  try {
-    return cpvs::run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_keyframe_delta: %s\n", e.what());
-    return 2;
-  }
-}
+int main(int argc, char** argv) { return cpvs::bench::benchMain("bench_keyframe_delta", cpvs::run, argc, argv); }
