@@ -134,7 +134,7 @@ void addAccuracyCommand(CLI::App& app, int& status) {
       "Bake a scene at several resolutions and measure each bake, and plain 16-bit shadow maps of the same bytes and "
       "of full resolution, against exact shadow rays on the same surface points: mismatch by distance to the shadow "
       "boundary, PCF error, bake time, bytes, lookup time. Writes accuracy.md, accuracy.csv and accuracy.svg");
-  c->add_option("scene", a->scene, "Scene file (glTF/GLB, OBJ, DAE, PLY, FBX, STL, ...) or city[:BLOCKS[:SEED]]")
+  c->add_option("scene", a->scene, "Scene file (glTF/GLB, OBJ, DAE, PLY, FBX, STL, ...), city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]]")
       ->required();
   c->add_option("--out,-o", a->out, "Output folder (created)")->required();
   addSunFlags(c, a->sun);

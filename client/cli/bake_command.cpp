@@ -150,7 +150,7 @@ int runBake(const BakeArgs& a) {
 void addBakeCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<BakeArgs>();
   CLI::App* c = app.add_subcommand("bake", "Bake the sun shadows of a scene into a .cpvs file, in this process");
-  c->add_option("scene", a->scene, "Scene file (glTF/GLB, OBJ, DAE, PLY, FBX, STL, ...) or city[:BLOCKS[:SEED]] for the procedural city")->required();
+  c->add_option("scene", a->scene, "Scene file (glTF/GLB, OBJ, DAE, PLY, FBX, STL, ...), city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]] (generated)")->required();
   c->add_option("--out,-o", a->out, "Output .cpvs file")->required();
   addSunFlags(c, a->sun);
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R (voxels a side): 1024, 4K, 16K, ... 1M")

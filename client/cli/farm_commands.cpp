@@ -199,7 +199,9 @@ struct SubmitArgs {
   bool wait = false, json = false, quiet = false;
 };
 
-bool isGeneratedScene(const std::string& scene) { return scene == "city" || scene.starts_with("city:"); }
+bool isGeneratedScene(const std::string& scene) {
+  return scene == "city" || scene.starts_with("city:") || scene == "landscape" || scene.starts_with("landscape:");
+}
 
 /// A generated scene written to a temporary OBJ file (positions with full double
 /// precision), removed with its folder when this goes out of scope.

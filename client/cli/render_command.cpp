@@ -162,7 +162,7 @@ void addContactSheetCommand(CLI::App& app, int& status) {
   CLI::App* c = app.add_subcommand("contact-sheet",
                                    "One picture of every version a subscription wrote: the sun moving through a track");
   c->add_option("dir", a->dir, "Folder of version-*.cpvs (cpvs subscribe --out)")->required();
-  c->add_option("scene", a->scene, "The scene they were baked from (file, or city[:BLOCKS[:SEED]])")->required();
+  c->add_option("scene", a->scene, "The scene they were baked from (file, city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]])")->required();
   c->add_option("--out,-o", a->out, "Output PNG")->required();
   c->add_option("--size", a->size, "Size of each picture WIDTHxHEIGHT")->capture_default_str();
   c->add_option("--columns", a->columns, "Pictures per row")->capture_default_str();
@@ -177,7 +177,7 @@ void addRenderCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<RenderArgs>();
   CLI::App* c = app.add_subcommand("render", "Render the scene lit by the sun with the baked shadows (PNG and EXR)");
   c->add_option("file", a->file, ".cpvs file")->required();
-  c->add_option("scene", a->scene, "The scene it was baked from (file, or city[:BLOCKS[:SEED]])")->required();
+  c->add_option("scene", a->scene, "The scene it was baked from (file, city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]])")->required();
   c->add_option("--out,-o", a->out, "Output image; NAME.png and NAME.exr are both written")->required();
   c->add_option("--camera", a->camera,
                 "EX,EY,EZ,TX,TY,TZ[,FOV]: eye, target and vertical field of view in degrees "

@@ -63,7 +63,7 @@ void addVerifyCommand(CLI::App& app, int& status) {
       "verify", "Compare CPVS lookups with exact shadow rays at points sampled on the scene (exit 1 if any mismatch "
                 "lies away from a shadow boundary)");
   c->add_option("file", a->file, ".cpvs file")->required();
-  c->add_option("scene", a->scene, "The scene it was baked from (file, or city[:BLOCKS[:SEED]])")->required();
+  c->add_option("scene", a->scene, "The scene it was baked from (file, city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]])")->required();
   c->add_option("--samples,-n", a->samples, "Surface points to compare")->capture_default_str();
   c->add_option("--seed", a->seed, "Sampling seed")->capture_default_str();
   c->add_flag("--json", a->json, "Print the result as JSON");

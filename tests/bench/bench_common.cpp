@@ -42,7 +42,7 @@ std::optional<BenchScene> openBenchScene(const std::string& spec, const std::str
     path = testing::sharedScenesDir() + "/assimp-testmodels/teapots.DAE";
   } else if (spec == "shouse") {
     path = testing::sharedScenesDir() + "/openarena/oa_shouse.obj";
-  } else if (spec == "city" || spec.starts_with("city:")) {
+  } else if (spec == "city" || spec.starts_with("city:") || spec == "landscape" || spec.starts_with("landscape:")) {
     path.clear();
   } else {
     label = std::filesystem::path(spec).stem().string();

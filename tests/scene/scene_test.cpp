@@ -658,3 +658,26 @@ TEST(ProceduralCity, RejectsBadSize) {
 
 }  // namespace
 }  // namespace cpvs
+
+namespace cpvs {
+namespace {
+
+// The fractal landscape is one closed part (every triangle in it), the same for a seed,
+// another for another seed, and refuses sizes it cannot make.
+TEST(FractalLandscape, IsClosedAndDeterministic) {
+  SceneStats stats;
+  const Scene a = openScene("landscape:32:3", &stats);
+  EXPECT_EQ(stats.triangles, 2u * 32 * 32 * 2 + 8u * 32);
+  EXPECT_EQ(stats.closedTriangles, stats.triangles);
+  EXPECT_EQ(sceneHash(a), sceneHash(openScene("landscape:32:3")));
+  EXPECT_NE(sceneHash(a), sceneHash(openScene("landscape:32:4")));
+  double lo = 1e300, hi = -1e300;
+  for (const Vec3& p : a.positions) lo = std::min(lo, p.y), hi = std::max(hi, p.y);
+  EXPECT_GT(hi - lo, 30.0);  // hills, not a plane
+  EXPECT_THROW(openScene("landscape:1"), InputError);
+  EXPECT_THROW(openScene("landscape:x"), InputError);
+  EXPECT_EQ(openScene("landscape").positions.size(), 2u * 257 * 257);  // 256 cells by default
+}
+
+}  // namespace
+}  // namespace cpvs

@@ -7,6 +7,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/scene/import.h"
 #include "cpvs/scene/procedural_city.h"
+#include "cpvs/scene/procedural_landscape.h"
 
 namespace cpvs {
 
@@ -23,17 +24,21 @@ int parseCityNumber(const std::string& spec, std::string_view part, const char* 
 }  // namespace
 
 Scene openScene(const std::string& spec, SceneStats* stats) {
-  if (spec != "city" && !spec.starts_with("city:")) return loadScene(spec, stats);
-  int blocks = 12;
+  const bool city = spec == "city" || spec.starts_with("city:");
+  const bool landscape = spec == "landscape" || spec.starts_with("landscape:");
+  if (!city && !landscape) return loadScene(spec, stats);
+  // NAME[:FIRST[:SEED]]: blocks for the city, cells a side for the landscape.
+  int first = city ? 12 : 256;
   uint32_t seed = 1;
-  if (spec.size() > 5) {
+  const size_t name = city ? 4 : 9;
+  if (spec.size() > name) {
     std::string_view rest(spec);
-    rest.remove_prefix(5);
+    rest.remove_prefix(name + 1);
     size_t colon = rest.find(':');
-    blocks = parseCityNumber(spec, rest.substr(0, colon), "block count");
+    first = parseCityNumber(spec, rest.substr(0, colon), city ? "block count" : "size");
     if (colon != std::string_view::npos) seed = uint32_t(parseCityNumber(spec, rest.substr(colon + 1), "seed"));
   }
-  Scene scene = makeProceduralCity(blocks, seed);
+  Scene scene = city ? makeProceduralCity(first, seed) : makeFractalLandscape(first, seed);
   // The generator finalizes already; finalizing again only recounts.
   SceneStats s = finalizeScene(scene);
   if (stats) *stats = s;
