@@ -189,6 +189,21 @@ int finalExitStatus(const pb::JobStatus& s) {
 
 // --- submit -----------------------------------------------------------------------------
 
+/// Each option flag given on the command line overrides its field of `o` (the proto's
+/// enum values are the core's: static_asserts in net/src/convert.cpp); checked after.
+void applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::BakeOptions& o) {
+  auto given = [&](const char* option) { return c.count(option) > 0; };
+  const BakeOptions flags = optionsOf(options);
+  if (given("--closed")) o.set_closed(pb::ClosedMode(flags.closed));
+  if (given("--exit")) o.set_exit(pb::ExitMode(flags.exit));
+  if (given("--cull")) o.set_no_cull(!flags.cull);
+  if (given("--compress")) o.set_compress(pb::CompressMode(flags.compress));
+  if (given("--undefined")) o.set_undefined_rule(pb::UndefinedRule(flags.undefinedRule));
+  if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
+  if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
+  (void)net::fromProto(o);
+}
+
 struct SubmitArgs {
   ConnectionArgs conn;
   std::string scene, jobFile, requestId, name, out;
@@ -263,18 +278,7 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
   if (given("--resolution") || spec.resolution().empty()) spec.set_resolution(a.resolution);
   (void)parseResolution(spec.resolution());
 
-  pb::BakeOptions& o = *spec.mutable_options();
-  // Each flag given overrides its field; the proto's enum values are the core's
-  // (static_asserts in net/src/convert.cpp).
-  const BakeOptions flags = optionsOf(a.options);
-  if (given("--closed")) o.set_closed(pb::ClosedMode(flags.closed));
-  if (given("--exit")) o.set_exit(pb::ExitMode(flags.exit));
-  if (given("--cull")) o.set_no_cull(!flags.cull);
-  if (given("--compress")) o.set_compress(pb::CompressMode(flags.compress));
-  if (given("--undefined")) o.set_undefined_rule(pb::UndefinedRule(flags.undefinedRule));
-  if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
-  if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
-  (void)net::fromProto(o);
+  applyOptionFlags(a.options, c, *spec.mutable_options());
 
   if (given("--priority")) spec.set_priority(a.priority);
   if (given("--name")) spec.set_name(a.name);
@@ -502,15 +506,7 @@ int runTrackCreate(const TrackCreateArgs& a, const CLI::App& c) {
   pb::TrackSpec spec;
   spec.set_resolution(a.resolution);
   (void)parseResolution(a.resolution);
-  const BakeOptions flags = optionsOf(a.options);
-  pb::BakeOptions& o = *spec.mutable_options();
-  if (given("--closed")) o.set_closed(pb::ClosedMode(flags.closed));
-  if (given("--exit")) o.set_exit(pb::ExitMode(flags.exit));
-  if (given("--cull")) o.set_no_cull(!flags.cull);
-  if (given("--compress")) o.set_compress(pb::CompressMode(flags.compress));
-  if (given("--undefined")) o.set_undefined_rule(pb::UndefinedRule(flags.undefinedRule));
-  if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
-  if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
+  applyOptionFlags(a.options, c, *spec.mutable_options());
   spec.set_name(a.name.empty() ? (isGeneratedScene(a.scene) ? a.scene : fs::path(a.scene).filename().string()) : a.name);
   spec.set_keyframes_ahead(a.ahead);
   spec.set_keep_versions(a.keep);

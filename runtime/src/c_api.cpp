@@ -17,9 +17,7 @@ struct CpvsDevice_T {
 };
 
 struct CpvsShadows_T {
-  std::shared_ptr<const ShadowArtifact> artifact;
-  std::unique_ptr<GpuShadows> gpu;
-  bool fallback = false;
+  std::unique_ptr<ShadowLookups> lookups;
 };
 
 namespace {
@@ -109,15 +107,10 @@ CpvsStatus cpvsOpenShadows(const char* path, CpvsDevice device, uint32_t flags, 
     require(path != nullptr, "cpvsOpenShadows: path is null");
     require((flags & ~CPVS_FALLBACK_CPU) == 0, "cpvsOpenShadows: unknown flags");
     auto s = std::make_unique<CpvsShadows_T>();
-    s->artifact = ShadowArtifact::open(path);
-    s->fallback = (flags & CPVS_FALLBACK_CPU) != 0;
-    if (device) {
-      try {
-        s->gpu = std::make_unique<GpuShadows>(*device->device, s->artifact);
-      } catch (const RuntimeError&) {
-        if (!s->fallback) throw;
-      }
-    }
+    auto artifact = ShadowArtifact::open(path);
+    const Backend backend = (flags & CPVS_FALLBACK_CPU) ? Backend::Auto : Backend::Gpu;
+    s->lookups = device ? std::make_unique<ShadowLookups>(artifact, *device->device, backend)
+                        : std::make_unique<ShadowLookups>(artifact, Backend::Cpu);
     *shadows = s.release();
   });
 }
@@ -134,7 +127,7 @@ CpvsStatus cpvsFetchShadows(const char* address, const char* token, const char* 
 
 void cpvsReleaseShadows(CpvsShadows shadows) { delete shadows; }
 
-int cpvsShadowsOnDevice(CpvsShadows shadows) { return shadows && shadows->gpu ? 1 : 0; }
+int cpvsShadowsOnDevice(CpvsShadows shadows) { return shadows && shadows->lookups->onGpu() ? 1 : 0; }
 
 CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* points, const double* normals, int pcf,
                             uint32_t* litTexels) {
@@ -145,15 +138,7 @@ CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* poi
     for (size_t i = 0; i < count; ++i) p[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
     for (size_t i = 0; i < n.size(); ++i) n[i] = {normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
     std::vector<uint32_t> out;
-    if (shadows->gpu) {
-      try {
-        shadows->gpu->litTexels(p, n, pcf, out);
-      } catch (const RuntimeError& e) {
-        if (e.status() != Status::DeviceLost || !shadows->fallback) throw;
-        shadows->gpu.reset();  // lost for good: the CPU answers from now on
-      }
-    }
-    if (!shadows->gpu) cpuLitTexels(*shadows->artifact, p, n, pcf, out);
+    shadows->lookups->litTexels(p, n, pcf, out);  // with CPVS_FALLBACK_CPU, the CPU after a loss
     if (count) std::memcpy(litTexels, out.data(), count * 4);
   });
 }

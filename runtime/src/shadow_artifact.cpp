@@ -2,12 +2,10 @@
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
 
-#include <cerrno>
-#include <cstring>
-#include <fstream>
 #include <optional>
 
 #include "cpvs/base/error.h"
+#include "cpvs/base/file.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/runtime/runtime.h"
 
@@ -23,10 +21,12 @@ std::shared_ptr<const ShadowArtifact> ShadowArtifact::fromBytes(const std::vecto
 }
 
 std::shared_ptr<const ShadowArtifact> ShadowArtifact::open(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw RuntimeError(Status::FileError, "cannot open " + path + ": " + std::strerror(errno));
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw RuntimeError(Status::FileError, "cannot read " + path);
+  std::vector<uint8_t> bytes;
+  try {
+    bytes = readFile(path);
+  } catch (const InputError& e) {
+    throw RuntimeError(Status::FileError, e.what());
+  }
   return fromBytes(bytes, path);
 }
 
@@ -53,12 +53,32 @@ ShadowLookups::ShadowLookups(std::shared_ptr<const ShadowArtifact> artifact, Bac
   if (!artifact_) throw RuntimeError(Status::InvalidArgument, "no artifact");
   if (backend == Backend::Cpu) return;
   try {
-    device_ = GpuDevice::create(options);
-    gpu_ = std::make_unique<GpuShadows>(*device_, artifact_);
+    ownDevice_ = GpuDevice::create(options);
   } catch (const RuntimeError& e) {
     if (backend == Backend::Gpu) throw;
+    fallbackReason_ = e.what();
+    return;
+  }
+  device_ = ownDevice_.get();
+  upload();
+}
+
+ShadowLookups::ShadowLookups(std::shared_ptr<const ShadowArtifact> artifact, GpuDevice& device, Backend backend)
+    : artifact_(std::move(artifact)), backend_(backend) {
+  if (!artifact_) throw RuntimeError(Status::InvalidArgument, "no artifact");
+  if (backend == Backend::Cpu) return;
+  device_ = &device;
+  upload();
+}
+
+void ShadowLookups::upload() {
+  try {
+    gpu_ = std::make_unique<GpuShadows>(*device_, artifact_);
+  } catch (const RuntimeError& e) {
+    if (backend_ == Backend::Gpu) throw;
     gpu_.reset();
-    device_.reset();
+    device_ = nullptr;
+    ownDevice_.reset();
     fallbackReason_ = e.what();
   }
 }
@@ -81,7 +101,8 @@ void ShadowLookups::litTexels(const std::vector<Vec3>& points, const std::vector
       if (e.status() != Status::DeviceLost || backend_ != Backend::Auto) throw;
       fallbackReason_ = e.what();
       gpu_.reset();
-      device_.reset();
+      device_ = nullptr;
+      ownDevice_.reset();
     }
   }
   cpuLitTexels(*artifact_, points, normals, pcf, out);

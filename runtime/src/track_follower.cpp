@@ -33,6 +33,8 @@ struct TrackFollower::Impl {
   std::string trackId;
   Backend backend;
   DeviceOptions options;
+  // One device for every version (declared before `held`, which it outlives).
+  std::unique_ptr<GpuDevice> device;
   mutable std::mutex mutex;
   std::condition_variable arrived;
   std::map<int64_t, Held> held;  // by instant
@@ -41,6 +43,13 @@ struct TrackFollower::Impl {
   std::atomic<bool> stopping{false};
 
   void run() {
+    if (backend != Backend::Cpu) {
+      try {
+        device = GpuDevice::create(options);
+      } catch (const RuntimeError&) {
+        // No device: each version's lookups decide (the CPU for Auto, an error for Gpu).
+      }
+    }
     while (!stopping) {
       try {
         client::FarmClient c(net::Connection{farm.address, farm.token, farm.caFile});
@@ -55,9 +64,9 @@ struct TrackFollower::Impl {
           Held h;
           h.sequence = v.sequence();
           h.instantMs = v.instant_unix_ms() != 0 ? v.instant_unix_ms() : int64_t(v.sequence());
-          h.lookups = std::make_shared<ShadowLookups>(ShadowArtifact::fromBytes(bytes, "track " + trackId + " version " +
-                                                                                          std::to_string(v.sequence())),
-                                                      backend, options);
+          auto artifact = ShadowArtifact::fromBytes(bytes, "track " + trackId + " version " + std::to_string(v.sequence()));
+          h.lookups = device ? std::make_shared<ShadowLookups>(artifact, *device, backend)
+                             : std::make_shared<ShadowLookups>(artifact, backend, options);
           std::lock_guard lock(mutex);
           held[h.instantMs] = std::move(h);
           while (held.size() > kHeldVersions) held.erase(held.begin());

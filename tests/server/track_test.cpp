@@ -59,6 +59,17 @@ struct Received {
   std::vector<std::vector<uint8_t>> bytes;
 };
 
+// Subscribes after `after` until the track ends, or until `most` versions (0: no limit).
+Received follow(client::FarmClient& c, const std::string& track, uint64_t after = 0, size_t most = 0) {
+  Received got;
+  c.subscribe(track, after, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
+    got.versions.push_back(v);
+    got.bytes.push_back(b);
+    return most == 0 || got.versions.size() < most;
+  });
+  return got;
+}
+
 TEST(Tracks, VersionsArriveInOrderAndResumeAcrossDisconnectsAndRestarts) {
   TempDir dir("cpvs_track_test");
   const std::string obj = dir / "city.obj";
@@ -116,12 +127,7 @@ TEST(Tracks, VersionsArriveInOrderAndResumeAcrossDisconnectsAndRestarts) {
   pb::TrackSpec again = directionTrack(farm.client.listTracks(true).at(0).spec().scene_hash(), dirs);
   again.set_name("again");
   const std::string second = farm.client.createTrack("track-2", again).track_id();
-  Received twice;
-  farm.client.subscribe(second, 0, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
-    twice.versions.push_back(v);
-    twice.bytes.push_back(b);
-    return true;
-  });
+  const Received twice = follow(farm.client, second);
   ASSERT_EQ(twice.versions.size(), 3u);
   EXPECT_EQ(twice.versions[2].job_id(), got.versions[2].job_id());
   EXPECT_EQ(twice.bytes, got.bytes);
@@ -134,12 +140,10 @@ TEST(Tracks, VersionsArriveInOrderAndResumeAcrossDisconnectsAndRestarts) {
   const std::string third = farm.client.createTrack("track-3", kept).track_id();
   for (int i = 0; i < 300 && farm.client.listTracks(true).back().state() != pb::TRACK_FINISHED; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  std::vector<uint64_t> late;
-  farm.client.subscribe(third, 0, [&](const pb::TrackVersion& v, const std::vector<uint8_t>&) {
-    late.push_back(v.sequence());
-    return true;
-  });
-  EXPECT_EQ(late, (std::vector<uint64_t>{2, 3}));
+  const Received late = follow(farm.client, third);
+  ASSERT_EQ(late.versions.size(), 2u);
+  EXPECT_EQ(late.versions[0].sequence(), 2u);
+  EXPECT_EQ(late.versions[1].sequence(), 3u);
 
   // Tokens from the future and unknown tracks are refused.
   try {
@@ -180,12 +184,7 @@ TEST(Tracks, APlaceThroughTimeLeavesOutTheNight) {
   worker::TileWorker tileWorker(wc);
   std::thread workerThread([&] { tileWorker.run(); });
   const std::string id = farm.client.createTrack("evening", spec).track_id();
-  Received got;
-  farm.client.subscribe(id, 0, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
-    got.versions.push_back(v);
-    got.bytes.push_back(b);
-    return true;
-  });
+  const Received got = follow(farm.client, id);
   tileWorker.stop();
   workerThread.join();
   ASSERT_EQ(got.versions.size(), 3u);
@@ -254,12 +253,7 @@ TEST(Tracks, AClockKeepsBakingAheadOfItsTime) {
   std::thread workerThread([&] { tileWorker.run(); });
   const pb::TrackStatus created = farm.client.createTrack("clock", spec);
   EXPECT_EQ(created.keyframes_total(), 0u);  // unbounded
-  Received got;
-  farm.client.subscribe(created.track_id(), 0, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
-    got.versions.push_back(v);
-    got.bytes.push_back(b);
-    return got.versions.size() < 4;
-  });
+  const Received got = follow(farm.client, created.track_id(), 0, 4);
   ASSERT_EQ(got.versions.size(), 4u);
   for (size_t i = 1; i < got.versions.size(); ++i) {
     EXPECT_EQ(got.versions[i].sequence(), got.versions[i - 1].sequence() + 1);

@@ -16,7 +16,7 @@ void checkPcfWidth(int pcf) {
 }
 
 ShadowQuery::ShadowQuery(OrthoGrid grid, PackedDag dag)
-    : grid_(std::move(grid)), dag_(std::move(dag)), R_(int64_t(grid_.resolution())) {
+    : grid_(std::move(grid)), mapping_(grid_.lookupMapping()), dag_(std::move(dag)), R_(int64_t(grid_.resolution())) {
   if (dag_.log2Resolution() != grid_.log2Resolution)
     throw InputError("a DAG of resolution 2^" + std::to_string(dag_.log2Resolution()) + " for a grid of 2^" +
                      std::to_string(grid_.log2Resolution));
@@ -29,12 +29,12 @@ bool ShadowQuery::voxelShadowed(const VoxelCoord& v) const {
 }
 
 VoxelCoord ShadowQuery::voxelOf(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
-  const Vec3 c = grid_.offsetVoxel(p, n, normalOffsetVoxels(pcf.width()));
+  const Vec3 c = mappedLookup(mapping_, p, n, normalOffsetVoxels(pcf.width()));
   return {floorToVoxel(c.x), floorToVoxel(c.y), floorToVoxel(c.z)};
 }
 
 Vec3 ShadowQuery::offsetPoint(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
-  return grid_.worldFromVoxel(grid_.offsetVoxel(p, n, normalOffsetVoxels(pcf.width())));
+  return grid_.worldFromVoxel(mappedLookup(mapping_, p, n, normalOffsetVoxels(pcf.width())));
 }
 
 uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) const {

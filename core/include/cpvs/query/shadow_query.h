@@ -55,6 +55,7 @@ class ShadowQuery {
  private:
   static inline const PcfWidth kBinary{1};
   OrthoGrid grid_;
+  LookupMapping mapping_;  // grid_.lookupMapping(), once: the same constants every lookup uses
   PackedDag dag_;
   int64_t R_;
 };

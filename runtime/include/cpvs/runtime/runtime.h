@@ -171,6 +171,8 @@ class ShadowLookups {
  public:
   ShadowLookups(std::shared_ptr<const ShadowArtifact> artifact, Backend backend = Backend::Auto,
                 const DeviceOptions& options = {});
+  /// On the caller's device, which must outlive this (Cpu: the device is not used).
+  ShadowLookups(std::shared_ptr<const ShadowArtifact> artifact, GpuDevice& device, Backend backend = Backend::Auto);
   ~ShadowLookups();
 
   bool onGpu() const { return gpu_ != nullptr; }
@@ -182,11 +184,15 @@ class ShadowLookups {
   /// lit / pcf^2 (1 lit, 0 shadowed for pcf 1), as ShadowQuery::filtered.
   void visibility(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf, std::vector<float>& out);
   const ShadowArtifact& artifact() const { return *artifact_; }
-  GpuDevice* device() const { return device_.get(); }
+  GpuDevice* device() const { return device_; }
 
  private:
+  /// Uploads to device_; on failure falls back to the CPU (Auto) or throws (Gpu).
+  void upload();
+
   std::shared_ptr<const ShadowArtifact> artifact_;
-  std::unique_ptr<GpuDevice> device_;
+  std::unique_ptr<GpuDevice> ownDevice_;  // the one made here, when none was given
+  GpuDevice* device_ = nullptr;
   std::unique_ptr<GpuShadows> gpu_;
   Backend backend_;
   std::string fallbackReason_;
