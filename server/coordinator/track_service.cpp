@@ -175,10 +175,16 @@ pb::TrackStatus TrackService::create(const pb::CreateTrackRequest& request) {
   t.spec = spec.SerializeAsString();
   t.state = kActive;
   t.createdMs = nowMs();
-  store_.createTrack(t);
-  if (!k0.night) {
-    k.trackId = t.id;
-    store_.addKeyframe(k);
+  {
+    // No pass of the track thread between the track and its first keyframe: it would
+    // submit that keyframe again. (After a crash between the two, a pass submits it: the
+    // same request id, so the same job.)
+    std::lock_guard lock(tickMutex_);
+    store_.createTrack(t);
+    if (!k0.night) {
+      k.trackId = t.id;
+      store_.addKeyframe(k);
+    }
   }
   spdlog::info("track {} created: {} keyframes{}", t.id, t.keyframesTotal ? std::to_string(t.keyframesTotal) : "unbounded",
                spec.name().empty() ? "" : " (" + spec.name() + ")");
@@ -279,7 +285,7 @@ void TrackService::advance(const TrackRecord& t) {
     ++inFlight;
     changed = true;
   }
-  if (t.keyframesTotal != 0 && next >= t.keyframesTotal && store_.pendingKeyframes(t.id).empty()) {
+  if (t.keyframesTotal != 0 && next >= t.keyframesTotal && inFlight == 0) {
     store_.setTrackState(t.id, kFinished, "");
     spdlog::info("track {} finished", t.id);
     changed = true;
