@@ -42,7 +42,8 @@ std::string summaryJson(const BakeArgs& a, const Scene& scene, const SceneStats&
     << ", \"compress\": " << jsonString(optionName(art.options.compress))
     << ", \"undefined\": " << jsonString(optionName(art.options.undefinedRule))
     << ", \"renderer\": " << jsonString(optionName(art.options.renderer))
-    << ", \"tile_size\": " << (1u << art.options.log2TileSize) << "},\n  \"tiles\": " << tiles
+    << ", \"tile_size\": " << (1u << art.options.log2TileSize) << "},\n  \"receivers\": "
+    << receiversJson(art.options, art.receiverHash) << ",\n  \"tiles\": " << tiles
     << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"file_bytes\": " << fileBytes
     << ",\n  \"shadow_map_bytes\": " << R * R * 2
     << ",\n  \"ratio_to_shadow_map\": " << jsonNumber(double(R * R * 2) / double(std::max<uint64_t>(1, dag.bytes())))
@@ -75,6 +76,7 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
               optionName(art.options.closed), optionName(art.options.exit), art.options.cull ? "on" : "off",
               optionName(art.options.compress), optionName(art.options.undefinedRule), optionName(art.options.renderer),
               1u << art.options.log2TileSize);
+  std::printf("  receivers: %s\n", receiversText(art.options, art.receiverHash).c_str());
   std::printf("\n  %-10s %10s\n", "stage", "seconds");
   for (const char* name : kStageNames)
     if (auto it = st.seconds.find(name); it != st.seconds.end()) std::printf("  %-10s %10.3f\n", name, it->second);
@@ -114,7 +116,8 @@ int runBake(const BakeArgs& a) {
   SceneStats ss;
   Scene scene = openScene(a.scene, &ss);
   OrthoGrid grid = makeGrid(scene, frame, log2R);
-  BakeScene prepared(scene, grid, opt.renderer, a.threads);
+  const ReceiverDeclaration receivers = receiversOf(a.options);
+  BakeScene prepared(scene, grid, opt.renderer, a.threads, receivers);
   st.add("load", secondsSince(start));
   if (!a.json && !a.quiet)
     spdlog::info("{}: {} triangles ({} closed, {} degenerate dropped), resolution {}^3, light ({:.4f}, {:.4f}, {:.4f})",
@@ -126,6 +129,7 @@ int runBake(const BakeArgs& a) {
   art.grid = grid;
   art.options = opt;
   art.sceneHash = sceneHash(scene);
+  art.receiverHash = receiverHash(receivers);
   art.dag = bakeGrid(prepared, opt, &st, [&](const std::string& s, uint64_t d, uint64_t t) {
     return progress.update(s, d, t);
   });

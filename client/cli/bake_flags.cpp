@@ -3,6 +3,12 @@
 #include <algorithm>
 #include <vector>
 
+#include "cpvs/base/error.h"
+#include "cpvs/base/parse.h"
+#include "cpvs/scene/boxes.h"
+#include "cpvs/query/normal_offset.h"
+#include "cpvs/scene/import.h"
+
 namespace cpvs::cli {
 
 namespace {
@@ -37,6 +43,44 @@ void addOptionFlags(CLI::App* c, OptionFlags& o, const std::string& tileHelp) {
                 "texels whose ray grazes an edge")
       ->check(CLI::IsMember(namesOf<Renderer>()))->capture_default_str();
   c->add_option("--tile-size", o.tileSize, tileHelp)->capture_default_str();
+  c->add_option("--receivers", o.receivers,
+                "Who queries the shadows; every voxel their lookups never read is left free: everywhere (any point "
+                "outside closed solids), surfaces (the front side of the scene's surfaces, with their geometric "
+                "normals), surfaces-two-sided (both sides of open surfaces), volume[:MESH] (front sides plus any "
+                "point, any normal, inside a closed mesh file and the --receiver-box boxes)")
+      ->capture_default_str();
+  c->add_option("--receiver-box", o.receiverBoxes,
+                "A box of the receiver volume, MINX,MINY,MINZ,MAXX,MAXY,MAXZ in scene units (repeatable; with "
+                "--receivers volume)");
+  c->add_option("--receiver-pcf", o.receiverPcf, "The widest PCF filter receivers' lookups use (1, 3, 5, 7, 9)")
+      ->capture_default_str();
+}
+
+ReceiverDeclaration receiversOf(const OptionFlags& f) {
+  ReceiverDeclaration d;
+  const size_t colon = f.receivers.find(':');
+  d.kind = parseOption<ReceiverKind>(f.receivers.substr(0, colon), "--receivers");
+  d.maxPcf = f.receiverPcf;
+  const bool volume = d.kind == ReceiverKind::Volume;
+  if (colon != std::string::npos && !volume)
+    throw InputError("--receivers: only 'volume' takes a file ('" + f.receivers + "')");
+  if (!f.receiverBoxes.empty() && !volume) throw InputError("--receiver-box needs --receivers volume");
+  if (volume) {
+    if (colon != std::string::npos) d.volume = loadScene(f.receivers.substr(colon + 1));
+    for (const std::string& text : f.receiverBoxes) {
+      const std::vector<double> v = parseNumbers(text, "--receiver-box");
+      if (v.size() != 6 || !(v[0] < v[3] && v[1] < v[4] && v[2] < v[5]))
+        throw InputError("--receiver-box: '" + text + "' is not MINX,MINY,MINZ,MAXX,MAXY,MAXZ with min < max");
+      appendBox(d.volume, {v[0], v[1], v[2]}, {v[3], v[4], v[5]});
+    }
+    finalizeScene(d.volume);
+  }
+  try {
+    checkReceiverDeclaration(d);
+  } catch (const InputError& e) {
+    throw InputError(std::string("--") + e.what());
+  }
+  return d;
 }
 
 BakeOptions optionsOf(const OptionFlags& f) {
@@ -48,7 +92,24 @@ BakeOptions optionsOf(const OptionFlags& f) {
   o.undefinedRule = parseOption<UndefinedRule>(f.undefinedRule, "--undefined");
   o.renderer = parseOption<Renderer>(f.renderer, "--renderer");
   o.log2TileSize = log2TileSizeOf(uint64_t(std::max(f.tileSize, 0)), "--tile-size");
+  o.receivers = parseOption<ReceiverKind>(f.receivers.substr(0, f.receivers.find(':')), "--receivers");
+  if (o.receivers != ReceiverKind::Everywhere) {
+    checkPcfWidth(f.receiverPcf);
+    o.receiverPcf = uint8_t(f.receiverPcf);
+  }
   return o;
+}
+
+std::string receiversJson(const BakeOptions& o, const Hash128& h) {
+  if (o.receivers == ReceiverKind::Everywhere) return R"({"kind": "everywhere", "pcf": null, "hash": null})";
+  return std::string(R"({"kind": ")") + optionName(o.receivers) + R"(", "pcf": )" + std::to_string(o.receiverPcf) +
+         R"(, "hash": ")" + h.hex() + "\"}";
+}
+
+std::string receiversText(const BakeOptions& o, const Hash128& h) {
+  if (o.receivers == ReceiverKind::Everywhere) return "everywhere";
+  return std::string(optionName(o.receivers)) + ", PCF up to " + std::to_string(o.receiverPcf) + " (declaration " +
+         h.hex() + "); lookups elsewhere may be wrong";
 }
 
 }  // namespace cpvs::cli

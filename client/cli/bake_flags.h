@@ -6,8 +6,10 @@
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "cpvs/bake/options.h"
+#include "cpvs/bake/receivers.h"
 #include "cpvs/light/frame.h"
 
 namespace cpvs::cli {
@@ -25,10 +27,22 @@ struct OptionFlags {
               compress = optionName(CompressMode::TopDown), undefinedRule = optionName(UndefinedRule::New),
               renderer = optionName(BakeOptions{}.renderer);
   int tileSize = 1 << kDefaultLog2TileSize;
+  std::string receivers = optionName(ReceiverKind::Everywhere);
+  std::vector<std::string> receiverBoxes;
+  int receiverPcf = kMaxPcfWidthOption;
 };
 /// `tileHelp` says what the tile size means to this command.
 void addOptionFlags(CLI::App* c, OptionFlags& options, const std::string& tileHelp);
 /// The bake options the flags name; InputError naming the flag otherwise.
 BakeOptions optionsOf(const OptionFlags& flags);
+/// The receiver declaration of --receivers, --receiver-box and --receiver-pcf, its volume
+/// loaded (a mesh file, boxes); InputError naming the flag otherwise.
+ReceiverDeclaration receiversOf(const OptionFlags& flags);
+
+/// The receiver declaration of an artifact, as `bake --json` and `inspect --json` show it:
+/// {"kind": ..., "pcf": ..., "hash": ...} (pcf and hash null for everywhere).
+std::string receiversJson(const BakeOptions& options, const Hash128& receiverHash);
+/// One line for people: "surfaces, PCF up to 9 (hash ...)" or "everywhere".
+std::string receiversText(const BakeOptions& options, const Hash128& receiverHash);
 
 }  // namespace cpvs::cli

@@ -193,6 +193,11 @@ int finalExitStatus(const pb::JobStatus& s) {
 /// enum values are the core's: static_asserts in net/src/convert.cpp); checked after.
 void applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::BakeOptions& o) {
   auto given = [&](const char* option) { return c.count(option) > 0; };
+  // Farm jobs carry no receiver declaration yet: refuse it rather than bake another one.
+  for (const char* f : {"--receivers", "--receiver-box", "--receiver-pcf"})
+    if (given(f))
+      throw InputError(std::string(f) + ": farm jobs are baked for receivers everywhere for now; bake locally "
+                       "(cpvs bake) for a receiver declaration");
   const BakeOptions flags = optionsOf(options);
   if (given("--closed")) o.set_closed(pb::ClosedMode(flags.closed));
   if (given("--exit")) o.set_exit(pb::ExitMode(flags.exit));

@@ -4,6 +4,7 @@
 #include <memory>
 #include <sstream>
 
+#include "bake_flags.h"
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/io/cpvs_file.h"
@@ -40,7 +41,8 @@ int runInspect(const InspectArgs& a) {
       << ", \"compress\": " << jsonString(optionName(o.compress))
       << ", \"undefined\": " << jsonString(optionName(o.undefinedRule))
       << ", \"renderer\": " << jsonString(optionName(o.renderer)) << ", \"tile_size\": " << (1u << o.log2TileSize)
-      << "},\n  \"bytes\": " << dag.bytes() << ",\n  \"nodes\": " << dag.nodeCount()
+      << "},\n  \"receivers\": " << receiversJson(o, art.receiverHash)
+      << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"nodes\": " << dag.nodeCount()
       << ",\n  \"shadow_map_bytes\": " << R * R * 2 << ",\n  \"levels\": [";
     for (int l = -1; l < int(dag.levels.size()); ++l) {
       size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
@@ -62,6 +64,7 @@ int runInspect(const InspectArgs& a) {
               optionName(o.closed), optionName(o.exit), o.cull ? "on" : "off", optionName(o.compress),
               optionName(o.undefinedRule), optionName(o.renderer),
               1u << o.log2TileSize);
+  std::printf("  receivers    %s\n", receiversText(o, art.receiverHash).c_str());
   std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
   for (int l = -1; l < int(dag.levels.size()); ++l) {
     size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();

@@ -6,6 +6,7 @@
 #include <memory>
 #include <sstream>
 
+#include "bake_flags.h"
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/base/error.h"
@@ -19,18 +20,44 @@ struct VerifyArgs {
   std::string file, scene;
   uint64_t samples = 100000, seed = 1;
   bool json = false;
+  OptionFlags receivers;  // --receivers volume:FILE and --receiver-box, for a volume bake
 };
+
+// The declaration the artifact was baked for: its kind and PCF from the header, a
+// volume from the flags, which must hash to what the header recorded.
+ReceiverDeclaration bakedReceivers(const VerifyArgs& a, const CpvsArtifact& art) {
+  ReceiverDeclaration d;
+  d.kind = art.options.receivers;
+  d.maxPcf = art.options.receiverPcf;
+  const bool given = a.receivers.receivers != optionName(ReceiverKind::Everywhere) || !a.receivers.receiverBoxes.empty();
+  if (d.kind == ReceiverKind::Volume) {
+    if (!given) throw InputError(a.file + " was baked for a receiver volume: give it again (--receivers volume:MESH, --receiver-box)");
+    OptionFlags f = a.receivers;
+    f.receiverPcf = d.maxPcf;
+    d = receiversOf(f);
+    if (d.kind != ReceiverKind::Volume) throw InputError("--receivers: " + a.file + " was baked for 'volume'");
+  } else if (given && a.receivers.receivers != optionName(d.kind)) {
+    throw InputError("--receivers: " + a.file + " was baked for '" + optionName(d.kind) + "', not '" + a.receivers.receivers + "'");
+  }
+  if (receiverHash(d) != art.receiverHash)
+    throw InputError("the receiver volume given is not the one " + a.file + " was baked for (declaration " +
+                     receiverHash(d).hex() + ", the file's " + art.receiverHash.hex() + ")");
+  return d;
+}
 
 int runVerify(const VerifyArgs& a) {
   if (a.samples == 0) throw InputError("--samples must be at least 1");
   CpvsArtifact art = readCpvs(a.file);
   Scene scene = openMatchingScene(a.scene, art);
+  const ReceiverDeclaration receivers = bakedReceivers(a, art);
   RayScene rays(scene, art.grid.origin);
   ShadowQuery q(art.grid, std::move(art.packed));
-  VerifyResult r = verifyArtifact(q, art.options.closed, scene, rays, a.samples, a.seed);
+  const auto samples = sampleReceivers(scene, rays, art.options.closed, art.grid.frame.dir, receivers, a.samples, a.seed);
+  VerifyResult r = verifySamples(q, art.options.closed, rays, samples);
   if (a.json) {
     std::ostringstream s;
     s << "{\n  \"file\": " << jsonString(a.file) << ",\n  \"scene\": " << jsonString(a.scene)
+      << ",\n  \"receivers\": " << jsonString(optionName(receivers.kind))
       << ",\n  \"samples\": " << r.samples << ",\n  \"skipped_inside_closed\": " << r.insideClosed
       << ",\n  \"near_boundary\": " << r.nearBoundary
       << ",\n  \"mismatch_near_boundary\": " << jsonNumber(r.fractionNearBoundary())
@@ -39,9 +66,11 @@ int runVerify(const VerifyArgs& a) {
       << ",\n  \"mismatch_elsewhere_count\": " << r.mismatchElsewhere << "\n}\n";
     std::cout << s.str();
   } else {
-    std::printf("%s against %s: %llu surface points compared (%llu skipped: offset point inside closed geometry)\n",
+    std::printf("%s against %s: %llu receiver points compared (%llu skipped: offset point inside closed geometry)\n",
                 a.file.c_str(), a.scene.c_str(), static_cast<unsigned long long>(r.samples),
                 static_cast<unsigned long long>(r.insideClosed));
+    std::printf("  receivers: %s (the bake answers exactly there; elsewhere it may be wrong)\n",
+                receiversText(art.options, art.receiverHash).c_str());
     std::printf("  near a shadow boundary (within one voxel): %llu points, %llu mismatches = %.4f%% of all\n",
                 static_cast<unsigned long long>(r.nearBoundary), static_cast<unsigned long long>(r.mismatchNearBoundary),
                 100.0 * r.fractionNearBoundary());
@@ -67,6 +96,10 @@ void addVerifyCommand(CLI::App& app, int& status) {
   c->add_option("--samples,-n", a->samples, "Surface points to compare")->capture_default_str();
   c->add_option("--seed", a->seed, "Sampling seed")->capture_default_str();
   c->add_flag("--json", a->json, "Print the result as JSON");
+  c->add_option("--receivers", a->receivers.receivers,
+                "For a bake for a receiver volume: volume[:MESH] as it was baked (the file records which receivers "
+                "it was baked for, and verify samples those: surfaces, both sides, the volume)");
+  c->add_option("--receiver-box", a->receivers.receiverBoxes, "A box of the receiver volume, as it was baked");
   c->callback([a, &status] { status = runVerify(*a); });
 }
 

@@ -229,8 +229,9 @@ std::string accuracyMarkdown(const AccuracyReport& rep) {
 
 std::string accuracyCsv(const AccuracyReport& rep) {
   std::ostringstream o;
-  o << "scene,method,resolution,side,texel_world,bytes,ratio_to_shadow_map,skipped,bake_seconds,render_s,masks_s,insert_s,"
-       "compress_s,merge_s,samples,skipped_inside,mismatches,mismatch_rate";
+  o << "scene,method,resolution,side,texel_world,bytes,ratio_to_shadow_map,skipped,bake_seconds";
+  for (const char* s : kBakeGridStages) o << "," << s << "_s";
+  o << ",samples,skipped_inside,mismatches,mismatch_rate";
   for (const auto& b : kDistanceBinNames) o << ",samples_" << b.csv << ",mismatch_rate_" << b.csv;
   o << ",pcf_samples";
   for (int w : kAccuracyPcfWidths) o << ",pcf" << w << "_mean_abs_error,pcf" << w << "_p99_abs_error";
@@ -242,7 +243,7 @@ std::string accuracyCsv(const AccuracyReport& rep) {
     o << csvField(rep.scene) << "," << accuracyMethodKey(r.method) << "," << r.resolution() << "," << r.side << ","
       << csvNumber(rep.extent / double(r.side)) << "," << r.bytes << "," << csvNumber(r.ratioToShadowMap()) << "," << (r.skipped ? 1 : 0);
     if (r.skipped) {
-      const int empty = 6 + 4 + 2 * kDistanceBins + 1 + 4 * int(kAccuracyPcfWidths.size()) + 1 +
+      const int empty = 1 + int(kBakeGridStages.size()) + 4 + 2 * kDistanceBins + 1 + 4 * int(kAccuracyPcfWidths.size()) + 1 +
                         int(kAccuracyPcfWidths.size());
       for (int i = 0; i < empty; ++i) o << ",";
     } else {

@@ -10,8 +10,13 @@
 
 namespace cpvs {
 
-std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
-                                          const Vec3& lightDir, uint64_t count, uint64_t seed) {
+namespace {
+
+// Which side of triangle t a sample is taken from: +1 front, -1 back.
+using SidePicker = double (*)(const RayScene&, ClosedMode, uint32_t, const Vec3&, const Vec3&, SplitMix64&);
+
+std::vector<SurfaceSample> sampleByArea(const Scene& scene, const RayScene& rays, ClosedMode closed,
+                                        const Vec3& lightDir, uint64_t count, uint64_t seed, SidePicker side) {
   size_t tris = scene.triangleCount();
   std::vector<double> cdf(tris + 1, 0.0);
   for (size_t t = 0; t < tris; ++t) {
@@ -31,10 +36,80 @@ std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& ra
       r2 = 1 - r2;
     }
     Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-    Vec3 n = normalize(cross(b - a, c - a));
-    if (!rays.triangleClosed(uint32_t(t), closed) && dot(n, lightDir) > 0) n = -n;
-    out[i] = SurfaceSample{a + (b - a) * r1 + (c - a) * r2, n};
+    const Vec3 n = normalize(cross(b - a, c - a));
+    out[i] = SurfaceSample{a + (b - a) * r1 + (c - a) * r2, n * side(rays, closed, uint32_t(t), n, lightDir, rng)};
   });
+  return out;
+}
+
+// Whether p lies inside the closed mesh: the parity of a ray's crossings, along a
+// direction no axis-aligned box face is parallel to.
+bool insideClosedMesh(const Scene& mesh, const Vec3& p) {
+  const Vec3 d = normalize(Vec3{0.5773, 0.5801, 0.5746});
+  int crossings = 0;
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    const Vec3 a = mesh.vertex(t, 0), e1 = mesh.vertex(t, 1) - a, e2 = mesh.vertex(t, 2) - a;
+    const Vec3 h = cross(d, e2);
+    const double det = dot(e1, h);
+    if (std::fabs(det) < 1e-300) continue;
+    const Vec3 s = p - a;
+    const double u = dot(s, h) / det;
+    if (u < 0 || u > 1) continue;
+    const Vec3 q = cross(s, e1);
+    const double v = dot(d, q) / det;
+    if (v < 0 || u + v > 1) continue;
+    if (dot(e2, q) / det > 0) ++crossings;
+  }
+  return crossings % 2 == 1;
+}
+
+}  // namespace
+
+std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
+                                          const Vec3& lightDir, uint64_t count, uint64_t seed) {
+  return sampleByArea(scene, rays, closed, lightDir, count, seed,
+                      [](const RayScene& r, ClosedMode c, uint32_t t, const Vec3& n, const Vec3& l, SplitMix64&) {
+                        return !r.triangleClosed(t, c) && dot(n, l) > 0 ? -1.0 : 1.0;
+                      });
+}
+
+std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& rays, ClosedMode closed,
+                                           const Vec3& lightDir, const ReceiverDeclaration& d, uint64_t count,
+                                           uint64_t seed) {
+  auto front = [](const RayScene&, ClosedMode, uint32_t, const Vec3&, const Vec3&, SplitMix64&) { return 1.0; };
+  switch (d.kind) {
+    case ReceiverKind::Everywhere:
+      return sampleSurfaces(scene, rays, closed, lightDir, count, seed);
+    case ReceiverKind::Surfaces:
+      return sampleByArea(scene, rays, closed, lightDir, count, seed, front);
+    case ReceiverKind::SurfacesTwoSided:
+      return sampleByArea(scene, rays, closed, lightDir, count, seed,
+                          [](const RayScene& r, ClosedMode c, uint32_t t, const Vec3&, const Vec3&, SplitMix64& rng) {
+                            return r.triangleClosed(t, c) || rng.uniform01() < 0.5 ? 1.0 : -1.0;
+                          });
+    case ReceiverKind::Volume:
+      break;
+  }
+  std::vector<SurfaceSample> out = sampleByArea(scene, rays, closed, lightDir, count - count / 2, seed, front);
+  Vec3 lo, hi;
+  sceneBounds(d.volume, lo, hi);
+  std::vector<SurfaceSample> inside(count / 2);
+  tbb::parallel_for(uint64_t(0), count / 2, [&](uint64_t i) {
+    SplitMix64 rng = SplitMix64::forItem(seed ^ 0x766f6c756d65ull, i);
+    Vec3 p;
+    do {
+      p = {lo.x + (hi.x - lo.x) * rng.uniform01(), lo.y + (hi.y - lo.y) * rng.uniform01(),
+           lo.z + (hi.z - lo.z) * rng.uniform01()};
+    } while (!insideClosedMesh(d.volume, p));
+    Vec3 n{};
+    if (i % 8 != 0) {
+      do n = Vec3{2 * rng.uniform01() - 1, 2 * rng.uniform01() - 1, 2 * rng.uniform01() - 1};
+      while (!(length(n) > 0.1 && length(n) <= 1));
+      n = normalize(n);
+    }
+    inside[i] = {p, n};
+  });
+  out.insert(out.end(), inside.begin(), inside.end());
   return out;
 }
 

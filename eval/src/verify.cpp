@@ -13,8 +13,12 @@ namespace cpvs {
 
 VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
                             uint64_t count, uint64_t seed) {
+  return verifySamples(query, closed, rays, sampleSurfaces(scene, rays, closed, query.grid().frame.dir, count, seed));
+}
+
+VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const RayScene& rays,
+                           const std::vector<SurfaceSample>& samples) {
   const OrthoGrid& g = query.grid();
-  auto samples = sampleSurfaces(scene, rays, closed, g.frame.dir, count, seed);
   const double len = shadowRayLength(g);
   const Vec3 toLight = -g.frame.dir;
   // "Within one voxel" of a shadow boundary: the exact visibility is not the same at

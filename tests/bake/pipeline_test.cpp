@@ -163,7 +163,7 @@ TEST_P(ScenePipeline, MergeOrderDoesNotChangeBytes) {
     Dag shuffled = assembleRoots(*merger.finish(), opt.hash, opt.compress);
     expectSameDag(inOrder, shuffled);
     expectOptimal(shuffled);
-    CpvsArtifact a{grid, opt, sceneHash(scene_), inOrder, {}}, b{grid, opt, sceneHash(scene_), shuffled, {}};
+    CpvsArtifact a{grid, opt, sceneHash(scene_), {}, inOrder, {}}, b{grid, opt, sceneHash(scene_), {}, shuffled, {}};
     EXPECT_EQ(encodeCpvs(a, false), encodeCpvs(b, false));
   }
 }

@@ -12,6 +12,7 @@
 
 #include "cpvs/io/cpvs_file.h"
 #include "process_testing.h"
+#include "scene_testing.h"
 #include "cpvs/eval/image.h"
 
 namespace cpvs {
@@ -113,6 +114,55 @@ TEST_F(Cli, VerifyJsonContract) {
   EXPECT_GT(j["samples"].get<uint64_t>(), 4000u);
   EXPECT_EQ(j["mismatch_elsewhere"].get<double>(), 0.0);
   EXPECT_LT(j["mismatch_near_boundary"].get<double>(), 0.05);
+}
+
+// A bake for declared receivers records them (bake and inspect show the same
+// declaration), verify samples them and needs the volume given again, and an open level
+// baked for its surfaces is smaller and exact on them.
+TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
+  const std::string box = " --receiver-box -1000,0,-1000,1000,3,1000";
+  CliRun r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json --receivers volume" +
+                  box + " -o " + path("v.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json baked = parse(r)["receivers"];
+  EXPECT_EQ(baked["kind"], "volume");
+  EXPECT_EQ(baked["pcf"], 9);
+  EXPECT_EQ(baked["hash"].get<std::string>().size(), 32u);
+  EXPECT_EQ(bake_["receivers"]["kind"], "everywhere");
+  EXPECT_TRUE(bake_["receivers"]["hash"].is_null());
+  r = cpvs("inspect --json " + path("v.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(parse(r)["receivers"], baked);
+  EXPECT_EQ(parse(r)["format_version"], 3);
+
+  r = cpvs("verify -n 3000 " + path("v.cpvs") + " city:3");
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("baked for a receiver volume"), std::string::npos) << r.out;
+  r = cpvs("verify -n 3000 " + path("v.cpvs") + " city:3 --receivers volume --receiver-box -1000,0,-1000,1000,4,1000");
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("not the one"), std::string::npos) << r.out;
+  r = cpvs("verify --json -n 6000 " + path("v.cpvs") + " city:3 --receivers volume" + box);
+  ASSERT_EQ(r.status, 0) << r.out;
+  json v = parse(r);
+  EXPECT_EQ(v["receivers"], "volume");
+  EXPECT_GT(v["samples"].get<uint64_t>(), 3000u);
+  EXPECT_EQ(v["mismatch_elsewhere_count"], 0);
+
+  CPVS_SHARED_SCENE_OR_SKIP(town, "flightgear/zone_maisons.obj");
+  uint64_t bytes[2] = {};
+  int k = 0;
+  for (const char* kind : {"everywhere", "surfaces"}) {
+    const std::string out = path(std::string("town-") + kind + ".cpvs");
+    r = cpvs("bake " + town + " --sun-elevation 40 --sun-azimuth 120 -r 1K --json --receivers " + kind + " -o " + out);
+    ASSERT_EQ(r.status, 0) << r.out;
+    bytes[k++] = parse(r)["bytes"].get<uint64_t>();
+    r = cpvs("verify --json -n 20000 " + out + " " + town);
+    ASSERT_EQ(r.status, 0) << r.out;
+    v = parse(r);
+    EXPECT_EQ(v["receivers"], kind);
+    EXPECT_EQ(v["mismatch_elsewhere_count"], 0);
+  }
+  EXPECT_LT(bytes[1], bytes[0]);
 }
 
 TEST_F(Cli, QueryOnePointAndACsv) {
@@ -296,6 +346,12 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
       {"verify ", "not the scene"},
       {"query ", "--point"},
       {"query ", "--point"},
+      {"bake city --sun-dir 0,-1,0 --receivers sideways", "--receivers"},
+      {"bake city --sun-dir 0,-1,0 --receivers surfaces --receiver-box 0,0,0,1,1,1", "needs --receivers volume"},
+      {"bake city --sun-dir 0,-1,0 --receivers volume", "needs a volume"},
+      {"bake city --sun-dir 0,-1,0 --receivers volume --receiver-box 0,0,0,1,1", "MINX"},
+      {"bake city --sun-dir 0,-1,0 --receivers surfaces --receiver-pcf 4", "must be odd"},
+      {"bake city --sun-dir 0,-1,0 --receivers surfaces:x.obj", "only 'volume' takes a file"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     std::string args = cases[i].args;

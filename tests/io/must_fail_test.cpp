@@ -79,10 +79,12 @@ CpvsArtifact sampleArtifact() {
   return art;
 }
 
-// Byte offsets of the .cpvs header (cpvs_file.h), the same in versions 1 and 2.
+// Byte offsets of the .cpvs header (cpvs_file.h), the same in versions 1 to 3.
 constexpr size_t kDir = 12, kExtent = 132, kLog2R = 148, kOptions = 152, kTile = 160;
-// Version 2: the word count, the section's size and stored size, then the packed words.
-constexpr size_t kWordCount = 180, kSectionSize = 188, kWords = 204;
+// Version 3: the receiver declaration (kind, PCF, reserved, hash).
+constexpr size_t kReceivers = 180, kReceiverHash = 188;
+// Version 3: the word count, the section's size and stored size, then the packed words.
+constexpr size_t kWordCount = 204, kSectionSize = 212, kWords = 228;
 // Version 1: the root, then the level table.
 constexpr size_t kRootCode = 180, kRootIndex = 184, kLevelCount = 188, kLeafCount = 192, kLevelSizes = 200;
 
@@ -101,7 +103,7 @@ std::vector<Case> headerCases() {
       {"tile size", [](Bytes& b) { put<int32_t>(b, kTile, 2); }, "tile size 2^2 is out of range"},
       {"trailing bytes", [](Bytes& b) { b.insert(b.end() - 8, {0, 0, 0, 0}); }, "unexpected bytes after the payload"},
       {"magic", [](Bytes& b) { b[0] = 'X'; }, "not a .cpvs file"},
-      {"version", [](Bytes& b) { put<uint32_t>(b, 4, 9); }, "format version 9 is not supported (this build reads versions 1 to 2)"},
+      {"version", [](Bytes& b) { put<uint32_t>(b, 4, 9); }, "format version 9 is not supported (this build reads versions 1 to 3)"},
   };
 }
 
@@ -110,7 +112,7 @@ const auto decodeDamaged = [](const Bytes& b) { decodeCpvs(b.data(), b.size(), "
 TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
   const CpvsArtifact art = sampleArtifact();
   const Bytes valid = encodeCpvs(art, false);
-  ASSERT_EQ(get<uint32_t>(valid, 4), 2u);
+  ASSERT_EQ(get<uint32_t>(valid, 4), 3u);
   const PackedDag packed(art.dag);
   const PackedHeader& h = packed.header();
   const uint32_t L = h.internalLevels;
@@ -125,6 +127,13 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
 
   std::vector<Case> cases = headerCases();
   const std::vector<Case> packedCases{
+      {"receiver kind", [](Bytes& b) { b[kReceivers] = 4; }, "the receiver declaration holds an unknown value"},
+      {"receiver reserved byte", [](Bytes& b) { b[kReceivers + 7] = 1; }, "the receiver declaration holds an unknown value"},
+      {"receiver PCF for everywhere", [](Bytes& b) { b[kReceivers + 1] = 9; }, "the receiver declaration is inconsistent"},
+      {"receiver hash for everywhere", [](Bytes& b) { b[kReceiverHash] = 1; }, "the receiver declaration is inconsistent"},
+      {"surfaces without a hash", [](Bytes& b) { b[kReceivers] = 1, b[kReceivers + 1] = 9; }, "the receiver declaration is inconsistent"},
+      {"surfaces with an even PCF", [](Bytes& b) { b[kReceivers] = 1, b[kReceivers + 1] = 4, b[kReceiverHash] = 1; },
+       "the receiver declaration is inconsistent"},
       {"word count", [](Bytes& b) { put<uint64_t>(b, kWordCount, 3); }, "packed DAG word count 3 is invalid"},
       {"word count beyond 32 bits", [](Bytes& b) { put<uint64_t>(b, kWordCount, uint64_t(1) << 40); }, "is invalid"},
       {"section size", [](Bytes& b) { put<uint64_t>(b, kSectionSize, get<uint64_t>(b, kSectionSize) + 4); },
@@ -217,6 +226,30 @@ TEST(CpvsHeader, RendererRoundTripsAndZeroIsEmbree) {
     EXPECT_EQ(decodeCpvs(bytes.data(), bytes.size(), "r.cpvs").options.renderer, r);
   }
   static_assert(int(Renderer::Embree) == 0);
+}
+
+// The receiver declaration round-trips; a version 2 file (before it) reads as baked for
+// receivers everywhere, with its DAG intact.
+TEST(CpvsHeader, ReceiversRoundTripAndVersion2ReadsAsEverywhere) {
+  CpvsArtifact art = sampleArtifact();
+  art.options.receivers = ReceiverKind::Volume;
+  art.options.receiverPcf = 5;
+  art.receiverHash = Hash128{7, 8};
+  const Bytes bytes = encodeCpvs(art, false);
+  EXPECT_EQ(bytes[kReceivers], uint8_t(ReceiverKind::Volume));
+  const CpvsArtifact back = decodeCpvs(bytes.data(), bytes.size(), "r.cpvs");
+  EXPECT_EQ(back.options, art.options);
+  EXPECT_EQ(back.receiverHash, art.receiverHash);
+
+  // city:3:7, 256^3, sun at 40/30 degrees, zstd, written by the version 2 build.
+  const Bytes v2 = readFile(CPVS_SOURCE_DIR "/tests/io/data/city-256-v2.cpvs");
+  ASSERT_EQ(get<uint32_t>(v2, 4), 2u);
+  const CpvsArtifact old = decodeCpvs(v2.data(), v2.size(), "v2.cpvs");
+  EXPECT_EQ(old.formatVersion, 2u);
+  EXPECT_EQ(old.options.receivers, ReceiverKind::Everywhere);
+  EXPECT_EQ(old.receiverHash, Hash128{});
+  EXPECT_EQ(old.dag.bytes(), 45236u);  // as the version 2 build printed it
+  EXPECT_EQ(old.packed.words(), PackedDag(old.dag).words());
 }
 
 // Byte offsets of the sub-DAG header (sub_dag_file.h).

@@ -82,14 +82,14 @@ std::vector<uint8_t> bomb(bool cpvs) {
   auto put64 = [&](uint64_t v) { b.insert(b.end(), (uint8_t*)&v, (uint8_t*)&v + 8); };
   const uint64_t claimed = uint64_t(1) << 32;
   if (cpvs) {
-    // A valid version 2 header from a real file, then a word count of 2^30 (4 GiB).
+    // A valid header from a real file, then a word count of 2^30 (4 GiB).
     CpvsArtifact art;
     art.dag.reset(6, 6);
     art.dag.roots.push_back({0, {kLit, 0}});
     art.grid.frame = LightFrame::fromDirection({0.3, -1, 0.2});
     art.grid.log2Resolution = 6;
     const std::vector<uint8_t> valid = encodeCpvs(art, true);
-    b.assign(valid.begin(), valid.begin() + 180);
+    b.assign(valid.begin(), valid.begin() + 204);
     put64(claimed / 4);
   } else {
     b.insert(b.end(), {'C', 'P', 'V', 'T'});

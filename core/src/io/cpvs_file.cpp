@@ -45,6 +45,11 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   w.put<int32_t>(o.log2TileSize);
   w.put(a.sceneHash.lo);
   w.put(a.sceneHash.hi);
+  w.put<uint8_t>(uint8_t(o.receivers));
+  w.put<uint8_t>(o.receivers == ReceiverKind::Everywhere ? 0 : o.receiverPcf);
+  for (int i = 0; i < 6; ++i) w.put<uint8_t>(0);
+  w.put(a.receiverHash.lo);
+  w.put(a.receiverHash.hi);
   const PackedDag packed(dag);
   const std::vector<uint32_t>& words = packed.words();
   w.put<uint64_t>(words.size());
@@ -97,6 +102,20 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
     h.fail("tile size 2^" + std::to_string(o.log2TileSize) + " is out of range");
   a.sceneHash.lo = h.get<uint64_t>("header");
   a.sceneHash.hi = h.get<uint64_t>("header");
+  if (version >= 3) {
+    const uint8_t kind = h.get<uint8_t>("receivers"), pcf = h.get<uint8_t>("receivers");
+    bool reservedZero = true;
+    for (int i = 0; i < 6; ++i) reservedZero = h.get<uint8_t>("receivers") == 0 && reservedZero;
+    a.receiverHash.lo = h.get<uint64_t>("receivers");
+    a.receiverHash.hi = h.get<uint64_t>("receivers");
+    const bool everywhere = kind == uint8_t(ReceiverKind::Everywhere);
+    if (!isOptionValue<ReceiverKind>(kind) || !reservedZero)
+      h.fail("the receiver declaration holds an unknown value");
+    if (everywhere ? (pcf != 0 || a.receiverHash != Hash128{}) : (pcf % 2 == 0 || pcf > kMaxPcfWidthOption || a.receiverHash == Hash128{}))
+      h.fail("the receiver declaration is inconsistent (kind " + std::to_string(kind) + ", PCF " + std::to_string(pcf) + ")");
+    o.receivers = ReceiverKind(kind);
+    if (!everywhere) o.receiverPcf = pcf;
+  }
 
   const bool zstd = (flags & kContainerZstd) != 0;
   if (version >= 2) {

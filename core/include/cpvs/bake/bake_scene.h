@@ -8,6 +8,7 @@
 #include "cpvs/bake/column_masks.h"
 #include "cpvs/bake/options.h"
 #include "cpvs/bake/raster_scene.h"
+#include "cpvs/bake/receivers.h"
 #include "cpvs/bake/stage_times.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/raytrace/ray_scene.h"
@@ -17,11 +18,12 @@ namespace cpvs {
 struct Scene;
 
 /// The scene projected for the rasterizer (always: it also answers which tiles nothing
-/// touches) and, for the Embree renderer, the BVH. `threads` caps Embree's builder
-/// (0: all cores).
+/// touches), for the Embree renderer the BVH, and the declared receivers' reads.
+/// `threads` caps Embree's builder (0: all cores).
 class BakeScene {
  public:
-  BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer renderer, int threads = 0);
+  BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer renderer, int threads = 0,
+            const ReceiverDeclaration& receivers = {});
   ~BakeScene();
   BakeScene(const BakeScene&) = delete;
   BakeScene& operator=(const BakeScene&) = delete;
@@ -30,20 +32,24 @@ class BakeScene {
   Renderer renderer() const { return renderer_; }
   const RasterScene& raster() const { return raster_; }
 
-  /// False when no texel ray of the tile can hit anything: such a tile is all lit and
-  /// needs no rendering (RasterScene::touchesRectangle, conservative for both renderers).
+  const ReceiverSet& receivers() const { return receivers_; }
+  /// False when no texel ray of the tile can hit anything (RasterScene::touchesRectangle,
+  /// conservative for both renderers) or no declared receiver reads it: such a tile is
+  /// all lit and needs no rendering.
   bool touchesTile(uint64_t tileX, uint64_t tileY, int log2TileSize) const;
 
   /// The column masks of the texels [x0, x0 + width) x [y0, y0 + height): rendered by the
   /// scene's renderer and resolved with `options`' rules (fused into the rasterizer's
-  /// block loop; after the whole block for Embree). Adds the time to "render" and
-  /// "masks" of `times` (the fused path counts it all as render).
+  /// block loop; after the whole block for Embree). Declared receivers free what no
+  /// lookup reads (ReceiverSet::freeIntervals) before the masks. Adds the time to
+  /// "render", "receivers" and "masks" of `times` (the fused path counts it all as render).
   void columnMasks(const BakeOptions& options, uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
                    ColumnMasks& out, StageTimes& times) const;
 
  private:
   Renderer renderer_;
   RasterScene raster_;
+  ReceiverSet receivers_;
   std::unique_ptr<RayScene> rays_;  // the Embree renderer only
 };
 

@@ -43,6 +43,16 @@ enum class CompressMode : uint8_t {
   None = 2,      // keep the DAG as inserted (duplicates remain; not canonical)
 };
 
+/// Which points may be queried (seed 004): every voxel no query can read is left to the
+/// undefined rule. A receiver's normal is its surface's geometric normal (the side it is
+/// seen from); a volume's dynamic receivers may have any normal.
+enum class ReceiverKind : uint8_t {
+  Everywhere = 0,        // any point outside closed solids (with any normal)
+  Surfaces = 1,          // the front side of the scene's static surfaces (back faces culled)
+  SurfacesTwoSided = 2,  // both sides of every open surface, the outside of closed parts
+  Volume = 3,            // the front sides plus any point of a declared closed volume
+};
+
 /// Hash functions for node content. Weak exists so tests can force collisions: every
 /// algorithm must stay correct when different nodes share a hash.
 enum class HashKind : uint8_t { Xxh3 = 0, WeakForTests = 1 };
@@ -51,6 +61,10 @@ enum class HashKind : uint8_t { Xxh3 = 0, WeakForTests = 1 };
 constexpr int kMinLog2TileSize = kLog2LeafSide;
 constexpr int kMaxLog2TileSize = kMaxLog2Resolution;
 constexpr int kDefaultLog2TileSize = 12;  // 4096 texels
+
+/// The widest PCF filter of any lookup (normal_offset.h's kMaxPcfWidth, repeated for this
+/// leaf header).
+constexpr int kMaxPcfWidthOption = 9;
 
 /// Everything that decides the bytes of a bake besides the scene, light and resolution.
 struct BakeOptions {
@@ -62,6 +76,8 @@ struct BakeOptions {
   int log2TileSize = kDefaultLog2TileSize;
   HashKind hash = HashKind::Xxh3;
   Renderer renderer = Renderer::Raster;
+  ReceiverKind receivers = ReceiverKind::Everywhere;
+  uint8_t receiverPcf = kMaxPcfWidthOption;  // the widest PCF filter receivers' lookups use
   constexpr bool operator==(const BakeOptions&) const = default;
 };
 
@@ -93,6 +109,11 @@ template <>
 struct OptionNames<Renderer> {
   static constexpr const char* kFlag = "renderer";
   static constexpr std::array<const char*, 2> kNames{"embree", "raster"};
+};
+template <>
+struct OptionNames<ReceiverKind> {
+  static constexpr const char* kFlag = "receivers";
+  static constexpr std::array<const char*, 4> kNames{"everywhere", "surfaces", "surfaces-two-sided", "volume"};
 };
 template <>
 struct OptionNames<HashKind> {

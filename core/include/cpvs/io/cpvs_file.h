@@ -13,9 +13,10 @@
 
 namespace cpvs {
 
-/// Version 2 stores the DAG as its packed array (packed_layout.h); version 1 stored its
-/// levels and is still read.
-constexpr uint32_t kCpvsFormatVersion = 2;
+/// Version 3 adds the receiver declaration to the header; version 2 stores the DAG as its
+/// packed array (packed_layout.h); version 1 stored its levels. Versions 1 and 2 are still
+/// read (as baked for receivers everywhere).
+constexpr uint32_t kCpvsFormatVersion = 3;
 constexpr uint32_t kCpvsOldestFormatVersion = 1;
 
 /// A baked artifact: what was baked (grid, options, scene hash) and the complete DAG.
@@ -23,6 +24,9 @@ struct CpvsArtifact {
   OrthoGrid grid;
   BakeOptions options;
   Hash128 sceneHash;
+  /// receiverHash of the declaration baked for (zero for receivers everywhere): with
+  /// options.receivers and options.receiverPcf, what `verify` samples and lookups may trust.
+  Hash128 receiverHash;
   Dag dag;  // complete: one root, log2RootSize == log2Resolution; hashes not stored
   /// The same DAG packed for lookups: decodeCpvs fills it with the file's words as they
   /// are (packing a version 1 file's levels); encodeCpvs ignores it and packs `dag`.
@@ -32,7 +36,8 @@ struct CpvsArtifact {
 };
 
 /// Serializes an artifact. Layout (little-endian): a fixed header with magic "CPVS",
-/// version, flags, the grid and options; the word count of the packed DAG and its words
+/// version, flags, the grid and options, the scene hash, the receiver declaration (kind,
+/// PCF width, 6 reserved zero bytes, its hash); the word count of the packed DAG and its words
 /// (packed_layout.h: a header, the pointer grid, the nodes, the leaves), optionally
 /// zstd-compressed; an XXH3-64 checksum of everything before it. (Version 1 held the
 /// root, the level sizes and per level the 16-bit codes and 32-bit child indices.)

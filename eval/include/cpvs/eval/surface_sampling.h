@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "cpvs/bake/options.h"
+#include "cpvs/bake/receivers.h"
 #include "cpvs/eval/camera.h"
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/scene/scene.h"
@@ -21,6 +22,15 @@ struct SurfaceSample {
 /// side facing the light (`lightDir` points from the light into the scene).
 std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                           const Vec3& lightDir, uint64_t count, uint64_t seed);
+
+/// `count` points where the declared receivers are, deterministic for a seed: for
+/// Everywhere, sampleSurfaces; for Surfaces, uniformly by area with the front side's
+/// normal; for SurfacesTwoSided, either side of open triangles (the outside of closed
+/// ones); for Volume, half as Surfaces and half uniformly inside the volume with random
+/// unit normals (every 8th without one).
+std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& rays, ClosedMode closed,
+                                           const Vec3& lightDir, const ReceiverDeclaration& receivers,
+                                           uint64_t count, uint64_t seed);
 
 /// Rays a camera sample may spend on sky before its point is dropped.
 constexpr int kCameraSampleAttempts = 16;

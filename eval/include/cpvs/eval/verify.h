@@ -33,4 +33,9 @@ struct VerifyResult {
 VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
                             uint64_t count, uint64_t seed);
 
+/// The same comparison at given points (sampleReceivers: where a bake's declared
+/// receivers are, the only points a bake for them answers exactly).
+VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const RayScene& rays,
+                           const std::vector<SurfaceSample>& samples);
+
 }  // namespace cpvs

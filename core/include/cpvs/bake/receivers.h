@@ -1,0 +1,92 @@
+// Where receivers can be, and which voxels their lookups read (seed 004): along a texel's
+// column the transition from lit to shadowed may lie anywhere between the last voxel a
+// receiver's lookup needs lit and the first one it needs shadowed.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "cpvs/bake/options.h"
+#include "cpvs/bake/texel_slices.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/scene/scene.h"
+
+namespace cpvs {
+
+/// What a bake is declared for: who receives (options.h), the widest PCF filter their
+/// lookups use, and for ReceiverKind::Volume the volume, closed meshes in world space
+/// (boxes: appendBox) in which dynamic receivers move.
+struct ReceiverDeclaration {
+  ReceiverKind kind = ReceiverKind::Everywhere;
+  int maxPcf = kMaxPcfWidthOption;
+  Scene volume;
+};
+
+/// InputError unless the declaration is usable: an odd PCF width in [1, 9]; a volume
+/// exactly for ReceiverKind::Volume, non-empty and closed.
+void checkReceiverDeclaration(const ReceiverDeclaration& declaration);
+
+/// Content hash of what the declaration lets a bake leave free: the kind, the PCF width
+/// and the volume's geometry. Zero for Everywhere (nothing declared).
+Hash128 receiverHash(const ReceiverDeclaration& declaration);
+
+/// The reads of every declared receiver, projected onto one grid. Each receiver triangle
+/// (a surface's side, or a volume's boundary) becomes a region of texel columns and, per
+/// column, a conservative range of slices that its lookups may read: the lookup point is
+/// the receiver's point moved by the normal offset of any PCF width up to maxPcf (along
+/// the side's geometric normal for surfaces, in any direction for volumes, with the 1/256
+/// the offset may exceed), read at that slice over the filter's footprint. A volume part's
+/// reads at a column are the hull of its boundary's: they cover its interior too.
+/// Built once per bake and shared read-only.
+class ReceiverSet {
+ public:
+  /// InputError for an invalid declaration. Everywhere gives an empty set that frees
+  /// nothing (freeIntervals leaves slices as they are).
+  ReceiverSet(const Scene& scene, const OrthoGrid& grid, const ReceiverDeclaration& declaration);
+
+  ReceiverKind kind() const { return kind_; }
+  int maxPcf() const { return maxPcf_; }
+  size_t size() const { return spans_.size(); }
+
+  /// False when no receiver's lookup reads a voxel of the texel rectangle: every voxel of
+  /// it is free, which the undefined rules resolve to all lit. Always true for Everywhere.
+  bool touchesRectangle(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height) const;
+
+  /// Widens the classification of the texels [x0, x0 + width) x [y0, y0 + height) (row
+  /// major, as rendered) to what the receivers need: firstUndefined becomes one past the
+  /// last slice a lookup needs lit (0: none), firstShadowed the first slice a lookup needs
+  /// shadowed (R: none). Slices a lookup reads inside the old undefined range stay free.
+  /// Multithreaded; depends only on each texel's own position.
+  void freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices) const;
+
+  /// The slices [first, last] of column (x, y) that receiver i's lookups may read, false
+  /// when it reads none there: the per-column rule of freeIntervals, for tests.
+  bool readsAt(size_t i, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const;
+
+  /// A receiver triangle: where its lookups land, in voxel coordinates.
+  struct Span {
+    double px, py, pz;            // plane anchor (voxels) ...
+    double gx, gy;                // ... and slope: the triangle's depth plane; planar = false when degenerate
+    double loOff, hiOff;          // read depths relative to the plane at a column's centre
+    double zLo, zHi;              // and the bounds of every read depth
+    double dirX[6], dirY[6], support[6];  // column centres c with dir . c <= support
+    int64_t xMin, yMin, xMax, yMax;       // columns reached (inclusive, inside the grid)
+    uint32_t part;                // 0: a surface; k > 0: the k-th volume part (hulled)
+    bool planar;
+  };
+  const std::vector<Span>& spans() const { return spans_; }
+
+ private:
+  bool columnRange(const Span& s, double cy, int64_t& x0, int64_t& x1) const;
+  bool columnReads(const Span& s, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const;
+  ReceiverKind kind_;
+  int maxPcf_;
+  uint32_t R_ = 0;
+  std::vector<Span> spans_;
+  // Spans listed per cell of 2^log2Cell texels, by their column bounds.
+  int log2Cell_ = 0;
+  uint64_t cellsPerSide_ = 0;
+  std::vector<uint32_t> cellBegin_, cellItems_;
+};
+
+}  // namespace cpvs

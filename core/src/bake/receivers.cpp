@@ -1,0 +1,402 @@
+#include "cpvs/bake/receivers.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numeric>
+
+#include "cpvs/base/error.h"
+#include "cpvs/light/lookup_mapping.h"
+#include "cpvs/query/normal_offset.h"
+
+namespace cpvs {
+
+namespace {
+
+// Slack, in voxels, on every bound: far above the rounding of any lookup's arithmetic
+// (relative 1e-16 of coordinates below 2^18) and of a normal passed in float.
+constexpr double kSlack = 0.01;
+// The normal offset moves at most 1/256 more than asked (lookup_mapping.h); a little more.
+constexpr double kOffsetExcess = 1.0 + 1.0 / 255.0;
+constexpr int kLog2Cell = 8;
+constexpr uint32_t kBandRows = 32;
+
+struct Point2 {
+  double x, y;
+};
+
+// A receiver triangle in voxels and what moves it: reads at offsets `offsets` (the
+// points' own lookups land there) over a square footprint of half-width `half`, and
+// depths `depthPad` either side (a volume's any-direction offset).
+struct SpanInput {
+  Vec3 v[3];
+  std::vector<Vec3> offsets;  // one or more; the reads' xy sweep between the first two
+  double half = 0;            // footprint half-width for the coverage test
+  uint32_t part = 0;
+};
+
+// Fills a span's plane: false when the triangle's projection is too thin for its plane
+// to bound depths (its depth range bounds them instead).
+bool fitPlane(const Vec3 (&v)[3], ReceiverSet::Span& s) {
+  const double ex1 = v[1].x - v[0].x, ey1 = v[1].y - v[0].y, ez1 = v[1].z - v[0].z;
+  const double ex2 = v[2].x - v[0].x, ey2 = v[2].y - v[0].y, ez2 = v[2].z - v[0].z;
+  const double det = ex1 * ey2 - ex2 * ey1;
+  const double scale = std::max({std::fabs(ex1), std::fabs(ey1), std::fabs(ex2), std::fabs(ey2)});
+  s.px = v[0].x;
+  s.py = v[0].y;
+  s.pz = v[0].z;
+  s.gx = s.gy = 0;
+  if (!(std::fabs(det) > 1e-9 * scale * scale)) return false;
+  s.gx = (ez1 * ey2 - ez2 * ey1) / det;
+  s.gy = (ex1 * ez2 - ex2 * ez1) / det;
+  return std::isfinite(s.gx) && std::isfinite(s.gy) && std::fabs(s.gx) + std::fabs(s.gy) < 1e6;
+}
+
+// Column bounds and the six supporting half-planes of the triangle swept by `sweep`
+// (its xy moved by each), dilated by the square of half-width h.
+bool fitCoverage(const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double h, uint32_t R, ReceiverSet::Span& s) {
+  std::vector<Point2> hull;
+  for (const Vec3& o : sweep)
+    for (const Vec3& p : v) hull.push_back({p.x + o.x, p.y + o.y});
+  double minX = hull[0].x, maxX = minX, minY = hull[0].y, maxY = minY;
+  for (const Point2& p : hull) {
+    minX = std::min(minX, p.x), maxX = std::max(maxX, p.x);
+    minY = std::min(minY, p.y), maxY = std::max(maxY, p.y);
+  }
+  // A column's centre is x + 0.5.
+  const double last = double(R) - 1;
+  const double x0 = std::ceil(minX - h - 0.5), x1 = std::floor(maxX + h - 0.5);
+  const double y0 = std::ceil(minY - h - 0.5), y1 = std::floor(maxY + h - 0.5);
+  if (!(x0 <= last && y0 <= last && x1 >= 0 && y1 >= 0 && x0 <= x1 && y0 <= y1)) return false;
+  s.xMin = int64_t(std::max(0.0, x0)), s.xMax = int64_t(std::min(last, x1));
+  s.yMin = int64_t(std::max(0.0, y0)), s.yMax = int64_t(std::min(last, y1));
+  for (int e = 0; e < 3; ++e) {
+    const Vec3& a = v[e];
+    const Vec3& b = v[(e + 1) % 3];
+    const double dx = -(b.y - a.y), dy = b.x - a.x;
+    for (int sign = 0; sign < 2; ++sign) {
+      const int k = 2 * e + sign;
+      const double ux = sign ? -dx : dx, uy = sign ? -dy : dy;
+      double support = -std::numeric_limits<double>::infinity();
+      for (const Point2& p : hull) support = std::max(support, ux * p.x + uy * p.y);
+      s.dirX[k] = ux;
+      s.dirY[k] = uy;
+      // Rounding of the dot products is far below the slack carried by h.
+      s.support[k] = support + h * (std::fabs(ux) + std::fabs(uy));
+      if (ux == 0 && uy == 0) s.support[k] = std::numeric_limits<double>::infinity();
+    }
+  }
+  return true;
+}
+
+// The world normal of a triangle (not normalized: lookups scale it away).
+Vec3 triangleNormal(const Scene& scene, size_t t) {
+  const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+  return cross(b - a, c - a);
+}
+
+// Labels of the volume's edge-connected parts, over vertices welded by exact position:
+// each part's reads are hulled per column, which covers its interior.
+std::vector<uint32_t> volumeParts(const Scene& volume) {
+  std::map<std::array<double, 3>, uint32_t> welded;
+  std::vector<uint32_t> vertexId(volume.positions.size());
+  for (size_t i = 0; i < volume.positions.size(); ++i) {
+    const Vec3& p = volume.positions[i];
+    vertexId[i] = welded.emplace(std::array<double, 3>{p.x, p.y, p.z}, uint32_t(welded.size())).first->second;
+  }
+  std::vector<uint32_t> parent(welded.size());
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (size_t t = 0; t < volume.triangleCount(); ++t) {
+    const uint32_t a = find(vertexId[volume.indices[3 * t]]);
+    for (int c = 1; c < 3; ++c) parent[find(vertexId[volume.indices[3 * t + size_t(c)]])] = a;
+  }
+  std::vector<uint32_t> part(volume.triangleCount());
+  std::map<uint32_t, uint32_t> number;
+  for (size_t t = 0; t < part.size(); ++t)
+    part[t] = number.emplace(find(vertexId[volume.indices[3 * t]]), uint32_t(number.size() + 1)).first->second;
+  return part;
+}
+
+}  // namespace
+
+void checkReceiverDeclaration(const ReceiverDeclaration& d) {
+  if (!isOptionValue<ReceiverKind>(int64_t(d.kind))) throw InputError("receivers: unknown kind " + std::to_string(int(d.kind)));
+  checkPcfWidth(d.maxPcf);
+  const bool wantsVolume = d.kind == ReceiverKind::Volume;
+  if (!wantsVolume && d.volume.triangleCount() != 0)
+    throw InputError(std::string("receivers: a volume is declared for '") + optionName(d.kind) +
+                     "' receivers; only 'volume' takes one");
+  if (wantsVolume && d.volume.triangleCount() == 0)
+    throw InputError("receivers: 'volume' needs a volume (a closed mesh file or boxes)");
+  if (wantsVolume && std::find(d.volume.closed.begin(), d.volume.closed.end(), 0) != d.volume.closed.end()) {
+    const size_t open = size_t(std::count(d.volume.closed.begin(), d.volume.closed.end(), 0));
+    throw InputError("receivers: the volume must be closed (watertight and consistently oriented); " +
+                     std::to_string(open) + " of its " + std::to_string(d.volume.triangleCount()) +
+                     " triangles belong to open parts");
+  }
+}
+
+Hash128 receiverHash(const ReceiverDeclaration& d) {
+  if (d.kind == ReceiverKind::Everywhere) return {};
+  const Hash128 volume = d.volume.triangleCount() ? sceneHash(d.volume) : Hash128{};
+  const uint64_t words[4] = {uint64_t(d.kind), uint64_t(d.maxPcf), volume.lo, volume.hi};
+  return contentHash(words, sizeof(words));
+}
+
+ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const ReceiverDeclaration& d)
+    : kind_(d.kind), maxPcf_(d.maxPcf), R_(uint32_t(grid.resolution())) {
+  checkReceiverDeclaration(d);
+  if (kind_ == ReceiverKind::Everywhere) return;
+  const LookupMapping m = grid.lookupMapping();
+  const double rho = 0.5 * (maxPcf_ - 1);  // footprint radius, texels
+  const double half = rho + 0.5;           // a column's window: the footprint around a texel
+  auto add = [&](const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double coverHalf, double loOff, double hiOff,
+                 double depthPad, double sweepLo, double sweepHi, uint32_t part) {
+    Span s{};
+    s.part = part;
+    s.planar = fitPlane(v, s);
+    if (!fitCoverage(v, sweep, coverHalf + kSlack, R_, s)) return;
+    const double zMin = std::min({v[0].z, v[1].z, v[2].z}), zMax = std::max({v[0].z, v[1].z, v[2].z});
+    s.zLo = zMin + sweepLo - depthPad - kSlack;
+    s.zHi = zMax + sweepHi + depthPad + kSlack;
+    s.loOff = loOff - kSlack;
+    s.hiOff = hiOff + kSlack;
+    if (s.zHi < 0) return;  // in front of the grid: lit without reading the DAG
+    spans_.push_back(s);
+  };
+
+  // Surfaces: each side a receiver may be on, moved along its normal in voxels.
+  for (size_t t = 0; t < scene.triangleCount(); ++t) {
+    Vec3 v[3];
+    for (int c = 0; c < 3; ++c) v[c] = mappedVoxel(m, scene.vertex(t, c));
+    const Vec3 nWorld = triangleNormal(scene, t);
+    const bool twoSided = kind_ == ReceiverKind::SurfacesTwoSided && !scene.closed[t];
+    for (int side = 0; side < (twoSided ? 2 : 1); ++side) {
+      Vec3 nv = mappedDirection(m, side ? -nWorld : nWorld);
+      const double big = std::max({std::fabs(nv.x), std::fabs(nv.y), std::fabs(nv.z)});
+      if (!(big > 0) || !std::isfinite(big)) continue;
+      Span plane{};
+      const bool planar = fitPlane(v, plane);
+      const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
+      double loOff = std::numeric_limits<double>::infinity(), hiOff = -loOff;
+      double sweepLo = loOff, sweepHi = hiOff;
+      std::vector<Vec3> sweep;
+      for (int width : {1, maxPcf_}) {
+        for (double f : {1.0, kOffsetExcess}) {
+          const Vec3 o = nv * (normalOffsetVoxels(width) * f / big);
+          const double r = 0.5 * (width - 1) + 0.5;
+          const double shift = o.z - plane.gx * o.x - plane.gy * o.y;
+          if (planar) {
+            loOff = std::min(loOff, shift - g * r);
+            hiOff = std::max(hiOff, shift + g * r);
+          }
+          sweepLo = std::min(sweepLo, o.z);
+          sweepHi = std::max(sweepHi, o.z);
+          if ((width == 1 && f == 1.0) || (width == maxPcf_ && f != 1.0)) sweep.push_back(o);
+        }
+      }
+      add(v, sweep, half, loOff, hiOff, 0, sweepLo, sweepHi, 0);
+    }
+  }
+
+  // Volumes: any point inside, any normal: reads within the offset's cube, over the
+  // footprint, hulled per part.
+  if (kind_ == ReceiverKind::Volume) {
+    const std::vector<uint32_t> parts = volumeParts(d.volume);
+    const double cube = normalOffsetVoxels(maxPcf_) * kOffsetExcess;
+    for (size_t t = 0; t < d.volume.triangleCount(); ++t) {
+      Vec3 v[3];
+      for (int c = 0; c < 3; ++c) v[c] = mappedVoxel(m, d.volume.vertex(t, c));
+      Span plane{};
+      fitPlane(v, plane);
+      const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
+      const double window = half + cube;
+      add(v, {Vec3{}}, window, -g * window - cube, g * window + cube, cube, 0, 0, parts[t]);
+    }
+  }
+
+  log2Cell_ = std::min(grid.log2Resolution, kLog2Cell);
+  cellsPerSide_ = uint64_t(R_) >> log2Cell_;
+  const size_t cells = size_t(cellsPerSide_ * cellsPerSide_);
+  cellBegin_.assign(cells + 1, 0);
+  auto forCells = [&](const Span& s, auto&& fn) {
+    for (int64_t cy = s.yMin >> log2Cell_; cy <= s.yMax >> log2Cell_; ++cy)
+      for (int64_t cx = s.xMin >> log2Cell_; cx <= s.xMax >> log2Cell_; ++cx) fn(size_t(cy) * cellsPerSide_ + size_t(cx));
+  };
+  for (const Span& s : spans_) forCells(s, [&](size_t c) { ++cellBegin_[c + 1]; });
+  for (size_t c = 0; c < cells; ++c) cellBegin_[c + 1] += cellBegin_[c];
+  cellItems_.resize(cellBegin_[cells]);
+  std::vector<uint32_t> fill(cellBegin_.begin(), cellBegin_.end() - 1);
+  for (uint32_t i = 0; i < spans_.size(); ++i) forCells(spans_[i], [&](size_t c) { cellItems_[fill[c]++] = i; });
+}
+
+bool ReceiverSet::touchesRectangle(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height) const {
+  if (kind_ == ReceiverKind::Everywhere) return true;
+  if (width == 0 || height == 0 || x0 >= R_ || y0 >= R_) return false;
+  const uint64_t x1 = std::min<uint64_t>(x0 + width, R_) - 1, y1 = std::min<uint64_t>(y0 + height, R_) - 1;
+  for (uint64_t cy = y0 >> log2Cell_; cy <= y1 >> log2Cell_; ++cy)
+    for (uint64_t cx = x0 >> log2Cell_; cx <= x1 >> log2Cell_; ++cx) {
+      const size_t c = size_t(cy * cellsPerSide_ + cx);
+      for (uint32_t k = cellBegin_[c]; k < cellBegin_[c + 1]; ++k) {
+        const Span& s = spans_[cellItems_[k]];
+        if (s.xMax >= int64_t(x0) && s.xMin <= int64_t(x1) && s.yMax >= int64_t(y0) && s.yMin <= int64_t(y1)) return true;
+      }
+    }
+  return false;
+}
+
+// The columns of row centre cy inside the span's coverage, [x0, x1]; false when none.
+bool ReceiverSet::columnRange(const Span& s, double cy, int64_t& x0, int64_t& x1) const {
+  double lo = double(s.xMin), hi = double(s.xMax);
+  for (int k = 0; k < 6; ++k) {
+    const double room = s.support[k] - s.dirY[k] * cy;  // dirX * cx <= room
+    if (s.dirX[k] > 0) {
+      hi = std::min(hi, std::floor(room / s.dirX[k] - 0.5));
+    } else if (s.dirX[k] < 0) {
+      lo = std::max(lo, std::ceil(room / s.dirX[k] - 0.5));
+    } else if (!(room >= 0)) {
+      return false;
+    }
+  }
+  if (!(lo <= hi)) return false;
+  x0 = int64_t(lo);
+  x1 = int64_t(hi);
+  return true;
+}
+
+bool ReceiverSet::readsAt(size_t i, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const {
+  const Span& s = spans_[i];
+  if (int64_t(y) < s.yMin || int64_t(y) > s.yMax) return false;
+  int64_t x0 = 0, x1 = 0;
+  if (!columnRange(s, double(y) + 0.5, x0, x1) || int64_t(x) < x0 || int64_t(x) > x1) return false;
+  return columnReads(s, x, y, first, last);
+}
+
+bool ReceiverSet::columnReads(const Span& s, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const {
+  const double cy = double(y) + 0.5, cx = double(x) + 0.5;
+  double lower = s.zLo, upper = s.zHi;
+  if (s.planar) {
+    const double z = s.pz + s.gx * (cx - s.px) + s.gy * (cy - s.py);
+    lower = std::max(lower, z + s.loOff);
+    upper = std::min(upper, z + s.hiOff);
+  }
+  if (!(lower <= upper) || upper < 0) return false;
+  const double top = double(R_) - 1;
+  first = uint32_t(std::min(top, std::max(0.0, std::floor(lower))));
+  last = uint32_t(std::min(top, std::floor(upper)));
+  return true;
+}
+
+void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices) const {
+  if (kind_ == ReceiverKind::Everywhere) return;
+  CPVS_CHECK(slices.firstUndefined.size() == size_t(width) * height && slices.firstShadowed.size() == slices.firstUndefined.size());
+  const uint32_t bands = (height + kBandRows - 1) / kBandRows;
+  tbb::parallel_for(uint32_t(0), bands, [&](uint32_t band) {
+    const uint32_t rowBegin = band * kBandRows, rowEnd = std::min(height, rowBegin + kBandRows);
+    const size_t texels = size_t(rowEnd - rowBegin) * width;
+    const uint32_t* lo = slices.firstUndefined.data() + size_t(rowBegin) * width;
+    const uint32_t* hi = slices.firstShadowed.data() + size_t(rowBegin) * width;
+    std::vector<uint32_t> newLo(texels, 0), newHi(texels, R_);
+    // The reads [a, b] at texel k: a lit slice needed below the old range, a shadowed
+    // one at or behind it.
+    auto need = [&](size_t k, uint32_t a, uint32_t b) {
+      if (a < lo[k]) newLo[k] = std::max(newLo[k], std::min(b + 1, lo[k]));
+      if (b >= hi[k]) newHi[k] = std::min(newHi[k], std::max(a, hi[k]));
+    };
+    // The spans reaching the band, each once, volume parts together.
+    std::vector<uint32_t> items;
+    const uint64_t gy0 = y0 + rowBegin, gy1 = y0 + rowEnd - 1, gx1 = x0 + width - 1;
+    for (uint64_t cy = gy0 >> log2Cell_; cy <= gy1 >> log2Cell_; ++cy)
+      for (uint64_t cx = x0 >> log2Cell_; cx <= gx1 >> log2Cell_; ++cx) {
+        const size_t c = size_t(cy * cellsPerSide_ + cx);
+        items.insert(items.end(), cellItems_.begin() + cellBegin_[c], cellItems_.begin() + cellBegin_[c + 1]);
+      }
+    std::sort(items.begin(), items.end(), [&](uint32_t a, uint32_t b) {
+      return spans_[a].part != spans_[b].part ? spans_[a].part < spans_[b].part : a < b;
+    });
+    items.erase(std::unique(items.begin(), items.end()), items.end());
+    // Per column of the band, the hull of one volume part's reads.
+    std::vector<uint32_t> hullLo, hullHi;
+    auto forColumns = [&](const Span& s, auto&& fn) {
+      const int64_t ya = std::max<int64_t>(s.yMin, int64_t(gy0)), yb = std::min<int64_t>(s.yMax, int64_t(gy1));
+      for (int64_t y = ya; y <= yb; ++y) {
+        int64_t xa = 0, xb = 0;
+        if (!columnRange(s, double(y) + 0.5, xa, xb)) continue;
+        xa = std::max<int64_t>(xa, int64_t(x0));
+        xb = std::min<int64_t>(xb, int64_t(gx1));
+        for (int64_t x = xa; x <= xb; ++x) {
+          uint32_t a, b;
+          if (columnReads(s, uint64_t(x), uint64_t(y), a, b))
+            fn(size_t(y - int64_t(gy0)) * width + size_t(x - int64_t(x0)), a, b);
+        }
+      }
+    };
+    for (size_t i = 0; i < items.size();) {
+      const uint32_t part = spans_[items[i]].part;
+      size_t j = i;
+      while (j < items.size() && spans_[items[j]].part == part) ++j;
+      if (part == 0) {
+        for (size_t k = i; k < j; ++k) forColumns(spans_[items[k]], need);
+      } else {
+        // hullLo > hullHi: not read. Only the part's reach in the band is swept.
+        if (hullLo.size() < texels) hullLo.resize(texels), hullHi.resize(texels);
+        int64_t rx0 = int64_t(gx1), rx1 = int64_t(x0), ry0 = int64_t(gy1), ry1 = int64_t(gy0);
+        for (size_t k = i; k < j; ++k) {
+          const Span& s = spans_[items[k]];
+          rx0 = std::min(rx0, std::max(s.xMin, int64_t(x0))), rx1 = std::max(rx1, std::min(s.xMax, int64_t(gx1)));
+          ry0 = std::min(ry0, std::max(s.yMin, int64_t(gy0))), ry1 = std::max(ry1, std::min(s.yMax, int64_t(gy1)));
+        }
+        auto rect = [&](auto&& fn) {
+          for (int64_t y = ry0; y <= ry1; ++y)
+            for (int64_t x = rx0; x <= rx1; ++x) fn(size_t(y - int64_t(gy0)) * width + size_t(x - int64_t(x0)));
+        };
+        rect([&](size_t t) { hullLo[t] = R_, hullHi[t] = 0; });
+        for (size_t k = i; k < j; ++k)
+          forColumns(spans_[items[k]], [&](size_t t, uint32_t a, uint32_t b) {
+            hullLo[t] = std::min(hullLo[t], a);
+            hullHi[t] = std::max(hullHi[t], b);
+          });
+        rect([&](size_t t) {
+          if (hullLo[t] <= hullHi[t]) need(t, hullLo[t], hullHi[t]);
+        });
+      }
+      i = j;
+    }
+    // An 8x8 column whose texels can share one transition gets it, at the most aligned
+    // slice they allow: whole leaves and nodes become homogeneous, and neighbouring
+    // columns with overlapping freedom pick the same slice.
+    for (uint32_t by = 0; by + 8 <= rowEnd - rowBegin; by += 8)
+      for (uint32_t bx = 0; bx + 8 <= width; bx += 8) {
+        uint32_t L = 0, H = R_;
+        for (uint32_t y = by; y < by + 8; ++y)
+          for (uint32_t x = bx; x < bx + 8; ++x) {
+            L = std::max(L, newLo[size_t(y) * width + x]);
+            H = std::min(H, newHi[size_t(y) * width + x]);
+          }
+        if (L > H) continue;
+        uint32_t k = H;
+        if (H < R_)
+          for (int j = 31; j >= 0; --j) {
+            const uint32_t aligned = j == 31 ? 0 : (H >> j) << j;
+            if (aligned >= L) {
+              k = aligned;
+              break;
+            }
+          }
+        for (uint32_t y = by; y < by + 8; ++y)
+          for (uint32_t x = bx; x < bx + 8; ++x) newLo[size_t(y) * width + x] = newHi[size_t(y) * width + x] = k;
+      }
+    std::copy(newLo.begin(), newLo.end(), slices.firstUndefined.begin() + ptrdiff_t(size_t(rowBegin) * width));
+    std::copy(newHi.begin(), newHi.end(), slices.firstShadowed.begin() + ptrdiff_t(size_t(rowBegin) * width));
+  });
+}
+
+}  // namespace cpvs

@@ -1,0 +1,243 @@
+// Declared receivers against a brute force: every voxel that any declared receiver's
+// lookup reads (its own point, normal offset and PCF footprint, each width up to the
+// declared one) has, in a bake that knows the receivers, the value the texel's
+// classification requires; and the bake is smaller than one for receivers everywhere.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "cpvs/bake/bake.h"
+#include "cpvs/bake/raster_slices.h"
+#include "cpvs/bake/receivers.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/query/shadow_query.h"
+#include "cpvs/scene/boxes.h"
+
+namespace cpvs {
+namespace {
+
+void appendQuad(Scene& s, Vec3 a, Vec3 b, Vec3 c, Vec3 d) {  // counter-clockwise seen from the front
+  const uint32_t base = uint32_t(s.positions.size());
+  for (const Vec3& p : {a, b, c, d}) s.positions.push_back(p);
+  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) s.indices.push_back(base + i);
+}
+
+// Open and closed geometry of every kind a level has: a ground sheet, a building without
+// a floor, a closed crate, a single-sided thin wall, a slanted roof-like triangle, and a
+// floating sheet facing down.
+Scene testScene() {
+  Scene s;
+  appendQuad(s, {-10, 0, -10}, {-10, 0, 10}, {10, 0, 10}, {10, 0, -10});  // ground, facing +y
+  const Vec3 lo{-6, 0, -6}, hi{-1, 4, -1};                                   // building walls and roof, outward
+  appendQuad(s, {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {hi.x, hi.y, hi.z}, {lo.x, hi.y, hi.z});
+  appendQuad(s, {hi.x, lo.y, lo.z}, {lo.x, lo.y, lo.z}, {lo.x, hi.y, lo.z}, {hi.x, hi.y, lo.z});
+  appendQuad(s, {hi.x, lo.y, hi.z}, {hi.x, lo.y, lo.z}, {hi.x, hi.y, lo.z}, {hi.x, hi.y, hi.z});
+  appendQuad(s, {lo.x, lo.y, lo.z}, {lo.x, lo.y, hi.z}, {lo.x, hi.y, hi.z}, {lo.x, hi.y, lo.z});
+  appendQuad(s, {lo.x, hi.y, lo.z}, {lo.x, hi.y, hi.z}, {hi.x, hi.y, hi.z}, {hi.x, hi.y, lo.z});
+  appendBox(s, {2, 0, 2}, {4, 2, 5});                                       // a closed crate
+  appendQuad(s, {0, 0, 6}, {6, 0, 6}, {6, 3, 6.05}, {0, 3, 6.05});          // a thin wall, one side
+  const uint32_t t = uint32_t(s.positions.size());
+  for (const Vec3& p : {Vec3{3, 1, -3}, Vec3{8, 5, -8}, Vec3{6, 1, -1}}) s.positions.push_back(p);
+  for (uint32_t i : {0u, 1u, 2u}) s.indices.push_back(t + i);
+  appendQuad(s, {-9, 6, 3}, {-4, 6, 3}, {-4, 6, 8}, {-9, 6, 8});            // a floating sheet, facing down
+  finalizeScene(s);
+  return s;
+}
+
+// A receiver lookup: a point, the normal it is queried with, and a filter width.
+struct Lookup {
+  Vec3 point, normal;
+  int pcf;
+};
+
+std::vector<Lookup> surfaceLookups(const Scene& s, ReceiverKind kind, int maxPcf, std::mt19937_64& rng, int perTriangle) {
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Lookup> out;
+  for (size_t t = 0; t < s.triangleCount(); ++t) {
+    const Vec3 a = s.vertex(t, 0), b = s.vertex(t, 1), c = s.vertex(t, 2);
+    const Vec3 n = normalize(cross(b - a, c - a));
+    const bool twoSided = kind == ReceiverKind::SurfacesTwoSided && !s.closed[t];
+    for (int k = 0; k < perTriangle; ++k) {
+      double x = u(rng), y = u(rng);
+      if (x + y > 1) x = 1 - x, y = 1 - y;
+      if (k % 8 == 0) x = 0;  // on an edge
+      if (k % 16 == 1) x = y = 0;  // on a vertex
+      const Vec3 p = a + (b - a) * x + (c - a) * y;
+      const int pcf = 1 + 2 * int(rng() % uint64_t(maxPcf / 2 + 1));
+      // A normal as an engine holds it: in float.
+      const Vec3 nf{double(float(n.x)), double(float(n.y)), double(float(n.z))};
+      out.push_back({p, nf, pcf});
+      if (twoSided) out.push_back({p, -nf, pcf});
+    }
+  }
+  return out;
+}
+
+std::vector<Lookup> volumeLookups(const Scene& volume, int maxPcf, std::mt19937_64& rng, int count) {
+  std::uniform_real_distribution<double> u(0, 1), sym(-1, 1);
+  Vec3 lo, hi;
+  sceneBounds(volume, lo, hi);
+  std::vector<Lookup> out;
+  while (int(out.size()) < count) {
+    const Vec3 p{lo.x + (hi.x - lo.x) * u(rng), lo.y + (hi.y - lo.y) * u(rng), lo.z + (hi.z - lo.z) * u(rng)};
+    // Keep points inside one of the boxes (each is its own closed part of 12 triangles).
+    bool inside = false;
+    for (size_t b = 0; b < volume.triangleCount() / 12 && !inside; ++b) {
+      Vec3 bl = volume.vertex(12 * b, 0), bh = bl;
+      for (size_t t = 12 * b; t < 12 * b + 12; ++t)
+        for (int c = 0; c < 3; ++c) {
+          const Vec3 v = volume.vertex(t, c);
+          bl = {std::min(bl.x, v.x), std::min(bl.y, v.y), std::min(bl.z, v.z)};
+          bh = {std::max(bh.x, v.x), std::max(bh.y, v.y), std::max(bh.z, v.z)};
+        }
+      inside = p.x >= bl.x && p.x <= bh.x && p.y >= bl.y && p.y <= bh.y && p.z >= bl.z && p.z <= bh.z;
+    }
+    if (!inside) continue;
+    Vec3 n{sym(rng), sym(rng), sym(rng)};
+    if (out.size() % 7 == 0) n = Vec3{};                       // no offset
+    if (out.size() % 7 == 1) n = Vec3{0, double(rng() % 2) * 2 - 1, 0};  // straight up or down
+    out.push_back({p, n, 1 + 2 * int(rng() % uint64_t(maxPcf / 2 + 1))});
+  }
+  return out;
+}
+
+// Checks every voxel the lookups read: returns the reads checked; adds failures.
+uint64_t checkReads(const ShadowQuery& q, const TexelSlices& truth, const std::vector<Lookup>& lookups, int& failures) {
+  const int64_t R = int64_t(q.grid().resolution());
+  uint64_t checked = 0;
+  for (const Lookup& l : lookups) {
+    const VoxelCoord v = q.voxelOf(l.point, l.normal, l.pcf);
+    const int r = l.pcf / 2;
+    if (v.z < 0) continue;  // in front of the grid: lit without a read
+    const int64_t z = std::min(v.z, R - 1);
+    for (int dy = -r; dy <= r; ++dy)
+      for (int dx = -r; dx <= r; ++dx) {
+        const int64_t x = v.x + dx, y = v.y + dy;
+        if (x < 0 || y < 0 || x >= R || y >= R) continue;
+        const size_t t = size_t(y * R + x);
+        const bool mustLight = z < int64_t(truth.firstUndefined[t]), mustShadow = z >= int64_t(truth.firstShadowed[t]);
+        if (!mustLight && !mustShadow) continue;  // inside closed geometry: free for everyone
+        ++checked;
+        const bool shadowed = q.voxelShadowed({x, y, z});
+        if (shadowed != mustShadow && failures++ < 10)
+          ADD_FAILURE() << "lookup at (" << l.point.x << ", " << l.point.y << ", " << l.point.z << ") normal ("
+                        << l.normal.x << ", " << l.normal.y << ", " << l.normal.z << ") pcf " << l.pcf
+                        << " reads voxel (" << x << ", " << y << ", " << z << "): " << (shadowed ? "shadowed" : "lit")
+                        << ", must be " << (mustShadow ? "shadowed" : "lit");
+      }
+  }
+  return checked;
+}
+
+Dag bake(const Scene& scene, const OrthoGrid& grid, BakeOptions options, const ReceiverDeclaration& d) {
+  options.receivers = d.kind;
+  options.receiverPcf = uint8_t(d.maxPcf);
+  const BakeScene prepared(scene, grid, options.renderer, 0, d);
+  return bakeGrid(prepared, options);
+}
+
+uint64_t bytesOf(const Dag& dag, const OrthoGrid& grid) {
+  CpvsArtifact a;
+  a.grid = grid;
+  a.dag = dag;
+  return encodeCpvs(a, false).size();
+}
+
+struct Case {
+  Vec3 sun;
+  int log2R;
+};
+
+class ReceiversTest : public ::testing::TestWithParam<Case> {};
+
+TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
+  const Scene scene = testScene();
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection(GetParam().sun), GetParam().log2R);
+  const uint32_t R = uint32_t(grid.resolution());
+  BakeOptions options;
+  options.log2TileSize = GetParam().log2R - 2;  // 16 tiles: reads cross tile borders
+  TexelSlices truth;
+  rasterTexelSlices(RasterScene(scene, grid), options.closed, options.exit, 0, 0, R, R, truth);
+  const uint64_t everywhere = bytesOf(bake(scene, grid, options, {}), grid);
+
+  std::mt19937_64 rng(GetParam().log2R * 1000 + uint64_t(GetParam().sun.x * 100));
+  for (ReceiverKind kind : {ReceiverKind::Surfaces, ReceiverKind::SurfacesTwoSided, ReceiverKind::Volume}) {
+    for (int maxPcf : {1, 3, 9}) {
+      SCOPED_TRACE(std::string(optionName(kind)) + " pcf " + std::to_string(maxPcf));
+      ReceiverDeclaration d;
+      d.kind = kind;
+      d.maxPcf = maxPcf;
+      if (kind == ReceiverKind::Volume) {
+        appendBox(d.volume, {-9, 0.2, 1}, {9, 2.5, 9});  // over the ground, through the wall and the crate
+        appendBox(d.volume, {-8, 4.5, -8}, {0, 5.5, 1});  // above the building's roof
+        finalizeScene(d.volume);
+      }
+      const Dag dag = bake(scene, grid, options, d);
+      const ShadowQuery q(grid, PackedDag(dag));
+      std::vector<Lookup> lookups = surfaceLookups(scene, kind, maxPcf, rng, 600);
+      if (kind == ReceiverKind::Volume) {
+        const auto inside = volumeLookups(d.volume, maxPcf, rng, 20000);
+        lookups.insert(lookups.end(), inside.begin(), inside.end());
+      }
+      int failures = 0;
+      const uint64_t checked = checkReads(q, truth, lookups, failures);
+      EXPECT_EQ(failures, 0);
+      EXPECT_GT(checked, lookups.size() / 2);
+      const uint64_t bytes = bytesOf(dag, grid);
+      if (kind == ReceiverKind::Surfaces) EXPECT_LT(bytes, everywhere);
+      // Freed intervals depend on each texel alone: any tiling gives the same bytes.
+      BakeOptions whole = options;
+      whole.log2TileSize = GetParam().log2R;
+      EXPECT_EQ(bytesOf(bake(scene, grid, whole, d), grid), bytes);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Suns, ReceiversTest,
+                         ::testing::Values(Case{{0.3, -1, 0.25}, 7}, Case{{-0.7, -0.35, 0.4}, 7},
+                                           Case{{0.05, -1, -0.02}, 8}, Case{{0.2, 0.9, -0.3}, 7},
+                                           Case{{1, -0.1, 0.05}, 8}));
+
+TEST(Receivers, TilesNoReceiverReadsAreNotRendered) {
+  Scene scene;
+  appendQuad(scene, {0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0});
+  appendQuad(scene, {30, 0, 30}, {30, 0, 31}, {31, 0, 31}, {31, 0, 30});
+  finalizeScene(scene);
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection({0, -1, 0}), 8);
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Surfaces;
+  const ReceiverSet set(scene, grid, d);
+  EXPECT_TRUE(set.touchesRectangle(0, 0, 256, 256));
+  // The two quads lie in opposite corners of the grid: the other corners hold no reads.
+  const Vec3 a = grid.voxelFromWorld({0.5, 0, 0.5}), b = grid.voxelFromWorld({30.5, 0, 30.5});
+  const uint64_t ax = uint64_t(a.x), ay = uint64_t(a.y), bx = uint64_t(b.x), by = uint64_t(b.y);
+  EXPECT_TRUE(set.touchesRectangle(ax, ay, 1, 1));
+  EXPECT_TRUE(set.touchesRectangle(bx, by, 1, 1));
+  EXPECT_FALSE(set.touchesRectangle(std::min(ax, bx) + 64, std::min(ay, by) + 64, 64, 64));
+  EXPECT_FALSE(set.touchesRectangle(std::max(ax, bx) - 32, std::min(ay, by) + 64, 16, 16));
+}
+
+TEST(Receivers, BadDeclarationsAreRefused) {
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Volume;
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);  // no volume
+  Scene open;
+  appendQuad(open, {0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0});
+  finalizeScene(open);
+  d.volume = open;
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);  // not closed
+  d.kind = ReceiverKind::Surfaces;
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);  // a volume for surfaces
+  d.volume = Scene{};
+  d.maxPcf = 4;
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);
+  d.maxPcf = 11;
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);
+  d.maxPcf = 9;
+  EXPECT_NO_THROW(checkReceiverDeclaration(d));
+  EXPECT_NE(receiverHash(d), Hash128{});
+  EXPECT_EQ(receiverHash(ReceiverDeclaration{}), Hash128{});
+}
+
+}  // namespace
+}  // namespace cpvs
