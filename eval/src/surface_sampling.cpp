@@ -84,8 +84,9 @@ std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& r
       return sampleByArea(scene, rays, closed, lightDir, count, seed, front);
     case ReceiverKind::SurfacesTwoSided:
       return sampleByArea(scene, rays, closed, lightDir, count, seed,
-                          [](const RayScene& r, ClosedMode c, uint32_t t, const Vec3&, const Vec3&, SplitMix64& rng) {
-                            return r.triangleClosed(t, c) || rng.uniform01() < 0.5 ? 1.0 : -1.0;
+                          [](const RayScene& r, ClosedMode, uint32_t t, const Vec3&, const Vec3&, SplitMix64& rng) {
+                            // ReceiverSet's rule: closed parts (by topology) have an outside only.
+                            return r.triangleClosed(t, ClosedMode::Auto) || rng.uniform01() < 0.5 ? 1.0 : -1.0;
                           });
     case ReceiverKind::Volume:
       break;

@@ -184,7 +184,9 @@ TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
       EXPECT_EQ(failures, 0);
       EXPECT_GT(checked, lookups.size() / 2);
       const uint64_t bytes = bytesOf(dag, grid);
-      if (kind == ReceiverKind::Surfaces) EXPECT_LT(bytes, everywhere);
+      if (kind == ReceiverKind::Surfaces) {
+        EXPECT_LT(bytes, everywhere);
+      }
       // Freed intervals depend on each texel alone: any tiling gives the same bytes.
       BakeOptions whole = options;
       whole.log2TileSize = GetParam().log2R;

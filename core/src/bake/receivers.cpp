@@ -29,16 +29,6 @@ struct Point2 {
   double x, y;
 };
 
-// A receiver triangle in voxels and what moves it: reads at offsets `offsets` (the
-// points' own lookups land there) over a square footprint of half-width `half`, and
-// depths `depthPad` either side (a volume's any-direction offset).
-struct SpanInput {
-  Vec3 v[3];
-  std::vector<Vec3> offsets;  // one or more; the reads' xy sweep between the first two
-  double half = 0;            // footprint half-width for the coverage test
-  uint32_t part = 0;
-};
-
 // Fills a span's plane: false when the triangle's projection is too thin for its plane
 // to bound depths (its depth range bounds them instead).
 bool fitPlane(const Vec3 (&v)[3], ReceiverSet::Span& s) {
@@ -158,11 +148,10 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
   const LookupMapping m = grid.lookupMapping();
   const double rho = 0.5 * (maxPcf_ - 1);  // footprint radius, texels
   const double half = rho + 0.5;           // a column's window: the footprint around a texel
-  auto add = [&](const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double coverHalf, double loOff, double hiOff,
-                 double depthPad, double sweepLo, double sweepHi, uint32_t part) {
-    Span s{};
+  // `s` holds the triangle's plane (fitPlane); the rest is filled here.
+  auto add = [&](Span s, const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double coverHalf, double loOff,
+                 double hiOff, double depthPad, double sweepLo, double sweepHi, uint32_t part) {
     s.part = part;
-    s.planar = fitPlane(v, s);
     if (!fitCoverage(v, sweep, coverHalf + kSlack, R_, s)) return;
     const double zMin = std::min({v[0].z, v[1].z, v[2].z}), zMax = std::max({v[0].z, v[1].z, v[2].z});
     s.zLo = zMin + sweepLo - depthPad - kSlack;
@@ -178,14 +167,14 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
     Vec3 v[3];
     for (int c = 0; c < 3; ++c) v[c] = mappedVoxel(m, scene.vertex(t, c));
     const Vec3 nWorld = triangleNormal(scene, t);
+    Span plane{};
+    plane.planar = fitPlane(v, plane);
+    const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
     const bool twoSided = kind_ == ReceiverKind::SurfacesTwoSided && !scene.closed[t];
     for (int side = 0; side < (twoSided ? 2 : 1); ++side) {
       Vec3 nv = mappedDirection(m, side ? -nWorld : nWorld);
       const double big = std::max({std::fabs(nv.x), std::fabs(nv.y), std::fabs(nv.z)});
       if (!(big > 0) || !std::isfinite(big)) continue;
-      Span plane{};
-      const bool planar = fitPlane(v, plane);
-      const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
       double loOff = std::numeric_limits<double>::infinity(), hiOff = -loOff;
       double sweepLo = loOff, sweepHi = hiOff;
       std::vector<Vec3> sweep;
@@ -194,7 +183,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
           const Vec3 o = nv * (normalOffsetVoxels(width) * f / big);
           const double r = 0.5 * (width - 1) + 0.5;
           const double shift = o.z - plane.gx * o.x - plane.gy * o.y;
-          if (planar) {
+          if (plane.planar) {
             loOff = std::min(loOff, shift - g * r);
             hiOff = std::max(hiOff, shift + g * r);
           }
@@ -203,7 +192,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
           if ((width == 1 && f == 1.0) || (width == maxPcf_ && f != 1.0)) sweep.push_back(o);
         }
       }
-      add(v, sweep, half, loOff, hiOff, 0, sweepLo, sweepHi, 0);
+      add(plane, v, sweep, half, loOff, hiOff, 0, sweepLo, sweepHi, 0);
     }
   }
 
@@ -216,10 +205,10 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
       Vec3 v[3];
       for (int c = 0; c < 3; ++c) v[c] = mappedVoxel(m, d.volume.vertex(t, c));
       Span plane{};
-      fitPlane(v, plane);
+      plane.planar = fitPlane(v, plane);
       const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
       const double window = half + cube;
-      add(v, {Vec3{}}, window, -g * window - cube, g * window + cube, cube, 0, 0, parts[t]);
+      add(plane, v, {Vec3{}}, window, -g * window - cube, g * window + cube, cube, 0, 0, parts[t]);
     }
   }
 
@@ -270,14 +259,6 @@ bool ReceiverSet::columnRange(const Span& s, double cy, int64_t& x0, int64_t& x1
   x0 = int64_t(lo);
   x1 = int64_t(hi);
   return true;
-}
-
-bool ReceiverSet::readsAt(size_t i, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const {
-  const Span& s = spans_[i];
-  if (int64_t(y) < s.yMin || int64_t(y) > s.yMax) return false;
-  int64_t x0 = 0, x1 = 0;
-  if (!columnRange(s, double(y) + 0.5, x0, x1) || int64_t(x) < x0 || int64_t(x) > x1) return false;
-  return columnReads(s, x, y, first, last);
 }
 
 bool ReceiverSet::columnReads(const Span& s, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const {

@@ -46,7 +46,6 @@ class ReceiverSet {
 
   ReceiverKind kind() const { return kind_; }
   int maxPcf() const { return maxPcf_; }
-  size_t size() const { return spans_.size(); }
 
   /// False when no receiver's lookup reads a voxel of the texel rectangle: every voxel of
   /// it is free, which the undefined rules resolve to all lit. Always true for Everywhere.
@@ -59,14 +58,10 @@ class ReceiverSet {
   /// Multithreaded; depends only on each texel's own position.
   void freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices) const;
 
-  /// The slices [first, last] of column (x, y) that receiver i's lookups may read, false
-  /// when it reads none there: the per-column rule of freeIntervals, for tests.
-  bool readsAt(size_t i, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const;
-
   /// A receiver triangle: where its lookups land, in voxel coordinates.
   struct Span {
     double px, py, pz;            // plane anchor (voxels) ...
-    double gx, gy;                // ... and slope: the triangle's depth plane; planar = false when degenerate
+    double gx, gy;                // ... and slope: the triangle's depth plane, unless !planar (too thin)
     double loOff, hiOff;          // read depths relative to the plane at a column's centre
     double zLo, zHi;              // and the bounds of every read depth
     double dirX[6], dirY[6], support[6];  // column centres c with dir . c <= support
@@ -74,8 +69,6 @@ class ReceiverSet {
     uint32_t part;                // 0: a surface; k > 0: the k-th volume part (hulled)
     bool planar;
   };
-  const std::vector<Span>& spans() const { return spans_; }
-
  private:
   bool columnRange(const Span& s, double cy, int64_t& x0, int64_t& x1) const;
   bool columnReads(const Span& s, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const;
