@@ -17,6 +17,7 @@
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/net/chunked_stream.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/receiver_declaration.h"
 #include "cpvs/net/status.h"
 
 namespace cpvs::worker {
@@ -129,7 +130,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     BakeOptions options = net::fromProto(lease.options());
     // The hash names files in the cache: 32 hex digits, nothing a path could be made of (R23).
     parseHashHex(lease.scene_hash(), "the lease's scene_hash");
-    auto prepared = bakeScene(lease.scene_hash(), grid, options.renderer);
+    auto prepared = bakeScene(lease.scene_hash(), grid, options.renderer, lease.options().receivers());
     StageTimes times;
     Dag dag = bakeTile(*prepared, lease.tile_x(), lease.tile_y(), options, &times);
     auto start = std::chrono::steady_clock::now();
@@ -249,7 +250,7 @@ std::string TileWorker::fetchScene(const std::string& sceneHash) {
 }
 
 std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, const OrthoGrid& grid,
-                                                 Renderer renderer) {
+                                                 Renderer renderer, const v1::Receivers& receivers) {
   std::shared_ptr<CachedScene> cached;
   {
     std::lock_guard lock(cacheMutex_);
@@ -266,13 +267,18 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
   for (double x : {grid.u0, grid.v0, grid.d0, grid.extent, grid.depthExtent})
     key += (std::snprintf(field, sizeof field, ",%a", x), field);
   key += "," + std::to_string(grid.log2Resolution);
+  // The receivers as sent (kind, width, the volume's hash and boxes) decide what is freed.
+  const std::string declared = receivers.SerializeAsString();
+  key += "," + contentHash(declared.data(), declared.size()).hex();
   // A job's tiles share one grid: a handful of entries cover the jobs a worker serves
   // (slots still baking keep theirs alive).
   if (!cached->prepared.count(key) && cached->prepared.size() >= 4) cached->prepared.clear();
   auto& prepared = cached->prepared[key];
   if (!prepared) {
     auto start = std::chrono::steady_clock::now();
-    prepared = std::make_shared<BakeScene>(cached->scene, grid, renderer, config_.threads);
+    const ReceiverDeclaration declaration =
+        net::declarationOf(receivers, [&](const std::string& hash) { return loadScene(fetchScene(hash)); });
+    prepared = std::make_shared<BakeScene>(cached->scene, grid, renderer, config_.threads, declaration);
     spdlog::info("scene {} prepared for the {} renderer in {:.2f} s", sceneHash, optionName(renderer), secondsSince(start));
   }
   return prepared;

@@ -54,7 +54,8 @@ class TileWorker {
   /// Bakes and returns one leased tile; false when the coordinator is unreachable.
   void bakeLeased(const pb::TileLease& lease);
   /// The scene prepared for a lease's grid and renderer, loaded and built once.
-  std::shared_ptr<BakeScene> bakeScene(const std::string& sceneHash, const OrthoGrid& grid, Renderer renderer);
+  std::shared_ptr<BakeScene> bakeScene(const std::string& sceneHash, const OrthoGrid& grid, Renderer renderer,
+                                       const v1::Receivers& receivers);
   std::string fetchScene(const std::string& sceneHash);
   /// sendResult, again with backoff while the coordinator is unreachable.
   void deliverResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,

@@ -56,6 +56,17 @@ void addOptionFlags(CLI::App* c, OptionFlags& o, const std::string& tileHelp) {
       ->capture_default_str();
 }
 
+std::vector<std::pair<Vec3, Vec3>> receiverBoxesOf(const OptionFlags& f) {
+  std::vector<std::pair<Vec3, Vec3>> boxes;
+  for (const std::string& text : f.receiverBoxes) {
+    const std::vector<double> v = parseNumbers(text, "--receiver-box");
+    if (v.size() != 6 || !(v[0] < v[3] && v[1] < v[4] && v[2] < v[5]))
+      throw InputError("--receiver-box: '" + text + "' is not MINX,MINY,MINZ,MAXX,MAXY,MAXZ with min < max");
+    boxes.push_back({{v[0], v[1], v[2]}, {v[3], v[4], v[5]}});
+  }
+  return boxes;
+}
+
 ReceiverDeclaration receiversOf(const OptionFlags& f) {
   ReceiverDeclaration d;
   const size_t colon = f.receivers.find(':');
@@ -67,12 +78,7 @@ ReceiverDeclaration receiversOf(const OptionFlags& f) {
   if (!f.receiverBoxes.empty() && !volume) throw InputError("--receiver-box needs --receivers volume");
   if (volume) {
     if (colon != std::string::npos) d.volume = loadScene(f.receivers.substr(colon + 1));
-    for (const std::string& text : f.receiverBoxes) {
-      const std::vector<double> v = parseNumbers(text, "--receiver-box");
-      if (v.size() != 6 || !(v[0] < v[3] && v[1] < v[4] && v[2] < v[5]))
-        throw InputError("--receiver-box: '" + text + "' is not MINX,MINY,MINZ,MAXX,MAXY,MAXZ with min < max");
-      appendBox(d.volume, {v[0], v[1], v[2]}, {v[3], v[4], v[5]});
-    }
+    for (const auto& [lo, hi] : receiverBoxesOf(f)) appendBox(d.volume, lo, hi);
     finalizeScene(d.volume);
   }
   try {

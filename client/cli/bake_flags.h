@@ -6,10 +6,12 @@
 
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cpvs/bake/options.h"
 #include "cpvs/bake/receivers.h"
+#include "cpvs/base/vec3.h"
 #include "cpvs/light/frame.h"
 
 namespace cpvs::cli {
@@ -35,6 +37,8 @@ struct OptionFlags {
 void addOptionFlags(CLI::App* c, OptionFlags& options, const std::string& tileHelp);
 /// The bake options the flags name; InputError naming the flag otherwise.
 BakeOptions optionsOf(const OptionFlags& flags);
+/// The --receiver-box boxes as (min, max); InputError unless six numbers with min < max.
+std::vector<std::pair<Vec3, Vec3>> receiverBoxesOf(const OptionFlags& flags);
 /// The receiver declaration of --receivers, --receiver-box and --receiver-pcf, its volume
 /// loaded (a mesh file, boxes); InputError naming the flag otherwise.
 ReceiverDeclaration receiversOf(const OptionFlags& flags);

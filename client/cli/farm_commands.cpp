@@ -32,6 +32,7 @@
 #include "cpvs/scene/source.h"
 #include "cpvs/client/farm_client.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/query/normal_offset.h"
 #include "cpvs/sun/sun_position.h"
 
 namespace cpvs::cli {
@@ -191,13 +192,9 @@ int finalExitStatus(const pb::JobStatus& s) {
 
 /// Each option flag given on the command line overrides its field of `o` (the proto's
 /// enum values are the core's: static_asserts in net/src/convert.cpp); checked after.
-void applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::BakeOptions& o) {
+/// Returns the receiver volume's mesh file to upload (`--receivers volume:MESH`), or "".
+std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::BakeOptions& o) {
   auto given = [&](const char* option) { return c.count(option) > 0; };
-  // Farm jobs carry no receiver declaration yet: refuse it rather than bake another one.
-  for (const char* f : {"--receivers", "--receiver-box", "--receiver-pcf"})
-    if (given(f))
-      throw InputError(std::string(f) + ": farm jobs are baked for receivers everywhere for now; bake locally "
-                       "(cpvs bake) for a receiver declaration");
   const BakeOptions flags = optionsOf(options);
   if (given("--closed")) o.set_closed(pb::ClosedMode(flags.closed));
   if (given("--exit")) o.set_exit(pb::ExitMode(flags.exit));
@@ -206,7 +203,41 @@ void applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::BakeOpt
   if (given("--undefined")) o.set_undefined_rule(pb::UndefinedRule(flags.undefinedRule));
   if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
   if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
-  (void)net::fromProto(o);
+  std::string mesh;
+  if (given("--receivers") || given("--receiver-box") || given("--receiver-pcf")) {
+    pb::Receivers& r = *o.mutable_receivers();
+    if (given("--receivers")) {
+      r.set_kind(pb::ReceiverKind(flags.receivers));
+      r.clear_volume_scene_hash();
+      const size_t colon = options.receivers.find(':');
+      if (colon != std::string::npos) mesh = options.receivers.substr(colon + 1);
+      if (!mesh.empty() && flags.receivers != ReceiverKind::Volume)
+        throw InputError("--receivers: only 'volume' takes a file ('" + options.receivers + "')");
+    }
+    if (given("--receiver-pcf")) {
+      checkPcfWidth(options.receiverPcf);
+      r.set_max_pcf(uint32_t(options.receiverPcf));
+    }
+    if (given("--receiver-box")) {
+      r.clear_boxes();
+      for (const auto& [lo, hi] : receiverBoxesOf(options)) {
+        pb::ReceiverBox& b = *r.add_boxes();
+        *b.mutable_min() = net::toProto(lo);
+        *b.mutable_max() = net::toProto(hi);
+      }
+    }
+  }
+  // A mesh still to upload stands for the hash it will have.
+  pb::BakeOptions check = o;
+  if (!mesh.empty()) check.mutable_receivers()->set_volume_scene_hash(std::string(32, '0'));
+  (void)net::fromProto(check);
+  return mesh;
+}
+
+/// Uploads the receiver volume's mesh (if the flags named one) and records its hash.
+void uploadReceiverVolume(FarmClient& client, const std::string& mesh, pb::BakeOptions& o) {
+  if (mesh.empty()) return;
+  o.mutable_receivers()->set_volume_scene_hash(client.uploadScene(mesh).sceneHash);
 }
 
 struct SubmitArgs {
@@ -254,7 +285,7 @@ class TemporaryScene {
 /// The spec to submit: the job file's, if any, with every flag given on the command line
 /// overriding its field, and the bake defaults for what neither gives. Validated here,
 /// before anything is uploaded; InputError names the flag or field.
-pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
+pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volumeMesh) {
   auto given = [&](const char* option) { return c.count(option) > 0; };
   pb::BakeSpec spec;
   if (!a.jobFile.empty()) {
@@ -283,7 +314,7 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
   if (given("--resolution") || spec.resolution().empty()) spec.set_resolution(a.resolution);
   (void)parseResolution(spec.resolution());
 
-  applyOptionFlags(a.options, c, *spec.mutable_options());
+  volumeMesh = applyOptionFlags(a.options, c, *spec.mutable_options());
 
   if (given("--priority")) spec.set_priority(a.priority);
   if (given("--name")) spec.set_name(a.name);
@@ -295,7 +326,8 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c) {
 }
 
 int runSubmit(const SubmitArgs& a, const CLI::App& c) {
-  pb::BakeSpec spec = buildSpec(a, c);
+  std::string volumeMesh;
+  pb::BakeSpec spec = buildSpec(a, c, volumeMesh);
   const bool chatty = !a.json && !a.quiet;
   FarmClient client(connectionOf(a.conn));
 
@@ -316,6 +348,7 @@ int runSubmit(const SubmitArgs& a, const CLI::App& c) {
     spec.set_scene_hash(up.sceneHash);
   }
 
+  uploadReceiverVolume(client, volumeMesh, *spec.mutable_options());
   const std::string requestId = a.requestId.empty() ? randomRequestId() : a.requestId;
   pb::JobStatus status = client.submit(requestId, spec);
   if (!a.wait) {
@@ -511,7 +544,7 @@ int runTrackCreate(const TrackCreateArgs& a, const CLI::App& c) {
   pb::TrackSpec spec;
   spec.set_resolution(a.resolution);
   (void)parseResolution(a.resolution);
-  applyOptionFlags(a.options, c, *spec.mutable_options());
+  const std::string volumeMesh = applyOptionFlags(a.options, c, *spec.mutable_options());
   spec.set_name(a.name.empty() ? (isGeneratedScene(a.scene) ? a.scene : fs::path(a.scene).filename().string()) : a.name);
   spec.set_keyframes_ahead(a.ahead);
   spec.set_keep_versions(a.keep);
@@ -550,6 +583,7 @@ int runTrackCreate(const TrackCreateArgs& a, const CLI::App& c) {
     path = generated->path();
   }
   spec.set_scene_hash(client.uploadScene(path).sceneHash);
+  uploadReceiverVolume(client, volumeMesh, *spec.mutable_options());
   const pb::TrackStatus t = client.createTrack(a.requestId.empty() ? randomRequestId() : a.requestId, spec);
   if (a.json) std::printf("%s\n", trackJson(t).c_str());
   else

@@ -33,6 +33,34 @@ static_assert(pb::Renderer_ARRAYSIZE == int(OptionNames<Renderer>::kNames.size()
               pb::UndefinedRule_ARRAYSIZE == int(OptionNames<UndefinedRule>::kNames.size()),
               "every value of an option exists on both sides");
 
+static_assert(int(ReceiverKind::Everywhere) == pb::RECEIVERS_EVERYWHERE && int(ReceiverKind::Surfaces) == pb::RECEIVERS_SURFACES &&
+              int(ReceiverKind::SurfacesTwoSided) == pb::RECEIVERS_SURFACES_TWO_SIDED &&
+              int(ReceiverKind::Volume) == pb::RECEIVERS_VOLUME &&
+              pb::ReceiverKind_ARRAYSIZE == int(OptionNames<ReceiverKind>::kNames.size()));
+
+void checkReceivers(const pb::Receivers& r) {
+  if (!isOptionValue<ReceiverKind>(r.kind()))
+    throw InputError("options.receivers.kind: unknown value " + std::to_string(r.kind()));
+  const uint32_t pcf = r.max_pcf();
+  if (pcf != 0 && (pcf % 2 == 0 || pcf > uint32_t(kMaxPcfWidthOption)))
+    throw InputError("options.receivers.max_pcf " + std::to_string(pcf) + " must be odd and between 1 and 9");
+  const bool volume = r.kind() == pb::RECEIVERS_VOLUME;
+  const bool declared = !r.volume_scene_hash().empty() || r.boxes_size() > 0;
+  if (volume && !declared) throw InputError("options.receivers: RECEIVERS_VOLUME needs volume_scene_hash or boxes");
+  if (!volume && declared) throw InputError("options.receivers: only RECEIVERS_VOLUME takes a volume");
+  if (!r.volume_scene_hash().empty()) parseHashHex(r.volume_scene_hash(), "options.receivers.volume_scene_hash");
+  if (r.boxes_size() > kMaxReceiverBoxes)
+    throw InputError("options.receivers: " + std::to_string(r.boxes_size()) + " boxes; at most " +
+                     std::to_string(kMaxReceiverBoxes));
+  for (const pb::ReceiverBox& b : r.boxes()) {
+    const Vec3 lo = fromProto(b.min()), hi = fromProto(b.max());
+    const bool finite = std::isfinite(lo.x) && std::isfinite(lo.y) && std::isfinite(lo.z) && std::isfinite(hi.x) &&
+                        std::isfinite(hi.y) && std::isfinite(hi.z);
+    if (!finite || !(lo.x < hi.x && lo.y < hi.y && lo.z < hi.z))
+      throw InputError("options.receivers.boxes: a box is not finite with min < max");
+  }
+}
+
 pb::BakeOptions toProto(const BakeOptions& o) {
   // The farm hashes with XXH3 only: the weak hash is a hook for tests of one process.
   if (o.hash != HashKind::Xxh3)
@@ -45,6 +73,10 @@ pb::BakeOptions toProto(const BakeOptions& o) {
   p.set_undefined_rule(pb::UndefinedRule(int(o.undefinedRule)));
   p.set_tile_size(1u << o.log2TileSize);
   p.set_renderer(pb::Renderer(int(o.renderer)));
+  if (o.receivers != ReceiverKind::Everywhere) {
+    p.mutable_receivers()->set_kind(pb::ReceiverKind(int(o.receivers)));
+    p.mutable_receivers()->set_max_pcf(o.receiverPcf);
+  }
   return p;
 }
 
@@ -65,6 +97,11 @@ BakeOptions fromProto(const pb::BakeOptions& p) {
   o.undefinedRule = UndefinedRule(p.undefined_rule());
   o.renderer = p.has_renderer() ? Renderer(p.renderer()) : BakeOptions{}.renderer;
   o.log2TileSize = p.tile_size() == 0 ? kDefaultLog2TileSize : log2TileSizeOf(p.tile_size(), "options.tile_size");
+  if (p.has_receivers()) {
+    checkReceivers(p.receivers());
+    o.receivers = ReceiverKind(p.receivers().kind());
+    if (o.receivers != ReceiverKind::Everywhere && p.receivers().max_pcf() != 0) o.receiverPcf = uint8_t(p.receivers().max_pcf());
+  }
   return o;
 }
 

@@ -13,6 +13,7 @@
 #include "cpvs/base/text.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/receiver_declaration.h"
 #include "cpvs/net/error_kind.h"
 
 namespace cpvs::server {
@@ -107,8 +108,10 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
   checkRoom();  // before loading the scene, which may take long
   Scene scene = scenes_.load(spec.scene_hash());
   OrthoGrid grid;
+  ReceiverDeclaration receivers;
   try {
     grid = makeGrid(scene, frame, log2R);
+    receivers = net::declarationOf(spec.options().receivers(), [&](const std::string& hash) { return scenes_.load(hash); });
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
   }
@@ -119,17 +122,21 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
   j.spec = spec.SerializeAsString();
   j.grid = grid;
   j.options = options;
+  j.receiverHash = receiverHash(receivers);
   j.priority = spec.priority();
   j.createdMs = nowMs();
   j.tilesTotal = plan.count();
-  // Tiles no triangle can touch are all lit: done now, merged without a worker.
+  // Tiles no triangle can touch, or no declared receiver reads, are all lit: done now,
+  // merged without a worker (BakeScene::touchesTile, without building a renderer).
   std::vector<uint64_t> untouched;
   {
     const RasterScene projected(scene, grid);
+    const ReceiverSet reads(scene, grid, receivers);
     const uint64_t T = uint64_t(1) << plan.log2TileSize();
     for (uint64_t i = 0; i < plan.count(); ++i) {
       const TileCoord t = plan.tile(i);
-      if (!projected.touchesRectangle(t.x * T, t.y * T, T, T)) untouched.push_back(i);
+      if (!projected.touchesRectangle(t.x * T, t.y * T, T, T) || !reads.touchesRectangle(t.x * T, t.y * T, T, T))
+        untouched.push_back(i);
     }
   }
   {

@@ -56,6 +56,12 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   out.set_scene_hash(j->sceneHash);
   *out.mutable_grid() = net::toProto(j->grid);
   *out.mutable_options() = net::toProto(j->options);
+  if (j->options.receivers != ReceiverKind::Everywhere) {
+    // The volume (mesh hash, boxes) lives in the spec as submitted, not in the typed columns.
+    pb::BakeSpec spec;
+    spec.ParseFromString(j->spec);
+    *out.mutable_options()->mutable_receivers() = spec.options().receivers();
+  }
   out.set_deadline_unix_ms(deadline);
   out.set_lease_ms(uint32_t(deadline - now));
   feed_.notify();

@@ -83,14 +83,17 @@ constexpr const char* kJobColumns =
     "artifact_checksum, tiles_total, bytes, file_bytes, peak_merge_bytes, "
     "light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, frame_u_z, frame_v_x, frame_v_y, frame_v_z, "
     "origin_x, origin_y, origin_z, u0, v0, d0, extent, depth_extent, log2_resolution, "
-    "closed, exit_mode, cull, compress, undefined_rule, log2_tile_size, hash_kind, renderer";
-constexpr int kJobColumnCount = 42;
+    "closed, exit_mode, cull, compress, undefined_rule, log2_tile_size, hash_kind, renderer, receivers, receiver_pcf, "
+    "receiver_hash";
+constexpr int kJobColumnCount = 45;
 constexpr int kGridColumn = 16, kOptionsColumn = 34;
 
 /// The schema this build writes (PRAGMA user_version). 2: typed grid and option columns;
 /// 3: the renderer column (a version 2 store is upgraded in place: its jobs were Embree's);
-/// 4: sun tracks, keyframes and versions (tables added to a version 2 or 3 store).
-constexpr int kSchemaVersion = 4;
+/// 4: sun tracks, keyframes and versions (tables added to a version 2 or 3 store);
+/// 5: the receiver declaration's columns (added to a version 2 to 4 store: receivers
+/// everywhere).
+constexpr int kSchemaVersion = 5;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -134,6 +137,9 @@ JobRecord readJob(const Statement& s) {
   o.log2TileSize = int(s.i64(c + 5));
   o.hash = HashKind(s.i64(c + 6));
   o.renderer = Renderer(s.i64(c + 7));
+  o.receivers = ReceiverKind(s.i64(c + 8));
+  o.receiverPcf = uint8_t(s.i64(c + 9));
+  if (!s.str(c + 10).empty()) j.receiverHash = parseHashHex(s.str(c + 10), "the job's receiver hash");
   return j;
 }
 
@@ -150,8 +156,10 @@ void bindJob(Statement& s, const JobRecord& j) {
   s.bind(c++, int64_t(g.log2Resolution));
   const BakeOptions& o = j.options;
   for (int64_t v : {int64_t(o.closed), int64_t(o.exit), int64_t(o.cull), int64_t(o.compress),
-                    int64_t(o.undefinedRule), int64_t(o.log2TileSize), int64_t(o.hash), int64_t(o.renderer)})
+                    int64_t(o.undefinedRule), int64_t(o.log2TileSize), int64_t(o.hash), int64_t(o.renderer),
+                    int64_t(o.receivers), int64_t(o.receiverPcf)})
     s.bind(c++, v);
+  s.text(c++, j.receiverHash == Hash128{} ? std::string() : j.receiverHash.hex());
 }
 
 }  // namespace
@@ -182,9 +190,12 @@ FarmStore::FarmStore(const std::string& path) {
     Statement t(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'jobs'");
     t.step();
     const bool existing = t.i64(0) > 0;
-    if (existing && version == 2) {
-      exec("ALTER TABLE jobs ADD COLUMN renderer INTEGER NOT NULL DEFAULT 0");
-    } else if (existing && version != kSchemaVersion && version != 3)
+    if (existing && version == 2) exec("ALTER TABLE jobs ADD COLUMN renderer INTEGER NOT NULL DEFAULT 0");
+    if (existing && version >= 2 && version <= 4) {
+      exec("ALTER TABLE jobs ADD COLUMN receivers INTEGER NOT NULL DEFAULT 0");
+      exec("ALTER TABLE jobs ADD COLUMN receiver_pcf INTEGER NOT NULL DEFAULT 9");
+      exec("ALTER TABLE jobs ADD COLUMN receiver_hash TEXT NOT NULL DEFAULT ''");
+    } else if (existing && version != kSchemaVersion)
       throw std::runtime_error("the job store " + path + " has schema version " + std::to_string(version == 0 ? 1 : version) +
                                "; this cpvs-server reads version " + std::to_string(kSchemaVersion) +
                                ": finish its jobs with the server that made it, or start with an empty --data folder");
@@ -197,7 +208,8 @@ FarmStore::FarmStore(const std::string& path) {
       "light_dir_x REAL, light_dir_y REAL, light_dir_z REAL, frame_u_x REAL, frame_u_y REAL, frame_u_z REAL, "
       "frame_v_x REAL, frame_v_y REAL, frame_v_z REAL, origin_x REAL, origin_y REAL, origin_z REAL, u0 REAL, v0 REAL, "
       "d0 REAL, extent REAL, depth_extent REAL, log2_resolution INTEGER, closed INTEGER, exit_mode INTEGER, cull "
-      "INTEGER, compress INTEGER, undefined_rule INTEGER, log2_tile_size INTEGER, hash_kind INTEGER, renderer INTEGER)");
+      "INTEGER, compress INTEGER, undefined_rule INTEGER, log2_tile_size INTEGER, hash_kind INTEGER, renderer INTEGER, "
+      "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT)");
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
       "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, PRIMARY KEY(job_id, idx))");

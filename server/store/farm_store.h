@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cpvs/bake/options.h"
+#include "cpvs/base/hash.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/light/ortho_grid.h"
 
@@ -40,6 +41,7 @@ struct JobRecord {
   std::string spec;     // the request's cpvs.v1.BakeSpec as sent, serialized: shown back, compared on retries
   OrthoGrid grid;       // what the tiles bake, in typed columns
   BakeOptions options;
+  Hash128 receiverHash;  // receiverHash of the job's declaration (zero: receivers everywhere)
   JobState state = JobState::Queued;
   int priority = 0;
   int64_t createdMs = 0, startedMs = 0, finishedMs = 0;

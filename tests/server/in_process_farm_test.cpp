@@ -190,6 +190,94 @@ TEST(InProcessFarm, UntouchedTilesAreNotLeasedAndBothRenderersGiveTheLocalBytes)
   farm.server.shutdown(1);
 }
 
+// Receivers travel with a job: surfaces, and a volume of an uploaded closed mesh plus a
+// box, bake on the farm to the bytes of the local bake, the declaration's hash included.
+TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
+  TempDir dir("cpvs_in_process_receivers");
+  Scene scene;
+  for (const Vec3& p : {Vec3{-10, 0, -10}, Vec3{-10, 0, 10}, Vec3{10, 0, 10}, Vec3{10, 0, -10}}) scene.positions.push_back(p);
+  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) scene.indices.push_back(i);  // an open ground sheet, facing up
+  appendBox(scene, {-3, 0, -3}, {2, 5, 1});
+  finalizeScene(scene);
+  const std::string obj = dir / "level.obj";
+  writeObj(obj, scene);
+  Scene mesh;
+  appendBox(mesh, {-9, 0, -9}, {9, 2, 9});
+  finalizeScene(mesh);
+  const std::string meshObj = dir / "volume.obj";
+  writeObj(meshObj, mesh);
+
+  InProcessFarm farm(dir / "data");
+  worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
+  wc.workerId = "in-process";
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+  const std::string sceneHash = farm.client.uploadScene(obj).sceneHash;
+  const std::string volumeHash = farm.client.uploadScene(meshObj).sceneHash;
+  const Scene loaded = loadScene(obj);
+  for (ReceiverKind kind : {ReceiverKind::Surfaces, ReceiverKind::Volume}) {
+    pb::BakeSpec spec;
+    spec.set_scene_hash(sceneHash);
+    *spec.mutable_sun_direction() = net::toProto(Vec3{0.3, -1, 0.2});
+    spec.set_resolution("256");
+    spec.mutable_options()->set_tile_size(64);
+    pb::Receivers& r = *spec.mutable_options()->mutable_receivers();
+    r.set_kind(pb::ReceiverKind(int(kind)));
+    r.set_max_pcf(5);
+    ReceiverDeclaration d;
+    d.kind = kind;
+    d.maxPcf = 5;
+    if (kind == ReceiverKind::Volume) {
+      r.set_volume_scene_hash(volumeHash);
+      pb::ReceiverBox& b = *r.add_boxes();
+      *b.mutable_min() = net::toProto(Vec3{-4, 5, -4});
+      *b.mutable_max() = net::toProto(Vec3{3, 7, 2});
+      d.volume = loadScene(meshObj);
+      appendBox(d.volume, {-4, 5, -4}, {3, 7, 2});
+      finalizeScene(d.volume);
+    }
+    const pb::JobStatus done =
+        farm.client.watch(farm.client.submit(std::string("receivers-") + optionName(kind), spec).job_id());
+    ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
+    farm.client.download(done.job_id(), dir / "farm.cpvs");
+
+    CpvsArtifact local;
+    local.grid = makeGrid(loaded, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
+    local.options.log2TileSize = 6;
+    local.options.receivers = kind;
+    local.options.receiverPcf = 5;
+    local.sceneHash = cpvs::sceneHash(loaded);
+    local.receiverHash = receiverHash(d);
+    const BakeScene prepared(loaded, local.grid, local.options.renderer, 0, d);
+    local.dag = bakeGrid(prepared, local.options);
+    EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true)) << optionName(kind);
+  }
+  // A volume that is not closed, or names no uploaded mesh, is refused at submit.
+  pb::BakeSpec bad;
+  bad.set_scene_hash(sceneHash);
+  *bad.mutable_sun_direction() = net::toProto(Vec3{0.3, -1, 0.2});
+  bad.set_resolution("256");
+  bad.mutable_options()->mutable_receivers()->set_kind(pb::RECEIVERS_VOLUME);
+  bad.mutable_options()->mutable_receivers()->set_volume_scene_hash(sceneHash);  // the open level
+  auto refusal = [&](const std::string& id) {
+    try {
+      farm.client.submit(id, bad);
+    } catch (const client::FarmCallError& e) {
+      return std::make_pair(e.kind(), std::string(e.what()));
+    }
+    return std::make_pair(net::ErrorKind::Internal, std::string("accepted"));
+  };
+  auto [kind, message] = refusal("bad-volume");
+  EXPECT_EQ(kind, net::ErrorKind::InvalidArgument) << message;
+  EXPECT_NE(message.find("must be closed"), std::string::npos) << message;
+  bad.mutable_options()->mutable_receivers()->set_volume_scene_hash(std::string(32, 'a'));
+  std::tie(kind, message) = refusal("missing-volume");
+  EXPECT_EQ(kind, net::ErrorKind::NotFound) << message;
+  tileWorker.stop();
+  workerThread.join();
+  farm.server.shutdown(1);
+}
+
 TEST(InProcessFarm, UnknownJobsAndRefusalsAreTheirKinds) {
   TempDir dir("cpvs_in_process_refusals");
   InProcessFarm farm(dir / "data");
@@ -290,13 +378,19 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
   }
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN renderer; PRAGMA user_version = 2", nullptr, nullptr, nullptr),
+  ASSERT_EQ(sqlite3_exec(db,
+                         "ALTER TABLE jobs DROP COLUMN renderer; ALTER TABLE jobs DROP COLUMN receivers; "
+                         "ALTER TABLE jobs DROP COLUMN receiver_pcf; ALTER TABLE jobs DROP COLUMN receiver_hash; "
+                         "PRAGMA user_version = 2",
+                         nullptr, nullptr, nullptr),
             SQLITE_OK);
   sqlite3_close(db);
   server::FarmStore store(path);
   const auto back = store.job("old");
   ASSERT_TRUE(back.has_value());
   EXPECT_EQ(back->options.renderer, Renderer::Embree);
+  EXPECT_EQ(back->options.receivers, ReceiverKind::Everywhere);  // and baked for receivers everywhere
+  EXPECT_EQ(back->receiverHash, Hash128{});
   EXPECT_EQ(back->grid.log2Resolution, 10);
   EXPECT_EQ(back->tilesTotal, 2u);
   server::JobRecord fresh = sampleJob("new", 0, 1);
@@ -334,6 +428,49 @@ TEST(TokenTable, RolesFromAFileAndWhatEachMayCall) {
   EXPECT_FALSE(server::TokenTable::allows(server::Role::Client, server::Role::Worker));
   std::ofstream(dir / "bad") << "superuser superuser-token-01\n";
   EXPECT_THROW(server::TokenTable::load(dir / "bad"), InputError);
+}
+
+TEST(Convert, ReceiversRoundTripAndBadOnesAreNamed) {
+  BakeOptions o;
+  o.receivers = ReceiverKind::SurfacesTwoSided;
+  o.receiverPcf = 3;
+  EXPECT_EQ(net::fromProto(net::toProto(o)), o);
+  EXPECT_FALSE(net::toProto(BakeOptions{}).has_receivers());
+  pb::BakeOptions p;
+  p.mutable_receivers()->set_kind(pb::RECEIVERS_SURFACES);
+  EXPECT_EQ(net::fromProto(p).receiverPcf, 9);  // 0: the widest
+  auto refused = [](pb::Receivers r, const std::string& words) {
+    try {
+      net::checkReceivers(r);
+      ADD_FAILURE() << "accepted: " << words;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+  };
+  pb::Receivers r;
+  r.set_kind(pb::ReceiverKind(9));
+  refused(r, "kind: unknown value 9");
+  r.set_kind(pb::RECEIVERS_SURFACES);
+  r.set_max_pcf(4);
+  refused(r, "max_pcf 4");
+  r.set_max_pcf(11);
+  refused(r, "max_pcf 11");
+  r.set_max_pcf(9);
+  r.set_volume_scene_hash(std::string(32, 'a'));
+  refused(r, "only RECEIVERS_VOLUME takes a volume");
+  r.set_kind(pb::RECEIVERS_VOLUME);
+  r.set_volume_scene_hash("../../etc/passwd");
+  refused(r, "volume_scene_hash");
+  r.clear_volume_scene_hash();
+  refused(r, "needs volume_scene_hash or boxes");
+  pb::ReceiverBox& b = *r.add_boxes();
+  *b.mutable_min() = net::toProto(Vec3{0, 0, 0});
+  *b.mutable_max() = net::toProto(Vec3{1, std::nan(""), 1});
+  refused(r, "not finite with min < max");
+  *b.mutable_max() = net::toProto(Vec3{1, 1, 1});
+  EXPECT_NO_THROW(net::checkReceivers(r));
+  for (int i = 0; i < net::kMaxReceiverBoxes; ++i) *r.add_boxes() = b;
+  refused(r, "at most 4096");
 }
 
 TEST(Convert, OptionsAndGridsRoundTripAndTheWeakHashStaysHome) {

@@ -25,6 +25,15 @@ pb::BakeOptions toProto(const BakeOptions& o);
 /// Throws InputError naming the field.
 BakeOptions fromProto(const pb::BakeOptions& o);
 
+/// Limits of a receiver declaration on the wire.
+constexpr int kMaxReceiverBoxes = 4096;
+
+/// Validates a receiver declaration's fields that need no scene: the kind, an odd PCF
+/// width in [1, 9] (0 = 9), a volume (an uploaded mesh's hash and/or at most
+/// kMaxReceiverBoxes finite boxes with min < max) exactly for RECEIVERS_VOLUME.
+/// InputError naming the field.
+void checkReceivers(const pb::Receivers& r);
+
 pb::GridSpec toProto(const OrthoGrid& g);
 /// Validates the grid as the file reader does (checkGrid).
 OrthoGrid fromProto(const pb::GridSpec& g);

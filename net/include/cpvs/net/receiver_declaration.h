@@ -1,0 +1,20 @@
+// A farm job's receivers as the bake takes them: what the coordinator and the worker
+// both build from a job's options, so that both free the same voxels as a local bake.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "cpvs/bake/receivers.h"
+#include "cpvs/v1/farm.pb.h"
+
+namespace cpvs::net {
+
+/// The declaration of `receivers` (checkReceivers first): its kind and PCF width, and for
+/// a volume the mesh `loadMesh(volume_scene_hash)` returns followed by the boxes, in
+/// order, as `cpvs bake --receivers volume:MESH --receiver-box ...` builds it (the same
+/// receiverHash). InputError for an invalid or open volume.
+ReceiverDeclaration declarationOf(const ::cpvs::v1::Receivers& receivers,
+                                  const std::function<Scene(const std::string& hash)>& loadMesh);
+
+}  // namespace cpvs::net
