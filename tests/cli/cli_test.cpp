@@ -352,6 +352,8 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
       {"bake city --sun-dir 0,-1,0 --receivers volume --receiver-box 0,0,0,1,1", "MINX"},
       {"bake city --sun-dir 0,-1,0 --receivers surfaces --receiver-pcf 4", "must be odd"},
       {"bake city --sun-dir 0,-1,0 --receivers surfaces:x.obj", "only 'volume' takes a file"},
+      {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers volume", "needs volume_scene_hash or boxes"},
+      {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers surfaces --receiver-pcf 6", "must be odd"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     std::string args = cases[i].args;
