@@ -30,6 +30,7 @@ struct AccuracyArgs {
   double timingSeconds = 0.2;
   int tileSize = 4096, threads = 0;
   std::vector<std::string> cameras;
+  OptionFlags receivers;  // --receivers, --receiver-box, --receiver-pcf
   bool quiet = false;
 };
 
@@ -104,6 +105,7 @@ int runAccuracy(const AccuracyArgs& a) {
     throw InputError("--timing-seconds " + std::to_string(a.timingSeconds) + " must be between 0 and 3600");
   opt.minTimingSeconds = a.timingSeconds;
   opt.bake.log2TileSize = log2TileSizeOf(uint64_t(std::max(a.tileSize, 0)), "--tile-size");
+  opt.receivers = receiversOf(a.receivers);
   const LightFrame frame = lightFromFlags(a.sun.dir, a.sun.elevation, a.sun.azimuth);
   prepareOutDir(a.out);
 
@@ -147,6 +149,7 @@ void addAccuracyCommand(CLI::App& app, int& status) {
                 "instead of every surface uniformly by area; repeat for several cameras")
       ->take_all()
       ->allow_extra_args(false);
+  addReceiverFlags(c, a->receivers);
   c->add_option("--pcf-samples", a->pcfSamples, "How many of them get PCF references (shadow rays per footprint texel)")
       ->capture_default_str();
   c->add_option("--seed", a->seed, "Sampling seed")->capture_default_str();

@@ -43,6 +43,10 @@ void addOptionFlags(CLI::App* c, OptionFlags& o, const std::string& tileHelp) {
                 "texels whose ray grazes an edge")
       ->check(CLI::IsMember(namesOf<Renderer>()))->capture_default_str();
   c->add_option("--tile-size", o.tileSize, tileHelp)->capture_default_str();
+  addReceiverFlags(c, o);
+}
+
+void addReceiverFlags(CLI::App* c, OptionFlags& o) {
   c->add_option("--receivers", o.receivers,
                 "Who queries the shadows; every voxel their lookups never read is left free: everywhere (any point "
                 "outside closed solids), surfaces (the front side of the scene's surfaces, with their geometric "

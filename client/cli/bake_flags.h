@@ -35,6 +35,8 @@ struct OptionFlags {
 };
 /// `tileHelp` says what the tile size means to this command.
 void addOptionFlags(CLI::App* c, OptionFlags& options, const std::string& tileHelp);
+/// --receivers, --receiver-box, --receiver-pcf (part of addOptionFlags).
+void addReceiverFlags(CLI::App* c, OptionFlags& options);
 /// The bake options the flags name; InputError naming the flag otherwise.
 BakeOptions optionsOf(const OptionFlags& flags);
 /// The --receiver-box boxes as (min, max); InputError unless six numbers with min < max.

@@ -215,11 +215,13 @@ ShadowQuery bakeRow(const Inputs& in, const OrthoGrid& grid, const std::string& 
   art.grid = grid;
   art.options = in.options.bake;
   art.sceneHash = in.geometryHash;
+  art.options.receivers = in.options.receivers.kind;
+  art.options.receiverPcf = uint8_t(in.options.receivers.maxPcf);
   StageTimes st;
   const auto start = std::chrono::steady_clock::now();
   // The bake's own renderer, as `cpvs bake` would prepare it (included in the bake time).
-  const BakeScene prepared(in.scene, grid, in.options.bake.renderer);
-  art.dag = bakeGrid(prepared, in.options.bake, &st, [&](const std::string&, uint64_t d, uint64_t t) {
+  const BakeScene prepared(in.scene, grid, in.options.bake.renderer, 0, in.options.receivers);
+  art.dag = bakeGrid(prepared, art.options, &st, [&](const std::string&, uint64_t d, uint64_t t) {
     return !in.progress || in.progress(label + " bake", d, t);
   });
   row.bakeSeconds = secondsSince(start);
@@ -397,7 +399,7 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
   RayScene rays(scene, finest.origin);
   const std::vector<SurfaceSample> samples =
       options.cameras.empty()
-          ? sampleSurfaces(scene, rays, options.bake.closed, frame.dir, options.samples, options.seed)
+          ? sampleReceivers(scene, rays, options.bake.closed, frame.dir, options.receivers, options.samples, options.seed)
           : sampleCameraViews(scene, rays, options.cameras, options.cameraAspect, options.samples, options.seed);
   if (samples.empty())
     throw InputError("accuracy: " + std::string(options.cameras.empty() ? "scene '" + scene.name + "' has no surface"
@@ -417,6 +419,8 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
   out.pcfSamples = std::min<uint64_t>(options.pcfSamples, in.count());
   out.seed = options.seed;
   out.cameras = options.cameras;
+  out.receivers = options.receivers.kind;
+  out.receiverPcf = options.receivers.maxPcf;
   out.extent = finest.extent;
   out.depthExtent = finest.depthExtent;
   out.firstRadius = finest.extent / (16.0 * double(finest.resolution()));

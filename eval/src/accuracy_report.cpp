@@ -121,6 +121,10 @@ std::string accuracyMarkdown(const AccuracyReport& rep) {
     << "); grid " << format("%.6g", rep.extent) << " × " << format("%.6g", rep.extent) << " × "
     << format("%.6g", rep.depthExtent) << " world units (u × v × depth). " << rep.samples
     << " surface points (" << (rep.cameras.empty() ? "uniform by area" : "seen by " + camerasText(rep.cameras))
+    << (rep.receivers == ReceiverKind::Everywhere
+            ? std::string()
+            : std::string(rep.cameras.empty() ? " over the declared receivers" : "") + "; the CPVS is baked for receivers '" +
+                  optionName(rep.receivers) + "' with PCF up to " + std::to_string(rep.receiverPcf))
     << ", seed " << rep.seed << "), the same for every resolution and method; PCF errors on the first "
     << rep.pcfSamples << " of them" << (rep.pcfSamples < rep.samples ? " (a subset, for time)" : "") << ". "
     << rep.threads << " threads; measured in " << format("%.1f", rep.seconds) << " s.\n\n";

@@ -451,6 +451,20 @@ TEST_F(AccuracyCli, SamplesWhatTheCamerasSee) {
   EXPECT_NE(md.find("rays through uniformly random points of the cameras' images"), std::string::npos);
 }
 
+// The receiver declaration reaches the bake and the sampling: a bake for surfaces is
+// measured on its declared receivers and says so.
+TEST_F(AccuracyCli, MeasuresABakeForItsReceivers) {
+  const fs::path out = dir_ / "receivers";
+  CliRun r = cpvs("accuracy city:3 --sun-elevation 35 --resolutions 256 --samples 2000 --pcf-samples 50 "
+                  "--timing-seconds 0.001 --receivers surfaces --receiver-pcf 3 -q --out " + out.string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  const std::string md = slurp(out / "accuracy.md");
+  EXPECT_NE(md.find("over the declared receivers; the CPVS is baked for receivers 'surfaces' with PCF up to 3"),
+            std::string::npos)
+      << md.substr(0, 600);
+  EXPECT_NE(slurp(out / "accuracy.csv").find(",receivers_s,"), std::string::npos);
+}
+
 TEST_F(AccuracyCli, RefusesBadInputWithExitStatus2) {
   const std::string base = "accuracy city:2 --sun-elevation 35 --samples 200 --out " + (dir_ / "o").string();
   struct Bad {
@@ -469,6 +483,7 @@ TEST_F(AccuracyCli, RefusesBadInputWithExitStatus2) {
       {"accuracy no-such-scene.obj --sun-elevation 35 --out " + (dir_ / "o").string(), "no-such-scene.obj"},
       {base + " --camera 1,2,3", "EX,EY,EZ,TX,TY,TZ"},
       {base + " --camera 0,1000,0,0,2000,0", "the cameras see no surface"},  // looking up, at the sky
+      {base + " --receivers volume", "needs a volume"},
   };
   for (const Bad& b : cases) {
     CliRun r = cpvs(b.args);

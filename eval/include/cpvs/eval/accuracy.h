@@ -133,6 +133,10 @@ struct AccuracyOptions {
   uint64_t pcfSamples = 10000;    // the first this many of them get PCF references
   uint64_t seed = 1;
   BakeOptions bake;
+  /// Who the CPVS is baked for (bake.receivers and bake.receiverPcf follow it). Without
+  /// cameras the points are where they are (sampleReceivers); with cameras, what the
+  /// cameras see, declared or not.
+  ReceiverDeclaration receivers;
   uint64_t maxFullShadowMapBytes = uint64_t(2) << 30;  // a full-resolution map above this is skipped
   double minTimingSeconds = 0.2;  // each lookup timing repeats the batch at least this long
 };
@@ -143,6 +147,8 @@ struct AccuracyReport {
   Vec3 lightDir;
   uint64_t samples = 0, pcfSamples = 0, seed = 1;
   std::vector<Camera> cameras;  // empty: the points are uniform by area
+  ReceiverKind receivers = ReceiverKind::Everywhere;  // the CPVS's declaration
+  int receiverPcf = 0;
   double extent = 0, depthExtent = 0;  // the grid's u, v side and depth range (world units)
   double firstRadius = 0, maxRadius = 0;  // boundaryDistance's r0 and rMax
   unsigned threads = 0;                   // worker threads used for timings
