@@ -261,21 +261,6 @@ bool ReceiverSet::columnRange(const Span& s, double cy, int64_t& x0, int64_t& x1
   return true;
 }
 
-bool ReceiverSet::columnReads(const Span& s, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const {
-  const double cy = double(y) + 0.5, cx = double(x) + 0.5;
-  double lower = s.zLo, upper = s.zHi;
-  if (s.planar) {
-    const double z = s.pz + s.gx * (cx - s.px) + s.gy * (cy - s.py);
-    lower = std::max(lower, z + s.loOff);
-    upper = std::min(upper, z + s.hiOff);
-  }
-  if (!(lower <= upper) || upper < 0) return false;
-  const double top = double(R_) - 1;
-  first = uint32_t(std::min(top, std::max(0.0, std::floor(lower))));
-  last = uint32_t(std::min(top, std::floor(upper)));
-  return true;
-}
-
 void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices) const {
   if (kind_ == ReceiverKind::Everywhere) return;
   CPVS_CHECK(slices.firstUndefined.size() == size_t(width) * height && slices.firstShadowed.size() == slices.firstUndefined.size());
@@ -306,17 +291,30 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
     items.erase(std::unique(items.begin(), items.end()), items.end());
     // Per column of the band, the hull of one volume part's reads.
     std::vector<uint32_t> hullLo, hullHi;
+    // Per column of a span's rows in the band, the slices it reads (columnReads, with the
+    // row's part of the plane computed once: the same operations for every tiling).
+    const double top = double(R_) - 1;
     auto forColumns = [&](const Span& s, auto&& fn) {
       const int64_t ya = std::max<int64_t>(s.yMin, int64_t(gy0)), yb = std::min<int64_t>(s.yMax, int64_t(gy1));
       for (int64_t y = ya; y <= yb; ++y) {
         int64_t xa = 0, xb = 0;
-        if (!columnRange(s, double(y) + 0.5, xa, xb)) continue;
+        const double cy = double(y) + 0.5;
+        if (!columnRange(s, cy, xa, xb)) continue;
         xa = std::max<int64_t>(xa, int64_t(x0));
         xb = std::min<int64_t>(xb, int64_t(gx1));
+        const size_t row = size_t(y - int64_t(gy0)) * width - size_t(x0);
+        if (!s.planar) {
+          if (!(s.zLo <= s.zHi) || s.zHi < 0) continue;
+          const uint32_t a = uint32_t(std::min(top, std::max(0.0, s.zLo))), b = uint32_t(std::min(top, s.zHi));
+          for (int64_t x = xa; x <= xb; ++x) fn(row + size_t(x), a, b);
+          continue;
+        }
+        const double base = s.pz - s.gx * s.px + s.gy * (cy - s.py);
         for (int64_t x = xa; x <= xb; ++x) {
-          uint32_t a, b;
-          if (columnReads(s, uint64_t(x), uint64_t(y), a, b))
-            fn(size_t(y - int64_t(gy0)) * width + size_t(x - int64_t(x0)), a, b);
+          const double z = base + s.gx * (double(x) + 0.5);
+          const double lower = std::max(s.zLo, z + s.loOff), upper = std::min(s.zHi, z + s.hiOff);
+          if (!(lower <= upper) || upper < 0) continue;
+          fn(row + size_t(x), uint32_t(std::min(top, std::max(0.0, lower))), uint32_t(std::min(top, upper)));
         }
       }
     };

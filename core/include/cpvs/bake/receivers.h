@@ -71,7 +71,6 @@ class ReceiverSet {
   };
  private:
   bool columnRange(const Span& s, double cy, int64_t& x0, int64_t& x1) const;
-  bool columnReads(const Span& s, uint64_t x, uint64_t y, uint32_t& first, uint32_t& last) const;
   ReceiverKind kind_;
   int maxPcf_;
   uint32_t R_ = 0;
