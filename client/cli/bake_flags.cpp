@@ -51,21 +51,27 @@ void addReceiverFlags(CLI::App* c, OptionFlags& o) {
                 "Who queries the shadows; every voxel their lookups never read is left free: everywhere (any point "
                 "outside closed solids), surfaces (the front side of the scene's surfaces, with their geometric "
                 "normals), surfaces-two-sided (both sides of open surfaces), volume[:MESH] (front sides plus any "
-                "point, any normal, inside a closed mesh file and the --receiver-box boxes)")
+                "point, any normal, inside a closed mesh file and the --receiver-box boxes), cameras[:MESH] (the "
+                "sides of surfaces a --camera-region faces within --view-distance, plus an optional volume)")
       ->capture_default_str();
   c->add_option("--receiver-box", o.receiverBoxes,
                 "A box of the receiver volume, MINX,MINY,MINZ,MAXX,MAXY,MAXZ in scene units (repeatable; with "
                 "--receivers volume)");
   c->add_option("--receiver-pcf", o.receiverPcf, "The widest PCF filter receivers' lookups use (1, 3, 5, 7, 9)")
       ->capture_default_str();
+  c->add_option("--camera-region", o.cameraRegions,
+                "With --receivers cameras: a box cameras can be in, MINX,MINY,MINZ,MAXX,MAXY,MAXZ (repeatable)");
+  c->add_option("--view-distance", o.viewDistance,
+                "With --receivers cameras: how far cameras see (scene units); surfaces farther from every region "
+                "do not receive");
 }
 
-std::vector<std::pair<Vec3, Vec3>> receiverBoxesOf(const OptionFlags& f) {
+std::vector<std::pair<Vec3, Vec3>> boxesOf(const std::vector<std::string>& texts, const std::string& flag) {
   std::vector<std::pair<Vec3, Vec3>> boxes;
-  for (const std::string& text : f.receiverBoxes) {
-    const std::vector<double> v = parseNumbers(text, "--receiver-box");
+  for (const std::string& text : texts) {
+    const std::vector<double> v = parseNumbers(text, flag);
     if (v.size() != 6 || !(v[0] < v[3] && v[1] < v[4] && v[2] < v[5]))
-      throw InputError("--receiver-box: '" + text + "' is not MINX,MINY,MINZ,MAXX,MAXY,MAXZ with min < max");
+      throw InputError(flag + ": '" + text + "' is not MINX,MINY,MINZ,MAXX,MAXY,MAXZ with min < max");
     boxes.push_back({{v[0], v[1], v[2]}, {v[3], v[4], v[5]}});
   }
   return boxes;
@@ -76,14 +82,20 @@ ReceiverDeclaration receiversOf(const OptionFlags& f) {
   const size_t colon = f.receivers.find(':');
   d.kind = parseOption<ReceiverKind>(f.receivers.substr(0, colon), "--receivers");
   d.maxPcf = f.receiverPcf;
-  const bool volume = d.kind == ReceiverKind::Volume;
+  const bool cameras = d.kind == ReceiverKind::Cameras, volume = d.kind == ReceiverKind::Volume || cameras;
   if (colon != std::string::npos && !volume)
-    throw InputError("--receivers: only 'volume' takes a file ('" + f.receivers + "')");
-  if (!f.receiverBoxes.empty() && !volume) throw InputError("--receiver-box needs --receivers volume");
+    throw InputError("--receivers: only 'volume' and 'cameras' take a file ('" + f.receivers + "')");
+  if (!f.receiverBoxes.empty() && !volume) throw InputError("--receiver-box needs --receivers volume or cameras");
+  if (!cameras && (!f.cameraRegions.empty() || f.viewDistance != 0))
+    throw InputError("--camera-region and --view-distance need --receivers cameras");
   if (volume) {
     if (colon != std::string::npos) d.volume = loadScene(f.receivers.substr(colon + 1));
-    for (const auto& [lo, hi] : receiverBoxesOf(f)) appendBox(d.volume, lo, hi);
+    for (const auto& [lo, hi] : boxesOf(f.receiverBoxes, "--receiver-box")) appendBox(d.volume, lo, hi);
     finalizeScene(d.volume);
+  }
+  if (cameras) {
+    d.cameraRegions = boxesOf(f.cameraRegions, "--camera-region");
+    d.viewDistance = f.viewDistance;
   }
   try {
     checkReceiverDeclaration(d);

@@ -30,17 +30,20 @@ struct OptionFlags {
               renderer = optionName(BakeOptions{}.renderer);
   int tileSize = 1 << kDefaultLog2TileSize;
   std::string receivers = optionName(ReceiverKind::Everywhere);
-  std::vector<std::string> receiverBoxes;
+  std::vector<std::string> receiverBoxes, cameraRegions;
   int receiverPcf = kMaxPcfWidthOption;
+  double viewDistance = 0;
 };
 /// `tileHelp` says what the tile size means to this command.
 void addOptionFlags(CLI::App* c, OptionFlags& options, const std::string& tileHelp);
-/// --receivers, --receiver-box, --receiver-pcf (part of addOptionFlags).
+/// --receivers, --receiver-box, --receiver-pcf, --camera-region, --view-distance (part of
+/// addOptionFlags).
 void addReceiverFlags(CLI::App* c, OptionFlags& options);
 /// The bake options the flags name; InputError naming the flag otherwise.
 BakeOptions optionsOf(const OptionFlags& flags);
-/// The --receiver-box boxes as (min, max); InputError unless six numbers with min < max.
-std::vector<std::pair<Vec3, Vec3>> receiverBoxesOf(const OptionFlags& flags);
+/// Boxes given as MINX,MINY,MINZ,MAXX,MAXY,MAXZ (--receiver-box, --camera-region) as
+/// (min, max); InputError naming `flag` unless six numbers with min < max.
+std::vector<std::pair<Vec3, Vec3>> boxesOf(const std::vector<std::string>& texts, const std::string& flag);
 /// The receiver declaration of --receivers, --receiver-box and --receiver-pcf, its volume
 /// loaded (a mesh file, boxes); InputError naming the flag otherwise.
 ReceiverDeclaration receiversOf(const OptionFlags& flags);

@@ -204,15 +204,16 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
   if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
   if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
   std::string mesh;
-  if (given("--receivers") || given("--receiver-box") || given("--receiver-pcf")) {
+  if (given("--receivers") || given("--receiver-box") || given("--receiver-pcf") || given("--camera-region") ||
+      given("--view-distance")) {
     pb::Receivers& r = *o.mutable_receivers();
     if (given("--receivers")) {
       r.set_kind(pb::ReceiverKind(flags.receivers));
       r.clear_volume_scene_hash();
       const size_t colon = options.receivers.find(':');
       if (colon != std::string::npos) mesh = options.receivers.substr(colon + 1);
-      if (!mesh.empty() && flags.receivers != ReceiverKind::Volume)
-        throw InputError("--receivers: only 'volume' takes a file ('" + options.receivers + "')");
+      if (!mesh.empty() && flags.receivers != ReceiverKind::Volume && flags.receivers != ReceiverKind::Cameras)
+        throw InputError("--receivers: only 'volume' and 'cameras' take a file ('" + options.receivers + "')");
     }
     if (given("--receiver-pcf")) {
       checkPcfWidth(options.receiverPcf);
@@ -220,12 +221,21 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
     }
     if (given("--receiver-box")) {
       r.clear_boxes();
-      for (const auto& [lo, hi] : receiverBoxesOf(options)) {
+      for (const auto& [lo, hi] : boxesOf(options.receiverBoxes, "--receiver-box")) {
         pb::ReceiverBox& b = *r.add_boxes();
         *b.mutable_min() = net::toProto(lo);
         *b.mutable_max() = net::toProto(hi);
       }
     }
+    if (given("--camera-region")) {
+      r.clear_camera_regions();
+      for (const auto& [lo, hi] : boxesOf(options.cameraRegions, "--camera-region")) {
+        pb::ReceiverBox& b = *r.add_camera_regions();
+        *b.mutable_min() = net::toProto(lo);
+        *b.mutable_max() = net::toProto(hi);
+      }
+    }
+    if (given("--view-distance")) r.set_view_distance(options.viewDistance);
   }
   // A mesh still to upload stands for the hash it will have.
   pb::BakeOptions check = o;

@@ -29,18 +29,23 @@ ReceiverDeclaration bakedReceivers(const VerifyArgs& a, const CpvsArtifact& art)
   ReceiverDeclaration d;
   d.kind = art.options.receivers;
   d.maxPcf = art.options.receiverPcf;
-  const bool given = a.receivers.receivers != optionName(ReceiverKind::Everywhere) || !a.receivers.receiverBoxes.empty();
-  if (d.kind == ReceiverKind::Volume) {
-    if (!given) throw InputError(a.file + " was baked for a receiver volume: give it again (--receivers volume:MESH, --receiver-box)");
-    OptionFlags f = a.receivers;
-    f.receiverPcf = d.maxPcf;
-    d = receiversOf(f);
-    if (d.kind != ReceiverKind::Volume) throw InputError("--receivers: " + a.file + " was baked for 'volume'");
-  } else if (given && a.receivers.receivers != optionName(d.kind)) {
-    throw InputError("--receivers: " + a.file + " was baked for '" + optionName(d.kind) + "', not '" + a.receivers.receivers + "'");
+  const OptionFlags& f = a.receivers;
+  const bool given = f.receivers != optionName(ReceiverKind::Everywhere) || !f.receiverBoxes.empty() ||
+                     !f.cameraRegions.empty() || f.viewDistance != 0;
+  const std::string baked = optionName(d.kind);
+  if (d.kind == ReceiverKind::Volume || d.kind == ReceiverKind::Cameras) {
+    if (!given)
+      throw InputError(a.file + " was baked for '" + baked + "' receivers: give them again (--receivers " + baked +
+                       "[:MESH], --receiver-box, --camera-region, --view-distance)");
+    OptionFlags copy = f;
+    copy.receiverPcf = d.maxPcf;
+    d = receiversOf(copy);
+    if (d.kind != art.options.receivers) throw InputError("--receivers: " + a.file + " was baked for '" + baked + "'");
+  } else if (given && f.receivers != baked) {
+    throw InputError("--receivers: " + a.file + " was baked for '" + baked + "', not '" + f.receivers + "'");
   }
   if (receiverHash(d) != art.receiverHash)
-    throw InputError("the receiver volume given is not the one " + a.file + " was baked for (declaration " +
+    throw InputError("the receivers given are not the ones " + a.file + " was baked for (declaration " +
                      receiverHash(d).hex() + ", the file's " + art.receiverHash.hex() + ")");
   return d;
 }
@@ -96,10 +101,9 @@ void addVerifyCommand(CLI::App& app, int& status) {
   c->add_option("--samples,-n", a->samples, "Surface points to compare")->capture_default_str();
   c->add_option("--seed", a->seed, "Sampling seed")->capture_default_str();
   c->add_flag("--json", a->json, "Print the result as JSON");
-  c->add_option("--receivers", a->receivers.receivers,
-                "For a bake for a receiver volume: volume[:MESH] as it was baked (the file records which receivers "
-                "it was baked for, and verify samples those: surfaces, both sides, the volume)");
-  c->add_option("--receiver-box", a->receivers.receiverBoxes, "A box of the receiver volume, as it was baked");
+  // The file records which receivers it was baked for and verify samples those; a volume
+  // or camera regions are given again, as baked (--receiver-pcf is the file's).
+  addReceiverFlags(c, a->receivers);
   c->callback([a, &status] { status = runVerify(*a); });
 }
 

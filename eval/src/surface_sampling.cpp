@@ -12,16 +12,16 @@ namespace cpvs {
 
 namespace {
 
-// Which side of triangle t a sample is taken from: +1 front, -1 back.
-using SidePicker = double (*)(const RayScene&, ClosedMode, uint32_t, const Vec3&, const Vec3&, SplitMix64&);
-
+// `count` points uniform by area over the triangles `take` accepts, each with the normal
+// of the side `side(t, rng)` picks (+1 front, -1 back).
+template <class Take, class Side>
 std::vector<SurfaceSample> sampleByArea(const Scene& scene, const RayScene& rays, ClosedMode closed,
-                                        const Vec3& lightDir, uint64_t count, uint64_t seed, SidePicker side) {
+                                        const Vec3& lightDir, uint64_t count, uint64_t seed, Take&& take, Side&& side) {
   size_t tris = scene.triangleCount();
   std::vector<double> cdf(tris + 1, 0.0);
   for (size_t t = 0; t < tris; ++t) {
     Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-    cdf[t + 1] = cdf[t] + 0.5 * length(cross(b - a, c - a));
+    cdf[t + 1] = cdf[t] + (take(uint32_t(t)) ? 0.5 * length(cross(b - a, c - a)) : 0.0);
   }
   std::vector<SurfaceSample> out(count);
   if (tris == 0 || !(cdf[tris] > 0)) return {};
@@ -37,7 +37,7 @@ std::vector<SurfaceSample> sampleByArea(const Scene& scene, const RayScene& rays
     }
     Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
     const Vec3 n = normalize(cross(b - a, c - a));
-    out[i] = SurfaceSample{a + (b - a) * r1 + (c - a) * r2, n * side(rays, closed, uint32_t(t), n, lightDir, rng)};
+    out[i] = SurfaceSample{a + (b - a) * r1 + (c - a) * r2, n * side(uint32_t(t), rng)};
   });
   return out;
 }
@@ -67,35 +67,30 @@ bool insideClosedMesh(const Scene& mesh, const Vec3& p) {
 
 std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                           const Vec3& lightDir, uint64_t count, uint64_t seed) {
-  return sampleByArea(scene, rays, closed, lightDir, count, seed,
-                      [](const RayScene& r, ClosedMode c, uint32_t t, const Vec3& n, const Vec3& l, SplitMix64&) {
-                        return !r.triangleClosed(t, c) && dot(n, l) > 0 ? -1.0 : 1.0;
+  return sampleByArea(scene, rays, closed, lightDir, count, seed, [](uint32_t) { return true; },
+                      [&](uint32_t t, SplitMix64&) {
+                        const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+                        return !rays.triangleClosed(t, closed) && dot(cross(b - a, c - a), lightDir) > 0 ? -1.0 : 1.0;
                       });
 }
 
 std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                            const Vec3& lightDir, const ReceiverDeclaration& d, uint64_t count,
                                            uint64_t seed) {
-  auto front = [](const RayScene&, ClosedMode, uint32_t, const Vec3&, const Vec3&, SplitMix64&) { return 1.0; };
-  switch (d.kind) {
-    case ReceiverKind::Everywhere:
-      return sampleSurfaces(scene, rays, closed, lightDir, count, seed);
-    case ReceiverKind::Surfaces:
-      return sampleByArea(scene, rays, closed, lightDir, count, seed, front);
-    case ReceiverKind::SurfacesTwoSided:
-      return sampleByArea(scene, rays, closed, lightDir, count, seed,
-                          [](const RayScene& r, ClosedMode, uint32_t t, const Vec3&, const Vec3&, SplitMix64& rng) {
-                            // ReceiverSet's rule: closed parts (by topology) have an outside only.
-                            return r.triangleClosed(t, ClosedMode::Auto) || rng.uniform01() < 0.5 ? 1.0 : -1.0;
-                          });
-    case ReceiverKind::Volume:
-      break;
-  }
-  std::vector<SurfaceSample> out = sampleByArea(scene, rays, closed, lightDir, count - count / 2, seed, front);
+  if (d.kind == ReceiverKind::Everywhere) return sampleSurfaces(scene, rays, closed, lightDir, count, seed);
+  // By area over the triangles that receive, on a side that receives (receivingSides).
+  std::vector<uint8_t> sides(scene.triangleCount());
+  for (size_t t = 0; t < sides.size(); ++t) sides[t] = receivingSides(scene, d, t);
+  const uint64_t inVolume = d.volume.triangleCount() ? count / 2 : 0;
+  std::vector<SurfaceSample> out = sampleByArea(
+      scene, rays, closed, lightDir, count - inVolume, seed,
+      [&](uint32_t t) { return sides[t] != 0; },
+      [&](uint32_t t, SplitMix64& rng) { return sides[t] == 2 || (sides[t] == 3 && rng.uniform01() < 0.5) ? -1.0 : 1.0; });
+  if (inVolume == 0) return out;
   Vec3 lo, hi;
   sceneBounds(d.volume, lo, hi);
-  std::vector<SurfaceSample> inside(count / 2);
-  tbb::parallel_for(uint64_t(0), count / 2, [&](uint64_t i) {
+  std::vector<SurfaceSample> inside(inVolume);
+  tbb::parallel_for(uint64_t(0), inVolume, [&](uint64_t i) {
     SplitMix64 rng = SplitMix64::forItem(seed ^ 0x766f6c756d65ull, i);
     Vec3 p;
     do {

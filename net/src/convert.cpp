@@ -35,7 +35,7 @@ static_assert(pb::Renderer_ARRAYSIZE == int(OptionNames<Renderer>::kNames.size()
 
 static_assert(int(ReceiverKind::Everywhere) == pb::RECEIVERS_EVERYWHERE && int(ReceiverKind::Surfaces) == pb::RECEIVERS_SURFACES &&
               int(ReceiverKind::SurfacesTwoSided) == pb::RECEIVERS_SURFACES_TWO_SIDED &&
-              int(ReceiverKind::Volume) == pb::RECEIVERS_VOLUME &&
+              int(ReceiverKind::Volume) == pb::RECEIVERS_VOLUME && int(ReceiverKind::Cameras) == pb::RECEIVERS_CAMERAS &&
               pb::ReceiverKind_ARRAYSIZE == int(OptionNames<ReceiverKind>::kNames.size()));
 
 void checkReceivers(const pb::Receivers& r) {
@@ -44,21 +44,31 @@ void checkReceivers(const pb::Receivers& r) {
   const uint32_t pcf = r.max_pcf();
   if (pcf != 0 && (pcf % 2 == 0 || pcf > uint32_t(kMaxPcfWidthOption)))
     throw InputError("options.receivers.max_pcf " + std::to_string(pcf) + " must be odd and between 1 and 9");
-  const bool volume = r.kind() == pb::RECEIVERS_VOLUME;
+  const bool volume = r.kind() == pb::RECEIVERS_VOLUME, cameras = r.kind() == pb::RECEIVERS_CAMERAS;
   const bool declared = !r.volume_scene_hash().empty() || r.boxes_size() > 0;
   if (volume && !declared) throw InputError("options.receivers: RECEIVERS_VOLUME needs volume_scene_hash or boxes");
-  if (!volume && declared) throw InputError("options.receivers: only RECEIVERS_VOLUME takes a volume");
+  if (!volume && !cameras && declared)
+    throw InputError("options.receivers: only RECEIVERS_VOLUME and RECEIVERS_CAMERAS take a volume");
+  if (cameras != (r.camera_regions_size() > 0))
+    throw InputError("options.receivers: camera_regions are needed for RECEIVERS_CAMERAS, and only there");
+  if (cameras ? !(r.view_distance() > 0 && std::isfinite(r.view_distance())) : r.view_distance() != 0)
+    throw InputError("options.receivers.view_distance must be positive and finite for RECEIVERS_CAMERAS, 0 otherwise");
+  if (r.camera_regions_size() > kMaxReceiverBoxes)
+    throw InputError("options.receivers: " + std::to_string(r.camera_regions_size()) + " camera regions; at most " +
+                     std::to_string(kMaxReceiverBoxes));
   if (!r.volume_scene_hash().empty()) parseHashHex(r.volume_scene_hash(), "options.receivers.volume_scene_hash");
   if (r.boxes_size() > kMaxReceiverBoxes)
     throw InputError("options.receivers: " + std::to_string(r.boxes_size()) + " boxes; at most " +
                      std::to_string(kMaxReceiverBoxes));
-  for (const pb::ReceiverBox& b : r.boxes()) {
-    const Vec3 lo = fromProto(b.min()), hi = fromProto(b.max());
-    const bool finite = std::isfinite(lo.x) && std::isfinite(lo.y) && std::isfinite(lo.z) && std::isfinite(hi.x) &&
-                        std::isfinite(hi.y) && std::isfinite(hi.z);
-    if (!finite || !(lo.x < hi.x && lo.y < hi.y && lo.z < hi.z))
-      throw InputError("options.receivers.boxes: a box is not finite with min < max");
-  }
+  for (const auto* list : {&r.boxes(), &r.camera_regions()})
+    for (const pb::ReceiverBox& b : *list) {
+      const Vec3 lo = fromProto(b.min()), hi = fromProto(b.max());
+      const bool finite = std::isfinite(lo.x) && std::isfinite(lo.y) && std::isfinite(lo.z) && std::isfinite(hi.x) &&
+                          std::isfinite(hi.y) && std::isfinite(hi.z);
+      if (!finite || !(lo.x < hi.x && lo.y < hi.y && lo.z < hi.z))
+        throw InputError(std::string("options.receivers.") + (list == &r.boxes() ? "boxes" : "camera_regions") +
+                         ": a box is not finite with min < max");
+    }
 }
 
 pb::BakeOptions toProto(const BakeOptions& o) {

@@ -10,10 +10,12 @@ ReceiverDeclaration declarationOf(const pb::Receivers& r, const std::function<Sc
   ReceiverDeclaration d;
   d.kind = ReceiverKind(r.kind());
   if (r.max_pcf() != 0) d.maxPcf = int(r.max_pcf());
-  if (d.kind != ReceiverKind::Volume) return d;
+  for (const pb::ReceiverBox& b : r.camera_regions()) d.cameraRegions.push_back({fromProto(b.min()), fromProto(b.max())});
+  d.viewDistance = r.view_distance();
+  if (d.kind != ReceiverKind::Volume && d.kind != ReceiverKind::Cameras) return d;
   if (!r.volume_scene_hash().empty()) d.volume = loadMesh(r.volume_scene_hash());
   for (const pb::ReceiverBox& b : r.boxes()) appendBox(d.volume, fromProto(b.min()), fromProto(b.max()));
-  finalizeScene(d.volume);
+  if (d.volume.triangleCount() != 0) finalizeScene(d.volume);
   checkReceiverDeclaration(d);
   return d;
 }

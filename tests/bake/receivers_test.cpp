@@ -50,14 +50,15 @@ struct Lookup {
   int pcf;
 };
 
-std::vector<Lookup> surfaceLookups(const Scene& s, ReceiverKind kind, int maxPcf, std::mt19937_64& rng, int perTriangle) {
+std::vector<Lookup> surfaceLookups(const Scene& s, const ReceiverDeclaration& d, std::mt19937_64& rng, int perTriangle) {
+  const int maxPcf = d.maxPcf;
   std::uniform_real_distribution<double> u(0, 1);
   std::vector<Lookup> out;
   for (size_t t = 0; t < s.triangleCount(); ++t) {
     const Vec3 a = s.vertex(t, 0), b = s.vertex(t, 1), c = s.vertex(t, 2);
     const Vec3 n = normalize(cross(b - a, c - a));
-    const bool twoSided = kind == ReceiverKind::SurfacesTwoSided && !s.closed[t];
-    for (int k = 0; k < perTriangle; ++k) {
+    const uint8_t sides = receivingSides(s, d, t);
+    for (int k = 0; k < perTriangle && sides != 0; ++k) {
       double x = u(rng), y = u(rng);
       if (x + y > 1) x = 1 - x, y = 1 - y;
       if (k % 8 == 0) x = 0;  // on an edge
@@ -66,8 +67,8 @@ std::vector<Lookup> surfaceLookups(const Scene& s, ReceiverKind kind, int maxPcf
       const int pcf = 1 + 2 * int(rng() % uint64_t(maxPcf / 2 + 1));
       // A normal as an engine holds it: in float.
       const Vec3 nf{double(float(n.x)), double(float(n.y)), double(float(n.z))};
-      out.push_back({p, nf, pcf});
-      if (twoSided) out.push_back({p, -nf, pcf});
+      if (sides & 1) out.push_back({p, nf, pcf});
+      if (sides & 2) out.push_back({p, -nf, pcf});
     }
   }
   return out;
@@ -161,7 +162,8 @@ TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
   const uint64_t everywhere = bytesOf(bake(scene, grid, options, {}), grid);
 
   std::mt19937_64 rng(GetParam().log2R * 1000 + uint64_t(GetParam().sun.x * 100));
-  for (ReceiverKind kind : {ReceiverKind::Surfaces, ReceiverKind::SurfacesTwoSided, ReceiverKind::Volume}) {
+  for (ReceiverKind kind :
+       {ReceiverKind::Surfaces, ReceiverKind::SurfacesTwoSided, ReceiverKind::Volume, ReceiverKind::Cameras}) {
     for (int maxPcf : {1, 3, 9}) {
       SCOPED_TRACE(std::string(optionName(kind)) + " pcf " + std::to_string(maxPcf));
       ReceiverDeclaration d;
@@ -172,10 +174,18 @@ TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
         appendBox(d.volume, {-8, 4.5, -8}, {0, 5.5, 1});  // above the building's roof
         finalizeScene(d.volume);
       }
+      if (kind == ReceiverKind::Cameras) {
+        // Cameras on the +x side of the ground seeing 4 units: the crate, the slanted
+        // triangle and the wall's front; a small volume where a character stands.
+        d.cameraRegions = {{Vec3{4, 0.5, -2}, Vec3{9, 2, 4}}};
+        d.viewDistance = 4;
+        appendBox(d.volume, {5, 0.1, -1}, {6, 1.9, 0});
+        finalizeScene(d.volume);
+      }
       const Dag dag = bake(scene, grid, options, d);
       const ShadowQuery q(grid, PackedDag(dag));
-      std::vector<Lookup> lookups = surfaceLookups(scene, kind, maxPcf, rng, 600);
-      if (kind == ReceiverKind::Volume) {
+      std::vector<Lookup> lookups = surfaceLookups(scene, d, rng, 600);
+      if (d.volume.triangleCount() != 0) {
         const auto inside = volumeLookups(d.volume, maxPcf, rng, 20000);
         lookups.insert(lookups.end(), inside.begin(), inside.end());
       }
@@ -187,6 +197,7 @@ TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
       if (kind == ReceiverKind::Surfaces) {
         EXPECT_LT(bytes, everywhere);
       }
+
       // Freed intervals depend on each texel alone: any tiling gives the same bytes.
       BakeOptions whole = options;
       whole.log2TileSize = GetParam().log2R;
@@ -217,6 +228,39 @@ TEST(Receivers, TilesNoReceiverReadsAreNotRendered) {
   EXPECT_TRUE(set.touchesRectangle(bx, by, 1, 1));
   EXPECT_FALSE(set.touchesRectangle(std::min(ax, bx) + 64, std::min(ay, by) + 64, 64, 64));
   EXPECT_FALSE(set.touchesRectangle(std::max(ax, bx) - 32, std::min(ay, by) + 64, 16, 16));
+  // Cameras that see only the first quad: the second one's tile holds no reads.
+  d.kind = ReceiverKind::Cameras;
+  d.cameraRegions = {{Vec3{0, 1, 0}, Vec3{1, 2, 1}}};
+  d.viewDistance = 5;
+  const ReceiverSet seen(scene, grid, d);
+  EXPECT_TRUE(seen.touchesRectangle(ax, ay, 1, 1));
+  EXPECT_FALSE(seen.touchesRectangle(bx, by, 1, 1));
+  EXPECT_FALSE(seen.touchesRectangle(std::max(ax, bx) - 32, std::max(ay, by) - 32, 64, 64));
+}
+
+// The sides a camera region faces within the view distance, by brute force on a quad.
+TEST(Receivers, CameraRegionsReceiveTheSidesTheyFace) {
+  Scene s;
+  appendQuad(s, {0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0});  // facing +y
+  finalizeScene(s);
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Cameras;
+  d.viewDistance = 2;
+  d.cameraRegions = {{Vec3{0, 1, 0}, Vec3{1, 2, 1}}};  // above
+  EXPECT_EQ(receivingSides(s, d, 0), 1);
+  d.cameraRegions = {{Vec3{0, -2, 0}, Vec3{1, -1, 1}}};  // below: the back
+  EXPECT_EQ(receivingSides(s, d, 0), 2);
+  d.cameraRegions.push_back({Vec3{0, 1, 0}, Vec3{1, 2, 1}});
+  EXPECT_EQ(receivingSides(s, d, 0), 3);
+  d.cameraRegions = {{Vec3{0, 3, 0}, Vec3{1, 4, 1}}};  // above, but 3 away
+  EXPECT_EQ(receivingSides(s, d, 0), 0);
+  d.cameraRegions = {{Vec3{-1, -1, -1}, Vec3{2, 0, 2}}};  // touching the plane from below only
+  EXPECT_EQ(receivingSides(s, d, 0), 2);
+  Scene box;
+  appendBox(box, {0, 0, 0}, {1, 1, 1});
+  finalizeScene(box);
+  d.cameraRegions = {{Vec3{-0.5, -0.5, -0.5}, Vec3{1.5, 1.5, 1.5}}};  // around it: every outside
+  for (size_t t = 0; t < box.triangleCount(); ++t) EXPECT_EQ(receivingSides(box, d, t), 1) << t;  // never the inside
 }
 
 TEST(Receivers, BadDeclarationsAreRefused) {
@@ -237,6 +281,17 @@ TEST(Receivers, BadDeclarationsAreRefused) {
   EXPECT_THROW(checkReceiverDeclaration(d), InputError);
   d.maxPcf = 9;
   EXPECT_NO_THROW(checkReceiverDeclaration(d));
+  ReceiverDeclaration c;
+  c.kind = ReceiverKind::Cameras;
+  EXPECT_THROW(checkReceiverDeclaration(c), InputError);  // no region
+  c.cameraRegions = {{Vec3{0, 0, 0}, Vec3{1, 1, 1}}};
+  EXPECT_THROW(checkReceiverDeclaration(c), InputError);  // no view distance
+  c.viewDistance = 10;
+  EXPECT_NO_THROW(checkReceiverDeclaration(c));
+  c.cameraRegions = {{Vec3{0, 0, 0}, Vec3{1, 0, 1}}};
+  EXPECT_THROW(checkReceiverDeclaration(c), InputError);  // empty region
+  d.cameraRegions = {{Vec3{0, 0, 0}, Vec3{1, 1, 1}}};
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);  // regions for surfaces
   EXPECT_NE(receiverHash(d), Hash128{});
   EXPECT_EQ(receiverHash(ReceiverDeclaration{}), Hash128{});
 }

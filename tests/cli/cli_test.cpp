@@ -137,7 +137,7 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
 
   r = cpvs("verify -n 3000 " + path("v.cpvs") + " city:3");
   EXPECT_EQ(r.status, 2) << r.out;
-  EXPECT_NE(r.out.find("baked for a receiver volume"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("baked for 'volume' receivers"), std::string::npos) << r.out;
   r = cpvs("verify -n 3000 " + path("v.cpvs") + " city:3 --receivers volume --receiver-box -1000,0,-1000,1000,4,1000");
   EXPECT_EQ(r.status, 2) << r.out;
   EXPECT_NE(r.out.find("not the one"), std::string::npos) << r.out;
@@ -147,6 +147,18 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
   EXPECT_EQ(v["receivers"], "volume");
   EXPECT_GT(v["samples"].get<uint64_t>(), 3000u);
   EXPECT_EQ(v["mismatch_elsewhere_count"], 0);
+
+  // Cameras in a corner of the city seeing 40 units: verify wants the regions again.
+  const std::string cams = " --receivers cameras --camera-region 0,1,0,20,3,20 --view-distance 40";
+  r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json" + cams + " -o " + path("k.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(parse(r)["receivers"]["kind"], "cameras");
+  r = cpvs("verify -n 3000 " + path("k.cpvs") + " city:3");
+  EXPECT_EQ(r.status, 2) << r.out;
+  r = cpvs("verify --json -n 6000 " + path("k.cpvs") + " city:3" + cams);
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(parse(r)["receivers"], "cameras");
+  EXPECT_EQ(parse(r)["mismatch_elsewhere_count"], 0);
 
   CPVS_SHARED_SCENE_OR_SKIP(town, "flightgear/zone_maisons.obj");
   uint64_t bytes[2] = {};
@@ -351,9 +363,11 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
       {"bake city --sun-dir 0,-1,0 --receivers volume", "needs a volume"},
       {"bake city --sun-dir 0,-1,0 --receivers volume --receiver-box 0,0,0,1,1", "MINX"},
       {"bake city --sun-dir 0,-1,0 --receivers surfaces --receiver-pcf 4", "must be odd"},
-      {"bake city --sun-dir 0,-1,0 --receivers surfaces:x.obj", "only 'volume' takes a file"},
+      {"bake city --sun-dir 0,-1,0 --receivers surfaces:x.obj", "only 'volume' and 'cameras' take a file"},
       {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers volume", "needs volume_scene_hash or boxes"},
       {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers surfaces --receiver-pcf 6", "must be odd"},
+      {"bake city --sun-dir 0,-1,0 --receivers cameras --camera-region 0,0,0,1,1,1", "view distance"},
+      {"bake city --sun-dir 0,-1,0 --receivers surfaces --view-distance 5", "need --receivers cameras"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     std::string args = cases[i].args;

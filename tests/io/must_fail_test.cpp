@@ -127,7 +127,7 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
 
   std::vector<Case> cases = headerCases();
   const std::vector<Case> packedCases{
-      {"receiver kind", [](Bytes& b) { b[kReceivers] = 4; }, "the receiver declaration holds an unknown value"},
+      {"receiver kind", [](Bytes& b) { b[kReceivers] = 5; }, "the receiver declaration holds an unknown value"},
       {"receiver reserved byte", [](Bytes& b) { b[kReceivers + 7] = 1; }, "the receiver declaration holds an unknown value"},
       {"receiver PCF for everywhere", [](Bytes& b) { b[kReceivers + 1] = 9; }, "the receiver declaration is inconsistent"},
       {"receiver hash for everywhere", [](Bytes& b) { b[kReceiverHash] = 1; }, "the receiver declaration is inconsistent"},

@@ -215,7 +215,7 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
   const std::string sceneHash = farm.client.uploadScene(obj).sceneHash;
   const std::string volumeHash = farm.client.uploadScene(meshObj).sceneHash;
   const Scene loaded = loadScene(obj);
-  for (ReceiverKind kind : {ReceiverKind::Surfaces, ReceiverKind::Volume}) {
+  for (ReceiverKind kind : {ReceiverKind::Surfaces, ReceiverKind::Volume, ReceiverKind::Cameras}) {
     pb::BakeSpec spec;
     spec.set_scene_hash(sceneHash);
     *spec.mutable_sun_direction() = net::toProto(Vec3{0.3, -1, 0.2});
@@ -235,6 +235,14 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
       d.volume = loadScene(meshObj);
       appendBox(d.volume, {-4, 5, -4}, {3, 7, 2});
       finalizeScene(d.volume);
+    }
+    if (kind == ReceiverKind::Cameras) {
+      pb::ReceiverBox& b = *r.add_camera_regions();
+      *b.mutable_min() = net::toProto(Vec3{3, 1, 3});
+      *b.mutable_max() = net::toProto(Vec3{8, 2, 8});
+      r.set_view_distance(6);
+      d.cameraRegions = {{Vec3{3, 1, 3}, Vec3{8, 2, 8}}};
+      d.viewDistance = 6;
     }
     const pb::JobStatus done =
         farm.client.watch(farm.client.submit(std::string("receivers-") + optionName(kind), spec).job_id());
@@ -457,7 +465,14 @@ TEST(Convert, ReceiversRoundTripAndBadOnesAreNamed) {
   refused(r, "max_pcf 11");
   r.set_max_pcf(9);
   r.set_volume_scene_hash(std::string(32, 'a'));
-  refused(r, "only RECEIVERS_VOLUME takes a volume");
+  refused(r, "only RECEIVERS_VOLUME and RECEIVERS_CAMERAS take a volume");
+  r.clear_volume_scene_hash();
+  r.set_view_distance(5);
+  refused(r, "view_distance must be positive and finite for RECEIVERS_CAMERAS, 0 otherwise");
+  r.set_kind(pb::RECEIVERS_CAMERAS);
+  refused(r, "camera_regions are needed");
+  r.set_view_distance(0);
+  r.set_volume_scene_hash(std::string(32, 'a'));
   r.set_kind(pb::RECEIVERS_VOLUME);
   r.set_volume_scene_hash("../../etc/passwd");
   refused(r, "volume_scene_hash");

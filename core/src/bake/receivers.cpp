@@ -117,16 +117,58 @@ std::vector<uint32_t> volumeParts(const Scene& volume) {
 
 }  // namespace
 
+uint8_t receivingSides(const Scene& scene, const ReceiverDeclaration& d, size_t t) {
+  const bool open = !scene.closed[t];
+  switch (d.kind) {
+    case ReceiverKind::Everywhere:
+    case ReceiverKind::SurfacesTwoSided:
+      return open ? 3 : 1;
+    case ReceiverKind::Surfaces:
+    case ReceiverKind::Volume:
+      return 1;
+    case ReceiverKind::Cameras:
+      break;
+  }
+  const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+  const Vec3 n = cross(b - a, c - a);
+  const Vec3 lo{std::min({a.x, b.x, c.x}), std::min({a.y, b.y, c.y}), std::min({a.z, b.z, c.z})};
+  const Vec3 hi{std::max({a.x, b.x, c.x}), std::max({a.y, b.y, c.y}), std::max({a.z, b.z, c.z})};
+  const double reach = d.viewDistance;
+  uint8_t sides = 0;
+  for (const auto& [rlo, rhi] : d.cameraRegions) {
+    if (lo.x > rhi.x + reach || hi.x < rlo.x - reach || lo.y > rhi.y + reach || hi.y < rlo.y - reach ||
+        lo.z > rhi.z + reach || hi.z < rlo.z - reach)
+      continue;
+    // The region's points on each side of the triangle's plane: its extreme corners along n.
+    const Vec3 far{n.x > 0 ? rhi.x : rlo.x, n.y > 0 ? rhi.y : rlo.y, n.z > 0 ? rhi.z : rlo.z};
+    const Vec3 near{n.x > 0 ? rlo.x : rhi.x, n.y > 0 ? rlo.y : rhi.y, n.z > 0 ? rlo.z : rhi.z};
+    if (dot(n, far - a) > 0) sides |= 1;
+    if (open && dot(n, near - a) < 0) sides |= 2;
+  }
+  return sides;
+}
+
 void checkReceiverDeclaration(const ReceiverDeclaration& d) {
   if (!isOptionValue<ReceiverKind>(int64_t(d.kind))) throw InputError("receivers: unknown kind " + std::to_string(int(d.kind)));
   checkPcfWidth(d.maxPcf);
-  const bool wantsVolume = d.kind == ReceiverKind::Volume;
-  if (!wantsVolume && d.volume.triangleCount() != 0)
+  const bool wantsVolume = d.kind == ReceiverKind::Volume, cameras = d.kind == ReceiverKind::Cameras;
+  if (!wantsVolume && !cameras && d.volume.triangleCount() != 0)
     throw InputError(std::string("receivers: a volume is declared for '") + optionName(d.kind) +
-                     "' receivers; only 'volume' takes one");
+                     "' receivers; only 'volume' and 'cameras' take one");
+  if (!cameras && (!d.cameraRegions.empty() || d.viewDistance != 0))
+    throw InputError("receivers: camera regions and a view distance are for 'cameras' receivers only");
+  if (cameras) {
+    if (d.cameraRegions.empty()) throw InputError("receivers: 'cameras' needs at least one camera region");
+    for (const auto& [lo, hi] : d.cameraRegions)
+      if (!(std::isfinite(lo.x) && std::isfinite(lo.y) && std::isfinite(lo.z) && std::isfinite(hi.x) &&
+            std::isfinite(hi.y) && std::isfinite(hi.z) && lo.x < hi.x && lo.y < hi.y && lo.z < hi.z))
+        throw InputError("receivers: a camera region is not finite with min < max");
+    if (!(d.viewDistance > 0) || !std::isfinite(d.viewDistance))
+      throw InputError("receivers: 'cameras' needs a positive, finite view distance");
+  }
   if (wantsVolume && d.volume.triangleCount() == 0)
     throw InputError("receivers: 'volume' needs a volume (a closed mesh file or boxes)");
-  if (wantsVolume && std::find(d.volume.closed.begin(), d.volume.closed.end(), 0) != d.volume.closed.end()) {
+  if (d.volume.triangleCount() != 0 && std::find(d.volume.closed.begin(), d.volume.closed.end(), 0) != d.volume.closed.end()) {
     const size_t open = size_t(std::count(d.volume.closed.begin(), d.volume.closed.end(), 0));
     throw InputError("receivers: the volume must be closed (watertight and consistently oriented); " +
                      std::to_string(open) + " of its " + std::to_string(d.volume.triangleCount()) +
@@ -137,8 +179,11 @@ void checkReceiverDeclaration(const ReceiverDeclaration& d) {
 Hash128 receiverHash(const ReceiverDeclaration& d) {
   if (d.kind == ReceiverKind::Everywhere) return {};
   const Hash128 volume = d.volume.triangleCount() ? sceneHash(d.volume) : Hash128{};
-  const uint64_t words[4] = {uint64_t(d.kind), uint64_t(d.maxPcf), volume.lo, volume.hi};
-  return contentHash(words, sizeof(words));
+  std::vector<double> words{double(d.kind), double(d.maxPcf), double(volume.lo >> 32), double(volume.lo & 0xFFFFFFFF),
+                            double(volume.hi >> 32), double(volume.hi & 0xFFFFFFFF), d.viewDistance};
+  for (const auto& [lo, hi] : d.cameraRegions)
+    for (double v : {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z}) words.push_back(v);
+  return contentHash(words.data(), words.size() * sizeof(double));
 }
 
 ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const ReceiverDeclaration& d)
@@ -166,12 +211,14 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
   for (size_t t = 0; t < scene.triangleCount(); ++t) {
     Vec3 v[3];
     for (int c = 0; c < 3; ++c) v[c] = mappedVoxel(m, scene.vertex(t, c));
+    const uint8_t sides = receivingSides(scene, d, t);
+    if (sides == 0) continue;
     const Vec3 nWorld = triangleNormal(scene, t);
     Span plane{};
     plane.planar = fitPlane(v, plane);
     const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
-    const bool twoSided = kind_ == ReceiverKind::SurfacesTwoSided && !scene.closed[t];
-    for (int side = 0; side < (twoSided ? 2 : 1); ++side) {
+    for (int side = 0; side < 2; ++side) {
+      if (!(sides & (1 << side))) continue;
       Vec3 nv = mappedDirection(m, side ? -nWorld : nWorld);
       const double big = std::max({std::fabs(nv.x), std::fabs(nv.y), std::fabs(nv.z)});
       if (!(big > 0) || !std::isfinite(big)) continue;
@@ -198,7 +245,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
 
   // Volumes: any point inside, any normal: reads within the offset's cube, over the
   // footprint, hulled per part.
-  if (kind_ == ReceiverKind::Volume) {
+  if (d.volume.triangleCount() != 0) {
     const std::vector<uint32_t> parts = volumeParts(d.volume);
     const double cube = normalOffsetVoxels(maxPcf_) * kOffsetExcess;
     for (size_t t = 0; t < d.volume.triangleCount(); ++t) {

@@ -51,6 +51,7 @@ enum class ReceiverKind : uint8_t {
   Surfaces = 1,          // the front side of the scene's static surfaces (back faces culled)
   SurfacesTwoSided = 2,  // both sides of every open surface, the outside of closed parts
   Volume = 3,            // the front sides plus any point of a declared closed volume
+  Cameras = 4,           // the sides a camera region can face within a view distance (plus a volume)
 };
 
 /// Hash functions for node content. Weak exists so tests can force collisions: every
@@ -113,7 +114,8 @@ struct OptionNames<Renderer> {
 template <>
 struct OptionNames<ReceiverKind> {
   static constexpr const char* kFlag = "receivers";
-  static constexpr std::array<const char*, 4> kNames{"everywhere", "surfaces", "surfaces-two-sided", "volume"};
+  static constexpr std::array<const char*, 5> kNames{"everywhere", "surfaces", "surfaces-two-sided", "volume",
+                                                     "cameras"};
 };
 template <>
 struct OptionNames<HashKind> {

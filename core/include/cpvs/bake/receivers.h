@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "cpvs/bake/options.h"
@@ -14,20 +15,32 @@
 namespace cpvs {
 
 /// What a bake is declared for: who receives (options.h), the widest PCF filter their
-/// lookups use, and for ReceiverKind::Volume the volume, closed meshes in world space
-/// (boxes: appendBox) in which dynamic receivers move.
+/// lookups use; for ReceiverKind::Volume (and optionally Cameras) the volume, closed
+/// meshes in world space (boxes: appendBox) in which dynamic receivers move; for Cameras
+/// the boxes cameras can be in and how far they see.
 struct ReceiverDeclaration {
   ReceiverKind kind = ReceiverKind::Everywhere;
   int maxPcf = kMaxPcfWidthOption;
   Scene volume;
+  std::vector<std::pair<Vec3, Vec3>> cameraRegions;  // (min, max)
+  double viewDistance = 0;
 };
 
+/// Which sides of scene triangle t receive under the declaration (not Everywhere): bit 0
+/// the front (the side its winding faces), bit 1 the back. Surfaces and Volume: the front;
+/// SurfacesTwoSided: both for open triangles; Cameras: each side of a triangle whose
+/// bounding box lies within the view distance of a camera region (boxes compared, a
+/// conservative test) that some point of such a region faces (closed parts: the outside
+/// only). What the bake frees by and `verify` samples.
+uint8_t receivingSides(const Scene& scene, const ReceiverDeclaration& declaration, size_t t);
+
 /// InputError unless the declaration is usable: an odd PCF width in [1, 9]; a volume
-/// exactly for ReceiverKind::Volume, non-empty and closed.
+/// (closed) for ReceiverKind::Volume, none but for Volume and Cameras; camera regions
+/// (finite, min < max) and a positive view distance exactly for Cameras.
 void checkReceiverDeclaration(const ReceiverDeclaration& declaration);
 
-/// Content hash of what the declaration lets a bake leave free: the kind, the PCF width
-/// and the volume's geometry. Zero for Everywhere (nothing declared).
+/// Content hash of what the declaration lets a bake leave free: the kind, the PCF width,
+/// the volume's geometry, the camera regions and view distance. Zero for Everywhere (nothing declared).
 Hash128 receiverHash(const ReceiverDeclaration& declaration);
 
 /// The reads of every declared receiver, projected onto one grid. Each receiver triangle
