@@ -43,7 +43,7 @@ std::string summaryJson(const BakeArgs& a, const Scene& scene, const SceneStats&
     << ", \"undefined\": " << jsonString(optionName(art.options.undefinedRule))
     << ", \"renderer\": " << jsonString(optionName(art.options.renderer))
     << ", \"tile_size\": " << (1u << art.options.log2TileSize) << "},\n  \"receivers\": "
-    << receiversJson(art.options, art.receiverHash) << ",\n  \"tiles\": " << tiles
+    << receiversJson(art.options, art.receiverHash) << ",\n  \"tiles\": " << tiles << ",\n  \"tiles_skipped\": " << st.tilesSkipped
     << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"file_bytes\": " << fileBytes
     << ",\n  \"shadow_map_bytes\": " << R * R * 2
     << ",\n  \"ratio_to_shadow_map\": " << jsonNumber(double(R * R * 2) / double(std::max<uint64_t>(1, dag.bytes())))
@@ -77,6 +77,8 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
               optionName(art.options.compress), optionName(art.options.undefinedRule), optionName(art.options.renderer),
               1u << art.options.log2TileSize);
   std::printf("  receivers: %s\n", receiversText(art.options, art.receiverHash).c_str());
+  std::printf("  tiles not rendered (no triangle, or no receiver's reads): %llu of %llu\n",
+              static_cast<unsigned long long>(st.tilesSkipped), static_cast<unsigned long long>(tiles));
   std::printf("\n  %-10s %10s\n", "stage", "seconds");
   for (const char* name : kStageNames)
     if (auto it = st.seconds.find(name); it != st.seconds.end()) std::printf("  %-10s %10.3f\n", name, it->second);

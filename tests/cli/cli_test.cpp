@@ -153,6 +153,8 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
   r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json" + cams + " -o " + path("k.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_EQ(parse(r)["receivers"]["kind"], "cameras");
+  EXPECT_LT(parse(r)["bytes"].get<uint64_t>(), bake_["bytes"].get<uint64_t>());  // the same bake for everywhere
+  EXPECT_GE(parse(r)["tiles_skipped"].get<uint64_t>(), bake_["tiles_skipped"].get<uint64_t>());
   r = cpvs("verify -n 3000 " + path("k.cpvs") + " city:3");
   EXPECT_EQ(r.status, 2) << r.out;
   r = cpvs("verify --json -n 6000 " + path("k.cpvs") + " city:3" + cams);

@@ -44,7 +44,10 @@ Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeO
              StageTimes* times) {
   const OrthoGrid& grid = scene.grid();
   const int t = TilePlan(grid.log2Resolution, options.log2TileSize).log2TileSize();
-  if (!scene.touchesTile(tileX, tileY, t)) return bakeUntouchedTile(grid, tileX, tileY, options, times);
+  if (!scene.touchesTile(tileX, tileY, t)) {
+    if (times) ++times->tilesSkipped;
+    return bakeUntouchedTile(grid, tileX, tileY, options, times);
+  }
   StageTimes local;
   StageTimes& st = times ? *times : local;
   const uint32_t T = uint32_t(1) << t;

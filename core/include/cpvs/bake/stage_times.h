@@ -26,6 +26,8 @@ bool isStageName(std::string_view name);
 struct StageTimes {
   std::map<std::string, double> seconds;
   InsertStats insert;
+  /// Tiles that needed no rendering: no triangle touches them, or no receiver reads them.
+  uint64_t tilesSkipped = 0;
   /// Adds `s` seconds to a stage of kStageNames (an unknown name is a bug: CPVS_CHECK).
   void add(const std::string& stage, double s);
 };
