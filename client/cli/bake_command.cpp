@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "bake_flags.h"
+#include "cpvs/bake/bake_plan.h"
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/bake/tile_plan.h"
@@ -132,6 +133,7 @@ int runBake(const BakeArgs& a) {
   art.options = opt;
   art.sceneHash = sceneHash(scene);
   art.receiverHash = receiverHash(receivers);
+  art.plan = planJson(planBake(scene, ss, opt, receivers, prepared.raster(), prepared.receivers()));
   art.dag = bakeGrid(prepared, opt, &st, [&](const std::string& s, uint64_t d, uint64_t t) {
     return progress.update(s, d, t);
   });

@@ -22,34 +22,6 @@ LightFrame lightFromFlags(const std::string& sunDir, double elevation, double az
   return LightFrame::fromElevationAzimuth(elevation, std::isnan(azimuth) ? 0.0 : azimuth);
 }
 
-std::string jsonString(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          out += buf;
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
-}
-
-std::string jsonNumber(double v) {
-  if (!std::isfinite(v)) return "null";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.9g", v);
-  return buf;
-}
-
 std::string humanBytes(uint64_t b) {
   const char* units[] = {"B", "KB", "MB", "GB", "TB"};
   double v = double(b);

@@ -11,6 +11,7 @@
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
+#include "cpvs/base/text.h"
 #include "cpvs/base/error.h"
 
 namespace cpvs::cli {
@@ -20,8 +21,8 @@ namespace cpvs::cli {
 LightFrame lightFromFlags(const std::string& sunDir, double elevation, double azimuth);
 
 /// Minimal JSON writing: escaped strings, finite numbers.
-std::string jsonString(const std::string& s);
-std::string jsonNumber(double v);
+using cpvs::jsonNumber;
+using cpvs::jsonString;
 
 /// "1.23 MB" style.
 std::string humanBytes(uint64_t bytes);

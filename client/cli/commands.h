@@ -11,6 +11,7 @@ namespace cpvs::cli {
 /// command and stores its exit status in `status`.
 void addBakeCommand(CLI::App& app, int& status);
 void addInspectCommand(CLI::App& app, int& status);
+void addPlanCommand(CLI::App& app, int& status);
 void addQueryCommand(CLI::App& app, int& status);
 void addVerifyCommand(CLI::App& app, int& status);
 void addRenderCommand(CLI::App& app, int& status);

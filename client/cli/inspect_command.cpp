@@ -42,6 +42,7 @@ int runInspect(const InspectArgs& a) {
       << ", \"undefined\": " << jsonString(optionName(o.undefinedRule))
       << ", \"renderer\": " << jsonString(optionName(o.renderer)) << ", \"tile_size\": " << (1u << o.log2TileSize)
       << "},\n  \"receivers\": " << receiversJson(o, art.receiverHash)
+      << ",\n  \"plan\": " << (art.plan.empty() ? std::string("null") : art.plan)
       << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"nodes\": " << dag.nodeCount()
       << ",\n  \"shadow_map_bytes\": " << R * R * 2 << ",\n  \"levels\": [";
     for (int l = -1; l < int(dag.levels.size()); ++l) {
@@ -65,6 +66,7 @@ int runInspect(const InspectArgs& a) {
               optionName(o.undefinedRule), optionName(o.renderer),
               1u << o.log2TileSize);
   std::printf("  receivers    %s\n", receiversText(o, art.receiverHash).c_str());
+  std::printf("  plan         %s\n", art.plan.empty() ? "none recorded (a file before format 3)" : loggable(art.plan, 4000).c_str());
   std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
   for (int l = -1; l < int(dag.levels.size()); ++l) {
     size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();

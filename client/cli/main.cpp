@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   int status = 0;
   cpvs::cli::addBakeCommand(app, status);
   cpvs::cli::addInspectCommand(app, status);
+  cpvs::cli::addPlanCommand(app, status);
   cpvs::cli::addQueryCommand(app, status);
   cpvs::cli::addVerifyCommand(app, status);
   cpvs::cli::addRenderCommand(app, status);

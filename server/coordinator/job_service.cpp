@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "coordinator/clock.h"
+#include "cpvs/bake/bake_plan.h"
 #include "cpvs/bake/raster_scene.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
@@ -106,7 +107,8 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
                         std::to_string(smallest) + " texels at this resolution)");
   }
   checkRoom();  // before loading the scene, which may take long
-  Scene scene = scenes_.load(spec.scene_hash());
+  SceneStats stats;
+  Scene scene = scenes_.load(spec.scene_hash(), &stats);
   OrthoGrid grid;
   ReceiverDeclaration receivers;
   try {
@@ -138,6 +140,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
       if (!projected.touchesRectangle(t.x * T, t.y * T, T, T) || !reads.touchesRectangle(t.x * T, t.y * T, T, T))
         untouched.push_back(i);
     }
+    j.plan = planJson(planBake(scene, stats, options, receivers, projected, reads));
   }
   {
     // Checked again and created under one lock: a retry that arrives while its first call

@@ -120,6 +120,7 @@ void MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
   art.options = j.options;
   art.sceneHash = parseHashHex(j.geometryHash, "geometry hash");
   art.receiverHash = j.receiverHash;
+  art.plan = j.plan;
   art.dag = assembleRoots(*m.merger->finish(), art.options.hash, art.options.compress);
   store_.addStageSeconds(j.id, {{"merge", secondsSince(start)}});
   start = std::chrono::steady_clock::now();

@@ -163,6 +163,6 @@ std::string SceneStore::scenePath(const std::string& hash, std::string* fileName
   return (fs::path(folder_) / (hash + safeExtension(r->fileName))).string();
 }
 
-Scene SceneStore::load(const std::string& sceneHash) { return loadScene(scenePath(sceneHash)); }
+Scene SceneStore::load(const std::string& sceneHash, SceneStats* stats) { return loadScene(scenePath(sceneHash), stats); }
 
 }  // namespace cpvs::server

@@ -29,7 +29,7 @@ class SceneStore {
   /// The stored file of a complete scene; FarmError(NotFound) otherwise.
   std::string scenePath(const std::string& sceneHash, std::string* fileName = nullptr);
   /// The imported geometry of a complete scene.
-  Scene load(const std::string& sceneHash);
+  Scene load(const std::string& sceneHash, SceneStats* stats = nullptr);
 
  private:
   std::string partPath(const std::string& hash) const;

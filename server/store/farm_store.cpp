@@ -84,15 +84,15 @@ constexpr const char* kJobColumns =
     "light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, frame_u_z, frame_v_x, frame_v_y, frame_v_z, "
     "origin_x, origin_y, origin_z, u0, v0, d0, extent, depth_extent, log2_resolution, "
     "closed, exit_mode, cull, compress, undefined_rule, log2_tile_size, hash_kind, renderer, receivers, receiver_pcf, "
-    "receiver_hash";
-constexpr int kJobColumnCount = 45;
+    "receiver_hash, plan";
+constexpr int kJobColumnCount = 46;
 constexpr int kGridColumn = 16, kOptionsColumn = 34;
 
 /// The schema this build writes (PRAGMA user_version). 2: typed grid and option columns;
 /// 3: the renderer column (a version 2 store is upgraded in place: its jobs were Embree's);
 /// 4: sun tracks, keyframes and versions (tables added to a version 2 or 3 store);
-/// 5: the receiver declaration's columns (added to a version 2 to 4 store: receivers
-/// everywhere).
+/// 5: the receiver declaration's columns and the plan (added to a version 2 to 4 store:
+/// receivers everywhere, no plan recorded).
 constexpr int kSchemaVersion = 5;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
@@ -140,6 +140,7 @@ JobRecord readJob(const Statement& s) {
   o.receivers = ReceiverKind(s.i64(c + 8));
   o.receiverPcf = uint8_t(s.i64(c + 9));
   if (!s.str(c + 10).empty()) j.receiverHash = parseHashHex(s.str(c + 10), "the job's receiver hash");
+  j.plan = s.str(c + 11);
   return j;
 }
 
@@ -160,6 +161,7 @@ void bindJob(Statement& s, const JobRecord& j) {
                     int64_t(o.receivers), int64_t(o.receiverPcf)})
     s.bind(c++, v);
   s.text(c++, j.receiverHash == Hash128{} ? std::string() : j.receiverHash.hex());
+  s.text(c++, j.plan);
 }
 
 }  // namespace
@@ -195,6 +197,7 @@ FarmStore::FarmStore(const std::string& path) {
       exec("ALTER TABLE jobs ADD COLUMN receivers INTEGER NOT NULL DEFAULT 0");
       exec("ALTER TABLE jobs ADD COLUMN receiver_pcf INTEGER NOT NULL DEFAULT 9");
       exec("ALTER TABLE jobs ADD COLUMN receiver_hash TEXT NOT NULL DEFAULT ''");
+      exec("ALTER TABLE jobs ADD COLUMN plan TEXT NOT NULL DEFAULT ''");
     } else if (existing && version != kSchemaVersion)
       throw std::runtime_error("the job store " + path + " has schema version " + std::to_string(version == 0 ? 1 : version) +
                                "; this cpvs-server reads version " + std::to_string(kSchemaVersion) +
@@ -209,7 +212,7 @@ FarmStore::FarmStore(const std::string& path) {
       "frame_v_x REAL, frame_v_y REAL, frame_v_z REAL, origin_x REAL, origin_y REAL, origin_z REAL, u0 REAL, v0 REAL, "
       "d0 REAL, extent REAL, depth_extent REAL, log2_resolution INTEGER, closed INTEGER, exit_mode INTEGER, cull "
       "INTEGER, compress INTEGER, undefined_rule INTEGER, log2_tile_size INTEGER, hash_kind INTEGER, renderer INTEGER, "
-      "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT)");
+      "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT, plan TEXT)");
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
       "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, PRIMARY KEY(job_id, idx))");

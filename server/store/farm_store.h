@@ -42,6 +42,7 @@ struct JobRecord {
   OrthoGrid grid;       // what the tiles bake, in typed columns
   BakeOptions options;
   Hash128 receiverHash;  // receiverHash of the job's declaration (zero: receivers everywhere)
+  std::string plan;      // planJson of the bake, made at submit: the artifact records it
   JobState state = JobState::Queued;
   int priority = 0;
   int64_t createdMs = 0, startedMs = 0, finishedMs = 0;

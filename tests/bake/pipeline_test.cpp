@@ -163,7 +163,12 @@ TEST_P(ScenePipeline, MergeOrderDoesNotChangeBytes) {
     Dag shuffled = assembleRoots(*merger.finish(), opt.hash, opt.compress);
     expectSameDag(inOrder, shuffled);
     expectOptimal(shuffled);
-    CpvsArtifact a{grid, opt, sceneHash(scene_), {}, inOrder, {}}, b{grid, opt, sceneHash(scene_), {}, shuffled, {}};
+    CpvsArtifact a, b;
+    a.grid = b.grid = grid;
+    a.options = b.options = opt;
+    a.sceneHash = b.sceneHash = sceneHash(scene_);
+    a.dag = inOrder;
+    b.dag = shuffled;
     EXPECT_EQ(encodeCpvs(a, false), encodeCpvs(b, false));
   }
 }

@@ -179,6 +179,46 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
   EXPECT_LT(bytes[1], bytes[0]);
 }
 
+// The plan: a glTF with a directional, a point and a spot light (KHR_lights_punctual) on
+// an open triangle: the directional light is this bake's or named with its --sun-dir,
+// the local lights are skipped with the reason, no exit search runs; a bake records the
+// same plan, which inspect shows.
+TEST_F(Cli, PlanSaysWhatABakeComputesAndTheBakeRecordsIt) {
+  std::ofstream(path("lights.gltf")) << "{\"asset\": {\"version\": \"2.0\"}, \"extensionsUsed\": [\"KHR_lights_punctual\"], \"extensions\": {\"KHR_lights_punctual\": {\"lights\": [{\"type\": \"directional\", \"name\": \"sun\", \"color\": [1, 1, 1]}, {\"type\": \"point\", \"name\": \"lamp\"}, {\"type\": \"spot\", \"name\": \"torch\", \"spot\": {\"innerConeAngle\": 0.2, \"outerConeAngle\": 0.5}}]}}, \"scenes\": [{\"nodes\": [0, 1, 2, 3]}], \"scene\": 0, \"nodes\": [{\"mesh\": 0, \"name\": \"ground\"}, {\"name\": \"sunNode\", \"rotation\": [-0.7071068, 0, 0, 0.7071068], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 0}}}, {\"name\": \"lampNode\", \"translation\": [1, 2, 3], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 1}}}, {\"name\": \"torchNode\", \"translation\": [0, 5, 0], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 2}}}], \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}}]}], \"buffers\": [{\"byteLength\": 36, \"uri\": \"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAAAAAAAAAAAAAIA/AACAPwAAAAAAAAAA\"}], \"bufferViews\": [{\"buffer\": 0, \"byteLength\": 36}], \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 3, \"type\": \"VEC3\", \"min\": [0, 0, 0], \"max\": [1, 0, 1]}]}";
+  CliRun r = cpvs("plan " + path("lights.gltf") + " --sun-dir 0,-1,0 -r 1K --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json plan = parse(r);
+  ASSERT_EQ(plan["lights"].size(), 3u);
+  EXPECT_EQ(plan["lights"][0]["type"], "directional");
+  EXPECT_EQ(plan["lights"][0]["baked"], true);
+  EXPECT_EQ(plan["lights"][1]["type"], "point");
+  EXPECT_EQ(plan["lights"][1]["baked"], false);
+  EXPECT_NE(plan["lights"][1]["reason"].get<std::string>().find("skipped: local lights"), std::string::npos);
+  EXPECT_EQ(plan["lights"][2]["type"], "spot");
+  EXPECT_EQ(plan["closed_parts"], 0);
+  EXPECT_EQ(plan["passes"][1]["name"], "exit");
+  EXPECT_EQ(plan["passes"][1]["runs"], false);
+  EXPECT_TRUE(plan["media"].empty());
+  r = cpvs("plan " + path("lights.gltf") + " --sun-dir 1,-1,0 -r 1K --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(parse(r)["lights"][0]["reason"].get<std::string>().find("--sun-dir 0,-1,0"), std::string::npos) << r.out;
+
+  r = cpvs("bake " + path("lights.gltf") + " --sun-dir 0,-1,0 -r 1K -q -o " + path("lights.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = cpvs("inspect --json " + path("lights.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(parse(r)["plan"], plan);
+  // The city has closed parts: the exit search runs; its receivers reach part of the grid.
+  r = cpvs("plan city:3 --sun-elevation 35 -r 256 --tile-size 64 --receivers surfaces --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json city = parse(r);
+  EXPECT_GT(city["closed_parts"].get<int>(), 0);
+  EXPECT_EQ(city["passes"][1]["runs"], true);
+  EXPECT_EQ(city["receivers"]["kind"], "surfaces");
+  EXPECT_GT(city["receivers"]["columns_read_share"].get<double>(), 0.0);
+  EXPECT_EQ(city["tiles"]["total"], 16);
+}
+
 TEST_F(Cli, QueryOnePointAndACsv) {
   // Far above the city, sunlit; under the ground slab's middle, shadowed.
   CliRun lit = cpvs("query " + path("c.cpvs") + " --point 40,200,40");
@@ -392,7 +432,7 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
 TEST_F(Cli, HelpExplainsEveryCommand) {
   CliRun r = cpvs("--help");
   EXPECT_EQ(r.status, 0);
-  for (const char* c : {"bake", "inspect", "query", "verify", "render"})
+  for (const char* c : {"bake", "inspect", "query", "verify", "render", "plan"})
     EXPECT_NE(r.out.find(c), std::string::npos) << c;
   CliRun b = cpvs("bake --help");
   for (const char* o : {"--sun-dir", "--sun-elevation", "--resolution", "--closed", "--exit", "--cull", "--compress",

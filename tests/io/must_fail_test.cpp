@@ -82,9 +82,9 @@ CpvsArtifact sampleArtifact() {
 // Byte offsets of the .cpvs header (cpvs_file.h), the same in versions 1 to 3.
 constexpr size_t kDir = 12, kExtent = 132, kLog2R = 148, kOptions = 152, kTile = 160;
 // Version 3: the receiver declaration (kind, PCF, reserved, hash).
-constexpr size_t kReceivers = 180, kReceiverHash = 188;
-// Version 3: the word count, the section's size and stored size, then the packed words.
-constexpr size_t kWordCount = 204, kSectionSize = 212, kWords = 228;
+constexpr size_t kReceivers = 180, kReceiverHash = 188, kPlanBytes = 204;
+// Version 3 (with no plan): the word count, the section's size and stored size, then the packed words.
+constexpr size_t kWordCount = 208, kSectionSize = 216, kWords = 232;
 // Version 1: the root, then the level table.
 constexpr size_t kRootCode = 180, kRootIndex = 184, kLevelCount = 188, kLeafCount = 192, kLevelSizes = 200;
 
@@ -127,6 +127,7 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
 
   std::vector<Case> cases = headerCases();
   const std::vector<Case> packedCases{
+      {"plan size", [](Bytes& b) { put<uint32_t>(b, kPlanBytes, 1u << 21); }, "the plan's size 2097152 is invalid"},
       {"receiver kind", [](Bytes& b) { b[kReceivers] = 5; }, "the receiver declaration holds an unknown value"},
       {"receiver reserved byte", [](Bytes& b) { b[kReceivers + 7] = 1; }, "the receiver declaration holds an unknown value"},
       {"receiver PCF for everywhere", [](Bytes& b) { b[kReceivers + 1] = 9; }, "the receiver declaration is inconsistent"},
@@ -240,6 +241,12 @@ TEST(CpvsHeader, ReceiversRoundTripAndVersion2ReadsAsEverywhere) {
   const CpvsArtifact back = decodeCpvs(bytes.data(), bytes.size(), "r.cpvs");
   EXPECT_EQ(back.options, art.options);
   EXPECT_EQ(back.receiverHash, art.receiverHash);
+  art.plan = R"({"scene": "sample", "passes": []})";
+  const Bytes withPlan = encodeCpvs(art, false);
+  EXPECT_EQ(decodeCpvs(withPlan.data(), withPlan.size(), "p.cpvs").plan, art.plan);
+  art.plan = "\xff\xfe";
+  const Bytes badPlan = encodeCpvs(art, false);
+  EXPECT_THROW(decodeCpvs(badPlan.data(), badPlan.size(), "p.cpvs"), FormatError);
 
   // city:3:7, 256^3, sun at 40/30 degrees, zstd, written by the version 2 build.
   const Bytes v2 = readFile(CPVS_SOURCE_DIR "/tests/io/data/city-256-v2.cpvs");

@@ -89,7 +89,7 @@ std::vector<uint8_t> bomb(bool cpvs) {
     art.grid.frame = LightFrame::fromDirection({0.3, -1, 0.2});
     art.grid.log2Resolution = 6;
     const std::vector<uint8_t> valid = encodeCpvs(art, true);
-    b.assign(valid.begin(), valid.begin() + 204);
+    b.assign(valid.begin(), valid.begin() + 208);
     put64(claimed / 4);
   } else {
     b.insert(b.end(), {'C', 'P', 'V', 'T'});

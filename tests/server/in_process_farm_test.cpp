@@ -128,11 +128,10 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
 
   // The same bake in this process, from the same file.
   const Scene scene = loadScene(obj);
-  CpvsArtifact local;
-  local.grid = makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
-  local.options.log2TileSize = 6;
-  local.sceneHash = sceneHash(scene);
-  local.dag = bakeWith(scene, local.grid, local.options);
+  BakeOptions options;
+  options.log2TileSize = 6;
+  const CpvsArtifact local =
+      testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8), options);
   EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true));
 
   // A refused call reaches the client as its kind, through the library.
@@ -177,12 +176,11 @@ TEST(InProcessFarm, UntouchedTilesAreNotLeasedAndBothRenderersGiveTheLocalBytes)
     EXPECT_LT(done.tiles_untouched(), 64u);
     farm.client.download(done.job_id(), dir / "farm.cpvs");
 
-    CpvsArtifact local;
-    local.grid = makeGrid(scene, LightFrame::fromDirection({0.2, -1, 0.1}), 8);
-    local.options.log2TileSize = 5;
-    local.options.renderer = renderer;
-    local.sceneHash = sceneHash(scene);
-    local.dag = bakeWith(scene, local.grid, local.options);
+    BakeOptions options;
+    options.log2TileSize = 5;
+    options.renderer = renderer;
+    const CpvsArtifact local =
+        testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.2, -1, 0.1}), 8), options);
     EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true)) << optionName(renderer);
   }
   tileWorker.stop();
@@ -249,15 +247,10 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
     ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
     farm.client.download(done.job_id(), dir / "farm.cpvs");
 
-    CpvsArtifact local;
-    local.grid = makeGrid(loaded, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
-    local.options.log2TileSize = 6;
-    local.options.receivers = kind;
-    local.options.receiverPcf = 5;
-    local.sceneHash = cpvs::sceneHash(loaded);
-    local.receiverHash = receiverHash(d);
-    const BakeScene prepared(loaded, local.grid, local.options.renderer, 0, d);
-    local.dag = bakeGrid(prepared, local.options);
+    BakeOptions options;
+    options.log2TileSize = 6;
+    const CpvsArtifact local =
+        testing::localArtifact(loaded, makeGrid(loaded, LightFrame::fromDirection({0.3, -1, 0.2}), 8), options, d);
     EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true)) << optionName(kind);
   }
   // A volume that is not closed, or names no uploaded mesh, is refused at submit.
@@ -389,6 +382,7 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
   ASSERT_EQ(sqlite3_exec(db,
                          "ALTER TABLE jobs DROP COLUMN renderer; ALTER TABLE jobs DROP COLUMN receivers; "
                          "ALTER TABLE jobs DROP COLUMN receiver_pcf; ALTER TABLE jobs DROP COLUMN receiver_hash; "
+                         "ALTER TABLE jobs DROP COLUMN plan; "
                          "PRAGMA user_version = 2",
                          nullptr, nullptr, nullptr),
             SQLITE_OK);

@@ -37,11 +37,7 @@ Vec3 quantized(const Vec3& d) {
 
 // The local bake of one keyframe's direction, as the farm's artifact is written.
 std::vector<uint8_t> localBytes(const Scene& scene, const Vec3& direction) {
-  CpvsArtifact a;
-  a.grid = makeGrid(scene, LightFrame::fromDirection(direction), 7);
-  a.sceneHash = sceneHash(scene);
-  a.dag = testing::bakeWith(scene, a.grid, a.options);
-  return encodeCpvs(a, true);
+  return encodeCpvs(testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection(direction), 7), {}), true);
 }
 
 pb::TrackSpec directionTrack(const std::string& sceneHash, const std::vector<Vec3>& dirs) {

@@ -1,5 +1,7 @@
 #include "scene_testing.h"
 
+#include "cpvs/bake/bake_plan.h"
+
 namespace cpvs::testing {
 
 std::string sharedScenesDir() {
@@ -66,6 +68,23 @@ void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode clos
 Dag bakeWith(const Scene& scene, const OrthoGrid& grid, const BakeOptions& options) {
   const BakeScene prepared(scene, grid, options.renderer);
   return bakeGrid(prepared, options);
+}
+
+CpvsArtifact localArtifact(const Scene& scene, const OrthoGrid& grid, BakeOptions options,
+                           const ReceiverDeclaration& receivers) {
+  options.receivers = receivers.kind;
+  if (receivers.kind != ReceiverKind::Everywhere) options.receiverPcf = uint8_t(receivers.maxPcf);
+  const BakeScene prepared(scene, grid, options.renderer, 0, receivers);
+  Scene copy = scene;
+  const SceneStats stats = finalizeScene(copy);
+  CpvsArtifact a;
+  a.grid = grid;
+  a.options = options;
+  a.sceneHash = sceneHash(scene);
+  a.receiverHash = receiverHash(receivers);
+  a.plan = planJson(planBake(scene, stats, options, receivers, prepared.raster(), prepared.receivers()));
+  a.dag = bakeGrid(prepared, options);
+  return a;
 }
 
 Dag bakeTileWith(const Scene& scene, const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options) {

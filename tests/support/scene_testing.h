@@ -12,6 +12,7 @@
 
 #include "cpvs/bake/bake.h"
 #include "cpvs/bake/texel_slices.h"
+#include "cpvs/io/cpvs_file.h"
 #include "cpvs/light/frame.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/raytrace/ray_scene.h"
@@ -44,6 +45,11 @@ void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode clos
 
 /// bakeGrid of the scene prepared for the options' renderer.
 Dag bakeWith(const Scene& scene, const OrthoGrid& grid, const BakeOptions& options);
+/// The artifact `cpvs bake` writes for the scene (its plan, scene and receiver hashes
+/// included): what a farm's artifact of the same job must equal byte for byte.
+CpvsArtifact localArtifact(const Scene& scene, const OrthoGrid& grid, BakeOptions options,
+                           const ReceiverDeclaration& receivers = {});
+
 /// bakeTile of the scene prepared for the options' renderer.
 Dag bakeTileWith(const Scene& scene, const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options);
 

@@ -1,6 +1,7 @@
 #include "cpvs/io/cpvs_file.h"
 
 #include "cpvs/base/error.h"
+#include "cpvs/base/text.h"
 
 #include "io/container.h"
 #include "io/level_section.h"
@@ -50,6 +51,9 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   for (int i = 0; i < 6; ++i) w.put<uint8_t>(0);
   w.put(a.receiverHash.lo);
   w.put(a.receiverHash.hi);
+  CPVS_CHECK(a.plan.size() <= kMaxPlanBytes);
+  w.put<uint32_t>(uint32_t(a.plan.size()));
+  for (char c : a.plan) w.put<uint8_t>(uint8_t(c));
   const PackedDag packed(dag);
   const std::vector<uint32_t>& words = packed.words();
   w.put<uint64_t>(words.size());
@@ -115,6 +119,12 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
       h.fail("the receiver declaration is inconsistent (kind " + std::to_string(kind) + ", PCF " + std::to_string(pcf) + ")");
     o.receivers = ReceiverKind(kind);
     if (!everywhere) o.receiverPcf = pcf;
+    const uint32_t planBytes = h.get<uint32_t>("plan");
+    if (planBytes > kMaxPlanBytes || planBytes > h.remaining())
+      h.fail("the plan's size " + std::to_string(planBytes) + " is invalid");
+    a.plan.resize(planBytes);
+    for (char& c : a.plan) c = char(h.get<uint8_t>("plan"));
+    if (validUtf8Prefix(a.plan, planBytes) != a.plan) h.fail("the plan is not UTF-8 text");
   }
 
   const bool zstd = (flags & kContainerZstd) != 0;

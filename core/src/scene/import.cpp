@@ -121,6 +121,26 @@ void appendInstance(const std::string& path, const aiMesh& mesh, unsigned meshIn
   }
 }
 
+SceneLight lightOf(const aiLight& l, const Mat4d& world) {
+  SceneLight out;
+  out.name = l.mName.C_Str();
+  switch (l.mType) {
+    case aiLightSource_DIRECTIONAL: out.type = SceneLight::Type::Directional; break;
+    case aiLightSource_POINT: out.type = SceneLight::Type::Point; break;
+    case aiLightSource_SPOT: out.type = SceneLight::Type::Spot; break;
+    case aiLightSource_AREA: out.type = SceneLight::Type::Area; break;
+    case aiLightSource_AMBIENT: out.type = SceneLight::Type::Ambient; break;
+    default: out.type = SceneLight::Type::Unknown; break;
+  }
+  out.position = world.transformPoint(l.mPosition.x, l.mPosition.y, l.mPosition.z);
+  const Vec3 d = world.transformPoint(l.mDirection.x, l.mDirection.y, l.mDirection.z) - world.transformPoint(0, 0, 0);
+  out.direction = length(d) > 0 && isFinite(d) ? normalize(d) : Vec3{};
+  out.color = {l.mColorDiffuse.r, l.mColorDiffuse.g, l.mColorDiffuse.b};
+  out.innerConeDeg = double(l.mAngleInnerCone) * 180.0 / M_PI;
+  out.outerConeDeg = double(l.mAngleOuterCone) * 180.0 / M_PI;
+  return out;
+}
+
 }  // namespace
 
 Scene loadScene(const std::string& path, SceneStats* stats) {
@@ -164,6 +184,9 @@ Scene loadScene(const std::string& path, SceneStats* stats) {
     while (!stack.empty()) {
       auto [node, world] = stack.back();
       stack.pop_back();
+      // A light is placed by the node of its name.
+      for (unsigned l = 0; l < ai->mNumLights; ++l)
+        if (ai->mLights[l] != nullptr && ai->mLights[l]->mName == node->mName) scene.lights.push_back(lightOf(*ai->mLights[l], world));
       for (unsigned i = 0; i < node->mNumMeshes; ++i) {
         const unsigned meshIndex = node->mMeshes[i];
         if (meshIndex >= ai->mNumMeshes || ai->mMeshes[meshIndex] == nullptr)

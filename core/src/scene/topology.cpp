@@ -204,6 +204,11 @@ void classifyClosed(Scene& scene, SceneStats& stats) {
 
 }  // namespace
 
+const char* lightTypeName(SceneLight::Type type) {
+  static constexpr const char* kNames[] = {"directional", "point", "spot", "area", "ambient", "unknown"};
+  return kNames[size_t(type)];
+}
+
 SceneStats finalizeScene(Scene& scene) {
   if (scene.indices.size() % 3 != 0)
     throw InputError(scene.name + ": index count " + std::to_string(scene.indices.size()) +

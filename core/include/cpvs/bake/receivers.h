@@ -64,6 +64,10 @@ class ReceiverSet {
   /// it is free, which the undefined rules resolve to all lit. Always true for Everywhere.
   bool touchesRectangle(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height) const;
 
+  /// How many texel columns of the grid some receiver's lookups may reach (their
+  /// coverage, before any depth is known); R² for Everywhere.
+  uint64_t columnsReached() const;
+
   /// Widens the classification of the texels [x0, x0 + width) x [y0, y0 + height) (row
   /// major, as rendered) to what the receivers need: firstUndefined becomes one past the
   /// last slice a lookup needs lit (0: none), firstShadowed the first slice a lookup needs

@@ -14,4 +14,9 @@ std::string validUtf8Prefix(const std::string& text, size_t maxBytes);
 /// every control character (newlines, ESC of terminal sequences, ...) written as \xNN.
 std::string loggable(const std::string& text, size_t maxBytes = 200);
 
+/// A JSON string literal of `s` (quotes, backslashes and control characters escaped).
+std::string jsonString(const std::string& s);
+/// A JSON number of `v` (9 significant digits), null when not finite.
+std::string jsonNumber(double v);
+
 }  // namespace cpvs

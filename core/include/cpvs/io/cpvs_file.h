@@ -18,6 +18,8 @@ namespace cpvs {
 /// read (as baked for receivers everywhere).
 constexpr uint32_t kCpvsFormatVersion = 3;
 constexpr uint32_t kCpvsOldestFormatVersion = 1;
+/// The largest plan a file may record.
+constexpr uint32_t kMaxPlanBytes = 1u << 20;
 
 /// A baked artifact: what was baked (grid, options, scene hash) and the complete DAG.
 struct CpvsArtifact {
@@ -27,6 +29,9 @@ struct CpvsArtifact {
   /// receiverHash of the declaration baked for (zero for receivers everywhere): with
   /// options.receivers and options.receiverPcf, what `verify` samples and lookups may trust.
   Hash128 receiverHash;
+  /// The bake's plan (planJson: what it computed and why), as recorded; "" when none
+  /// (files before version 3).
+  std::string plan;
   Dag dag;  // complete: one root, log2RootSize == log2Resolution; hashes not stored
   /// The same DAG packed for lookups: decodeCpvs fills it with the file's words as they
   /// are (packing a version 1 file's levels); encodeCpvs ignores it and packs `dag`.
@@ -37,7 +42,8 @@ struct CpvsArtifact {
 
 /// Serializes an artifact. Layout (little-endian): a fixed header with magic "CPVS",
 /// version, flags, the grid and options, the scene hash, the receiver declaration (kind,
-/// PCF width, 6 reserved zero bytes, its hash); the word count of the packed DAG and its words
+/// PCF width, 6 reserved zero bytes, its hash), the plan (a byte count and UTF-8 JSON,
+/// at most kMaxPlanBytes); the word count of the packed DAG and its words
 /// (packed_layout.h: a header, the pointer grid, the nodes, the leaves), optionally
 /// zstd-compressed; an XXH3-64 checksum of everything before it. (Version 1 held the
 /// root, the level sizes and per level the 16-bit codes and 32-bit child indices.)

@@ -10,6 +10,20 @@
 
 namespace cpvs {
 
+/// A light the scene file holds (glTF KHR_lights_punctual, COLLADA, FBX, ... through
+/// assimp), in world space: what `cpvs plan` reports. Not part of the geometry.
+struct SceneLight {
+  enum class Type : uint8_t { Directional, Point, Spot, Area, Ambient, Unknown };
+  std::string name;
+  Type type = Type::Unknown;
+  Vec3 position, direction;  // direction: where it shines (unit; zero when it has none)
+  Vec3 color;
+  double innerConeDeg = 0, outerConeDeg = 0;  // spot lights
+};
+
+/// "directional", "point", "spot", "area", "ambient", "unknown".
+const char* lightTypeName(SceneLight::Type type);
+
 /// One flattened triangle mesh in world space (all node transforms applied).
 /// Positions stay in double precision; every triangle indexes `positions`.
 /// `closed[i]` tells whether triangle i belongs to a closed, consistently oriented,
@@ -20,6 +34,7 @@ struct Scene {
   std::vector<uint32_t> indices;     // 3 per triangle
   std::vector<uint8_t> closed;       // 1 per triangle, see above
   std::string name;                  // file name or generator name, for logs
+  std::vector<SceneLight> lights;    // as the file holds them (not hashed: they cast no shadow)
 
   size_t triangleCount() const { return indices.size() / 3; }
   Vec3 vertex(size_t tri, int corner) const { return positions[indices[3 * tri + corner]]; }

@@ -1,0 +1,59 @@
+// What a bake will compute and why (the effect planner): the closed parts found, the
+// receiver declaration and what it leaves free, the lights the scene file holds and
+// which of them are baked, and which passes run. Deterministic: a function of the scene,
+// the grid, the options and the declaration, so the local bake and the farm record the
+// same plan in the artifact.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "cpvs/bake/options.h"
+#include "cpvs/bake/raster_scene.h"
+#include "cpvs/bake/receivers.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/scene/scene.h"
+
+namespace cpvs {
+
+struct BakePlan {
+  std::string scene;
+  uint64_t triangles = 0, parts = 0, closedParts = 0, closedTriangles = 0;
+  double closedAreaShare = 0;  // of the scene's surface area, in closed parts
+  uint64_t resolution = 0;
+  ReceiverKind receivers = ReceiverKind::Everywhere;
+  int receiverPcf = 0;                 // 0 for everywhere
+  uint64_t tiles = 0;
+  uint64_t tilesUntouched = 0;         // no triangle can touch them: all lit, not rendered
+  uint64_t tilesUnread = 0;            // touched, but no declared receiver reads them: not rendered either
+  double columnsReadShare = 1;         // texel columns some receiver's lookups reach (1 for everywhere)
+  uint64_t columnsSampledSide = 0;     // the grid side that share was counted at (min(R, 4096))
+  struct Light {
+    SceneLight light;
+    bool baked = false;
+    std::string reason;
+  };
+  std::vector<Light> lights;
+  struct Pass {
+    std::string name;
+    bool runs = false;
+    std::string why;
+  };
+  std::vector<Pass> passes;
+};
+
+/// The plan of baking `scene` (with `stats` from its import) on `raster`'s grid with
+/// `options` for `receivers` (`reads`: their projection on that grid, as BakeScene holds
+/// both). Projects the receivers once more at min(R, 4096) to count the columns they
+/// reach (a fraction of a second on large scenes).
+BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions& options,
+                  const ReceiverDeclaration& receivers, const RasterScene& raster, const ReceiverSet& reads);
+
+/// The plan as one JSON object (what artifacts record and `cpvs plan --json` prints); the
+/// scene's name is left out (a copy of the file bakes to the same bytes).
+std::string planJson(const BakePlan& plan);
+/// The plan for people, one line per fact.
+std::string planText(const BakePlan& plan);
+
+}  // namespace cpvs

@@ -1,0 +1,168 @@
+#include "cpvs/bake/bake_plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "cpvs/base/text.h"
+#include "cpvs/bake/tile_plan.h"
+
+namespace cpvs {
+
+namespace {
+
+constexpr int kLog2PlanColumns = 12;  // the side the read columns are counted at
+
+std::string vecJson(const Vec3& v) {
+  return "[" + jsonNumber(v.x) + ", " + jsonNumber(v.y) + ", " + jsonNumber(v.z) + "]";
+}
+
+std::string percent(double share) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f %%", 100 * share);
+  return b;
+}
+
+}  // namespace
+
+BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions& o, const ReceiverDeclaration& d,
+                  const RasterScene& raster, const ReceiverSet& reads) {
+  const OrthoGrid& grid = raster.grid();
+  BakePlan p;
+  p.scene = scene.name;
+  p.triangles = scene.triangleCount();
+  p.parts = stats.parts;
+  p.closedParts = stats.closedParts;
+  p.closedTriangles = stats.closedTriangles;
+  double area = 0, closedArea = 0;
+  for (size_t t = 0; t < scene.triangleCount(); ++t) {
+    const Vec3 a = scene.vertex(t, 0);
+    const double at = 0.5 * length(cross(scene.vertex(t, 1) - a, scene.vertex(t, 2) - a));
+    area += at;
+    if (scene.closed[t]) closedArea += at;
+  }
+  p.closedAreaShare = area > 0 ? closedArea / area : 0;
+  p.resolution = grid.resolution();
+  p.receivers = d.kind;
+  p.receiverPcf = d.kind == ReceiverKind::Everywhere ? 0 : d.maxPcf;
+
+  const TilePlan tiles(grid.log2Resolution, o.log2TileSize);
+  const uint64_t T = uint64_t(1) << tiles.log2TileSize();
+  p.tiles = tiles.count();
+  for (uint64_t i = 0; i < tiles.count(); ++i) {
+    const TileCoord t = tiles.tile(i);
+    if (!raster.touchesRectangle(t.x * T, t.y * T, T, T))
+      ++p.tilesUntouched;
+    else if (!reads.touchesRectangle(t.x * T, t.y * T, T, T))
+      ++p.tilesUnread;
+  }
+  OrthoGrid coarse = grid;
+  coarse.log2Resolution = std::min(grid.log2Resolution, kLog2PlanColumns);
+  p.columnsSampledSide = coarse.resolution();
+  if (d.kind != ReceiverKind::Everywhere) {
+    const ReceiverSet counted(scene, coarse, d);
+    p.columnsReadShare = double(counted.columnsReached()) / double(coarse.resolution() * coarse.resolution());
+  }
+
+  for (const SceneLight& l : scene.lights) {
+    BakePlan::Light pl{l, false, ""};
+    switch (l.type) {
+      case SceneLight::Type::Directional: {
+        pl.baked = dot(l.direction, grid.frame.dir) > 1 - 1e-9;
+        // Six decimals, as a person would type it (a file's float rotation leaves 1e-7s).
+        auto typed = [](double v) {
+          const double r = std::round(v * 1e6) / 1e6;
+          return r == 0 ? 0.0 : r;
+        };
+        char b[160];
+        std::snprintf(b, sizeof b, "bake it with --sun-dir %.6g,%.6g,%.6g (one directional light per bake)",
+                      typed(l.direction.x), typed(l.direction.y), typed(l.direction.z));
+        pl.reason = pl.baked ? "baked: it is this bake's light" : b;
+        break;
+      }
+      case SceneLight::Type::Point:
+      case SceneLight::Type::Spot:
+      case SceneLight::Type::Area:
+        pl.reason = "skipped: local lights are not baked yet (a bake holds one directional light)";
+        break;
+      case SceneLight::Type::Ambient:
+        pl.reason = "skipped: an ambient light casts no shadow";
+        break;
+      case SceneLight::Type::Unknown:
+        pl.reason = "skipped: a light of a kind assimp does not name";
+        break;
+    }
+    p.lights.push_back(pl);
+  }
+
+  const bool closedUsed = o.closed == ClosedMode::On || (o.closed == ClosedMode::Auto && p.closedTriangles > 0);
+  const uint64_t rendered = p.tiles - p.tilesUntouched - p.tilesUnread;
+  auto pass = [&](const char* name, bool runs, std::string why) { p.passes.push_back({name, runs, std::move(why)}); };
+  pass("render", rendered > 0,
+       std::to_string(rendered) + " of " + std::to_string(p.tiles) + " tiles, " + optionName(o.renderer) +
+           (o.renderer == Renderer::Raster ? " (exact rasterization)" : " (a ray per texel)"));
+  pass("exit", closedUsed,
+       closedUsed ? (o.closed == ClosedMode::On ? std::string("every triangle treated as closed (--closed on)")
+                                                 : std::to_string(p.closedParts) + " closed parts, " +
+                                                       percent(p.closedAreaShare) + " of the area: their interiors are free") +
+                        ", exit depth " + optionName(o.exit)
+                  : std::string(o.closed == ClosedMode::Off ? "closed parts ignored (--closed off)" : "no closed part") +
+                        ": the first crossing decides every texel" +
+                        (o.renderer == Renderer::Embree ? " (first hits only are traced)" : ""));
+  pass("receivers", d.kind != ReceiverKind::Everywhere,
+       d.kind == ReceiverKind::Everywhere
+           ? std::string("receivers everywhere: every voxel outside closed parts is kept")
+           : std::string(optionName(d.kind)) + ", PCF up to " + std::to_string(d.maxPcf) + ": lookups reach " +
+                 percent(p.columnsReadShare) + " of the columns; " + std::to_string(p.tilesUnread) +
+                 " touched tiles are read by none");
+  pass("masks", rendered > 0, std::string("undefined voxels by the ") + optionName(o.undefinedRule) + " rule");
+  pass("insert", true, o.cull ? "culling identical nodes (§3.2)" : "no culling");
+  pass("compress", o.compress != CompressMode::None, std::string(optionName(o.compress)));
+  pass("merge", p.tiles > 1, std::to_string(p.tiles) + " tile" + (p.tiles == 1 ? "" : "s"));
+  return p;
+}
+
+std::string planJson(const BakePlan& p) {
+  std::ostringstream o;
+  // No scene name: the farm names its copy by hash; the file records the scene's hash.
+  o << "{\"triangles\": " << p.triangles << ", \"parts\": " << p.parts
+    << ", \"closed_parts\": " << p.closedParts << ", \"closed_triangles\": " << p.closedTriangles
+    << ", \"closed_area_share\": " << jsonNumber(p.closedAreaShare) << ", \"resolution\": " << p.resolution
+    << ", \"receivers\": {\"kind\": " << jsonString(optionName(p.receivers))
+    << ", \"pcf\": " << (p.receiverPcf ? std::to_string(p.receiverPcf) : "null")
+    << ", \"columns_read_share\": " << jsonNumber(p.columnsReadShare) << ", \"counted_at\": " << p.columnsSampledSide
+    << "}, \"tiles\": {\"total\": " << p.tiles << ", \"untouched\": " << p.tilesUntouched << ", \"unread\": " << p.tilesUnread
+    << "}, \"lights\": [";
+  for (size_t i = 0; i < p.lights.size(); ++i) {
+    const BakePlan::Light& l = p.lights[i];
+    o << (i ? ", " : "") << "{\"name\": " << jsonString(l.light.name) << ", \"type\": " << jsonString(lightTypeName(l.light.type))
+      << ", \"position\": " << vecJson(l.light.position) << ", \"direction\": " << vecJson(l.light.direction)
+      << ", \"baked\": " << (l.baked ? "true" : "false") << ", \"reason\": " << jsonString(l.reason) << "}";
+  }
+  o << "], \"media\": [], \"passes\": [";
+  for (size_t i = 0; i < p.passes.size(); ++i)
+    o << (i ? ", " : "") << "{\"name\": " << jsonString(p.passes[i].name) << ", \"runs\": " << (p.passes[i].runs ? "true" : "false")
+      << ", \"why\": " << jsonString(p.passes[i].why) << "}";
+  o << "]}";
+  return o.str();
+}
+
+std::string planText(const BakePlan& p) {
+  std::ostringstream o;
+  o << p.scene << ": " << p.triangles << " triangles in " << p.parts << " parts; " << p.closedParts
+    << " closed parts (" << p.closedTriangles << " triangles, " << percent(p.closedAreaShare) << " of the area)\n";
+  o << "  grid " << p.resolution << "^3, " << p.tiles << " tiles: " << p.tilesUntouched << " touched by no triangle, "
+    << p.tilesUnread << " read by no receiver, " << (p.tiles - p.tilesUntouched - p.tilesUnread) << " to render\n";
+  o << "  receivers " << optionName(p.receivers);
+  if (p.receivers != ReceiverKind::Everywhere)
+    o << ", PCF up to " << p.receiverPcf << ": their lookups reach " << percent(p.columnsReadShare)
+      << " of the texel columns (counted at " << p.columnsSampledSide << "^2); the rest is free";
+  o << "\n  lights in the file: " << (p.lights.empty() ? "none" : std::to_string(p.lights.size())) << "\n";
+  for (const BakePlan::Light& l : p.lights)
+    o << "    " << lightTypeName(l.light.type) << " '" << loggable(l.light.name) << "': " << l.reason << "\n";
+  o << "  participating media: none declared (no media pass exists)\n  passes:\n";
+  for (const BakePlan::Pass& s : p.passes) o << "    " << (s.runs ? "runs   " : "skipped") << "  " << s.name << ": " << s.why << "\n";
+  return o.str();
+}
+
+}  // namespace cpvs
