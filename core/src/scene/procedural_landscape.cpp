@@ -85,6 +85,7 @@ Scene makeFractalLandscape(int size, uint32_t seed) {
     tri(top(size, k), bottom(size, k + 1), bottom(size, k));
   }
   finalizeScene(s);
+  s.name = "procedural-landscape";
   return s;
 }
 
