@@ -108,7 +108,8 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
                         ", exit depth " + optionName(o.exit)
                   : std::string(o.closed == ClosedMode::Off ? "closed parts ignored (--closed off)" : "no closed part") +
                         ": the first crossing decides every texel" +
-                        (o.renderer == Renderer::Embree ? " (first hits only are traced)" : ""));
+                        (o.renderer == Renderer::Embree ? " (first hits only are traced)"
+                                                        : " (the rasterizer keeps the nearest crossing only)"));
   pass("receivers", d.kind != ReceiverKind::Everywhere,
        d.kind == ReceiverKind::Everywhere
            ? std::string("receivers everywhere: every voxel outside closed parts is kept")

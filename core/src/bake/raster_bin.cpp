@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <limits>
 
 #include "bake/raster_bin.h"
 #include "cpvs/bake/texel_slices.h"
@@ -281,6 +282,40 @@ void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
       resolveUniformBlock(s, fragments, triangles, job.closed, job.exact, tie, texels, s.hits, job.lo + 64 * size_t(b),
                           job.hi + 64 * size_t(b));
       continue;
+    }
+
+    // Only open surfaces here: the nearest crossing decides each texel (classifyTexel),
+    // unless another lies within the tie distance of it, which the full rule orders.
+    bool anyClosed = false;
+    for (size_t f = 0; f < fragments && !anyClosed; ++f) {
+      const RasterTriangle& r = triangles[s.fragmentTriangle[f]];
+      anyClosed = job.closed == ClosedMode::On || (job.closed == ClosedMode::Auto && r.closed);
+    }
+    if (!anyClosed && fragments > 0) {
+      double nearest[64], second[64];
+      std::fill(nearest, nearest + 64, std::numeric_limits<double>::infinity());
+      std::fill(second, second + 64, std::numeric_limits<double>::infinity());
+      for (size_t f = 0; f < fragments; ++f) {
+        const double* depth = s.fragmentDepth.data() + 64 * f;
+        for (uint64_t m = s.fragmentMask[f]; m; m &= m - 1) {
+          const int l = std::countr_zero(m);
+          const double t = depth[l];
+          if (t < nearest[l]) {
+            second[l] = nearest[l];
+            nearest[l] = t;
+          } else if (t < second[l]) {
+            second[l] = t;
+          }
+        }
+      }
+      bool clear = true;
+      for (int l = 0; l < 64 && clear; ++l) clear = !(second[l] - nearest[l] <= tie);
+      if (clear) {
+        uint32_t* lo = job.lo + 64 * size_t(b);
+        uint32_t* hi = job.hi + 64 * size_t(b);
+        for (int l = 0; l < 64; ++l) lo[l] = hi[l] = nearest[l] == std::numeric_limits<double>::infinity() ? R : texels.slice(nearest[l]);
+        continue;
+      }
     }
 
     // Each texel's crossings, gathered texel by texel (counting, then filling).
