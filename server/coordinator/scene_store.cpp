@@ -121,16 +121,29 @@ pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
   }
   if (r->received < r->totalSize) return reply;  // resumable later
   const fs::path part = partPath(hash);
-  std::vector<uint8_t> bytes = readFile(part.string());
+  const fs::path final = fs::path(folder_) / (hash + safeExtension(r->fileName));
+  // Every byte arrived; a crash may have come after the rename to `final` or during the
+  // import (R5): then the stored file is checked and imported again. Lost both ways, the
+  // upload starts over.
+  auto restart = [&] { store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false}); };
+  std::error_code ec;
+  const bool renamed = !fs::exists(part, ec) && fs::exists(final, ec);
+  if (!renamed && !fs::exists(part, ec)) {
+    restart();
+    throw FarmError(ErrorKind::DataLoss, "the bytes of scene " + hash + " were lost before they were stored; upload again");
+  }
+  const fs::path stored = renamed ? final : part;
+  std::vector<uint8_t> bytes = readFile(stored.string());
   std::string got = contentHash(bytes.data(), bytes.size()).hex();
   if (got != hash) {
-    fs::remove(part);
-    store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false});
+    fs::remove(stored);
+    restart();
     throw FarmError(ErrorKind::DataLoss, "the uploaded bytes hash to " + got + ", not " + hash + "; upload again");
   }
-  fs::path final = fs::path(folder_) / (hash + safeExtension(r->fileName));
-  fs::rename(part, final);
-  syncParentFolder(final.string());
+  if (!renamed) {
+    fs::rename(part, final);
+    syncParentFolder(final.string());
+  }
   try {
     SceneStats stats;
     Scene scene = loadScene(final.string(), &stats);
@@ -138,14 +151,20 @@ pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
     r->geometryHash = sceneHash(scene).hex();
   } catch (const InputError& e) {
     fs::remove(final);
-    store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false});
+    restart();
     // The importer names the stored file: the caller is told its own file name instead,
     // not where the data folder is.
     std::string why = e.what();
-    const std::string stored = final.string();
-    for (size_t at = why.find(stored); at != std::string::npos; at = why.find(stored, at + r->fileName.size()))
-      why.replace(at, stored.size(), r->fileName);
+    const std::string storedName = final.string();
+    for (size_t at = why.find(storedName); at != std::string::npos; at = why.find(storedName, at + r->fileName.size()))
+      why.replace(at, storedName.size(), r->fileName);
     throw FarmError(ErrorKind::InvalidArgument, "the scene does not import: " + why);
+  } catch (const std::exception& e) {
+    // Out of memory, a file system error: the upload is not left half imported.
+    spdlog::error("importing scene {} failed: {}", hash, loggable(e.what()));
+    fs::remove(final, ec);
+    restart();
+    throw FarmError(ErrorKind::Internal, "the scene could not be imported on the server; upload it again");
   }
   r->complete = true;
   store_.putScene(*r);

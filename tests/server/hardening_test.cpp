@@ -180,6 +180,51 @@ TEST(Hardening, R3_AnUploadResumesAtTheAcknowledgedOffsetNotTheFilesEnd) {
   EXPECT_TRUE(farm.coordinator.scenes().uploadStatus(hash).complete());
 }
 
+// R5: a coordinator that died after storing an upload's bytes but before marking the
+// scene imported left it stuck: every retry read a `.part` that no longer existed. The
+// stored file is now checked and imported again; with the bytes gone, the upload starts
+// over.
+TEST(Hardening, R5_AnUploadInterruptedInItsImportCompletesOnTheNextTry) {
+  TempDir dir("cpvs_r5");
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  std::string hash;
+  {
+    InProcessFarm farm(dir / "data");
+    hash = farm.client.uploadScene(obj).sceneHash;
+  }
+  auto markIncomplete = [&] {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open((dir / "data/farm.sqlite").c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "UPDATE scenes SET complete = 0", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+  };
+  markIncomplete();  // renamed into place, not yet marked imported
+  {
+    InProcessFarm farm(dir / "data");
+    EXPECT_FALSE(farm.coordinator.scenes().uploadStatus(hash).complete());
+    const client::FarmClient::UploadResult up = farm.client.uploadScene(obj);
+    EXPECT_EQ(up.sceneHash, hash);
+    EXPECT_GT(up.triangles, 0u);
+    EXPECT_TRUE(farm.coordinator.scenes().uploadStatus(hash).complete());
+    EXPECT_EQ(farm.client.submit("r5", farm.uploadAndSpec(obj, "city:1:1", "64")).state() != pb::JOB_FAILED, true);
+  }
+  markIncomplete();
+  for (const auto& entry : std::filesystem::directory_iterator(dir / "data/scenes"))
+    if (entry.path().filename().string().starts_with(hash)) std::filesystem::remove(entry.path());  // and the bytes lost
+  InProcessFarm farm(dir / "data");
+  try {
+    farm.client.uploadScene(obj);
+    ADD_FAILURE() << "a lost upload was reported stored";
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::DataLoss) << e.what();
+    EXPECT_EQ(std::string(e.what()).find(dir / "data"), std::string::npos) << e.what();
+  }
+  const client::FarmClient::UploadResult again = farm.client.uploadScene(obj);
+  EXPECT_EQ(again.resumedFrom, 0u);
+  EXPECT_TRUE(farm.coordinator.scenes().uploadStatus(hash).complete());
+}
+
 // R2: tile_size 8 at 256K asked the store for 2^30 tile rows in one transaction.
 TEST(Hardening, R2_AJobOfTooManyTilesIsRefusedAtOnce) {
   TempDir dir("cpvs_r2");
