@@ -1,6 +1,10 @@
 #include "rpc/auth.h"
 
+#include <openssl/evp.h>
+
+#include <cstdio>
 #include <fstream>
+#include <stdexcept>
 #include <sstream>
 
 #include "cpvs/base/vec3.h"
@@ -8,6 +12,19 @@
 #include "cpvs/base/error.h"
 
 namespace cpvs::server {
+
+namespace {
+
+// SHA-256 of a token, 32 raw bytes.
+std::string digestOf(const std::string& token) {
+  unsigned char out[EVP_MAX_MD_SIZE];
+  unsigned int size = 0;
+  if (EVP_Digest(token.data(), token.size(), out, &size, EVP_sha256(), nullptr) != 1 || size != 32)
+    throw std::runtime_error("SHA-256 is not available from OpenSSL");
+  return std::string(reinterpret_cast<const char*>(out), size);
+}
+
+}  // namespace
 
 const char* roleName(Role r) {
   switch (r) {
@@ -38,16 +55,27 @@ TokenTable TokenTable::load(const std::string& path) {
     else if (role == "worker") r = Role::Worker;
     else if (role == "admin") r = Role::Admin;
     else throw InputError(where + ": unknown role '" + role + "' (client, worker or admin)");
-    if (!t.roles_.emplace(token, r).second) throw InputError(where + ": the token is listed twice");
+    if (!t.roles_.emplace(digestOf(token), r).second) throw InputError(where + ": the token is listed twice");
   }
   if (t.roles_.empty()) throw InputError(path + ": no tokens");
   return t;
 }
 
 std::optional<Role> TokenTable::roleOf(const std::string& token) const {
-  auto it = roles_.find(token);
+  auto it = roles_.find(digestOf(token));
   if (it == roles_.end()) return std::nullopt;
   return it->second;
+}
+
+std::vector<std::string> TokenTable::digestsForTests() const {
+  std::vector<std::string> out;
+  for (const auto& [digest, role] : roles_) {
+    std::string hex;
+    char b[3];
+    for (unsigned char c : digest) hex += (std::snprintf(b, sizeof b, "%02x", c), b);
+    out.push_back(hex);
+  }
+  return out;
 }
 
 }  // namespace cpvs::server

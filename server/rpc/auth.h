@@ -6,6 +6,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace cpvs::server {
 
@@ -22,13 +23,17 @@ class TokenTable {
   static TokenTable load(const std::string& path);
 
   bool enabled() const { return !roles_.empty(); }
-  /// The role of a token, if it is known.
+  /// The role of a token, if it is known. The table holds SHA-256 digests only, and looks
+  /// a token up by its digest: no plaintext stays in memory, and how long a lookup takes
+  /// tells nothing about how much of a guess matches a token (R18).
   std::optional<Role> roleOf(const std::string& token) const;
+  /// The digests held, in hex: for the test that no token is kept as sent.
+  std::vector<std::string> digestsForTests() const;
   /// Whether `role` may call an RPC that needs `needed` (admin may call anything).
   static bool allows(Role role, Role needed) { return role == Role::Admin || role == needed; }
 
  private:
-  std::map<std::string, Role> roles_;
+  std::map<std::string, Role> roles_;  // by SHA-256 digest (32 raw bytes)
 };
 
 }  // namespace cpvs::server

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -426,6 +427,13 @@ TEST(TokenTable, RolesFromAFileAndWhatEachMayCall) {
   EXPECT_EQ(t.roleOf(w), server::Role::Worker);
   EXPECT_EQ(t.roleOf(a), server::Role::Admin);
   EXPECT_FALSE(t.roleOf("nope").has_value());
+  EXPECT_FALSE(t.roleOf(c.substr(0, 16)).has_value());  // a prefix is not the token
+  // Only SHA-256 digests are held (R18), never a token as sent.
+  std::vector<std::string> digests = t.digestsForTests();
+  std::sort(digests.begin(), digests.end());
+  EXPECT_EQ(digests, (std::vector<std::string>{"1b34aac1e945a7976bd2918b3a0fbe0a6d7ff252a9f7ed8c55b8af62bf78f186",
+                                               "7ba51432f93e7ff524c901402bb2143fdb05bdba3bd25c3e573f915d28db60aa",
+                                               "bbe14f7bfef86ba0c5d4a0109d8dd6a64b7d96a6dec1be87211059a8f69d5efe"}));
   EXPECT_TRUE(server::TokenTable::allows(server::Role::Admin, server::Role::Worker));
   EXPECT_FALSE(server::TokenTable::allows(server::Role::Client, server::Role::Worker));
   std::ofstream(dir / "bad") << "superuser superuser-token-01\n";
