@@ -13,6 +13,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
 #include "cpvs/base/parse.h"
+#include "cpvs/net/connection.h"
 #include "rpc/auth.h"
 #include "rpc/farm_server.h"
 
@@ -39,12 +40,17 @@ int main(int argc, char** argv) {
   cpvs::server::CoordinatorConfig config;
   std::string maxResolution = "256K";
   double maxUploadMb = 4096;
+  bool insecureOpen = false, allowPlaintextTokens = false;
   app.add_option("--listen", listen, "HOST:PORT to serve on; port 0 picks a free port")->capture_default_str();
   app.add_option("--data", data, "Folder for the job database, scenes, tile results and artifacts")->required();
   app.add_option("--address-file", addressFile, "Write the bound HOST:PORT here once serving");
   app.add_option("--tokens", tokensFile, "Bearer tokens, lines 'ROLE TOKEN' (client, worker, admin); none = open");
   app.add_option("--tls-cert", tlsCert, "PEM certificate chain: serve TLS (with --tls-key)");
   app.add_option("--tls-key", tlsKey, "PEM private key of --tls-cert");
+  app.add_flag("--insecure-open", insecureOpen,
+               "Serve an address other than loopback without --tokens: anyone who reaches it may do anything");
+  app.add_flag("--allow-plaintext-tokens", allowPlaintextTokens,
+               "Take --tokens without TLS on an address other than loopback (a private network you trust)");
   app.add_option("--lease-seconds", config.leaseSeconds, "Tile lease length")->capture_default_str()->check(CLI::Range(1.0, 3600.0));
   app.add_option("--max-tile-seconds", config.maxTileSeconds,
                  "Longest a tile may be baked (renewals stop after it; a hung bake's tile goes to another worker)")
@@ -68,6 +74,17 @@ int main(int argc, char** argv) {
     config.maxLog2Resolution = cpvs::parseResolution(maxResolution);
     config.maxUploadBytes = uint64_t(maxUploadMb * 1024 * 1024);
     cpvs::server::TokenTable tokens = tokensFile.empty() ? cpvs::server::TokenTable() : cpvs::server::TokenTable::load(tokensFile);
+    // Safe defaults: an open farm or tokens in cleartext only where nothing but this
+    // machine can reach the port, unless the operator says so in as many words.
+    const bool local = cpvs::net::isLoopbackAddress(listen);
+    if (!local && !tokens.enabled() && !insecureOpen)
+      throw cpvs::InputError("refusing to serve " + listen +
+                             " without --tokens: anyone who reaches it could submit, cancel and download (make tokens "
+                             "with deploy/make-secrets.sh, or give --insecure-open on a network you trust)");
+    if (!local && tokens.enabled() && tlsCert.empty() && !allowPlaintextTokens)
+      throw cpvs::InputError("refusing to take tokens in plaintext on " + listen +
+                             ": give --tls-cert and --tls-key (deploy/make-secrets.sh --tls HOST), or "
+                             "--allow-plaintext-tokens on a private network you trust");
     if (!tokens.enabled()) spdlog::warn("no --tokens: every caller may do everything");
 
     std::shared_ptr<grpc::ServerCredentials> creds;

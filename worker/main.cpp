@@ -42,6 +42,8 @@ int main(int argc, char** argv) {
   app.add_option("--cache", config.cacheDir, "Folder for fetched scenes")->capture_default_str();
   app.add_option("--token", config.server.token, "Bearer token (default: $CPVS_TOKEN)");
   app.add_option("--ca", config.server.caFile, "PEM roots to trust: use TLS");
+  app.add_flag("--allow-plaintext-token", config.server.allowPlaintextToken,
+               "Send the token without TLS to a coordinator that is not on this machine (a trusted private network)");
   app.add_option("--id", config.workerId, "Name in the coordinator's logs")->capture_default_str();
   app.add_option("--max-tiles", config.maxTiles, "Stop after this many tiles (0 = run until stopped)");
   app.add_option("--threads,-j", config.threads,

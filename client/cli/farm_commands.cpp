@@ -51,16 +51,19 @@ namespace fs = std::filesystem;
 
 struct ConnectionArgs {
   std::string server, token, ca;
+  bool allowPlaintextToken = false;
 };
 
 void addConnectionOptions(CLI::App* c, ConnectionArgs& a) {
   c->add_option("--server", a.server, "Coordinator HOST:PORT")->required();
   c->add_option("--token", a.token, "Bearer token (default: $CPVS_TOKEN)");
   c->add_option("--ca", a.ca, "PEM roots to trust: connect with TLS (plaintext without)");
+  c->add_flag("--allow-plaintext-token", a.allowPlaintextToken,
+              "Send the token without TLS to a coordinator that is not on this machine (a trusted private network)");
 }
 
 net::Connection connectionOf(const ConnectionArgs& a) {
-  net::Connection c{a.server, a.token, a.ca};
+  net::Connection c{a.server, a.token, a.ca, a.allowPlaintextToken};
   if (c.token.empty())
     if (const char* t = std::getenv("CPVS_TOKEN")) c.token = t;
   // Tokens often come from files or secrets with a trailing newline.

@@ -2,7 +2,10 @@
 
 #include <openssl/evp.h>
 
+#include <cctype>
+#include <cmath>
 #include <cstdio>
+#include <set>
 #include <fstream>
 #include <stdexcept>
 #include <sstream>
@@ -25,6 +28,45 @@ std::string digestOf(const std::string& token) {
 }
 
 }  // namespace
+
+std::optional<std::string> weaknessOf(const std::string& token) {
+  std::string lower;
+  for (char c : token) lower += char(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* placeholder : {"replace", "changeme", "change_me", "change-me", "placeholder", "example", "password",
+                                  "your_", "your-", "xxxx"})
+    if (lower.find(placeholder) != std::string::npos)
+      return std::string("it looks like a placeholder ('") + placeholder + "')";
+  if (token.size() < kMinTokenChars)
+    return "it has " + std::to_string(token.size()) + " characters, fewer than " + std::to_string(kMinTokenChars);
+  // Bits a random token of this length over the character classes it uses would hold.
+  bool digit = false, lowerCase = false, upperCase = false, other = false;
+  for (unsigned char c : token) {
+    if (c < 0x21 || c > 0x7e) return std::string("it holds a character that is not printable ASCII");
+    if (std::isdigit(c)) digit = true;
+    else if (std::islower(c)) lowerCase = true;
+    else if (std::isupper(c)) upperCase = true;
+    else other = true;
+  }
+  bool hex = true;
+  for (unsigned char c : token) hex = hex && std::isxdigit(c);
+  const double alphabet = !lowerCase && !upperCase && !other ? 10
+                          : hex && !(lowerCase && upperCase)  ? 16
+                                                              : digit * 10 + lowerCase * 26 + upperCase * 26 + other * 32;
+  if (double bits = double(token.size()) * std::log2(alphabet); bits < kMinTokenBits)
+    return "it can hold about " + std::to_string(int(bits)) + " bits, fewer than " + std::to_string(int(kMinTokenBits));
+  // Random tokens are irregular: few distinct characters, long runs or a short repeated
+  // pattern mean a person made it up.
+  if (std::set<char>(token.begin(), token.end()).size() < 10) return std::string("it uses fewer than 10 distinct characters");
+  for (size_t period = 1; period <= token.size() / 2; ++period) {
+    bool repeats = true;
+    for (size_t i = period; i < token.size() && repeats; ++i) repeats = token[i] == token[i - period];
+    if (repeats) return "it repeats a pattern of " + std::to_string(period) + " characters";
+  }
+  size_t run = 1;
+  for (size_t i = 1; i < token.size(); ++i)
+    if ((run = token[i] == token[i - 1] ? run + 1 : 1) > 8) return std::string("it repeats one character 9 times");
+  return std::nullopt;
+}
 
 const char* roleName(Role r) {
   switch (r) {
@@ -49,7 +91,9 @@ TokenTable TokenTable::load(const std::string& path) {
     if (!(words >> role)) continue;
     std::string where = path + " line " + std::to_string(lineNo);
     if (!(words >> token) || (words >> extra)) throw InputError(where + ": expected ROLE TOKEN");
-    if (token.size() < 16) throw InputError(where + ": tokens must be at least 16 characters");
+    if (auto weak = weaknessOf(token))
+      throw InputError(where + ": the " + role + " token is too weak to trust: " + *weak +
+                       " (bash deploy/make-secrets.sh makes random ones: 64 hex digits)");
     Role r;
     if (role == "client") r = Role::Client;
     else if (role == "worker") r = Role::Worker;

@@ -10,6 +10,15 @@
 
 namespace cpvs::server {
 
+/// A token must be at least this long and, drawn at random from the character classes it
+/// uses, hold at least this many bits: 32 hex digits at the least.
+constexpr size_t kMinTokenChars = 32;
+constexpr double kMinTokenBits = 128;
+
+/// Why a token cannot be trusted (a placeholder such as REPLACE_WITH_..., too short, too
+/// few bits, too regular), or nothing when it may be used.
+std::optional<std::string> weaknessOf(const std::string& token);
+
 enum class Role { Client, Worker, Admin };
 
 const char* roleName(Role r);

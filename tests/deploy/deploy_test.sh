@@ -135,7 +135,14 @@ else:
             fail("docker-compose.yml: the coordinator does not publish port 7443")
         if not any(str(v).endswith(":/var/lib/cpvs") for v in coord.get("volumes") or []):
             fail("docker-compose.yml: the coordinator's --data folder /var/lib/cpvs is not on a volume")
-        ok("docker-compose.yml: coordinator with --tokens, port 7443 and a data volume")
+        # R7: cleartext tokens on compose's network are said in words, and the port is then
+        # published on the host's loopback only by default.
+        if "--tls-cert" not in cmd and "--allow-plaintext-tokens" not in cmd:
+            fail("docker-compose.yml: the coordinator takes tokens without TLS and without --allow-plaintext-tokens (it would refuse to start)")
+        for port in coord.get("ports") or []:
+            if "--tls-cert" not in cmd and not str(port).startswith("${CPVS_BIND:-127.0.0.1}:") and not str(port).startswith("127.0.0.1:"):
+                fail("docker-compose.yml: port %s is published beyond loopback while tokens travel in cleartext" % port)
+        ok("docker-compose.yml: coordinator with --tokens, port 7443 on loopback and a data volume")
     if not worker:
         fail("docker-compose.yml: no worker service")
     else:
@@ -151,6 +158,8 @@ else:
         cmd = cmd.split() if isinstance(cmd, str) else [str(c) for c in cmd]
         if "--server" not in cmd or "coordinator:7443" not in cmd:
             fail("docker-compose.yml: the worker does not dial --server coordinator:7443")
+        if "--ca" not in cmd and "--allow-plaintext-token" not in cmd:
+            fail("docker-compose.yml: the worker sends its token without TLS and without --allow-plaintext-token (it would refuse)")
         ok("docker-compose.yml: worker scalable, dials coordinator:7443, gets CPVS_TOKEN")
 
 # --- Kubernetes ------------------------------------------------------------------------
@@ -342,6 +351,13 @@ else:
         fail("Dockerfile: the final stage does not switch to a non-root USER")
     if "CMD" not in final:
         fail("Dockerfile: the final stage has no CMD")
+    else:
+        # R7: the image's default command is no open farm and takes no cleartext tokens.
+        cmd = final["CMD"]
+        if "--tokens" not in cmd and "127.0.0.1" not in cmd:
+            fail("Dockerfile: CMD serves beyond loopback without --tokens: an open farm")
+        if "--tokens" in cmd and "--tls-cert" not in cmd and "127.0.0.1" not in cmd:
+            fail("Dockerfile: CMD takes tokens in cleartext beyond loopback")
     if "7443" not in final.get("EXPOSE", ""):
         fail("Dockerfile: the final stage does not EXPOSE 7443")
     ok("Dockerfile: stages %s, runs deploy/setup.sh, final stage USER %s, EXPOSE %s, CMD %s" % (

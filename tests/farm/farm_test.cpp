@@ -28,9 +28,9 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using testing::ChildProcess;
 
-const std::string kClientToken = "client-token-0123456789";
-const std::string kWorkerToken = "worker-token-0123456789";
-const std::string kAdminToken = "admin-token-01234567890";
+const std::string kClientToken = "72535b13d2e52a94e70541e2aa22a470670e4c0a";
+const std::string kWorkerToken = "f4bc0e68223a0dba98b95ed08ae9c93d1ed68480";
+const std::string kAdminToken = "b5880e8c493f645e6958e8e32b54d3c7494a112b";
 
 using Ran = testing::CommandResult;
 
@@ -163,6 +163,53 @@ TEST_F(FarmTest, OneAndThreeWorkersGiveTheLocalBytes) {
   ASSERT_EQ(again.status, 0) << again.out;
   EXPECT_EQ(bytesOf(path("again.cpvs")), bytesOf(path("local.cpvs")));
   EXPECT_EQ(jobs(address).size(), 2u);
+}
+
+// R7, R27: certificates made as an operator makes them; a coordinator, a worker and a
+// client over TLS give the local bytes; a plaintext client and a client trusting another
+// CA get no answer.
+TEST_F(FarmTest, TlsEndToEndAndPlaintextOrAnotherCaRefused) {
+  for (const char* dir : {"tls", "other-ca"}) {
+    Ran made = testing::runShell("bash '" CPVS_SOURCE_DIR "/deploy/make-secrets.sh' --dir '" + path(dir) +
+                                 "' --tls localhost 2>&1");
+    ASSERT_EQ(made.status, 0) << made.out;
+  }
+  std::string address = startServer("s-tls", "127.0.0.1:0", {"--tls-cert", path("tls/tls.crt"), "--tls-key", path("tls/tls.key")});
+  ASSERT_TRUE(servers_.back()->waitForLog("(TLS)", 10)) << servers_.back()->log();
+  startWorker(address, "w-tls", {"--ca", path("tls/ca.crt")});
+  Ran r = runCli("submit --server " + address + " --token " + kClientToken + " --ca " + path("tls/ca.crt") + " " +
+                 path("city.obj") + kSpec + " --request-id over-tls --wait --json --out " + path("tls.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out << servers_.back()->log() << workers_.back()->log();
+  EXPECT_EQ(bytesOf(path("tls.cpvs")), bytesOf(path("local.cpvs")));
+
+  Ran plain = runCli("jobs --server " + address + " --token " + kClientToken);
+  EXPECT_EQ(plain.status, 4) << plain.out;
+  EXPECT_EQ(plain.out.find("over-tls"), std::string::npos) << plain.out;
+  Ran strange = runCli("jobs --server " + address + " --token " + kClientToken + " --ca " + path("other-ca/ca.crt"));
+  EXPECT_EQ(strange.status, 4) << strange.out;
+  Ran trusted = runCli("jobs --all --server " + address + " --token " + kClientToken + " --ca " + path("tls/ca.crt"));
+  EXPECT_EQ(trusted.status, 0) << trusted.out;
+}
+
+// R7: no open farm and no cleartext tokens beyond this machine unless asked for in words;
+// a client and a worker do not send a token in cleartext to another machine.
+TEST_F(FarmTest, InsecureDefaultsAreRefusedBeforeAnythingIsServedOrSent) {
+  Ran open = testing::runShell("timeout 30 '" CPVS_SERVER "' --listen 0.0.0.0:0 --data '" + path("open.data") + "' 2>&1");
+  EXPECT_EQ(open.status, 2) << open.out;
+  EXPECT_NE(open.out.find("without --tokens"), std::string::npos) << open.out;
+  EXPECT_FALSE(fs::exists(path("open.data")));
+  Ran clear = testing::runShell("timeout 30 '" CPVS_SERVER "' --listen 0.0.0.0:0 --data '" + path("clear.data") +
+                                "' --tokens '" + path("tokens") + "' 2>&1");
+  EXPECT_EQ(clear.status, 2) << clear.out;
+  EXPECT_NE(clear.out.find("tokens in plaintext"), std::string::npos) << clear.out;
+  // 192.0.2.1 is TEST-NET-1: refused before any connection is tried.
+  Ran client = runCli("jobs --server 192.0.2.1:7443 --token " + kClientToken);
+  EXPECT_EQ(client.status, 2) << client.out;
+  EXPECT_NE(client.out.find("refusing to send a token in plaintext"), std::string::npos) << client.out;
+  Ran worker = testing::runShell("timeout 30 '" CPVS_WORKER "' --server 192.0.2.1:7443 --token " + kWorkerToken +
+                                 " --cache '" + path("refused.cache") + "' 2>&1");
+  EXPECT_EQ(worker.status, 2) << worker.out;
+  EXPECT_NE(worker.out.find("refusing to send a token in plaintext"), std::string::npos) << worker.out;
 }
 
 TEST_F(FarmTest, WorkerKilledMidJobStillGivesTheLocalBytes) {

@@ -10,6 +10,12 @@ struct Connection {
   std::string address;  // HOST:PORT
   std::string token;    // bearer token; empty = none
   std::string caFile;   // PEM roots to trust: TLS when set, plaintext otherwise
+  // Send the token in plaintext to an address that is not this machine's (a private
+  // network the operator trusts). Without it a token goes over TLS or to loopback only.
+  bool allowPlaintextToken = false;
 };
+
+/// Whether HOST:PORT names this machine only: localhost, 127.0.0.0/8, ::1, or a Unix socket.
+bool isLoopbackAddress(const std::string& hostPort);
 
 }  // namespace cpvs::net
