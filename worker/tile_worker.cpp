@@ -31,6 +31,13 @@ struct Unreachable : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A failure that is not the tile's: the coordinator is told so and does not count it
+/// against the tile's attempts (R10, R4).
+struct WorkerFault : std::runtime_error {
+  WorkerFault(pb::FailKind k, const std::string& what) : std::runtime_error(what), kind(k) {}
+  pb::FailKind kind;
+};
+
 void check(const grpc::Status& s, const char* rpc) {
   if (s.ok()) return;
   if (s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED)
@@ -138,7 +145,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     times.add("encode", secondsSince(start));
     stopRenewing();
     if (abandoning_) {
-      release(lease, "worker stopping");
+      release(lease, "worker stopping", pb::FAIL_INTERRUPTED);
       return;
     }
     deliverResult(lease, encoded, times.seconds);
@@ -147,6 +154,10 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
   } catch (const Unreachable&) {
     if (renewer.joinable()) stopRenewing();
     throw;
+  } catch (const WorkerFault& e) {
+    if (renewer.joinable()) stopRenewing();
+    spdlog::error("tile {} of job {} given back: {}", lease.tile_index(), loggable(lease.job_id()), loggable(e.what(), 1000));
+    release(lease, e.what(), e.kind);
   } catch (const std::exception& e) {
     if (renewer.joinable()) stopRenewing();
     spdlog::error("tile {} of job {} failed: {}", lease.tile_index(), loggable(lease.job_id()), loggable(e.what(), 1000));
@@ -200,10 +211,11 @@ void TileWorker::sendResult(const pb::TileLease& lease, const std::vector<uint8_
                reply.accepted() ? "" : " (declined: another result was taken)");
 }
 
-void TileWorker::release(const pb::TileLease& lease, const std::string& reason) {
+void TileWorker::release(const pb::TileLease& lease, const std::string& reason, pb::FailKind kind) {
   pb::FailRequest req;
   req.set_lease_id(lease.lease_id());
   req.set_reason(reason);
+  req.set_kind(kind);
   pb::FailReply reply;
   grpc::ClientContext ctx;
   net::prepare(ctx, config_.server, 10);
@@ -212,9 +224,30 @@ void TileWorker::release(const pb::TileLease& lease, const std::string& reason) 
 }
 
 std::string TileWorker::fetchScene(const std::string& sceneHash) {
+  try {
+    return fetchSceneOnce(sceneHash);
+  } catch (const Unreachable&) {
+    throw;
+  } catch (const WorkerFault&) {
+    throw;
+  } catch (const std::exception& e) {
+    // The cache folder (full, read-only) or the transfer: nothing the tile did.
+    throw WorkerFault(pb::FAIL_WORKER, std::string("fetching scene ") + sceneHash + ": " + e.what());
+  }
+}
+
+std::string TileWorker::fetchSceneOnce(const std::string& sceneHash) {
   std::lock_guard lock(fetchMutex_);
-  for (const auto& e : fs::directory_iterator(config_.cacheDir))
-    if (e.path().stem() == sceneHash && e.path().extension() != ".part") return e.path().string();
+  for (const auto& e : fs::directory_iterator(config_.cacheDir)) {
+    if (e.path().stem() != sceneHash || e.path().extension() == ".part") continue;
+    // A cached file is read once per process (the scene stays in memory): checked then,
+    // so that a file damaged on the worker's disk is fetched again, not baked (R23).
+    const std::vector<uint8_t> cached = readFile(e.path().string());
+    if (contentHash(cached.data(), cached.size()).hex() == sceneHash) return e.path().string();
+    spdlog::warn("cached scene {} fails its hash: fetching it again", sceneHash);
+    fs::remove(e.path());
+    break;
+  }
   fs::path part = fs::path(config_.cacheDir) / (sceneHash + ".part");
   uint64_t offset = fs::exists(part) ? fs::file_size(part) : 0;
   std::string fileName;
@@ -234,13 +267,17 @@ std::string TileWorker::fetchScene(const std::string& sceneHash) {
       fileName = chunk.file_name();
     }
     out.syncAndClose();
-    check(reader->Finish(), "FetchScene");
+    const grpc::Status s = reader->Finish();
+    // The coordinator cannot serve its copy: let it check that copy.
+    if (s.error_code() == grpc::StatusCode::NOT_FOUND || s.error_code() == grpc::StatusCode::DATA_LOSS)
+      throw WorkerFault(pb::FAIL_SCENE_DAMAGED, "FetchScene: " + net::describe(s));
+    check(s, "FetchScene");
     receiver.finish();
   }
   std::vector<uint8_t> bytes = readFile(part.string());
   if (contentHash(bytes.data(), bytes.size()).hex() != sceneHash) {
     fs::remove(part);
-    throw std::runtime_error("scene " + sceneHash + " arrived damaged (hash mismatch)");
+    throw WorkerFault(pb::FAIL_SCENE_DAMAGED, "scene " + sceneHash + " arrived damaged (hash mismatch)");
   }
   fs::path final = fs::path(config_.cacheDir) / (sceneHash + fs::path(fileName).extension().string());
   fs::rename(part, final);

@@ -56,13 +56,16 @@ class TileWorker {
   /// The scene prepared for a lease's grid and renderer, loaded and built once.
   std::shared_ptr<BakeScene> bakeScene(const std::string& sceneHash, const OrthoGrid& grid, Renderer renderer,
                                        const v1::Receivers& receivers);
+  /// The cached file of a scene, fetched when missing; WorkerFault for trouble of the
+  /// worker's own or a damaged scene.
   std::string fetchScene(const std::string& sceneHash);
+  std::string fetchSceneOnce(const std::string& sceneHash);
   /// sendResult, again with backoff while the coordinator is unreachable.
   void deliverResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
                      const std::map<std::string, double>& stages);
   void sendResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
                   const std::map<std::string, double>& stages);
-  void release(const pb::TileLease& lease, const std::string& reason);
+  void release(const pb::TileLease& lease, const std::string& reason, pb::FailKind kind = pb::FAIL_TILE);
 
   WorkerConfig config_;
   std::shared_ptr<grpc::Channel> channel_;

@@ -26,8 +26,8 @@ Coordinator::Coordinator(CoordinatorConfig config)
       jobs_(store_, scenes_, artifacts_, merges_, feed_,
             JobLimits{config_.minLog2Resolution, config_.maxLog2Resolution, config_.maxActiveJobs,
                       config_.maxTilesPerJob}),
-      leases_(store_, artifacts_, merges_, jobs_, feed_,
-              LeaseRules{config_.leaseSeconds, config_.maxAttempts, config_.maxTileSeconds}),
+      leases_(store_, scenes_, artifacts_, merges_, jobs_, feed_,
+              LeaseRules{config_.leaseSeconds, config_.maxAttempts, config_.maxTileSeconds, config_.quarantineSeconds}),
       tracks_(store_, jobs_, feed_) {
   // Resume: every acknowledged tile of an unfinished job goes back into its merge.
   size_t jobs = 0, tiles = 0;

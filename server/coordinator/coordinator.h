@@ -34,6 +34,7 @@ struct CoordinatorConfig {
   double leaseSeconds = 30;                     // a worker renews well before this
   int maxAttempts = 3;                          // a tile that fails or expires this often fails its job
   double maxTileSeconds = 3600;                 // the longest one tile may be renewed for
+  double quarantineSeconds = 30;                // a failing worker's first pause (see LeaseRules)
   int maxLog2Resolution = 18;                   // 256K
   int minLog2Resolution = 6;                    // 64
   uint64_t maxUploadBytes = uint64_t(4) << 30;  // per scene

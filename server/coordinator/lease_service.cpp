@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 #include "coordinator/clock.h"
 #include "cpvs/bake/tile_plan.h"
@@ -18,11 +19,33 @@ namespace cpvs::server {
 using net::ErrorKind;
 using net::FarmError;
 
-LeaseService::LeaseService(FarmStore& store, ArtifactStore& artifacts, MergeScheduler& merges, JobService& jobs,
-                           ChangeFeed& feed, LeaseRules rules)
-    : store_(store), artifacts_(artifacts), merges_(merges), jobs_(jobs), feed_(feed), rules_(rules) {}
+namespace {
 
-void LeaseService::start() { reaper_ = std::thread([this] { reaperLoop(); }); }
+/// The reaper's period, and how far past it a round may come (or the wall clock may move
+/// against the steady one) before the coordinator counts itself paused (R10).
+constexpr int64_t kReaperTickMs = 250, kPauseMs = 1000;
+
+const char* failKindName(pb::FailKind kind) {
+  switch (kind) {
+    case pb::FAIL_INTERRUPTED: return "interrupted";
+    case pb::FAIL_WORKER: return "the worker's own trouble";
+    case pb::FAIL_SCENE_DAMAGED: return "the scene arrived damaged";
+    default: return "tile fault";
+  }
+}
+
+}  // namespace
+
+LeaseService::LeaseService(FarmStore& store, SceneStore& scenes, ArtifactStore& artifacts, MergeScheduler& merges,
+                           JobService& jobs, ChangeFeed& feed, LeaseRules rules)
+    : store_(store), scenes_(scenes), artifacts_(artifacts), merges_(merges), jobs_(jobs), feed_(feed), rules_(rules) {}
+
+void LeaseService::start() {
+  // Workers could not renew while the coordinator was down: every lease still out gets a
+  // whole lease length from now before the reaper may take it back (R10).
+  store_.extendLeasesTo(nowMs() + int64_t(rules_.leaseSeconds * 1000));
+  reaper_ = std::thread([this] { reaperLoop(); });
+}
 
 void LeaseService::stop() {
   {
@@ -37,6 +60,11 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   if (workerId.empty() || workerId.size() > 128)
     throw FarmError(ErrorKind::InvalidArgument, "worker_id must be 1..128 characters");
   pb::TileLease out;
+  if (const int64_t wait = quarantinedForMs(workerId); wait > 0) {
+    out.set_granted(false);
+    out.set_retry_after_ms(uint32_t(std::min<int64_t>(wait, 5000)));
+    return out;
+  }
   int64_t now = nowMs();
   int64_t deadline = now + int64_t(rules_.leaseSeconds * 1000);
   auto l = store_.leaseNextTile(workerId, randomId("l"), now, deadline);
@@ -127,6 +155,10 @@ bool LeaseService::completeTile(const std::string& leaseId, const std::string& e
     throw FarmError(ErrorKind::Internal, std::string("the coordinator cannot store the result: ") + e.what());
   }
   if (!store_.completeTile(l->jobId, l->tile)) return false;
+  {
+    std::lock_guard workersLock(workersMutex_);
+    workers_.erase(l->workerId);  // a worker that delivers is forgiven its failures
+  }
   store_.addStageSeconds(l->jobId, stages);
   auto after = store_.job(l->jobId);
   if (after && after->tilesDone == after->tilesTotal) store_.setJobState(l->jobId, JobState::Merging, "", nowMs());
@@ -135,29 +167,87 @@ bool LeaseService::completeTile(const std::string& leaseId, const std::string& e
   return true;
 }
 
-void LeaseService::failTile(const std::string& leaseId, const std::string& reason) {
+void LeaseService::failTile(const std::string& leaseId, const std::string& reason, pb::FailKind kind) {
   auto l = store_.lease(leaseId);
   if (!l) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
-  const int attempts = store_.requeueTile(leaseId, reason);
-  if (attempts == 0) return;  // no longer the tile's current lease: its tile is someone else's
+  if (!pb::FailKind_IsValid(kind)) kind = pb::FAIL_TILE;
+  if (kind == pb::FAIL_SCENE_DAMAGED) {
+    // Damaged on the way, in the worker's cache, or on the coordinator's own disk: only the
+    // last is the job's business. A stored copy that fails its hash is forgotten, so that
+    // the next submit uploads the scene again (R4).
+    const auto j = store_.job(l->jobId);
+    if (j && !scenes_.verifyStored(j->sceneHash)) {
+      if (!store_.requeueTile(leaseId, reason, false)) return;
+      jobs_.failJob(l->jobId, "the coordinator's stored copy of scene " + j->sceneHash +
+                                  " was damaged and is forgotten: submit the job again to upload the scene");
+      feed_.notify();
+      return;
+    }
+    kind = pb::FAIL_WORKER;
+  }
+  const bool counts = kind == pb::FAIL_TILE;
+  const auto attempts = store_.requeueTile(leaseId, reason, counts);
+  if (!attempts) return;  // no longer the tile's current lease: its tile is someone else's
   // Worker ids and reasons are the workers' text: logged escaped (R26).
-  spdlog::warn("tile {} of job {} failed on {} (attempt {}): {}", l->tile, l->jobId, loggable(l->workerId), attempts,
-               loggable(reason));
-  if (attempts >= rules_.maxAttempts)
-    jobs_.failJob(l->jobId, "tile " + std::to_string(l->tile) + " failed " + std::to_string(attempts) + " times: " + reason);
+  spdlog::warn("tile {} of job {} given back by {} ({}, attempt {} counted): {}", l->tile, l->jobId,
+               loggable(l->workerId), failKindName(kind), *attempts, loggable(reason));
+  if (kind != pb::FAIL_INTERRUPTED) noteWorkerFailure(l->workerId, kind == pb::FAIL_WORKER);
+  if (counts && *attempts >= rules_.maxAttempts)
+    jobs_.failJob(l->jobId, "tile " + std::to_string(l->tile) + " failed " + std::to_string(*attempts) + " times: " + reason);
   feed_.notify();
 }
 
+int64_t LeaseService::quarantinedForMs(const std::string& workerId) {
+  std::lock_guard lock(workersMutex_);
+  const auto it = workers_.find(workerId);
+  if (it == workers_.end()) return 0;
+  const auto left = it->second.until - std::chrono::steady_clock::now();
+  return std::max<int64_t>(0, std::chrono::duration_cast<std::chrono::milliseconds>(left).count());
+}
+
+void LeaseService::noteWorkerFailure(const std::string& workerId, bool quarantineNow) {
+  std::lock_guard lock(workersMutex_);
+  if (workers_.size() >= 10000 && !workers_.count(workerId)) workers_.clear();
+  WorkerRecord& w = workers_[workerId];
+  if (!quarantineNow && ++w.failuresInARow < kQuarantineAfterFailures) return;
+  w.failuresInARow = 0;
+  const double seconds = std::min(kMaxQuarantineSeconds, rules_.quarantineSeconds * std::ldexp(1.0, std::min(w.quarantines, 20)));
+  ++w.quarantines;
+  w.until = std::chrono::steady_clock::now() + std::chrono::milliseconds(int64_t(seconds * 1000));
+  spdlog::warn("worker {} gets no tile for {:.0f} s: {}", loggable(workerId), seconds,
+               quarantineNow ? "it reported trouble of its own" : "it failed 3 tiles in a row");
+}
+
 void LeaseService::reaperLoop() {
+  auto lastSteady = std::chrono::steady_clock::now();
+  int64_t lastWall = nowMs();
   for (;;) {
     {
       std::unique_lock lock(mutex_);
-      wake_.wait_for(lock, std::chrono::milliseconds(250), [&] { return stopping_; });
+      wake_.wait_for(lock, std::chrono::milliseconds(kReaperTickMs), [&] { return stopping_; });
       if (stopping_) return;
     }
     // A store that fails now (a busy or full disk) fails this round, not the process
     // (R9): the leases stay in the store and the next round expires them.
     try {
+      // Deadlines are wall-clock times in the store, but what a worker is owed is time the
+      // coordinator was there to renew: a pause of this process (SIGSTOP, a stalled VM, a
+      // store held busy) and a step of the wall clock move every deadline with them, so
+      // neither expires leases their workers kept renewing (R10).
+      const auto steadyNow = std::chrono::steady_clock::now();
+      const int64_t wallNow = nowMs();
+      const int64_t steadyGap = std::chrono::duration_cast<std::chrono::milliseconds>(steadyNow - lastSteady).count();
+      const int64_t wallGap = wallNow - lastWall;
+      int64_t shift = 0;
+      if (steadyGap > kReaperTickMs + kPauseMs) shift += steadyGap - kReaperTickMs;
+      if (std::abs(wallGap - steadyGap) > kPauseMs) shift += wallGap - steadyGap;
+      if (shift != 0) {
+        store_.shiftLeaseDeadlines(shift);
+        spdlog::warn("the coordinator was paused for {} ms and its clock moved {} ms: every lease moved {} ms",
+                     steadyGap, wallGap, shift);
+      }
+      lastSteady = steadyNow;
+      lastWall = wallNow;
       for (const auto& [jobId, tile, attempts] : store_.expireLeases(nowMs())) {
         spdlog::warn("lease on tile {} of job {} expired (attempt {})", tile, jobId, attempts);
         if (attempts >= rules_.maxAttempts)

@@ -70,8 +70,18 @@ void SceneStore::beginUpload(const pb::UploadSceneChunk& first) {
   std::lock_guard lock(mutex_);
   auto r = store_.scene(first.scene_hash());
   if (r && r->complete) return;  // known: nothing to do
-  if (r && (r->totalSize != first.total_size() || r->fileName != first.file_name())) {
-    // A different announcement for the same hash: start over.
+  // The hash names one file: two clients uploading it send the same bytes, and the one
+  // that comes second carries on from the first's offset, under the first's file name
+  // when only the name differs (R19). Another size or format is a different claim about
+  // the file: refused while the upload it would wipe is making progress, taken over once
+  // that one has been idle (or the coordinator restarted since).
+  if (r && (r->totalSize != first.total_size() ||
+            fs::path(r->fileName).extension() != fs::path(first.file_name()).extension())) {
+    const auto last = lastActivity_.find(first.scene_hash());
+    if (last != lastActivity_.end() && std::chrono::steady_clock::now() - last->second < kUploadIdleTakeover)
+      throw FarmError(ErrorKind::FailedPrecondition,
+                      "scene " + r->hash + " is being uploaded by another client as " + std::to_string(r->totalSize) +
+                          " bytes of " + safeExtension(r->fileName) + "; a hash names one file");
     fs::remove(partPath(first.scene_hash()));
     r.reset();
   }
@@ -81,6 +91,13 @@ void SceneStore::beginUpload(const pb::UploadSceneChunk& first) {
                                                        std::to_string(rec.received) + ", not " +
                                                        std::to_string(first.offset()));
   store_.putScene(rec);
+  touch(rec.hash);
+}
+
+void SceneStore::touch(const std::string& hash) {
+  // Bounded by the uploads in progress; entries of finished uploads are dropped as they end.
+  if (lastActivity_.size() >= 4096) lastActivity_.clear();
+  lastActivity_[hash] = std::chrono::steady_clock::now();
 }
 
 void SceneStore::appendUpload(const std::string& hash, uint64_t offset, const std::string& data) {
@@ -88,9 +105,10 @@ void SceneStore::appendUpload(const std::string& hash, uint64_t offset, const st
   auto r = store_.scene(hash);
   if (!r) throw FarmError(ErrorKind::NotFound, "no upload of scene " + hash + " was started");
   if (r->complete) return;
+  // Another client's upload of the same file moved on meanwhile: resume where it is.
   if (offset != r->received)
-    throw FarmError(ErrorKind::InvalidArgument, "chunk at byte " + std::to_string(offset) + ", expected " +
-                                                    std::to_string(r->received));
+    throw FarmError(ErrorKind::FailedPrecondition, "chunk at byte " + std::to_string(offset) + ", expected " +
+                                                       std::to_string(r->received));
   if (r->received + data.size() > r->totalSize)
     throw FarmError(ErrorKind::InvalidArgument, "the upload runs past its announced size of " +
                                                     std::to_string(r->totalSize) + " bytes");
@@ -105,6 +123,7 @@ void SceneStore::appendUpload(const std::string& hash, uint64_t offset, const st
   }
   r->received += data.size();
   store_.putScene(*r);
+  touch(hash);
 }
 
 pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
@@ -168,6 +187,7 @@ pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
   }
   r->complete = true;
   store_.putScene(*r);
+  lastActivity_.erase(hash);
   spdlog::info("scene {} ({}, {} bytes, {} triangles) stored", hash, loggable(r->fileName), r->totalSize, r->triangles);
   reply.set_complete(true);
   reply.set_triangles(r->triangles);
@@ -180,6 +200,27 @@ std::string SceneStore::scenePath(const std::string& hash, std::string* fileName
   if (!r || !r->complete) throw FarmError(ErrorKind::NotFound, "scene " + hash + " is not on the server");
   if (fileName) *fileName = r->fileName;
   return (fs::path(folder_) / (hash + safeExtension(r->fileName))).string();
+}
+
+bool SceneStore::verifyStored(const std::string& hash) {
+  checkHashText(hash, "scene_hash");
+  std::lock_guard lock(mutex_);
+  auto r = store_.scene(hash);
+  if (!r || !r->complete) return false;
+  const fs::path stored = fs::path(folder_) / (hash + safeExtension(r->fileName));
+  bool intact = false;
+  try {
+    const std::vector<uint8_t> bytes = readFile(stored.string());
+    intact = contentHash(bytes.data(), bytes.size()).hex() == hash;
+  } catch (const std::exception&) {
+  }
+  if (intact) return true;
+  spdlog::error("the stored scene {} is missing or fails its hash: forgotten, to be uploaded again", hash);
+  std::error_code ec;
+  fs::remove(stored, ec);
+  fs::remove(partPath(hash), ec);
+  store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false});
+  return false;
 }
 
 Scene SceneStore::load(const std::string& sceneHash, SceneStats* stats) { return loadScene(scenePath(sceneHash), stats); }

@@ -2,7 +2,9 @@
 // when complete, and the stored files workers fetch.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
+#include <map>
 #include <mutex>
 #include <string>
 
@@ -28,17 +30,28 @@ class SceneStore {
   pb::UploadSceneReply endUpload(const std::string& sceneHash);
   /// The stored file of a complete scene; FarmError(NotFound) otherwise.
   std::string scenePath(const std::string& sceneHash, std::string* fileName = nullptr);
+  /// Whether the stored file of a complete scene still hashes to its name. A damaged or
+  /// missing one is removed and the scene marked not uploaded, so that the next submit
+  /// uploads it again (R4); false for a scene not stored.
+  bool verifyStored(const std::string& sceneHash);
   /// The imported geometry of a complete scene.
   Scene load(const std::string& sceneHash, SceneStats* stats = nullptr);
 
  private:
   std::string partPath(const std::string& hash) const;
+  /// Notes that an upload made progress now (under mutex_).
+  void touch(const std::string& hash);
 
   FarmStore& store_;
   std::string folder_;
   uint64_t maxUploadBytes_;
   std::mutex mutex_;  // one upload step at a time
+  // When each upload in progress last moved, for R19's takeover rule.
+  std::map<std::string, std::chrono::steady_clock::time_point> lastActivity_;
 };
+
+/// An upload idle this long may be taken over by an announcement of another size or format.
+constexpr std::chrono::seconds kUploadIdleTakeover{120};
 
 /// FarmError(InvalidArgument) unless `hash` is 32 lower-case hex digits.
 void checkHashText(const std::string& hash, const char* what);

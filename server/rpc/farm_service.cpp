@@ -308,7 +308,7 @@ grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerR
 grpc::Status WorkerService::FailTile(grpc::ServerContext* ctx, const pb::FailRequest* req, pb::FailReply*) {
   return guarded(ctx, tokens_, Role::Worker, "FailTile", [&] {
     // Stored in JobStatus.error, a proto3 string: it must stay valid UTF-8 when cut.
-    c_.leases().failTile(req->lease_id(), validUtf8Prefix(req->reason(), 1000));
+    c_.leases().failTile(req->lease_id(), validUtf8Prefix(req->reason(), 1000), req->kind());
     return grpc::Status::OK;
   });
 }

@@ -92,8 +92,9 @@ constexpr int kGridColumn = 16, kOptionsColumn = 34;
 /// 3: the renderer column (a version 2 store is upgraded in place: its jobs were Embree's);
 /// 4: sun tracks, keyframes and versions (tables added to a version 2 or 3 store);
 /// 5: the receiver declaration's columns and the plan (added to a version 2 to 4 store:
-/// receivers everywhere, no plan recorded).
-constexpr int kSchemaVersion = 5;
+/// receivers everywhere, no plan recorded); 6: the worker that failed a tile last
+/// (added to a version 2 to 5 store).
+constexpr int kSchemaVersion = 6;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -192,16 +193,19 @@ FarmStore::FarmStore(const std::string& path) {
     Statement t(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'jobs'");
     t.step();
     const bool existing = t.i64(0) > 0;
-    if (existing && version == 2) exec("ALTER TABLE jobs ADD COLUMN renderer INTEGER NOT NULL DEFAULT 0");
-    if (existing && version >= 2 && version <= 4) {
+    const bool upgradable = existing && version >= 2 && version < kSchemaVersion;
+    if (existing && version != kSchemaVersion && !upgradable)
+      throw std::runtime_error("the job store " + path + " has schema version " + std::to_string(version == 0 ? 1 : version) +
+                               "; this cpvs-server reads version " + std::to_string(kSchemaVersion) +
+                               ": finish its jobs with the server that made it, or start with an empty --data folder");
+    if (upgradable && version == 2) exec("ALTER TABLE jobs ADD COLUMN renderer INTEGER NOT NULL DEFAULT 0");
+    if (upgradable && version <= 4) {
       exec("ALTER TABLE jobs ADD COLUMN receivers INTEGER NOT NULL DEFAULT 0");
       exec("ALTER TABLE jobs ADD COLUMN receiver_pcf INTEGER NOT NULL DEFAULT 9");
       exec("ALTER TABLE jobs ADD COLUMN receiver_hash TEXT NOT NULL DEFAULT ''");
       exec("ALTER TABLE jobs ADD COLUMN plan TEXT NOT NULL DEFAULT ''");
-    } else if (existing && version != kSchemaVersion)
-      throw std::runtime_error("the job store " + path + " has schema version " + std::to_string(version == 0 ? 1 : version) +
-                               "; this cpvs-server reads version " + std::to_string(kSchemaVersion) +
-                               ": finish its jobs with the server that made it, or start with an empty --data folder");
+    }
+    if (upgradable && version <= 5) exec("ALTER TABLE tiles ADD COLUMN failed_by TEXT");
   }
   exec(
       "CREATE TABLE IF NOT EXISTS jobs(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, scene_hash TEXT, geometry_hash "
@@ -215,7 +219,7 @@ FarmStore::FarmStore(const std::string& path) {
       "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT, plan TEXT)");
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
-      "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, PRIMARY KEY(job_id, idx))");
+      "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, failed_by TEXT, PRIMARY KEY(job_id, idx))");
   exec("CREATE INDEX IF NOT EXISTS tiles_by_state ON tiles(state, job_id)");
   exec(
       "CREATE TABLE IF NOT EXISTS leases(lease_id TEXT PRIMARY KEY, job_id TEXT, idx INTEGER, worker_id TEXT, "
@@ -309,7 +313,7 @@ void FarmStore::createJob(const JobRecord& j, const std::vector<uint64_t>& untou
   Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns + ") VALUES(" + placeholders + ")").c_str());
   bindJob(s, j);
   s.run();
-  Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, ?, 0, NULL, 0, '')");  // prepared once
+  Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, ?, 0, NULL, 0, '', NULL)");  // prepared once
   auto next = untouched.begin();
   for (uint64_t i = 0; i < j.tilesTotal; ++i) {
     const bool lit = next != untouched.end() && *next == i;
@@ -391,9 +395,10 @@ std::optional<LeaseRecord> FarmStore::leaseNextTile(const std::string& workerId,
   Statement pick(db_,
                  "SELECT t.job_id, t.idx FROM tiles t JOIN jobs j ON j.id = t.job_id "
                  "WHERE t.state = 0 AND j.state IN (1, 2) "
-                 "ORDER BY j.priority DESC, "
+                 "ORDER BY j.priority DESC, COALESCE(t.failed_by = ?, 0), "
                  "(SELECT COUNT(*) FROM tiles l WHERE l.job_id = t.job_id AND l.state = 1), "
                  "j.created_ms, j.id, t.idx LIMIT 1");
+  pick.text(1, workerId);
   if (!pick.step()) return std::nullopt;
   LeaseRecord r{leaseId, pick.str(0), workerId, uint64_t(pick.i64(1)), deadlineMs, nowMs};
   Statement upd(db_, "UPDATE tiles SET state = 1, attempts = attempts + 1, lease_id = ?, deadline_ms = ? "
@@ -447,20 +452,37 @@ bool FarmStore::completeTile(const std::string& jobId, uint64_t tile) {
   return sqlite3_changes(db_) > 0;
 }
 
-int FarmStore::requeueTile(const std::string& leaseId, const std::string& error) {
+std::optional<int> FarmStore::requeueTile(const std::string& leaseId, const std::string& error, bool counts) {
   std::lock_guard lock(mutex_);
   Transaction t(db_);
-  Statement find(db_, "SELECT job_id, idx, attempts FROM tiles WHERE lease_id = ? AND state = 1");
+  Statement find(db_,
+                 "SELECT t.job_id, t.idx, t.attempts, l.worker_id FROM tiles t JOIN leases l ON l.lease_id = t.lease_id "
+                 "WHERE t.lease_id = ? AND t.state = 1");
   find.text(1, leaseId);
-  if (!find.step()) return 0;
+  if (!find.step()) return std::nullopt;
   const std::string jobId = find.str(0);
   const int64_t tile = find.i64(1);
-  const int attempts = int(find.i64(2));
-  Statement s(db_, "UPDATE tiles SET state = 0, lease_id = NULL, last_error = ? WHERE job_id = ? AND idx = ?");
-  s.text(1, error).text(2, jobId).bind(3, tile);
+  const int attempts = int(find.i64(2)) - (counts ? 0 : 1);
+  Statement s(db_, "UPDATE tiles SET state = 0, lease_id = NULL, last_error = ?, attempts = ?, failed_by = ? "
+                   "WHERE job_id = ? AND idx = ?");
+  s.text(1, error).bind(2, int64_t(attempts)).text(3, find.str(3)).text(4, jobId).bind(5, tile);
   s.run();
   t.commit();
   return attempts;
+}
+
+void FarmStore::extendLeasesTo(int64_t deadlineMs) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "UPDATE tiles SET deadline_ms = MAX(deadline_ms, ?) WHERE state = 1");
+  s.bind(1, deadlineMs);
+  s.run();
+}
+
+void FarmStore::shiftLeaseDeadlines(int64_t deltaMs) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "UPDATE tiles SET deadline_ms = deadline_ms + ? WHERE state = 1");
+  s.bind(1, deltaMs);
+  s.run();
 }
 
 void FarmStore::requeueDoneTile(const std::string& jobId, uint64_t tile, const std::string& error) {

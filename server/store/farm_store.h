@@ -122,8 +122,10 @@ class FarmStore {
   void setPeakMergeBytes(const std::string& id, uint64_t bytes);
 
   // Tiles and leases.
-  /// Leases the next queued tile: highest job priority first, then the job with the
-  /// fewest tiles out on lease (fair sharing), then the oldest job, then tile order.
+  /// Leases the next queued tile: highest job priority first, then a tile this worker did
+  /// not fail last (a worker that fails at once does not take one tile's every attempt),
+  /// then the job with the fewest tiles out on lease (fair sharing), then the oldest job,
+  /// then tile order.
   std::optional<LeaseRecord> leaseNextTile(const std::string& workerId, const std::string& leaseId, int64_t nowMs,
                                            int64_t deadlineMs);
   std::optional<LeaseRecord> lease(const std::string& leaseId);
@@ -134,8 +136,16 @@ class FarmStore {
   /// Marks the tile done unless it already is; returns whether this call did.
   bool completeTile(const std::string& jobId, uint64_t tile);
   /// Returns the tile of a failed lease to the queue when that lease is still the tile's
-  /// current one; returns the tile's attempts so far, 0 when the lease was not current.
-  int requeueTile(const std::string& leaseId, const std::string& error);
+  /// current one, noting its worker as the one that failed it last; returns the tile's
+  /// attempts so far (the lease's not counted when `counts` is false), nullopt when the
+  /// lease was not current.
+  std::optional<int> requeueTile(const std::string& leaseId, const std::string& error, bool counts = true);
+  /// Every lease out gets at least until `deadlineMs` (the grace after a restart, during
+  /// which workers could not renew).
+  void extendLeasesTo(int64_t deadlineMs);
+  /// Moves every lease's deadline by `deltaMs` (a pause of the coordinator, or a step of
+  /// its wall clock, that workers could not renew through).
+  void shiftLeaseDeadlines(int64_t deltaMs);
   /// Returns an acknowledged tile whose result cannot be read back to the queue (its
   /// attempts kept); the job goes back to running.
   void requeueDoneTile(const std::string& jobId, uint64_t tile, const std::string& error);

@@ -6,7 +6,9 @@
 // per suite, on loopback, port 0.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -40,10 +42,10 @@ namespace pb = ::cpvs::v1;
 using grpc::StatusCode;
 using testing::ChildProcess;
 
-const std::string kClientToken = "client-token-security-0123";
-const std::string kWorkerToken = "worker-token-security-0123";
-const std::string kAdminToken = "admin-token-security-01234";
-const std::string kWrongToken = "wrong-token-security-01234";  // a token's shape, in no table
+const std::string kClientToken = "bb34f308bb8754bc42d72ebdd4f9a39a9f0c6d49";
+const std::string kWorkerToken = "d09b8cf6586f9f8592c562a99c8627c0120b4013";
+const std::string kAdminToken = "b3d6ee7361a489443d75bc0c723658c0cf53cee6";
+const std::string kWrongToken = "cb8f688657ebc5ee9f342fc9a1d5d709ea024985";  // a token's shape, in no table
 
 /// Every RPC of these tests ends within this many seconds.
 constexpr double kRpcSeconds = 10;
@@ -136,6 +138,7 @@ class FarmUnderTest {
   const std::string& address() const { return address_; }
   const fs::path& dataDir() const { return data_; }
   bool running() { return process_->running(); }
+  pid_t pid() const { return process_->pid(); }
   std::string log() const { return process_->log(); }
 
   void prepare(grpc::ClientContext& ctx, const std::string& token, double seconds = kRpcSeconds) const {
@@ -1100,6 +1103,40 @@ TEST_F(FarmLeaseRulesTest, TileFailedMaxAttemptsTimesFailsItsJob) {
   EXPECT_TRUE(f.fail(kWorkerToken, lease.lease_id(), "again").ok());
   EXPECT_EQ(f.job(job).error(), st.error());
   EXPECT_EQ(f.download(kClientToken, job, 0).error_code(), StatusCode::FAILED_PRECONDITION);
+}
+
+// R10: a coordinator stopped (SIGSTOP, a stalled VM) for three 1-second leases expired
+// every lease at its first round after it came back, though its worker kept trying to
+// renew; each counted an attempt.
+TEST_F(FarmLeaseRulesTest, R10_APausedCoordinatorExpiresNoLeaseItsWorkerKeptRenewing) {
+  FarmUnderTest& f = *s_->farm;
+  const std::string job = submit("paused", 0, 0);  // 1 tile
+  pb::TileLease lease;
+  ASSERT_TRUE(f.lease(kWorkerToken, "patient-worker", &lease).ok());
+  ASSERT_TRUE(lease.granted());
+  std::atomic<bool> done{false};
+  std::atomic<int> invalid{0}, valid{0};
+  std::thread renewer([&] {
+    while (!done) {
+      pb::RenewReply r;
+      if (f.renew(kWorkerToken, lease.lease_id(), &r).ok()) ++(r.valid() ? valid : invalid);
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    }
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  ASSERT_EQ(kill(f.pid(), SIGSTOP), 0);
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  ASSERT_EQ(kill(f.pid(), SIGCONT), 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  done = true;
+  renewer.join();
+  EXPECT_EQ(invalid.load(), 0) << f.log();
+  EXPECT_GE(valid.load(), 3);
+  pb::TileLease again;
+  ASSERT_TRUE(f.lease(kWorkerToken, "other-worker", &again).ok());
+  EXPECT_FALSE(again.granted()) << "the paused lease's tile was handed out again";
+  EXPECT_EQ(f.job(job).state(), pb::JOB_RUNNING);
+  EXPECT_NE(f.log().find("the coordinator was paused"), std::string::npos) << f.log();
 }
 
 // A cancelled job's acknowledged tile results are removed from the data folder (they

@@ -380,7 +380,7 @@ TEST(Hardening, R26_WorkerTextCannotForgeLogLines) {
   int warnings = 0;
   while (std::getline(lines, line)) {
     EXPECT_NE(line.rfind("[2026-01-01", 0), 0u) << "a forged line: " << line;
-    warnings += line.find("failed on w\\x0A[2026-01-01") != std::string::npos;
+    warnings += line.find("given back by w\\x0A[2026-01-01") != std::string::npos;
   }
   EXPECT_EQ(warnings, 1) << log;
 }
@@ -557,6 +557,223 @@ TEST(Hardening, R11_RenewalsFollowTheLeaseLengthWhateverTheClocks) {
   if (seconds < 0.4) GTEST_SKIP() << "the tile baked in " << seconds << " s, too fast to need renewals here";
   EXPECT_GE(proxy.renewals.load(), 2);
   EXPECT_EQ(farm.coordinator.jobs().list(true).at(0).tiles_done(), 1u);  // the lease held to the end
+}
+
+// R10: a worker that failed every tile at once took the lowest queued tile again each time
+// and burnt its three attempts in milliseconds while a healthy worker was busy. A tile
+// now goes to another worker first, and a worker that fails three in a row is kept from
+// tiles for a while.
+TEST(Hardening, R10_ABadWorkerCannotBurnATilesAttempts) {
+  TempDir dir("cpvs_r10_bad");
+  InProcessFarm farm(dir / "data");
+  pb::BakeSpec spec = farm.uploadAndSpec(dir / "city.obj", "city:3:2", "128");
+  spec.mutable_options()->set_tile_size(64);  // 4 tiles
+  const std::string jobId = farm.client.submit("r10-bad", spec).job_id();
+  server::LeaseService& leases = farm.coordinator.leases();
+  std::atomic<bool> stop{false};
+  std::atomic<int> failed{0};
+  std::string log;
+  pb::JobStatus status;
+  log = logOf([&] {
+    std::thread bad([&] {
+      while (!stop) {
+        const pb::TileLease l = leases.lease("bad");
+        if (!l.granted()) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(1));
+          continue;
+        }
+        leases.failTile(l.lease_id(), "broken at once");
+        ++failed;
+      }
+    });
+    while (failed < 3) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    worker::TileWorker healthy(testing::workerConfig(farm.connection(), dir / "cache"));
+    std::thread pulling([&] { healthy.run(); });
+    status = farm.client.watch(jobId);
+    healthy.stop();
+    stop = true;
+    pulling.join();
+    bad.join();
+  });
+  EXPECT_EQ(status.state(), pb::JOB_DONE) << status.error();
+  EXPECT_EQ(failed.load(), 3);  // then quarantined for the rest of the job
+  EXPECT_GT(leases.quarantinedForMs("bad"), 20000);
+  EXPECT_NE(log.find("worker bad gets no tile for 30 s: it failed 3 tiles in a row"), std::string::npos) << log;
+}
+
+// R10: a worker that stops mid-tile (preempted, scaled down) gives its tile back without
+// costing it an attempt; the worker's own trouble keeps that worker away instead.
+TEST(Hardening, R10_AWorkerThatStopsOrBreaksCostsTheTileNoAttempt) {
+  TempDir dir("cpvs_r10_kinds");
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  config.maxAttempts = 1;
+  InProcessFarm farm(config);
+  const std::string jobId = farm.client.submit("r10-kinds", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).job_id();
+  server::LeaseService& leases = farm.coordinator.leases();
+  for (int i = 0; i < 2; ++i) {
+    const pb::TileLease l = leases.lease("preempted-" + std::to_string(i));
+    ASSERT_TRUE(l.granted());
+    leases.failTile(l.lease_id(), "worker stopping", pb::FAIL_INTERRUPTED);
+    EXPECT_EQ(leases.quarantinedForMs("preempted-" + std::to_string(i)), 0);
+  }
+  const pb::TileLease broken = leases.lease("full-disk");
+  ASSERT_TRUE(broken.granted());
+  leases.failTile(broken.lease_id(), "fetching scene: No space left on device", pb::FAIL_WORKER);
+  EXPECT_GT(leases.quarantinedForMs("full-disk"), 20000);
+  const pb::TileLease kept = leases.lease("full-disk");
+  EXPECT_FALSE(kept.granted());
+  EXPECT_GT(kept.retry_after_ms(), 0u);
+  EXPECT_EQ(farm.client.list(true).at(0).state(), pb::JOB_RUNNING);
+  worker::TileWorker healthy(testing::workerConfig(farm.connection(), dir / "cache", 1));
+  healthy.run();
+  EXPECT_EQ(farm.client.watch(jobId).state(), pb::JOB_DONE);
+}
+
+// R10: leases out when the coordinator went down were expired at its first round after
+// the restart (their deadlines had passed while nobody could renew), each an attempt.
+TEST(Hardening, R10_LeasesOutAcrossARestartGetAWholeLeaseLength) {
+  TempDir dir("cpvs_r10_restart");
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  config.leaseSeconds = 1;
+  config.maxAttempts = 1;
+  std::string leaseId;
+  {
+    InProcessFarm farm(config);
+    farm.client.submit("r10-restart", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64"));
+    const pb::TileLease l = farm.coordinator.leases().lease("survivor");
+    ASSERT_TRUE(l.granted());
+    leaseId = l.lease_id();
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(2000));  // the lease's deadline passes while down
+  InProcessFarm farm(config);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));  // two reaper rounds
+  EXPECT_TRUE(farm.coordinator.leases().renew(leaseId).valid());
+  EXPECT_EQ(farm.client.list(true).at(0).state(), pb::JOB_RUNNING) << farm.client.list(true).at(0).error();
+}
+
+// R4: a worker's "the scene arrived damaged" was a failed tile attempt; the coordinator now
+// checks its own copy: intact, the worker is kept away and nothing is counted; damaged,
+// the copy is forgotten and the job fails saying what to do, and an upload stores it again.
+TEST(Hardening, R4_ASceneDamagedOnTheCoordinatorIsForgottenAndUploadedAgain) {
+  TempDir dir("cpvs_r4_scene");
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  config.maxAttempts = 1;
+  InProcessFarm farm(config);
+  const pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+  const std::string jobId = farm.client.submit("r4-scene", spec).job_id();
+  server::LeaseService& leases = farm.coordinator.leases();
+  const pb::TileLease first = leases.lease("w1");
+  ASSERT_TRUE(first.granted());
+  leases.failTile(first.lease_id(), "scene arrived damaged (hash mismatch)", pb::FAIL_SCENE_DAMAGED);
+  EXPECT_EQ(farm.client.list(true).at(0).state(), pb::JOB_RUNNING);  // intact here: the transfer's fault
+  EXPECT_GT(leases.quarantinedForMs("w1"), 0);
+
+  std::string stored;
+  for (const auto& e : fs::directory_iterator(dir / "data/scenes"))
+    if (e.path().filename().string().starts_with(spec.scene_hash())) stored = e.path().string();
+  ASSERT_FALSE(stored.empty());
+  std::vector<uint8_t> bytes = readFile(stored);
+  bytes[bytes.size() / 2] ^= 0x20;
+  writeFileAtomic(stored, bytes);
+  const pb::TileLease second = leases.lease("w2");
+  ASSERT_TRUE(second.granted());
+  leases.failTile(second.lease_id(), "scene arrived damaged (hash mismatch)", pb::FAIL_SCENE_DAMAGED);
+  const pb::JobStatus failed = farm.client.watch(jobId);
+  EXPECT_EQ(failed.state(), pb::JOB_FAILED);
+  EXPECT_NE(failed.error().find("submit the job again"), std::string::npos) << failed.error();
+  EXPECT_FALSE(farm.coordinator.scenes().uploadStatus(spec.scene_hash()).complete());
+  const client::FarmClient::UploadResult again = farm.client.uploadScene(dir / "box.obj");
+  EXPECT_FALSE(again.alreadyThere);
+  const std::string retried = farm.client.submit("r4-scene-again", spec).job_id();
+  worker::TileWorker healthy(testing::workerConfig(farm.connection(), dir / "cache", 1));
+  healthy.run();
+  EXPECT_EQ(farm.client.watch(retried).state(), pb::JOB_DONE);
+}
+
+// R23 (rest): a worker trusted any cached file named after a scene's hash; one damaged on
+// its disk is now fetched again, not baked.
+TEST(Hardening, R23_ADamagedCachedSceneIsFetchedAgain) {
+  TempDir dir("cpvs_r23_cache");
+  InProcessFarm farm(dir / "data");
+  const pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+  const std::string jobId = farm.client.submit("r23-cache", spec).job_id();
+  fs::create_directories(dir / "cache");
+  std::ofstream(dir / ("cache/" + spec.scene_hash() + ".obj")) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  const std::string log = logOf([&] {
+    worker::TileWorker w(testing::workerConfig(farm.connection(), dir / "cache", 1));
+    w.run();
+  });
+  EXPECT_NE(log.find("fails its hash: fetching it again"), std::string::npos) << log;
+  EXPECT_EQ(farm.client.watch(jobId).state(), pb::JOB_DONE);
+  const std::vector<uint8_t> cached = readFile(dir / ("cache/" + spec.scene_hash() + ".obj"));
+  EXPECT_EQ(contentHash(cached.data(), cached.size()).hex(), spec.scene_hash());
+}
+
+// R19: announcing a scene's hash with another file name wiped the upload in progress,
+// and two clients uploading one scene at once made the second fail.
+TEST(Hardening, R19_OneClientCannotWipeAnothersUploadOfTheSameScene) {
+  TempDir dir("cpvs_r19");
+  InProcessFarm farm(dir / "data");
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:4:4"));
+  {
+    std::ofstream more(obj, std::ios::app);  // comments, to span several chunks
+    for (int i = 0; i < 50000; ++i) more << "# padding line " << i << " of a scene larger than three upload chunks\n";
+  }
+  const std::vector<uint8_t> bytes = readFile(obj);
+  ASSERT_GT(bytes.size(), 3 * net::kChunkBytes);
+  const std::string hash = contentHash(bytes.data(), bytes.size()).hex();
+  pb::UploadSceneChunk first;
+  first.set_scene_hash(hash);
+  first.set_file_name("city.obj");
+  first.set_total_size(bytes.size());
+  first.set_offset(0);
+  server::SceneStore& scenes = farm.coordinator.scenes();
+  scenes.beginUpload(first);
+  scenes.appendUpload(hash, 0, std::string(bytes.begin(), bytes.begin() + 1000));
+  // The same file under another name carries on from there.
+  pb::UploadSceneChunk renamed = first;
+  renamed.set_file_name("town.obj");
+  renamed.set_offset(1000);
+  EXPECT_NO_THROW(scenes.beginUpload(renamed));
+  EXPECT_EQ(scenes.uploadStatus(hash).received(), 1000u);
+  // Another size (or format) for the same hash is refused while the upload moves.
+  pb::UploadSceneChunk liar = first;
+  liar.set_total_size(bytes.size() + 1);
+  try {
+    scenes.beginUpload(liar);
+    ADD_FAILURE() << "another size wiped the upload in progress";
+  } catch (const net::FarmError& e) {
+    EXPECT_EQ(e.kind, net::ErrorKind::FailedPrecondition) << e.what();
+  }
+  pb::UploadSceneChunk otherFormat = first;
+  otherFormat.set_file_name("city.ply");
+  EXPECT_THROW(scenes.beginUpload(otherFormat), net::FarmError);
+  EXPECT_EQ(scenes.uploadStatus(hash).received(), 1000u);
+  // Two clients at once: both succeed, one of them finding the scene stored.
+  client::FarmClient a(farm.connection()), b(farm.connection());
+  client::FarmClient::UploadResult ra, rb;
+  std::string errors;
+  std::mutex errorsMutex;
+  auto upload = [&](client::FarmClient& c, client::FarmClient::UploadResult& r) {
+    try {
+      r = c.uploadScene(obj);
+    } catch (const std::exception& e) {
+      std::lock_guard lock(errorsMutex);
+      errors += std::string(e.what()) + "\n";
+    }
+  };
+  std::thread ta([&] { upload(a, ra); });
+  std::thread tb([&] { upload(b, rb); });
+  ta.join();
+  tb.join();
+  EXPECT_EQ(errors, "");
+  EXPECT_EQ(ra.sceneHash, hash);
+  EXPECT_EQ(rb.sceneHash, hash);
+  EXPECT_TRUE(scenes.uploadStatus(hash).complete());
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
 #include "scene_testing.h"
@@ -383,7 +384,7 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
   ASSERT_EQ(sqlite3_exec(db,
                          "ALTER TABLE jobs DROP COLUMN renderer; ALTER TABLE jobs DROP COLUMN receivers; "
                          "ALTER TABLE jobs DROP COLUMN receiver_pcf; ALTER TABLE jobs DROP COLUMN receiver_hash; "
-                         "ALTER TABLE jobs DROP COLUMN plan; "
+                         "ALTER TABLE jobs DROP COLUMN plan; ALTER TABLE tiles DROP COLUMN failed_by; "
                          "PRAGMA user_version = 2",
                          nullptr, nullptr, nullptr),
             SQLITE_OK);
@@ -419,7 +420,8 @@ TEST(FarmStore, ADatabaseOfAnotherSchemaIsRefusedWithWhatToDo) {
 
 TEST(TokenTable, RolesFromAFileAndWhatEachMayCall) {
   TempDir dir("cpvs_tokens");
-  const std::string c = "client-token-0001", w = "worker-token-0001", a = "admin-token-00001";
+  const std::string c = "ada5488cf52579ea83782e5446deeaff636815e7", w = "1426e4ffcdb984edcbc63533326ea7d6325e7f04",
+                    a = "174925fc779e85a1db618e5b4e29c2ba603c5ab6";
   std::ofstream(dir / "tokens") << "# farm tokens\nclient " << c << "\nworker " << w << "\nadmin " << a << "\n";
   const server::TokenTable t = server::TokenTable::load(dir / "tokens");
   EXPECT_TRUE(t.enabled());
@@ -427,17 +429,51 @@ TEST(TokenTable, RolesFromAFileAndWhatEachMayCall) {
   EXPECT_EQ(t.roleOf(w), server::Role::Worker);
   EXPECT_EQ(t.roleOf(a), server::Role::Admin);
   EXPECT_FALSE(t.roleOf("nope").has_value());
-  EXPECT_FALSE(t.roleOf(c.substr(0, 16)).has_value());  // a prefix is not the token
+  EXPECT_FALSE(t.roleOf(c.substr(0, 32)).has_value());  // a prefix is not the token
   // Only SHA-256 digests are held (R18), never a token as sent.
   std::vector<std::string> digests = t.digestsForTests();
   std::sort(digests.begin(), digests.end());
-  EXPECT_EQ(digests, (std::vector<std::string>{"1b34aac1e945a7976bd2918b3a0fbe0a6d7ff252a9f7ed8c55b8af62bf78f186",
-                                               "7ba51432f93e7ff524c901402bb2143fdb05bdba3bd25c3e573f915d28db60aa",
-                                               "bbe14f7bfef86ba0c5d4a0109d8dd6a64b7d96a6dec1be87211059a8f69d5efe"}));
+  EXPECT_EQ(digests, (std::vector<std::string>{"43a81a9265b14741e45cbe31676f157dcd44b49757dfa779d92af1cce6e9591f",
+                                               "a36c0388b2513f35e1f160c064eee6b1eab0bfb4aa1a8f8d46a7911ee0f5c8c3",
+                                               "ba7526a3a42b9e53cbf1c1fcf160b25d117653eaeb55bc4b223fcb905a1cd707"}));
   EXPECT_TRUE(server::TokenTable::allows(server::Role::Admin, server::Role::Worker));
   EXPECT_FALSE(server::TokenTable::allows(server::Role::Client, server::Role::Worker));
-  std::ofstream(dir / "bad") << "superuser superuser-token-01\n";
+  std::ofstream(dir / "bad") << "superuser " << c << "\n";
   EXPECT_THROW(server::TokenTable::load(dir / "bad"), InputError);
+}
+
+// R7: tokens a person made up, or left as shipped, are refused when the table loads.
+TEST(TokenTable, PlaceholderAndWeakTokensAreRefused) {
+  TempDir dir("cpvs_weak_tokens");
+  auto refused = [&](const std::string& token, const std::string& words) {
+    std::ofstream(dir / "tokens") << "client " << token << "\n";
+    try {
+      server::TokenTable::load(dir / "tokens");
+      ADD_FAILURE() << "accepted " << token;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("too weak"), std::string::npos) << e.what();
+    }
+  };
+  refused("REPLACE_WITH_CLIENT_TOKEN", "placeholder");
+  refused("changeme-changeme-changeme-changeme", "placeholder");
+  refused("client-token-0123456789", "fewer than 32");
+  refused("31415926535897932384626433832795", "bits");  // 32 digits: 106 bits
+  refused("abababababababababababababababababab", "distinct");
+  refused("0123456789abcdef0123456789abcdef0123", "pattern of");
+  refused("a1b2c3d4e5f6a7b8c9d0000000000aaaaaaaaaa", "one character 9 times");
+  // The shipped Kubernetes secret's values are placeholders: applied unchanged, the
+  // coordinator does not start.
+  std::ifstream yaml(std::string(CPVS_SOURCE_DIR) + "/deploy/k8s/secret-tokens.yaml");
+  std::stringstream text;
+  text << yaml.rdbuf();
+  const std::string shipped = text.str();
+  const size_t at = shipped.find("client REPLACE_WITH");
+  ASSERT_NE(at, std::string::npos);
+  refused(shipped.substr(at + 7, shipped.find('\n', at) - at - 7), "placeholder");
+  // What make-secrets.sh makes (64 hex digits) and 32 random letters and digits pass.
+  EXPECT_FALSE(server::weaknessOf("9c0f4b5e2a7d61f38e4c2b9a0d7f5e6c1b3a8d2f4e6c0b9a7d5f3e1c2b4a6d8f").has_value());
+  EXPECT_FALSE(server::weaknessOf("Zq3xW9pL2vK8mN4rT6yB1cH5jF7gD0sA").has_value());
 }
 
 TEST(Convert, ReceiversRoundTripAndBadOnesAreNamed) {

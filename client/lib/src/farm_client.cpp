@@ -9,11 +9,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <optional>
 #include <random>
+#include <thread>
 
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
@@ -124,21 +126,32 @@ FarmClient::UploadResult FarmClient::uploadScene(const std::string& path) {
   uint64_t offset = 0;
   if (status.known() && status.total_size() == bytes.size() && status.received() <= bytes.size())
     offset = status.received();
+  const uint64_t firstOffset = offset;
   pb::UploadSceneReply reply;
-  try {
-    reply = transport_->sendScene(bytes, result.sceneHash, fileName, offset);
-  } catch (const FarmCallError& e) {
-    // The server restarts an upload announced under another file name, and then wants
-    // it from byte 0.
-    if (offset == 0 || e.kind() != net::ErrorKind::FailedPrecondition) throw;
-    offset = 0;
-    reply = transport_->sendScene(bytes, result.sceneHash, fileName, offset);
+  // Another client uploading the same file moves the offset on meanwhile (both send the
+  // same bytes): carry on from where the server is, until one of the two completes it.
+  for (int attempt = 0;; ++attempt) {
+    try {
+      reply = transport_->sendScene(bytes, result.sceneHash, fileName, offset);
+      break;
+    } catch (const FarmCallError& e) {
+      if (e.kind() != net::ErrorKind::FailedPrecondition || attempt >= 20) throw;
+      const pb::UploadStatus now = transport_->unary(&pb::Farm::Stub::GetUploadStatus, ref);
+      if (now.complete()) {
+        result.alreadyThere = true;
+        return result;
+      }
+      // A different announcement still in progress (another size or format): not ours.
+      if (now.known() && now.total_size() != bytes.size()) throw;
+      offset = now.known() && now.received() <= bytes.size() ? now.received() : 0;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50 * (attempt + 1)));
+    }
   }
   if (!reply.complete())
     throw callError(net::ErrorKind::DataLoss, "the server holds " + std::to_string(reply.received()) + " of " +
                                          std::to_string(bytes.size()) + " bytes of " + fileName +
                                          " after the upload; upload it again");
-  result.resumedFrom = offset;
+  result.resumedFrom = firstOffset;
   result.bytesSent = bytes.size() - offset;
   result.triangles = reply.triangles();
   return result;
