@@ -5,11 +5,13 @@
 
 #include <atomic>
 #include <csignal>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <thread>
 
 #include "coordinator/coordinator.h"
+#include "coordinator/scene_importer.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
 #include "cpvs/base/parse.h"
@@ -34,6 +36,9 @@ std::string readText(const std::string& path, const char* what) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // The coordinator runs itself in this mode to import an upload in a limited child
+  // process (coordinator/scene_importer.h); not for people.
+  if (argc == 3 && std::string(argv[1]) == "--import-scene") return cpvs::server::runImportHelper(argv[2]);
   CLI::App app{"cpvs-server: the coordinator of a CPVS bake farm. Takes bake jobs, splits them into tiles, "
                "leases them to workers, merges their sub-DAGs as they arrive and serves the artifacts."};
   std::string listen = "127.0.0.1:7443", data, addressFile, tokensFile, tlsCert, tlsKey;
@@ -41,6 +46,7 @@ int main(int argc, char** argv) {
   std::string maxResolution = "256K";
   double maxUploadMb = 4096;
   bool insecureOpen = false, allowPlaintextTokens = false;
+  double importMemoryMb = 8192;
   app.add_option("--listen", listen, "HOST:PORT to serve on; port 0 picks a free port")->capture_default_str();
   app.add_option("--data", data, "Folder for the job database, scenes, tile results and artifacts")->required();
   app.add_option("--address-file", addressFile, "Write the bound HOST:PORT here once serving");
@@ -62,6 +68,17 @@ int main(int argc, char** argv) {
   app.add_option("--max-tiles-per-job", config.maxTilesPerJob, "Most tiles one job may have (65536: 256K in 1024-texel tiles)")
       ->capture_default_str()->check(CLI::Range(uint64_t(1), uint64_t(1) << 24));
   app.add_option("--max-upload-mb", maxUploadMb, "Largest scene upload in MiB")->capture_default_str();
+  app.add_option("--import-memory-mb", importMemoryMb,
+                 "Address space of the child process that imports an upload (assimp runs there, not in the server)")
+      ->capture_default_str()->check(CLI::Range(64.0, 1048576.0));
+  app.add_option("--import-seconds", config.import.seconds, "Longest one upload's import may take")
+      ->capture_default_str()->check(CLI::Range(1.0, 86400.0));
+  app.add_option("--max-concurrent-imports", config.maxConcurrentImports, "Uploads imported at once")
+      ->capture_default_str()->check(CLI::Range(1, 64));
+  app.add_option("--quarantine-seconds", config.quarantineSeconds,
+                 "A worker that fails 3 tiles in a row (or reports trouble of its own) gets no tile for this long, "
+                 "doubling each time up to 10 minutes")
+      ->capture_default_str()->check(CLI::Range(0.0, 86400.0));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -73,6 +90,8 @@ int main(int argc, char** argv) {
     config.dataDir = data;
     config.maxLog2Resolution = cpvs::parseResolution(maxResolution);
     config.maxUploadBytes = uint64_t(maxUploadMb * 1024 * 1024);
+    config.import.memoryBytes = uint64_t(importMemoryMb * 1024 * 1024);
+    config.import.helper = std::filesystem::read_symlink("/proc/self/exe").string();
     cpvs::server::TokenTable tokens = tokensFile.empty() ? cpvs::server::TokenTable() : cpvs::server::TokenTable::load(tokensFile);
     // Safe defaults: an open farm or tokens in cleartext only where nothing but this
     // machine can reach the port, unless the operator says so in as many words.

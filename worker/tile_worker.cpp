@@ -295,7 +295,7 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
     if (!cached) cached = cache_[sceneHash] = std::make_shared<CachedScene>();
   }
   std::lock_guard lock(cached->mutex);
-  if (cached->scene.indices.empty()) cached->scene = loadScene(fetchScene(sceneHash));
+  if (cached->scene.indices.empty()) cached->scene = loadScene(fetchScene(sceneHash), nullptr, ImportOptions{true});
   // Every field of the grid decides the projection; the bits of the doubles name it.
   std::string key = optionName(renderer);
   char field[32];
@@ -314,7 +314,7 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
   if (!prepared) {
     auto start = std::chrono::steady_clock::now();
     const ReceiverDeclaration declaration =
-        net::declarationOf(receivers, [&](const std::string& hash) { return loadScene(fetchScene(hash)); });
+        net::declarationOf(receivers, [&](const std::string& hash) { return loadScene(fetchScene(hash), nullptr, ImportOptions{true}); });
     prepared = std::make_shared<BakeScene>(cached->scene, grid, renderer, config_.threads, declaration);
     spdlog::info("scene {} prepared for the {} renderer in {:.2f} s", sceneHash, optionName(renderer), secondsSince(start));
   }

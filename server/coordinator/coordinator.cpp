@@ -19,7 +19,7 @@ Coordinator::Coordinator(CoordinatorConfig config)
       lock_(config_.dataDir),
       store_(databasePath(config_.dataDir)),
       artifacts_(config_.dataDir),
-      scenes_(store_, config_.dataDir, config_.maxUploadBytes),
+      scenes_(store_, config_.dataDir, config_.maxUploadBytes, config_.import, config_.maxConcurrentImports),
       merges_(store_, artifacts_, feed_, [this](const std::string& jobId, const std::string& why) {
         jobs_.failJob(jobId, why);
       }),

@@ -40,6 +40,8 @@ struct CoordinatorConfig {
   uint64_t maxUploadBytes = uint64_t(4) << 30;  // per scene
   size_t maxActiveJobs = 64;
   uint64_t maxTilesPerJob = 65536;              // see JobLimits
+  ImportLimits import;                          // how uploads are imported (isolated when it names a helper)
+  int maxConcurrentImports = 2;
 };
 
 class Coordinator {

@@ -10,7 +10,8 @@
 #include "cpvs/base/hash.h"
 #include "cpvs/base/text.h"
 #include "cpvs/net/error_kind.h"
-#include "cpvs/scene/import.h"
+#include "coordinator/scene_importer.h"
+#include "cpvs/scene/mesh_file.h"
 
 namespace cpvs::server {
 
@@ -40,8 +41,13 @@ void checkHashText(const std::string& hash, const char* what) {
   }
 }
 
-SceneStore::SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes)
-    : store_(store), folder_((fs::path(dataDir) / "scenes").string()), maxUploadBytes_(maxUploadBytes) {
+SceneStore::SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes, ImportLimits limits,
+                       int maxConcurrentImports)
+    : store_(store),
+      folder_((fs::path(dataDir) / "scenes").string()),
+      maxUploadBytes_(maxUploadBytes),
+      limits_(std::move(limits)),
+      maxConcurrentImports_(std::max(1, maxConcurrentImports)) {
   fs::create_directories(folder_);
 }
 
@@ -127,7 +133,9 @@ void SceneStore::appendUpload(const std::string& hash, uint64_t offset, const st
 }
 
 pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
-  std::lock_guard lock(mutex_);
+  std::unique_lock lock(mutex_);
+  // A second client finishing the same upload waits for the first one's import.
+  importDone_.wait(lock, [&] { return !importing_.count(hash); });
   auto r = store_.scene(hash);
   if (!r) throw FarmError(ErrorKind::NotFound, "no upload of scene " + hash + " was started");
   pb::UploadSceneReply reply;
@@ -159,31 +167,51 @@ pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
     restart();
     throw FarmError(ErrorKind::DataLoss, "the uploaded bytes hash to " + got + ", not " + hash + "; upload again");
   }
+  bytes = {};
   if (!renamed) {
     fs::rename(part, final);
     syncParentFolder(final.string());
   }
+  // The import runs without the lock, so that other uploads go on meanwhile (R6), and at
+  // most maxConcurrentImports at once.
+  importing_.insert(hash);
+  importDone_.wait(lock, [&] { return activeImports_ < maxConcurrentImports_; });
+  ++activeImports_;
+  lock.unlock();
+  SceneStats stats;
+  std::string failure;
+  ErrorKind failureKind = ErrorKind::InvalidArgument;
   try {
-    SceneStats stats;
-    Scene scene = loadScene(final.string(), &stats);
+    std::vector<uint8_t> mesh;
+    const Scene scene = importIsolated(final.string(), limits_, &stats, &mesh);
+    writeFileAtomic(meshPath(hash), mesh);
     r->triangles = stats.triangles;
     r->geometryHash = sceneHash(scene).hex();
   } catch (const InputError& e) {
-    fs::remove(final);
-    restart();
     // The importer names the stored file: the caller is told its own file name instead,
     // not where the data folder is.
     std::string why = e.what();
     const std::string storedName = final.string();
     for (size_t at = why.find(storedName); at != std::string::npos; at = why.find(storedName, at + r->fileName.size()))
       why.replace(at, storedName.size(), r->fileName);
-    throw FarmError(ErrorKind::InvalidArgument, "the scene does not import: " + why);
+    failure = "the scene does not import: " + why;
   } catch (const std::exception& e) {
-    // Out of memory, a file system error: the upload is not left half imported.
+    // Out of memory, a file system error, no importer to run: not the caller's fault.
     spdlog::error("importing scene {} failed: {}", hash, loggable(e.what()));
+    failure = "the scene could not be imported on the server; upload it again";
+    failureKind = ErrorKind::Internal;
+  }
+  lock.lock();
+  --activeImports_;
+  importing_.erase(hash);
+  importDone_.notify_all();
+  if (!failure.empty()) {
+    // The upload is not left half imported.
     fs::remove(final, ec);
+    fs::remove(meshPath(hash), ec);
     restart();
-    throw FarmError(ErrorKind::Internal, "the scene could not be imported on the server; upload it again");
+    lastActivity_.erase(hash);
+    throw FarmError(failureKind, failure);
   }
   r->complete = true;
   store_.putScene(*r);
@@ -202,6 +230,8 @@ std::string SceneStore::scenePath(const std::string& hash, std::string* fileName
   return (fs::path(folder_) / (hash + safeExtension(r->fileName))).string();
 }
 
+std::string SceneStore::meshPath(const std::string& hash) const { return (fs::path(folder_) / (hash + ".mesh")).string(); }
+
 bool SceneStore::verifyStored(const std::string& hash) {
   checkHashText(hash, "scene_hash");
   std::lock_guard lock(mutex_);
@@ -219,10 +249,27 @@ bool SceneStore::verifyStored(const std::string& hash) {
   std::error_code ec;
   fs::remove(stored, ec);
   fs::remove(partPath(hash), ec);
+  fs::remove(meshPath(hash), ec);
   store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false});
   return false;
 }
 
-Scene SceneStore::load(const std::string& sceneHash, SceneStats* stats) { return loadScene(scenePath(sceneHash), stats); }
+Scene SceneStore::load(const std::string& sceneHash, SceneStats* stats) {
+  const std::string stored = scenePath(sceneHash);
+  // The mesh kept at upload: a submit does not import the file again.
+  const std::string mesh = meshPath(sceneHash);
+  try {
+    const std::vector<uint8_t> bytes = readFile(mesh);
+    return decodeSceneMesh(bytes.data(), bytes.size(), "the stored mesh of scene " + sceneHash, stats);
+  } catch (const InputError& e) {
+    std::error_code ec;
+    if (fs::exists(mesh, ec)) spdlog::warn("{}: importing the scene again", e.what());
+  }
+  // A data folder from before meshes were kept, or a mesh damaged on disk.
+  std::vector<uint8_t> bytes;
+  Scene scene = importIsolated(stored, limits_, stats, &bytes);
+  writeFileAtomic(mesh, bytes);
+  return scene;
+}
 
 }  // namespace cpvs::server

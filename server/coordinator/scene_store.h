@@ -4,10 +4,13 @@
 
 #include <chrono>
 #include <cstdint>
+#include <condition_variable>
 #include <map>
+#include <set>
 #include <mutex>
 #include <string>
 
+#include "coordinator/scene_importer.h"
 #include "cpvs/scene/scene.h"
 #include "cpvs/v1/farm.pb.h"
 #include "store/farm_store.h"
@@ -18,15 +21,19 @@ namespace pb = ::cpvs::v1;
 
 class SceneStore {
  public:
-  /// Creates scenes/ under the data folder.
-  SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes);
+  /// Creates scenes/ under the data folder. Uploads are imported under `limits` (in a
+  /// child process when it names a helper), at most `maxConcurrentImports` at once.
+  SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes, ImportLimits limits = {},
+             int maxConcurrentImports = 2);
 
   pb::UploadStatus uploadStatus(const std::string& sceneHash);
   /// Starts or resumes an upload; its offset must equal the bytes already received.
   void beginUpload(const pb::UploadSceneChunk& first);
   /// Appends data at `offset` (the bytes received so far).
   void appendUpload(const std::string& sceneHash, uint64_t offset, const std::string& data);
-  /// Completes the upload when every byte is in: checks the hash, imports the scene.
+  /// Completes the upload when every byte is in: checks the hash, imports the scene
+  /// (isolated, see scene_importer.h) and keeps its mesh. Other uploads go on meanwhile;
+  /// a second caller for the same scene waits for this import.
   pb::UploadSceneReply endUpload(const std::string& sceneHash);
   /// The stored file of a complete scene; FarmError(NotFound) otherwise.
   std::string scenePath(const std::string& sceneHash, std::string* fileName = nullptr);
@@ -34,18 +41,25 @@ class SceneStore {
   /// missing one is removed and the scene marked not uploaded, so that the next submit
   /// uploads it again (R4); false for a scene not stored.
   bool verifyStored(const std::string& sceneHash);
-  /// The imported geometry of a complete scene.
+  /// The imported geometry of a complete scene: its mesh as kept at upload (imported
+  /// again, isolated, only when that mesh is missing or damaged).
   Scene load(const std::string& sceneHash, SceneStats* stats = nullptr);
 
  private:
   std::string partPath(const std::string& hash) const;
+  std::string meshPath(const std::string& hash) const;
   /// Notes that an upload made progress now (under mutex_).
   void touch(const std::string& hash);
 
   FarmStore& store_;
   std::string folder_;
   uint64_t maxUploadBytes_;
-  std::mutex mutex_;  // one upload step at a time
+  ImportLimits limits_;
+  int maxConcurrentImports_;
+  std::mutex mutex_;  // one upload step at a time (imports run without it)
+  std::condition_variable importDone_;
+  std::set<std::string> importing_;
+  int activeImports_ = 0;
   // When each upload in progress last moved, for R19's takeover rule.
   std::map<std::string, std::chrono::steady_clock::time_point> lastActivity_;
 };

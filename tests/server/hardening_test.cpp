@@ -13,6 +13,7 @@
 #include <mutex>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
@@ -20,6 +21,7 @@
 #include "cpvs/base/text.h"
 #include "cpvs/net/channel.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/scene/mesh_file.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/scene/source.h"
 #include "farm_testing.h"
@@ -671,10 +673,8 @@ TEST(Hardening, R4_ASceneDamagedOnTheCoordinatorIsForgottenAndUploadedAgain) {
   EXPECT_EQ(farm.client.list(true).at(0).state(), pb::JOB_RUNNING);  // intact here: the transfer's fault
   EXPECT_GT(leases.quarantinedForMs("w1"), 0);
 
-  std::string stored;
-  for (const auto& e : fs::directory_iterator(dir / "data/scenes"))
-    if (e.path().filename().string().starts_with(spec.scene_hash())) stored = e.path().string();
-  ASSERT_FALSE(stored.empty());
+  const std::string stored = dir / ("data/scenes/" + spec.scene_hash() + ".obj");
+  ASSERT_TRUE(fs::exists(stored));
   std::vector<uint8_t> bytes = readFile(stored);
   bytes[bytes.size() / 2] ^= 0x20;
   writeFileAtomic(stored, bytes);
@@ -774,6 +774,145 @@ TEST(Hardening, R19_OneClientCannotWipeAnothersUploadOfTheSameScene) {
   EXPECT_EQ(ra.sceneHash, hash);
   EXPECT_EQ(rb.sceneHash, hash);
   EXPECT_TRUE(scenes.uploadStatus(hash).complete());
+}
+
+/// A one-triangle glTF whose only buffer is `uri` of `byteLength` bytes.
+std::string gltfWithBuffer(const std::string& uri, uint64_t byteLength) {
+  return R"({"asset":{"version":"2.0"},"buffers":[{"uri":")" + uri + R"(","byteLength":)" + std::to_string(byteLength) +
+         R"(}],"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36}],"accessors":[{"bufferView":0,)"
+         R"("componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],)"
+         R"("meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"scene":0})";
+}
+
+/// A coordinator that imports uploads the way cpvs-server does: in a limited child process.
+server::CoordinatorConfig isolatedImports(const std::string& dataDir, double seconds = 60, uint64_t memoryMb = 2048) {
+  server::CoordinatorConfig config;
+  config.dataDir = dataDir;
+  config.import.helper = CPVS_SERVER;
+  config.import.seconds = seconds;
+  config.import.memoryBytes = memoryMb << 20;
+  return config;
+}
+
+/// The error an upload of `path` gets; empty when it is stored.
+std::string uploadError(client::FarmClient& client, const std::string& path, net::ErrorKind* kind = nullptr) {
+  try {
+    client.uploadScene(path);
+    return "";
+  } catch (const client::FarmCallError& e) {
+    if (kind) *kind = e.kind();
+    return e.what();
+  }
+}
+
+// R6: an uploaded glTF whose buffer named a file outside the upload ("../farm.sqlite",
+// "/dev/zero" with 2 GiB) made the coordinator's assimp open it. Only the uploaded file
+// can be opened now, in the child process and in-process alike; a buffer embedded as a
+// data: URI imports.
+TEST(Hardening, R6_ASceneThatRefersToOtherFilesIsRefused) {
+  TempDir dir("cpvs_r6_refs");
+  for (const bool isolated : {true, false}) {
+    SCOPED_TRACE(isolated ? "in the import helper" : "in process");
+    const std::string data = dir / (isolated ? "isolated" : "in-process");
+    InProcessFarm farm(isolated ? isolatedImports(data) : [&] {
+      server::CoordinatorConfig c;
+      c.dataDir = data;
+      return c;
+    }());
+    for (const auto& [name, uri, length] :
+         std::vector<std::tuple<std::string, std::string, uint64_t>>{{"db.gltf", "../farm.sqlite", 36},
+                                                                      {"zero.gltf", "../../../../../../dev/zero", 1ull << 31}}) {
+      std::ofstream(dir / name) << gltfWithBuffer(uri, length);
+      net::ErrorKind kind{};
+      const auto start = std::chrono::steady_clock::now();
+      const std::string error = uploadError(farm.client, dir / name, &kind);
+      EXPECT_EQ(kind, net::ErrorKind::InvalidArgument) << error;
+      EXPECT_NE(error.find("external references are not allowed"), std::string::npos) << error;
+      EXPECT_EQ(error.find(data), std::string::npos) << "names the data folder: " << error;
+      EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
+    }
+    std::ofstream(dir / "embedded.gltf")
+        << gltfWithBuffer("data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA", 36);
+    EXPECT_EQ(uploadError(farm.client, dir / "embedded.gltf"), "");
+  }
+}
+
+// R6: the importer crashing, hanging or eating memory on an upload took the coordinator
+// with it (it ran in-process). Now each costs that upload only, which starts over, and
+// other uploads go on meanwhile.
+TEST(Hardening, R6_AnImportThatCrashesHangsOrBlowsUpCostsItsUploadOnly) {
+  TempDir dir("cpvs_r6_child");
+  InProcessFarm farm(isolatedImports(dir / "data", 3, 512));
+  const std::string obj = dir / "box.obj";
+  writeObj(obj, openScene("city:1:1"));
+  const std::vector<uint8_t> bytes = readFile(obj);
+  const std::string hash = contentHash(bytes.data(), bytes.size()).hex();
+  struct Case {
+    const char* point;
+    const char* words;
+  };
+  for (const Case& c : {Case{"import-crash", "the importer crashed on the file (signal 11"},
+                        Case{"import-hog", "needs more than its 512 MiB"},
+                        Case{"import-hang", "took longer than 3 s"}}) {
+    SCOPED_TRACE(c.point);
+    ::setenv("CPVS_FAILPOINT", (std::string(c.point) + ":" + hash).c_str(), 1);
+    std::string other;
+    std::thread meanwhile;
+    if (std::string(c.point) == "import-hang") {
+      // Another scene uploads while this one hangs in its import.
+      meanwhile = std::thread([&] {
+        const std::string town = dir / "town.obj";
+        writeObj(town, openScene("city:2:1"));
+        const auto start = std::chrono::steady_clock::now();
+        other = uploadError(farm.client, town);
+        if (other.empty() && std::chrono::steady_clock::now() - start > std::chrono::milliseconds(2500))
+          other = "waited for the hanging import";
+      });
+    }
+    net::ErrorKind kind{};
+    const std::string error = uploadError(farm.client, obj, &kind);
+    if (meanwhile.joinable()) meanwhile.join();
+    ::unsetenv("CPVS_FAILPOINT");
+    EXPECT_EQ(kind, net::ErrorKind::InvalidArgument) << error;
+    EXPECT_NE(error.find(c.words), std::string::npos) << error;
+    EXPECT_EQ(other, "");
+    const pb::UploadStatus status = farm.coordinator.scenes().uploadStatus(hash);
+    EXPECT_FALSE(status.complete());
+    EXPECT_EQ(status.received(), 0u);  // starts over
+  }
+  EXPECT_EQ(uploadError(farm.client, obj), "");
+  // The mesh kept at upload serves every submit: with the importer broken, submits work.
+  ::setenv("CPVS_FAILPOINT", "import-crash", 1);
+  pb::BakeSpec spec;
+  spec.set_scene_hash(hash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+  spec.set_resolution("64");
+  const pb::JobStatus job = farm.client.submit("r6-no-import", spec);
+  ::unsetenv("CPVS_FAILPOINT");
+  EXPECT_NE(job.state(), pb::JOB_FAILED) << job.error();
+  EXPECT_TRUE(fs::exists(dir / ("data/scenes/" + hash + ".mesh")));
+}
+
+// The scene mesh file the importer sends back and the coordinator keeps is untrusted
+// input: every damage is refused, and a round trip keeps the geometry's hash.
+TEST(Hardening, R6_ASceneMeshFileRoundTripsAndDamageIsRefused) {
+  SceneStats stats;
+  Scene scene = openScene("city:2:2");
+  stats = finalizeScene(scene);
+  scene.lights.push_back(SceneLight{"sun", SceneLight::Type::Directional, {0, 10, 0}, {0, -1, 0}, {1, 1, 1}, 0, 0});
+  const std::vector<uint8_t> bytes = encodeSceneMesh(scene, stats);
+  SceneStats back;
+  const Scene decoded = decodeSceneMesh(bytes.data(), bytes.size(), "mesh", &back);
+  EXPECT_EQ(sceneHash(decoded), sceneHash(scene));
+  EXPECT_EQ(decoded.lights.size(), 1u);
+  EXPECT_EQ(back.closedParts, stats.closedParts);
+  for (size_t at : {size_t(0), size_t(9), size_t(60), bytes.size() / 2, bytes.size() - 1}) {
+    std::vector<uint8_t> bad = bytes;
+    bad[at] ^= 0x01;
+    EXPECT_THROW(decodeSceneMesh(bad.data(), bad.size(), "mesh"), FormatError) << "byte " << at;
+  }
+  for (size_t size : {size_t(0), size_t(7), size_t(40), bytes.size() - 1})
+    EXPECT_THROW(decodeSceneMesh(bytes.data(), size, "mesh"), FormatError) << "cut to " << size;
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include <assimp/DefaultIOSystem.h>
 #include <assimp/Importer.hpp>
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
@@ -141,19 +142,49 @@ SceneLight lightOf(const aiLight& l, const Mat4d& world) {
   return out;
 }
 
+/// Opens one file, for reading, and nothing else; remembers what else was asked for.
+class OneFileIOSystem final : public Assimp::DefaultIOSystem {
+ public:
+  explicit OneFileIOSystem(const std::string& path) : allowed_(canonical(path)) {}
+  bool Exists(const char* file) const override { return canonical(file) == allowed_; }
+  Assimp::IOStream* Open(const char* file, const char* mode) override {
+    if (canonical(file) != allowed_ || std::string(mode).find_first_of("wa+") != std::string::npos) {
+      if (refused_.empty()) refused_ = file;
+      return nullptr;
+    }
+    return Assimp::DefaultIOSystem::Open(file, mode);
+  }
+  const std::string& refused() const { return refused_; }
+
+ private:
+  static std::string canonical(const std::string& file) {
+    std::error_code ec;
+    const std::filesystem::path p = std::filesystem::weakly_canonical(std::filesystem::absolute(file, ec), ec);
+    return ec ? std::string() : p.string();
+  }
+  std::string allowed_;
+  std::string refused_;
+};
+
 }  // namespace
 
-Scene loadScene(const std::string& path, SceneStats* stats) {
+Scene loadScene(const std::string& path, SceneStats* stats, const ImportOptions& options) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw InputError(path + ": no such file");
 
   Assimp::Importer importer;
+  OneFileIOSystem* oneFile = nullptr;
+  if (options.selfContained) importer.SetIOHandler(oneFile = new OneFileIOSystem(path));  // the importer owns it
   // Points and lines are removed by SortByPType rather than skipped later so that the
   // remaining meshes are pure triangle meshes.
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   const aiScene* ai = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_SortByPType);
   if (ai == nullptr) {
+    if (oneFile && !oneFile->refused().empty())
+      throw InputError(path + ": it refers to another file ('" + std::filesystem::path(oneFile->refused()).filename().string() +
+                       "'): external references are not allowed; send one self-contained file (for glTF, a .glb "
+                       "or buffers embedded as data: URIs)");
     throw InputError(path + ": assimp cannot read it: " + importer.GetErrorString());
   }
   // Positions are checked before JoinIdenticalVertices: that step compares positions

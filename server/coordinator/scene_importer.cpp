@@ -1,0 +1,188 @@
+#include "coordinator/scene_importer.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <iostream>
+#include <memory>
+#include <new>
+#include <thread>
+
+#include "cpvs/base/error.h"
+#include "cpvs/scene/import.h"
+#include "cpvs/scene/mesh_file.h"
+
+namespace cpvs::server {
+
+namespace {
+
+constexpr size_t kMaxErrorBytes = 16 << 10;
+
+/// Closes a file descriptor when it goes out of scope.
+struct Fd {
+  int fd = -1;
+  ~Fd() { reset(); }
+  void reset() {
+    if (fd >= 0) ::close(fd);
+    fd = -1;
+  }
+};
+
+std::string firstLines(std::string text) {
+  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
+  if (text.size() > 2000) text = text.substr(0, 2000) + "...";
+  return text;
+}
+
+}  // namespace
+
+Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneStats* stats,
+                     std::vector<uint8_t>* meshBytes) {
+  if (limits.helper.empty()) {
+    SceneStats s;
+    Scene scene = loadScene(path, &s, ImportOptions{true});
+    if (meshBytes) *meshBytes = encodeSceneMesh(scene, s);
+    if (stats) *stats = s;
+    return scene;
+  }
+  int out[2], err[2];
+  if (pipe2(out, O_CLOEXEC) != 0) throw std::runtime_error(std::string("pipe: ") + std::strerror(errno));
+  Fd outRead{out[0]}, outWrite{out[1]};
+  if (pipe2(err, O_CLOEXEC) != 0) throw std::runtime_error(std::string("pipe: ") + std::strerror(errno));
+  Fd errRead{err[0]}, errWrite{err[1]};
+  // Everything the child needs is made before fork: between fork and exec it may only
+  // make system calls (the coordinator has many threads).
+  const std::string mode = "--import-scene";
+  std::vector<char*> argv{const_cast<char*>(limits.helper.c_str()), const_cast<char*>(mode.c_str()),
+                          const_cast<char*>(path.c_str()), nullptr};
+  const rlim_t memory = rlim_t(limits.memoryBytes);
+  const rlim_t cpu = rlim_t(limits.seconds) + 1;
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
+  if (pid == 0) {
+    dup2(outWrite.fd, 1);
+    dup2(errWrite.fd, 2);
+    const int devNull = open("/dev/null", O_RDONLY);
+    if (devNull >= 0) dup2(devNull, 0);
+    // Nothing of the coordinator's (its database, its sockets) stays open in the child.
+    syscall(SYS_close_range, 3u, ~0u, 0u);
+    const rlimit as{memory, memory}, cpuTime{cpu, cpu}, noFiles{0, 0}, noCore{0, 0};
+    setrlimit(RLIMIT_AS, &as);
+    setrlimit(RLIMIT_CPU, &cpuTime);
+    setrlimit(RLIMIT_FSIZE, &noFiles);  // it writes to its pipes only: no file at all
+    setrlimit(RLIMIT_CORE, &noCore);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  outWrite.reset();
+  errWrite.reset();
+  std::vector<uint8_t> mesh;
+  std::string error;
+  bool timedOut = false, tooBig = false;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(int64_t(limits.seconds * 1000));
+  std::vector<uint8_t> buffer(1 << 16);
+  while (outRead.fd >= 0 || errRead.fd >= 0) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) {
+      timedOut = true;
+      break;
+    }
+    pollfd fds[2] = {{outRead.fd, POLLIN, 0}, {errRead.fd, POLLIN, 0}};
+    const int ready = poll(fds, 2, int(std::min<int64_t>(left.count(), 1000)));
+    if (ready < 0 && errno != EINTR) break;
+    for (int i = 0; i < 2; ++i) {
+      if (fds[i].fd < 0 || !(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      const ssize_t n = read(fds[i].fd, buffer.data(), buffer.size());
+      if (n <= 0) {
+        (i == 0 ? outRead : errRead).reset();
+        continue;
+      }
+      if (i == 1) {
+        if (error.size() < kMaxErrorBytes) error.append(reinterpret_cast<const char*>(buffer.data()), size_t(n));
+      } else if (mesh.size() + size_t(n) > limits.memoryBytes) {
+        tooBig = true;  // more than the importer could have held: not a mesh it made
+      } else {
+        mesh.insert(mesh.end(), buffer.begin(), buffer.begin() + n);
+      }
+    }
+    if (tooBig) break;
+  }
+  if (timedOut || tooBig) kill(pid, SIGKILL);
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  const std::string limitsText = std::to_string(limits.memoryBytes >> 20) + " MiB and " +
+                                 std::to_string(int64_t(limits.seconds)) + " s";
+  if (timedOut) throw InputError(path + ": the import took longer than " + std::to_string(int64_t(limits.seconds)) + " s");
+  if (tooBig) throw InputError(path + ": the importer sent more than " + std::to_string(limits.memoryBytes >> 20) + " MiB");
+  if (WIFSIGNALED(status)) {
+    const int sig = WTERMSIG(status);
+    if (sig == SIGXCPU || sig == SIGKILL)
+      throw InputError(path + ": the import used more than its " + std::to_string(int64_t(limits.seconds)) + " s of CPU time");
+    throw InputError(path + ": the importer crashed on the file (signal " + std::to_string(sig) + ", " + strsignal(sig) +
+                     ")");
+  }
+  const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  if (code == 127) throw std::runtime_error("cannot run the scene importer " + limits.helper);
+  if (code == 2) throw InputError(firstLines(error));
+  if (code != 0) {
+    if (error.find("bad_alloc") != std::string::npos || error.find("out of memory") != std::string::npos)
+      throw InputError(path + ": the import needs more than its " + std::to_string(limits.memoryBytes >> 20) + " MiB");
+    throw std::runtime_error("the scene importer failed (status " + std::to_string(code) + "): " + firstLines(error) +
+                             " (limits " + limitsText + ")");
+  }
+  SceneStats s;
+  Scene scene = decodeSceneMesh(mesh.data(), mesh.size(), "the importer's answer for " + path, &s);
+  if (stats) *stats = s;
+  if (meshBytes) *meshBytes = std::move(mesh);
+  return scene;
+}
+
+int runImportHelper(const std::string& path) {
+  try {
+    // CPVS_FAILPOINT=POINT or POINT:TEXT, the latter for a path holding TEXT only.
+    if (const char* point = std::getenv("CPVS_FAILPOINT")) {
+      std::string p = point;
+      if (const size_t colon = p.find(':'); colon != std::string::npos) {
+        if (path.find(p.substr(colon + 1)) == std::string::npos) p.clear();
+        p.resize(std::min(p.size(), colon));
+      }
+      if (p == "import-crash") raise(SIGSEGV);
+      if (p == "import-hang")
+        for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+      if (p == "import-hog") {
+        std::vector<std::unique_ptr<char[]>> held;
+        for (;;) {
+          held.emplace_back(new char[64 << 20]);
+          std::memset(held.back().get(), 1, 64 << 20);
+        }
+      }
+    }
+    SceneStats stats;
+    const Scene scene = loadScene(path, &stats, ImportOptions{true});
+    const std::vector<uint8_t> mesh = encodeSceneMesh(scene, stats);
+    std::cout.write(reinterpret_cast<const char*>(mesh.data()), std::streamsize(mesh.size()));
+    std::cout.flush();
+    return std::cout ? 0 : 3;
+  } catch (const InputError& e) {
+    std::cerr << e.what() << "\n";
+    return 2;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "out of memory\n";
+    return 3;
+  } catch (const std::exception& e) {
+    std::cerr << e.what() << "\n";
+    return 3;
+  }
+}
+
+}  // namespace cpvs::server

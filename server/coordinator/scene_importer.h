@@ -1,0 +1,40 @@
+// Uploaded scenes are imported outside the coordinator: assimp is not robust against
+// hostile files, so each import runs in a child process (this executable again, in its
+// --import-scene mode) with its address space, CPU time and file writes limited and a
+// wall-clock timeout, opening only the uploaded file. What comes back is a scene mesh
+// file (cpvs/scene/mesh_file.h), checked like any untrusted input. A crash, a hang or a
+// memory blow-up of the importer costs that upload only.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "cpvs/scene/scene.h"
+
+namespace cpvs::server {
+
+struct ImportLimits {
+  /// The program run as `HELPER --import-scene FILE` (cpvs-server itself); empty: import
+  /// in this process, self-contained but not isolated (tests and tools that embed a
+  /// coordinator).
+  std::string helper;
+  uint64_t memoryBytes = uint64_t(8) << 30;  // address space of the importer
+  double seconds = 600;                      // wall clock (and CPU time) of one import
+};
+
+/// Imports `path`: the scene and its statistics, and the mesh file's bytes in
+/// `meshBytes`. InputError when the file is the problem (it does not import, refers to
+/// other files, crashes the importer, needs more memory or time than the limits);
+/// std::runtime_error when the importer cannot be run at all.
+Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneStats* stats,
+                     std::vector<uint8_t>* meshBytes);
+
+/// The child's side: imports FILE self-contained and writes its mesh file to standard
+/// output. Exit status 0, 2 (the file does not import; the reason on standard error), or
+/// 3 (anything else, out of memory included). CPVS_FAILPOINT=import-crash, import-hang
+/// or import-hog (or POINT:TEXT, for a path holding TEXT) makes it crash, hang or
+/// allocate without bound, for the tests.
+int runImportHelper(const std::string& path);
+
+}  // namespace cpvs::server
