@@ -7,6 +7,7 @@
 #include <cstdlib>
 
 #include "coordinator/clock.h"
+#include "coordinator/failpoint.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/text.h"
@@ -154,7 +155,9 @@ bool LeaseService::completeTile(const std::string& leaseId, const std::string& e
     // stays leased, so the worker's report or the lease's expiry puts it back in the queue.
     throw FarmError(ErrorKind::Internal, std::string("the coordinator cannot store the result: ") + e.what());
   }
+  failpoint("tile-written");
   if (!store_.completeTile(l->jobId, l->tile)) return false;
+  failpoint("tile-acknowledged");
   {
     std::lock_guard workersLock(workersMutex_);
     workers_.erase(l->workerId);  // a worker that delivers is forgiven its failures

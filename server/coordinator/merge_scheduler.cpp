@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "coordinator/failpoint.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
@@ -105,6 +106,7 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
   }
   m.merger->add(std::move(dag));
   ++m.merged;
+  failpoint("merge-step");
   m.peak = std::max(m.peak, m.merger->heldBytes());
   store_.addStageSeconds(jobId, {{"merge", secondsSince(start)}});
   if (m.merged == j->tilesTotal) {
@@ -126,6 +128,7 @@ void MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
   start = std::chrono::steady_clock::now();
   const std::vector<uint8_t> file = encodeCpvs(art, true);
   artifacts_.writeArtifact(j.id, file);
+  failpoint("artifact-written");
   const std::string checksum = contentHash(file.data(), file.size()).hex();
   store_.addStageSeconds(j.id, {{"write", secondsSince(start)}});
   if (!store_.finishJob(j.id, art.dag.bytes(), file.size(), m.peak, checksum, nowMs())) {

@@ -10,6 +10,7 @@
 #include "cpvs/base/hash.h"
 #include "cpvs/base/text.h"
 #include "cpvs/net/error_kind.h"
+#include "coordinator/failpoint.h"
 #include "coordinator/scene_importer.h"
 #include "cpvs/scene/mesh_file.h"
 
@@ -172,6 +173,7 @@ pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
     fs::rename(part, final);
     syncParentFolder(final.string());
   }
+  failpoint("upload-renamed");
   // The import runs without the lock, so that other uploads go on meanwhile (R6), and at
   // most maxConcurrentImports at once.
   importing_.insert(hash);

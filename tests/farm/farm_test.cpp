@@ -63,12 +63,14 @@ class FarmTest : public ::testing::Test {
   static std::string path(const std::string& name) { return (dir_ / name).string(); }
 
   /// Starts a coordinator on `data`; returns its address.
+  /// With a `failpoint`, the coordinator kills itself there (coordinator/failpoint.h).
   std::string startServer(const std::string& name, const std::string& listen = "127.0.0.1:0",
-                          const std::vector<std::string>& extra = {}) {
+                          const std::vector<std::string>& extra = {}, const std::string& failpoint = "") {
     std::string addressFile = path(name + ".address");
     fs::remove(addressFile);
     std::vector<std::string> argv{CPVS_SERVER, "--listen", listen, "--data", path(name + ".data"), "--address-file",
                                   addressFile, "--tokens", path("tokens")};
+    if (!failpoint.empty()) argv.insert(argv.begin(), {"/usr/bin/env", "CPVS_FAILPOINT=" + failpoint});
     argv.insert(argv.end(), extra.begin(), extra.end());
     servers_.push_back(std::make_unique<ChildProcess>(argv, path(name + ".log")));
     std::string address = testing::waitForFile(addressFile, 30);
@@ -314,6 +316,48 @@ TEST_F(FarmTest, CoordinatorKilledAndRestartedResumesWithoutRebuilding) {
   }
   EXPECT_LE(rebaked, 64 - acked.size());
   EXPECT_NE(servers_[1]->log().find("resuming 1 unfinished job"), std::string::npos) << servers_[1]->log();
+}
+
+// Crash points: the coordinator killed (SIGKILL, as a power cut would stop it) right
+// after a tile file is written and before it is acknowledged, right after the
+// acknowledgement, in the middle of the merge, after the artifact is written and before
+// the job is marked done, and between an upload's rename and its commit; restarted on its
+// folder and port, the job completes with the local bake's bytes, and no tile
+// acknowledged before the kill is baked again.
+TEST_F(FarmTest, KilledAtEachCrashPointTheJobCompletesWithTheLocalBytes) {
+  for (const std::string point : {"tile-written", "tile-acknowledged", "merge-step", "artifact-written", "upload-renamed"}) {
+    SCOPED_TRACE(point);
+    const std::string name = "crash-" + point;
+    const std::vector<std::string> shortLeases{"--lease-seconds", "2"};
+    const std::string address = startServer(name, "127.0.0.1:0", shortLeases, point);
+    ChildProcess& coordinator = *servers_.back();
+    ChildProcess& worker = startWorker(address, "w-" + point, {"--threads", "1"});
+    // Each crash point gets its own scene bytes, so that every upload is a new one.
+    const std::string scene = path(name + ".obj");
+    fs::copy_file(path("city.obj"), scene, fs::copy_options::overwrite_existing);
+    std::ofstream(scene, std::ios::app) << "# " << point << "\n";
+    const std::string submitLine = "submit --server " + address + " --token " + kClientToken + " " + scene + kSpec +
+                                   " --request-id " + name + " --wait --json --out " + path(name + ".cpvs");
+    Ran first = runCli(submitLine);
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (coordinator.running() && std::chrono::steady_clock::now() < end)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    ASSERT_EQ(coordinator.stop(SIGKILL), -SIGKILL) << "the failpoint was not reached: " << first.out << coordinator.log();
+    const std::set<uint64_t> acked = acknowledgedTiles(path(name + ".data") + "/farm.sqlite");
+    const size_t logBefore = worker.log().size();
+
+    startServer(name, address, shortLeases);  // same folder and port, no failpoint
+    Ran again = runCli(submitLine);           // the same request: the same job, or its upload completed
+    ASSERT_EQ(again.status, 0) << again.out << servers_.back()->log();
+    EXPECT_EQ(bytesOf(path(name + ".cpvs")), bytesOf(path("local.cpvs")));
+    std::string after = worker.log().substr(logBefore);
+    std::regex baking("tile ([0-9]+) \\([0-9]+, [0-9]+\\) of job [^:]+: baking");
+    for (std::sregex_iterator it(after.begin(), after.end(), baking), stop; it != stop; ++it)
+      EXPECT_EQ(acked.count(std::stoull((*it)[1])), 0u) << "acknowledged tile " << (*it)[1] << " was baked again";
+    EXPECT_EQ(jobs(address).size(), 1u);
+    worker.stop(SIGKILL);
+    servers_.back()->stop(SIGTERM);
+  }
 }
 
 // A sun track across processes: a coordinator, two workers and a subscriber on loopback.
