@@ -11,7 +11,7 @@ PACKAGES=(
   libpng-dev assimp-testmodels nlohmann-json3-dev python3-yaml clang
   libhwy-dev
   libvulkan-dev glslc mesa-vulkan-drivers vulkan-validationlayers
-  liberfa-dev libssl-dev
+  liberfa-dev libssl-dev openssl strace
 )
 
 missing=()

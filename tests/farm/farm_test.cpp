@@ -10,8 +10,10 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <map>
 #include <regex>
 #include <set>
+#include <tuple>
 
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/scene/obj_writer.h"
@@ -358,6 +360,95 @@ TEST_F(FarmTest, KilledAtEachCrashPointTheJobCompletesWithTheLocalBytes) {
     worker.stop(SIGKILL);
     servers_.back()->stop(SIGTERM);
   }
+}
+
+// Power loss: what survives a power cut is what was synced. The coordinator, run under
+// strace for a whole job (upload, tiles, merge, artifact), must sync every file it
+// renames into place before the rename and the folder after it, and the folder before it
+// commits the acknowledgement to SQLite (the write-ahead log's sync); tile results are
+// deleted only after the artifact's folder was synced.
+TEST_F(FarmTest, EveryRenameIsSyncedBeforeAndItsFolderAfterAndBeforeItsAcknowledgement) {
+  if (!fs::exists("/usr/bin/strace")) GTEST_SKIP() << "no strace (deploy/setup.sh installs it)";
+  const std::string trace = path("power.trace"), addressFile = path("power.address"), data = path("power.data");
+  ChildProcess traced({"/usr/bin/strace", "-f", "-y", "-qq", "-e", "trace=fsync,fdatasync,rename,renameat,renameat2,unlink,unlinkat",
+                       "-o", trace, CPVS_SERVER, "--listen", "127.0.0.1:0", "--data", data, "--address-file", addressFile,
+                       "--tokens", path("tokens")},
+                      path("power.log"));
+  const std::string address = testing::waitForFile(addressFile, 60);
+  ASSERT_FALSE(address.empty()) << traced.log();
+  ChildProcess& worker = startWorker(address, "w-power", {"--threads", "1"});
+  const std::string scene = path("power.obj");
+  fs::copy_file(path("city.obj"), scene, fs::copy_options::overwrite_existing);
+  std::ofstream(scene, std::ios::app) << "# power\n";
+  Ran r = runCli("submit --server " + address + " --token " + kClientToken + " " + scene + kSpec +
+                 " --request-id power --wait --out " + path("power.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out << traced.log();
+  EXPECT_EQ(bytesOf(path("power.cpvs")), bytesOf(path("local.cpvs")));
+  worker.stop(SIGKILL);
+  // Stop the coordinator itself (strace's child), and strace ends with it.
+  std::ifstream children("/proc/" + std::to_string(traced.pid()) + "/task/" + std::to_string(traced.pid()) + "/children");
+  pid_t server = 0;
+  children >> server;
+  ASSERT_GT(server, 0);
+  kill(server, SIGTERM);
+  traced.wait(30);
+
+  // Per thread, in order: what it synced, renamed and unlinked, by path (strace -y).
+  std::ifstream in(trace);
+  std::string line;
+  std::map<std::string, std::vector<std::pair<std::string, std::string>>> byThread;  // tid -> (call, path(s))
+  std::set<std::string> syncedEver;
+  std::vector<std::tuple<std::string, std::string, std::string>> renames;  // tid, from, to
+  std::regex fsyncLine(R"re(^(\d+) f(?:data)?sync\(\d+<([^>]*)>)re");
+  std::regex renameLine(R"re(^(\d+) rename(?:at2?)?\((?:[^,"]*, )?"([^"]+)", (?:[^,"]*, )?"([^"]+)")re");
+  std::regex unlinkLine(R"re(^(\d+) unlink(?:at)?\((?:[^,"]*, )?"([^"]+)")re");
+  size_t lines = 0;
+  while (std::getline(in, line)) {
+    ++lines;
+    std::smatch m;
+    if (std::regex_search(line, m, fsyncLine)) {
+      byThread[m[1]].push_back({"sync", m[2]});
+      syncedEver.insert(m[2]);
+    } else if (std::regex_search(line, m, renameLine)) {
+      byThread[m[1]].push_back({"rename", std::string(m[3])});
+      renames.emplace_back(m[1], m[2], m[3]);
+      if (std::string(m[2]).find(data) == 0 && !syncedEver.count(m[2]))
+        ADD_FAILURE() << "renamed before it was synced: " << m[2];
+    } else if (std::regex_search(line, m, unlinkLine)) {
+      byThread[m[1]].push_back({"unlink", m[2]});
+    }
+  }
+  ASSERT_GT(lines, 0u);
+  size_t checked = 0, tiles = 0;
+  for (const auto& [tid, from, to] : renames) {
+    if (to.find(data) != 0) continue;
+    ++checked;
+    tiles += to.find("/tiles/") != std::string::npos;
+    const std::string folder = fs::path(to).parent_path().string();
+    const auto& calls = byThread[tid];
+    // The rename, then in the same thread a sync of its folder before the next commit.
+    size_t at = 0;
+    while (at < calls.size() && !(calls[at].first == "rename" && calls[at].second == to)) ++at;
+    bool folderSynced = false, committedFirst = false;
+    for (size_t i = at + 1; i < calls.size() && !folderSynced; ++i) {
+      if (calls[i].first == "sync" && calls[i].second == folder) folderSynced = true;
+      else if (calls[i].first == "sync" && calls[i].second.find("farm.sqlite") != std::string::npos) committedFirst = true;
+    }
+    EXPECT_TRUE(folderSynced) << "the folder of " << to << " was not synced after the rename";
+    EXPECT_FALSE(committedFirst) << "the store committed before the folder of " << to << " was synced";
+  }
+  std::printf("power loss: %zu trace lines, %zu renames in the data folder checked (%zu of tile results)\n", lines,
+              checked, tiles);
+  EXPECT_GE(tiles, 1u);
+  EXPECT_GE(checked, tiles + 2);  // and the scene, its mesh, the artifact
+  // Tile results go only after the artifacts folder was synced.
+  bool artifactSynced = false;
+  for (const auto& [tid, calls] : byThread)
+    for (const auto& [call, what] : calls) {
+      if (call == "sync" && what == data + "/artifacts") artifactSynced = true;
+      if (call == "unlink" && what.find(data + "/tiles/") == 0)
+        EXPECT_TRUE(artifactSynced) << "tile result " << what << " deleted before the artifact was durable";
+    }
 }
 
 // A sun track across processes: a coordinator, two workers and a subscriber on loopback.
