@@ -156,4 +156,28 @@ TEST(OrthoGrid, FitsTheSceneWithAMargin) {
 }
 
 }  // namespace
+
+// -0 and +0 name one direction; a grid is stored where a zero's sign does not survive
+// (SQLite), so no frame or grid holds a negative zero, and the farm bakes the local bytes.
+TEST(LightFrame, NoNegativeZerosAndMinusZeroIsZero) {
+  auto bits = [](const Vec3& v) {
+    return std::vector<bool>{std::signbit(v.x), std::signbit(v.y), std::signbit(v.z)};
+  };
+  for (const Vec3& d : {Vec3{0.7, -1, -0.0}, Vec3{-0.0, -1, 0.2}, Vec3{0, -1, 0}, Vec3{-0.0, -1, -0.0}}) {
+    const LightFrame f = LightFrame::fromDirection(d);
+    const LightFrame plus = LightFrame::fromDirection(d + Vec3{0, 0, 0});
+    for (const Vec3* v : {&f.dir, &f.u, &f.v})
+      for (double x : {v->x, v->y, v->z}) EXPECT_FALSE(x == 0 && std::signbit(x)) << "a -0 in the frame of " << d.x << "," << d.z;
+    EXPECT_EQ(bits(f.dir), bits(plus.dir));
+    EXPECT_EQ(bits(f.u), bits(plus.u));
+    EXPECT_EQ(f.u.x, plus.u.x);
+    EXPECT_EQ(f.v.y, plus.v.y);
+    Scene s;
+    s.positions = {{-1, 0, -1}, {1, 0, -1}, {0, 0, 1}};
+    s.indices = {0, 1, 2};
+    const OrthoGrid g = makeGrid(s, f, 6);
+    for (double x : {g.origin.x, g.origin.y, g.origin.z, g.u0, g.v0, g.d0}) EXPECT_FALSE(x == 0 && std::signbit(x));
+  }
+}
+
 }  // namespace cpvs

@@ -18,15 +18,18 @@ LightFrame LightFrame::fromDirection(const Vec3& d) {
   if (!(m > 0)) throw InputError("light direction is the zero vector");
   const Vec3 scaled = d / m;
   LightFrame f;
-  f.dir = scaled / length(scaled);
+  // No negative zeros: -0 and +0 name one direction, and a frame is stored where the sign
+  // of a zero does not survive (SQLite keeps 0.0 as the integer 0): the farm's grid must be
+  // the local bake's bit for bit. Adding +0.0 turns -0.0 into +0.0 and changes nothing else.
+  f.dir = withoutNegativeZeros(scaled / length(scaled));
   // Duff, Burgess, Christensen, Hery, Kensler, Liani, Villemin: "Building an Orthonormal
   // Basis, Revisited" (JCGT 2017). Continuous except at the sign flip, exact everywhere.
   const Vec3& n = f.dir;
   double sign = std::copysign(1.0, n.z);
   double a = -1.0 / (sign + n.z);
   double b = n.x * n.y * a;
-  f.u = Vec3(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-  f.v = Vec3(b, sign + n.y * n.y * a, -n.y);
+  f.u = withoutNegativeZeros(Vec3(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x));
+  f.v = withoutNegativeZeros(Vec3(b, sign + n.y * n.y * a, -n.y));
   return f;
 }
 

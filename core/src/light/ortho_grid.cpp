@@ -109,6 +109,11 @@ OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resoluti
   g.v0 = cv - 0.5 * side;
   g.d0 = mn[2] - margin;
   g.depthExtent = (mx[2] - mn[2]) + 2 * margin;
+  // No negative zeros (see LightFrame::fromDirection).
+  g.origin = withoutNegativeZeros(g.origin);
+  g.u0 += 0.0;
+  g.v0 += 0.0;
+  g.d0 += 0.0;
   return g;
 }
 

@@ -28,6 +28,9 @@ constexpr Vec3 cross(const Vec3& a, const Vec3& b) {
 }
 inline double length(const Vec3& a) { return std::sqrt(dot(a, a)); }
 inline Vec3 normalize(const Vec3& a) { return a / length(a); }
+/// The same vector with every -0.0 made +0.0 (adding +0.0 does that and nothing else).
+inline Vec3 withoutNegativeZeros(const Vec3& a) { return {a.x + 0.0, a.y + 0.0, a.z + 0.0}; }
+
 inline bool isFinite(const Vec3& a) {
   return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
 }
