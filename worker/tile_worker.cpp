@@ -143,12 +143,15 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     auto start = std::chrono::steady_clock::now();
     std::vector<uint8_t> encoded = encodeSubDag(dag, true);
     times.add("encode", secondsSince(start));
-    stopRenewing();
     if (abandoning_) {
+      stopRenewing();
       release(lease, "worker stopping", pb::FAIL_INTERRUPTED);
       return;
     }
+    // The lease is renewed while the result is sent, and sent again (a coordinator
+    // restarting, or out of disk for a while): it must not expire under a finished tile.
     deliverResult(lease, encoded, times.seconds);
+    stopRenewing();
     ++tilesDone_;
     if (lost) spdlog::warn("tile {} of job {}: the lease was lost while baking", lease.tile_index(), lease.job_id());
   } catch (const Unreachable&) {

@@ -114,7 +114,15 @@ pb::RenewReply LeaseService::renew(const std::string& leaseId) {
     return r;
   }
   deadline = std::min(deadline, ceiling);
-  r.set_valid(store_.renewLease(leaseId, deadline));
+  try {
+    r.set_valid(store_.renewLease(leaseId, deadline));
+  } catch (const StoreUnavailable&) {
+    // The store cannot record it now (a full disk): the renewal is kept here and recorded
+    // by the reaper before it expires anything, so the worker loses nothing (R9).
+    std::lock_guard lock(pendingMutex_);
+    if (pendingRenewals_.size() < 100000) pendingRenewals_[leaseId] = deadline;
+    r.set_valid(true);
+  }
   r.set_deadline_unix_ms(r.valid() ? deadline : 0);
   r.set_lease_ms(r.valid() ? uint32_t(deadline - now) : 0);
   return r;
@@ -151,9 +159,10 @@ bool LeaseService::completeTile(const std::string& leaseId, const std::string& e
   try {
     artifacts_.writeTile(l->jobId, l->tile, bytes);
   } catch (const InputError& e) {
-    // The coordinator's own disk (full, read-only): not the worker's fault, and the tile
-    // stays leased, so the worker's report or the lease's expiry puts it back in the queue.
-    throw FarmError(ErrorKind::Internal, std::string("the coordinator cannot store the result: ") + e.what());
+    // The coordinator's own disk (full, read-only): not the worker's fault. The tile stays
+    // leased and the worker sends the same result again later (R9).
+    spdlog::warn("tile {} of job {}: cannot store its result now: {}", l->tile, l->jobId, e.what());
+    throw FarmError(ErrorKind::Unavailable, "the coordinator cannot store the result now (its disk); send it again");
   }
   failpoint("tile-written");
   if (!store_.completeTile(l->jobId, l->tile)) return false;
@@ -244,19 +253,43 @@ void LeaseService::reaperLoop() {
       int64_t shift = 0;
       if (steadyGap > kReaperTickMs + kPauseMs) shift += steadyGap - kReaperTickMs;
       if (std::abs(wallGap - steadyGap) > kPauseMs) shift += wallGap - steadyGap;
+      // A store that could not be written (a full disk) counts as a pause too: renewals
+      // failed meanwhile, and the time since the last round that went through is owed.
       if (shift != 0) {
         store_.shiftLeaseDeadlines(shift);
-        spdlog::warn("the coordinator was paused for {} ms and its clock moved {} ms: every lease moved {} ms",
+        spdlog::warn("leases could not be kept for {} ms (the coordinator paused or its store unavailable) and its "
+                     "clock moved {} ms: every lease moved {} ms",
                      steadyGap, wallGap, shift);
+        lastSteady = steadyNow;
+        lastWall = wallNow;
       }
-      lastSteady = steadyNow;
-      lastWall = wallNow;
+      {
+        std::map<std::string, int64_t> pending;
+        {
+          std::lock_guard lock(pendingMutex_);
+          pending.swap(pendingRenewals_);
+        }
+        for (auto it = pending.begin(); it != pending.end(); it = pending.erase(it)) {
+          try {
+            store_.renewLease(it->first, it->second);
+          } catch (const StoreUnavailable&) {
+            std::lock_guard lock(pendingMutex_);
+            for (const auto& [lease, deadline] : pending)
+              pendingRenewals_.emplace(lease, deadline);  // a newer renewal meanwhile wins
+            throw;
+          }
+        }
+      }
       for (const auto& [jobId, tile, attempts] : store_.expireLeases(nowMs())) {
         spdlog::warn("lease on tile {} of job {} expired (attempt {})", tile, jobId, attempts);
         if (attempts >= rules_.maxAttempts)
           jobs_.failJob(jobId, "tile " + std::to_string(tile) + ": lease expired " + std::to_string(attempts) + " times");
         feed_.notify();
       }
+      lastSteady = steadyNow;
+      lastWall = wallNow;
+    } catch (const StoreUnavailable& e) {
+      spdlog::warn("expiring leases waits for the store: {}", e.what());
     } catch (const std::exception& e) {
       spdlog::error("expiring leases failed, retrying: {}", e.what());
     }

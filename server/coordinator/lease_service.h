@@ -81,6 +81,11 @@ class LeaseService {
     int quarantines = 0;
     std::chrono::steady_clock::time_point until{};
   };
+  // Renewals the store could not record when they came (a full disk): recorded by the
+  // reaper before it expires anything.
+  std::mutex pendingMutex_;
+  std::map<std::string, int64_t> pendingRenewals_;
+
   std::mutex workersMutex_;
   std::map<std::string, WorkerRecord> workers_;
 };

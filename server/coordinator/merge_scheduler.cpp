@@ -36,6 +36,11 @@ void MergeScheduler::push(Item item) {
   wake_.notify_all();
 }
 
+void MergeScheduler::retryLater(Item item) {
+  std::lock_guard lock(mutex_);
+  later_.emplace_back(std::chrono::steady_clock::now() + std::chrono::seconds(1), std::move(item));
+}
+
 void MergeScheduler::mergeTile(const std::string& jobId, uint64_t tile) { push({Item::Kind::MergeTile, jobId, tile}); }
 
 void MergeScheduler::removeTiles(const std::string& jobId) { push({Item::Kind::RemoveTiles, jobId, 0}); }
@@ -55,8 +60,22 @@ void MergeScheduler::loop() {
     Item item;
     {
       std::unique_lock lock(mutex_);
-      wake_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
-      if (stopping_) return;
+      for (;;) {
+        if (stopping_) return;
+        const auto now = std::chrono::steady_clock::now();
+        auto next = now + std::chrono::hours(1);
+        for (auto it = later_.begin(); it != later_.end();) {
+          if (it->first <= now) {
+            queue_.push_back(std::move(it->second));
+            it = later_.erase(it);
+          } else {
+            next = std::min(next, it->first);
+            ++it;
+          }
+        }
+        if (!queue_.empty()) break;
+        wake_.wait_until(lock, next);
+      }
       item = std::move(queue_.front());
       queue_.pop_front();
     }
@@ -66,7 +85,17 @@ void MergeScheduler::loop() {
       continue;
     }
     try {
+      if (item.kind == Item::Kind::WriteArtifact) {
+        const auto j = store_.job(item.jobId);
+        if (!j || isFinal(j->state) || finishJob(*j, merges_[item.jobId])) merges_.erase(item.jobId);
+        continue;
+      }
       mergeOne(item.jobId, item.tile);
+    } catch (const StoreUnavailable& e) {
+      // Read before anything was merged (the merger changes only once the tile is in):
+      // the same item again, later.
+      spdlog::warn("job {}: {}; merging again in 1 s", item.jobId, e.what());
+      retryLater(item);
     } catch (const TileUnreadable& e) {
       // An acknowledged tile whose file is gone or damaged (a crash, a bad disk) is baked
       // again, that tile only (R4); the tiles merged so far stay merged.
@@ -108,40 +137,58 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
   ++m.merged;
   failpoint("merge-step");
   m.peak = std::max(m.peak, m.merger->heldBytes());
-  store_.addStageSeconds(jobId, {{"merge", secondsSince(start)}});
-  if (m.merged == j->tilesTotal) {
-    finishJob(*j, m);
-    merges_.erase(jobId);
+  try {
+    store_.addStageSeconds(jobId, {{"merge", secondsSince(start)}});
+  } catch (const StoreUnavailable&) {
+    // Statistics only: the tile is merged, and must not be merged again.
   }
+  if (m.merged == j->tilesTotal && finishJob(*j, m)) merges_.erase(jobId);
 }
 
-void MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
-  auto start = std::chrono::steady_clock::now();
-  CpvsArtifact art;
-  art.grid = j.grid;
-  art.options = j.options;
-  art.sceneHash = parseHashHex(j.geometryHash, "geometry hash");
-  art.receiverHash = j.receiverHash;
-  art.plan = j.plan;
-  art.dag = assembleRoots(*m.merger->finish(), art.options.hash, art.options.compress);
-  store_.addStageSeconds(j.id, {{"merge", secondsSince(start)}});
-  start = std::chrono::steady_clock::now();
-  const std::vector<uint8_t> file = encodeCpvs(art, true);
-  artifacts_.writeArtifact(j.id, file);
-  failpoint("artifact-written");
-  const std::string checksum = contentHash(file.data(), file.size()).hex();
-  store_.addStageSeconds(j.id, {{"write", secondsSince(start)}});
-  if (!store_.finishJob(j.id, art.dag.bytes(), file.size(), m.peak, checksum, nowMs())) {
-    // Cancelled or failed while this merge wrote the artifact: the first end stands.
-    artifacts_.removeArtifact(j.id);
-    artifacts_.removeTiles(j.id);
-    return;
+bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
+  if (m.file.empty()) {
+    auto start = std::chrono::steady_clock::now();
+    CpvsArtifact art;
+    art.grid = j.grid;
+    art.options = j.options;
+    art.sceneHash = parseHashHex(j.geometryHash, "geometry hash");
+    art.receiverHash = j.receiverHash;
+    art.plan = j.plan;
+    art.dag = assembleRoots(*m.merger->finish(), art.options.hash, art.options.compress);
+    const double merged = secondsSince(start);
+    start = std::chrono::steady_clock::now();
+    m.file = encodeCpvs(art, true);
+    m.dagBytes = art.dag.bytes();
+    m.merger.reset();
+    try {
+      store_.addStageSeconds(j.id, {{"merge", merged}, {"write", secondsSince(start)}});
+    } catch (const StoreUnavailable&) {
+    }
+  }
+  try {
+    artifacts_.writeArtifact(j.id, m.file);
+    failpoint("artifact-written");
+    const std::string checksum = contentHash(m.file.data(), m.file.size()).hex();
+    if (!store_.finishJob(j.id, m.dagBytes, m.file.size(), m.peak, checksum, nowMs())) {
+      // Cancelled or failed while this merge wrote the artifact: the first end stands.
+      artifacts_.removeArtifact(j.id);
+      artifacts_.removeTiles(j.id);
+      return true;
+    }
+  } catch (const InputError& e) {
+    spdlog::warn("job {}: cannot write its artifact now ({}); trying again in 1 s, its tiles kept", j.id, e.what());
+    retryLater({Item::Kind::WriteArtifact, j.id, 0});
+    return false;
+  } catch (const StoreUnavailable& e) {
+    spdlog::warn("job {}: {}; writing its artifact again in 1 s, its tiles kept", j.id, e.what());
+    retryLater({Item::Kind::WriteArtifact, j.id, 0});
+    return false;
   }
   // Only now that the artifact and its acknowledgement are durable.
   artifacts_.removeTiles(j.id);
-  spdlog::info("job {} done: {} bytes (file {}), peak merge memory {} bytes", j.id, art.dag.bytes(), file.size(),
-               m.peak);
+  spdlog::info("job {} done: {} bytes (file {}), peak merge memory {} bytes", j.id, m.dagBytes, m.file.size(), m.peak);
   feed_.notify();
+  return true;
 }
 
 }  // namespace cpvs::server

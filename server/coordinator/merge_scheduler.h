@@ -3,6 +3,7 @@
 // its last tile is in.
 #pragma once
 
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -13,6 +14,8 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "coordinator/artifact_store.h"
 #include "coordinator/change_feed.h"
@@ -43,7 +46,7 @@ class MergeScheduler {
 
  private:
   struct Item {
-    enum class Kind { MergeTile, RemoveTiles } kind;
+    enum class Kind { MergeTile, RemoveTiles, WriteArtifact } kind;
     std::string jobId;
     uint64_t tile = 0;
   };
@@ -51,6 +54,10 @@ class MergeScheduler {
     std::unique_ptr<StreamingMerger> merger;
     uint64_t merged = 0;
     uint64_t peak = 0;
+    // The finished artifact, kept until it is written and the job marked done: a full
+    // disk delays it, and the write is tried again with nothing merged twice (R9).
+    std::vector<uint8_t> file;
+    uint64_t dagBytes = 0;
   };
 
   /// A tile result that cannot be read back: baked again rather than failing the job.
@@ -59,10 +66,13 @@ class MergeScheduler {
   };
 
   void push(Item item);
+  /// Queues `item` again after a pause (the store or the disk could not take it now).
+  void retryLater(Item item);
   void failJob(const std::string& jobId, const std::string& why);
   void loop();
   void mergeOne(const std::string& jobId, uint64_t tile);
-  void finishJob(const JobRecord& job, JobMerge& m);
+  /// Writes the artifact and marks the job done; false when that must be tried again.
+  bool finishJob(const JobRecord& job, JobMerge& m);
 
   FarmStore& store_;
   ArtifactStore& artifacts_;
@@ -72,6 +82,7 @@ class MergeScheduler {
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<Item> queue_;
+  std::vector<std::pair<std::chrono::steady_clock::time_point, Item>> later_;
   bool stopping_ = false;
   std::map<std::string, JobMerge> merges_;  // the merge thread's only
   std::thread thread_;

@@ -126,7 +126,8 @@ void SceneStore::appendUpload(const std::string& hash, uint64_t offset, const st
     replaceTail(partPath(hash), r->received, data.data(), data.size());
   } catch (const InputError& e) {
     spdlog::error("{}", e.what());  // the path stays in the log, not in the caller's message
-    throw FarmError(ErrorKind::Internal, "cannot store the upload");
+    // The coordinator's disk (full): the client may send the same bytes again later (R9).
+    throw FarmError(ErrorKind::Unavailable, "the coordinator cannot store the upload now (its disk); try again");
   }
   r->received += data.size();
   store_.putScene(*r);

@@ -52,6 +52,9 @@ grpc::Status guarded(const grpc::ServerContext* ctx, const TokenTable& tokens, R
     return net::toGrpcStatus(e);
   } catch (const InputError& e) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
+  } catch (const StoreUnavailable& e) {
+    spdlog::warn("{}: {}", rpc, e.what());
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE, std::string(e.what()) + "; try again");
   } catch (const std::exception& e) {
     spdlog::error("{}: internal error: {}", rpc, e.what());
     return grpc::Status(grpc::StatusCode::INTERNAL, std::string("internal error: ") + e.what());

@@ -37,6 +37,11 @@ class Statement {
     int rc = sqlite3_step(st_);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
+    // A full disk, an I/O error, a store held busy: the same request may succeed later,
+    // and nobody's work is at fault (R9).
+    const int primary = rc & 0xff;
+    if (primary == SQLITE_FULL || primary == SQLITE_IOERR || primary == SQLITE_BUSY || primary == SQLITE_LOCKED)
+      throw StoreUnavailable(std::string("the job store cannot write now: ") + sqlite3_errmsg(db_));
     throw std::runtime_error(std::string("sqlite step: ") + sqlite3_errmsg(db_));
   }
   void run() {

@@ -8,6 +8,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,12 @@ namespace cpvs::server {
 /// Tile states as stored.
 /// Untouched: no triangle can touch the tile (BakeScene::touchesTile): done when the job is
 /// created, never leased, merged as the all-lit sub-DAG without a file.
+/// The store cannot read or write now (disk full, an I/O error, busy): the same call may
+/// succeed later; the caller is told to try again (UNAVAILABLE), and no work is failed.
+struct StoreUnavailable : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 enum class TileState : int { Queued = 0, Leased = 1, Done = 2, Cancelled = 3, Untouched = 4 };
 
 /// Job states as stored: the values of cpvs.v1.JobState.

@@ -68,14 +68,18 @@ class FarmTest : public ::testing::Test {
   static std::string path(const std::string& name) { return (dir_ / name).string(); }
 
   /// Starts a coordinator on `data`; returns its address.
-  /// With a `failpoint`, the coordinator kills itself there (coordinator/failpoint.h).
+  /// `env`: NAME=VALUE entries for the coordinator's environment (a CPVS_FAILPOINT, a
+  /// preloaded shim).
   std::string startServer(const std::string& name, const std::string& listen = "127.0.0.1:0",
-                          const std::vector<std::string>& extra = {}, const std::string& failpoint = "") {
+                          const std::vector<std::string>& extra = {}, const std::vector<std::string>& env = {}) {
     std::string addressFile = path(name + ".address");
     fs::remove(addressFile);
     std::vector<std::string> argv{CPVS_SERVER, "--listen", listen, "--data", path(name + ".data"), "--address-file",
                                   addressFile, "--tokens", path("tokens")};
-    if (!failpoint.empty()) argv.insert(argv.begin(), {"/usr/bin/env", "CPVS_FAILPOINT=" + failpoint});
+    if (!env.empty()) {
+      argv.insert(argv.begin(), env.begin(), env.end());
+      argv.insert(argv.begin(), "/usr/bin/env");
+    }
     argv.insert(argv.end(), extra.begin(), extra.end());
     servers_.push_back(std::make_unique<ChildProcess>(argv, path(name + ".log")));
     std::string address = testing::waitForFile(addressFile, 30);
@@ -334,7 +338,7 @@ TEST_F(FarmTest, KilledAtEachCrashPointTheJobCompletesWithTheLocalBytes) {
     SCOPED_TRACE(point);
     const std::string name = "crash-" + point;
     const std::vector<std::string> shortLeases{"--lease-seconds", "2"};
-    const std::string address = startServer(name, "127.0.0.1:0", shortLeases, point);
+    const std::string address = startServer(name, "127.0.0.1:0", shortLeases, {"CPVS_FAILPOINT=" + point});
     ChildProcess& coordinator = *servers_.back();
     ChildProcess& worker = startWorker(address, "w-" + point, {"--threads", "1"});
     // Each crash point gets its own scene bytes, so that every upload is a new one.
@@ -451,13 +455,15 @@ TEST_F(FarmTest, EveryRenameIsSyncedBeforeAndItsFolderAfterAndBeforeItsAcknowled
   EXPECT_GE(tiles, 1u);
   EXPECT_GE(checked, tiles + 2);  // and the scene, its mesh, the artifact
   // Tile results go only after the artifacts folder was synced.
-  bool artifactSynced = false;
-  for (const auto& [tid, calls] : byThread)
+  for (const auto& [tid, calls] : byThread) {
+    bool artifactSynced = false;
     for (const auto& [call, what] : calls) {
       if (call == "sync" && what == data + "/artifacts") artifactSynced = true;
-      if (call == "unlink" && what.find(data + "/tiles/") == 0)
+      if (call == "unlink" && what.find(data + "/tiles/") == 0) {
         EXPECT_TRUE(artifactSynced) << "tile result " << what << " deleted before the artifact was durable";
+      }
     }
+  }
 }
 
 // Soak: 200 small jobs from four clients on a farm of three workers, while a seeded chaos
@@ -534,6 +540,52 @@ TEST_F(FarmTest, SoakTwoHundredJobsWhileWorkersAndTheCoordinatorAreKilled) {
   const auto all = jobs(address);
   EXPECT_EQ(all.size(), size_t(kJobs));  // one job per request, however often it was sent
   for (const auto& j : all) EXPECT_EQ(j.state(), v1::JOB_DONE) << j.job_id() << " " << j.error();
+}
+
+// Disk full: the coordinator's data folder refuses writes (an LD_PRELOAD shim returns
+// ENOSPC) while jobs run: first its tile results only, while a job's tiles arrive, then
+// everything, while another job is submitted and the first one's artifact is due. The
+// coordinator keeps running, no job fails (results are sent again on the same lease, the
+// artifact written again, the submit retried), and once space returns both complete with
+// the local bytes.
+TEST_F(FarmTest, DiskFullForAWhileFailsNoJob) {
+  const std::string data = path("full.data"), flag = path("disk-full");
+  fs::remove(flag);
+  const std::string address = startServer("full", "127.0.0.1:0", {"--lease-seconds", "3"},
+                                          {"LD_PRELOAD=" CPVS_ENOSPC_SHIM, "CPVS_ENOSPC_FLAG=" + flag});
+  ChildProcess& coordinator = *servers_.back();
+  startWorker(address, "w-full", {"--threads", "1"});
+  auto submitUntilDone = [&](const std::string& id) {
+    const std::string line = "submit --server " + address + " --token " + kClientToken + " " + path("city.obj") + kSpec +
+                             " --request-id " + id + " --wait --out " + path(id + ".cpvs");
+    Ran r;
+    for (int attempt = 0; attempt < 40 && (r = runCli(line)).status != 0; ++attempt)
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    return r;
+  };
+  auto first = std::async(std::launch::async, [&] { return submitUntilDone("full-first"); });
+  ASSERT_TRUE(waitForTiles(address, 3, 60)) << coordinator.log();
+  std::ofstream(flag) << data << "/tiles\n";  // tile results cannot be stored
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  std::ofstream(flag) << data << "\n";  // nothing can be
+  auto second = std::async(std::launch::async, [&] { return submitUntilDone("full-second"); });
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  EXPECT_TRUE(coordinator.running()) << coordinator.log();
+  fs::remove(flag);
+  const Ran a = first.get(), b = second.get();
+  ASSERT_EQ(a.status, 0) << a.out << coordinator.log();
+  ASSERT_EQ(b.status, 0) << b.out << coordinator.log();
+  EXPECT_EQ(bytesOf(path("full-first.cpvs")), bytesOf(path("local.cpvs")));
+  EXPECT_EQ(bytesOf(path("full-second.cpvs")), bytesOf(path("local.cpvs")));
+  for (const auto& j : jobs(address)) EXPECT_EQ(j.state(), v1::JOB_DONE) << j.error();
+  // The disk was full while the coordinator worked: tile results were refused, and so
+  // were writes to the store.
+  const std::string log = coordinator.log();
+  EXPECT_NE(log.find("cannot store its result now"), std::string::npos) << log;
+  EXPECT_NE(log.find("disk is full"), std::string::npos) << log;
+  EXPECT_EQ(log.find("[error]"), std::string::npos) << log;
+  EXPECT_EQ(log.find("expired"), std::string::npos) << "a lease expired while its worker could not renew: " << log;
+  EXPECT_TRUE(coordinator.running());
 }
 
 // A sun track across processes: a coordinator, two workers and a subscriber on loopback.
