@@ -10,6 +10,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <sstream>
 #include <thread>
@@ -364,6 +365,49 @@ TEST(Hardening, R4_AMissingAcknowledgedTileIsBakedAgainAtRestart) {
   workerThread.join();
   EXPECT_EQ(done.state(), pb::JOB_DONE) << done.error();
   EXPECT_EQ(done.tiles_done(), 4u);
+}
+
+// R4: an acknowledged tile whose file is truncated or has a byte flipped when the
+// coordinator restarts is baked again (that tile only), and the job gives the bytes of an
+// undamaged run.
+TEST(Hardening, R4_ATruncatedOrFlippedAcknowledgedTileIsBakedAgainAtRestart) {
+  TempDir dir("cpvs_r4_damage");
+  auto runJob = [&](const std::string& name, const std::function<void(const std::string& tileFile)>& damage) {
+    const std::string data = dir / (name + ".data");
+    std::string jobId;
+    {
+      InProcessFarm farm(data);
+      pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+      spec.mutable_options()->set_tile_size(32);  // 4 tiles
+      jobId = farm.client.submit("r4-" + name, spec).job_id();
+      worker::TileWorker one(testing::workerConfig(farm.connection(), dir / (name + ".cache"), 1));
+      one.run();  // one tile acknowledged, three to go
+    }
+    std::string acknowledged;
+    for (const auto& e : fs::directory_iterator(data + "/tiles/" + jobId)) acknowledged = e.path().string();
+    EXPECT_FALSE(acknowledged.empty());
+    if (!acknowledged.empty()) damage(acknowledged);
+    InProcessFarm farm(data);
+    worker::TileWorker rest(testing::workerConfig(farm.connection(), dir / (name + ".cache")));
+    std::thread pulling([&] { rest.run(); });
+    const pb::JobStatus done = farm.client.watch(jobId);
+    rest.stop();
+    pulling.join();
+    EXPECT_EQ(done.state(), pb::JOB_DONE) << name << ": " << done.error();
+    farm.client.download(jobId, dir / (name + ".cpvs"));
+    return readFile(dir / (name + ".cpvs"));
+  };
+  const std::vector<uint8_t> clean = runJob("clean", [](const std::string&) {});
+  const std::vector<uint8_t> truncated = runJob("truncated", [](const std::string& f) {
+    fs::resize_file(f, fs::file_size(f) / 2);
+  });
+  const std::vector<uint8_t> flipped = runJob("flipped", [](const std::string& f) {
+    std::vector<uint8_t> b = readFile(f);
+    b[b.size() / 2] ^= 0x10;
+    writeFileAtomic(f, b);
+  });
+  EXPECT_EQ(truncated, clean);
+  EXPECT_EQ(flipped, clean);
 }
 
 // R26: worker ids and failure reasons went into the log raw: a newline forged log lines.
