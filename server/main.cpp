@@ -75,6 +75,11 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(1.0, 86400.0));
   app.add_option("--max-concurrent-imports", config.maxConcurrentImports, "Uploads imported at once")
       ->capture_default_str()->check(CLI::Range(1, 64));
+  app.add_option("--max-watches", config.maxWatches, "Job watches and track subscriptions open at once")
+      ->capture_default_str()->check(CLI::Range(1, 100000));
+  app.add_option("--max-pending-uploads", config.maxPendingUploads,
+                 "Uploads started and not complete (idle ones are dropped to make room)")
+      ->capture_default_str()->check(CLI::Range(size_t(1), size_t(1000000)));
   app.add_option("--quarantine-seconds", config.quarantineSeconds,
                  "A worker that fails 3 tiles in a row (or reports trouble of its own) gets no tile for this long, "
                  "doubling each time up to 10 minutes")

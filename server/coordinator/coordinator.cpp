@@ -19,7 +19,8 @@ Coordinator::Coordinator(CoordinatorConfig config)
       lock_(config_.dataDir),
       store_(databasePath(config_.dataDir)),
       artifacts_(config_.dataDir),
-      scenes_(store_, config_.dataDir, config_.maxUploadBytes, config_.import, config_.maxConcurrentImports),
+      scenes_(store_, config_.dataDir, config_.maxUploadBytes, config_.import, config_.maxConcurrentImports,
+              config_.maxPendingUploads),
       merges_(store_, artifacts_, feed_, [this](const std::string& jobId, const std::string& why) {
         jobs_.failJob(jobId, why);
       }),

@@ -42,6 +42,8 @@ struct CoordinatorConfig {
   uint64_t maxTilesPerJob = 65536;              // see JobLimits
   ImportLimits import;                          // how uploads are imported (isolated when it names a helper)
   int maxConcurrentImports = 2;
+  int maxWatches = 256;                         // WatchJob and Subscribe streams open at once
+  size_t maxPendingUploads = 64;                // uploads started and not complete
 };
 
 class Coordinator {
@@ -51,6 +53,7 @@ class Coordinator {
   explicit Coordinator(CoordinatorConfig config);
   ~Coordinator();
 
+  const CoordinatorConfig& config() const { return config_; }
   SceneStore& scenes() { return scenes_; }
   JobService& jobs() { return jobs_; }
   LeaseService& leases() { return leases_; }

@@ -43,12 +43,13 @@ void checkHashText(const std::string& hash, const char* what) {
 }
 
 SceneStore::SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes, ImportLimits limits,
-                       int maxConcurrentImports)
+                       int maxConcurrentImports, size_t maxPendingUploads)
     : store_(store),
       folder_((fs::path(dataDir) / "scenes").string()),
       maxUploadBytes_(maxUploadBytes),
       limits_(std::move(limits)),
-      maxConcurrentImports_(std::max(1, maxConcurrentImports)) {
+      maxConcurrentImports_(std::max(1, maxConcurrentImports)),
+      maxPendingUploads_(maxPendingUploads) {
   fs::create_directories(folder_);
 }
 
@@ -91,6 +92,26 @@ void SceneStore::beginUpload(const pb::UploadSceneChunk& first) {
                           " bytes of " + safeExtension(r->fileName) + "; a hash names one file");
     fs::remove(partPath(first.scene_hash()));
     r.reset();
+  }
+  if (!r) {
+    // A quota of uploads in progress (R15): past it, the idle ones (no byte for two
+    // minutes, or since a restart) are dropped; if none is idle, the new one waits.
+    std::vector<std::string> pending = store_.incompleteScenes();
+    if (pending.size() >= maxPendingUploads_) {
+      const auto now = std::chrono::steady_clock::now();
+      for (const std::string& hash : pending) {
+        const auto last = lastActivity_.find(hash);
+        if (importing_.count(hash) || (last != lastActivity_.end() && now - last->second < kUploadIdleTakeover)) continue;
+        std::error_code ec;
+        fs::remove(partPath(hash), ec);
+        store_.deleteScene(hash);
+        lastActivity_.erase(hash);
+        spdlog::info("upload of scene {} dropped: idle, and {} uploads are waiting", hash, pending.size());
+      }
+      if (store_.incompleteScenes().size() >= maxPendingUploads_)
+        throw FarmError(ErrorKind::ResourceExhausted, std::to_string(maxPendingUploads_) +
+                                                          " uploads are in progress on this coordinator; try again later");
+    }
   }
   SceneRecord rec = r ? *r : SceneRecord{first.scene_hash(), first.file_name(), "", first.total_size(), 0, 0, false};
   if (first.offset() != rec.received)

@@ -24,7 +24,7 @@ class SceneStore {
   /// Creates scenes/ under the data folder. Uploads are imported under `limits` (in a
   /// child process when it names a helper), at most `maxConcurrentImports` at once.
   SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes, ImportLimits limits = {},
-             int maxConcurrentImports = 2);
+             int maxConcurrentImports = 2, size_t maxPendingUploads = 64);
 
   pb::UploadStatus uploadStatus(const std::string& sceneHash);
   /// Starts or resumes an upload; its offset must equal the bytes already received.
@@ -56,6 +56,7 @@ class SceneStore {
   uint64_t maxUploadBytes_;
   ImportLimits limits_;
   int maxConcurrentImports_;
+  size_t maxPendingUploads_;
   std::mutex mutex_;  // one upload step at a time (imports run without it)
   std::condition_variable importDone_;
   std::set<std::string> importing_;

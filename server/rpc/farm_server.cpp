@@ -1,5 +1,7 @@
 #include "rpc/farm_server.h"
 
+#include <grpcpp/resource_quota.h>
+
 #include <chrono>
 
 #include "cpvs/base/error.h"
@@ -21,6 +23,14 @@ FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, net::kKeepaliveTimeoutMs);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, net::kKeepaliveMs / 2);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+  // Limits at the edge (R15): threads (each open call of this synchronous server holds
+  // one; watches are capped below this by the service, so workers always get through),
+  // streams per connection, and connections idle for 10 minutes closed.
+  grpc::ResourceQuota quota("cpvs-server");
+  quota.SetMaxThreads(coordinator.config().maxWatches + 256);
+  builder.SetResourceQuota(quota);
+  builder.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS, 128);
+  builder.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS, 10 * 60 * 1000);
   builder.SetMaxReceiveMessageSize(net::kMaxMessageBytes);
   builder.SetMaxSendMessageSize(net::kMaxMessageBytes);
   builder.RegisterService(&farm_);

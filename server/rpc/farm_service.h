@@ -2,6 +2,9 @@
 // turned into statuses. Everything else is Coordinator's.
 #pragma once
 
+#include <atomic>
+#include <memory>
+
 #include "coordinator/coordinator.h"
 #include "rpc/auth.h"
 #include "cpvs/v1/farm.grpc.pb.h"
@@ -27,8 +30,13 @@ class FarmService final : public pb::Farm::Service {
   grpc::Status Subscribe(grpc::ServerContext*, const pb::SubscribeRequest*, grpc::ServerWriter<pb::VersionChunk>*) override;
 
  private:
+  /// A slot for one long-lived stream (WatchJob, Subscribe), or nothing when
+  /// CoordinatorConfig::maxWatches are open (R15): each holds a server thread.
+  std::shared_ptr<void> streamSlot();
+
   Coordinator& c_;
   const TokenTable& tokens_;
+  std::atomic<int> openStreams_{0};
 };
 
 class WorkerService final : public pb::Workers::Service {

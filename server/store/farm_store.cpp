@@ -281,6 +281,21 @@ void FarmStore::putScene(const SceneRecord& r) {
   s.run();
 }
 
+std::vector<std::string> FarmStore::incompleteScenes() {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT hash FROM scenes WHERE complete = 0");
+  std::vector<std::string> out;
+  while (s.step()) out.push_back(s.str(0));
+  return out;
+}
+
+void FarmStore::deleteScene(const std::string& hash) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "DELETE FROM scenes WHERE hash = ? AND complete = 0");
+  s.text(1, hash);
+  s.run();
+}
+
 std::optional<JobRecord> FarmStore::job(const std::string& id) {
   std::lock_guard lock(mutex_);
   Statement s(db_, (std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?").c_str());

@@ -110,6 +110,9 @@ class FarmStore {
   // Scenes.
   std::optional<SceneRecord> scene(const std::string& hash);
   void putScene(const SceneRecord& s);
+  /// Hashes of the scenes whose upload started and is not complete.
+  std::vector<std::string> incompleteScenes();
+  void deleteScene(const std::string& hash);
 
   // Jobs.
   std::optional<JobRecord> job(const std::string& id);

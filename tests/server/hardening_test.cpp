@@ -959,5 +959,119 @@ TEST(Hardening, R6_ASceneMeshFileRoundTripsAndDamageIsRefused) {
     EXPECT_THROW(decodeSceneMesh(bytes.data(), size, "mesh"), FormatError) << "cut to " << size;
 }
 
+// R15: every WatchJob held a server thread with no bound; 1,000 of them took the
+// coordinator's threads and workers could no longer lease. Streams past the cap are
+// refused at once; the coordinator keeps serving clients and workers.
+TEST(Hardening, R15_AThousandWatchesAreCappedAndWorkersStillGetThrough) {
+  TempDir dir("cpvs_r15_watch");
+  InProcessFarm farm(dir / "data");
+  const std::string jobId = farm.client.submit("r15", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).job_id();
+  constexpr int kWatches = 1000, kChannels = 10;
+  std::vector<std::unique_ptr<pb::Farm::Stub>> stubs;
+  for (int c = 0; c < kChannels; ++c) {
+    grpc::ChannelArguments args;
+    args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);  // a connection each
+    args.SetInt("cpvs.test.channel", c);
+    stubs.push_back(pb::Farm::NewStub(
+        grpc::CreateCustomChannel(farm.server.address(), grpc::InsecureChannelCredentials(), args)));
+  }
+  struct Watch {
+    grpc::ClientContext ctx;
+    std::unique_ptr<grpc::ClientAsyncReader<pb::JobStatus>> reader;
+    pb::JobStatus first;
+    grpc::Status status;
+  };
+  grpc::CompletionQueue cq;
+  std::vector<std::unique_ptr<Watch>> watches;
+  pb::JobRef ref;
+  ref.set_job_id(jobId);
+  // Tags: index * 4 + phase (0 started, 1 read, 2 finished).
+  for (int i = 0; i < kWatches; ++i) {
+    watches.push_back(std::make_unique<Watch>());
+    Watch& w = *watches.back();
+    w.reader = stubs[size_t(i % kChannels)]->PrepareAsyncWatchJob(&w.ctx, ref, &cq);
+    w.reader->StartCall(reinterpret_cast<void*>(intptr_t(i) * 4));
+  }
+  int open = 0, refused = 0, other = 0, finished = 0;
+  const auto deadline = std::chrono::system_clock::now() + std::chrono::seconds(60);
+  while (open + finished < kWatches) {
+    void* tag;
+    bool ok;
+    if (cq.AsyncNext(&tag, &ok, deadline) != grpc::CompletionQueue::GOT_EVENT) break;
+    const intptr_t i = reinterpret_cast<intptr_t>(tag) / 4, phase = reinterpret_cast<intptr_t>(tag) % 4;
+    Watch& w = *watches[size_t(i)];
+    if (phase == 0 && ok) {
+      w.reader->Read(&w.first, reinterpret_cast<void*>(i * 4 + 1));
+    } else if (phase == 1 && ok) {
+      ++open;  // a first status arrived: the stream is held
+    } else if (phase <= 1) {
+      w.reader->Finish(&w.status, reinterpret_cast<void*>(i * 4 + 2));
+    } else {
+      ++finished;
+      ++(w.status.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED ? refused : other);
+    }
+  }
+  EXPECT_EQ(open, 256);
+  EXPECT_EQ(refused, kWatches - 256);
+  EXPECT_EQ(other, 0);
+  // Clients and workers still get answers while the 256 are held.
+  EXPECT_EQ(farm.client.list(false).size(), 1u);
+  EXPECT_TRUE(farm.coordinator.leases().lease("w").granted());
+  auto workers = pb::Workers::NewStub(net::makeChannel(farm.connection()));
+  grpc::ClientContext leaseCtx;
+  leaseCtx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  pb::LeaseRequest lr;
+  lr.set_worker_id("w2");
+  pb::TileLease lease;
+  EXPECT_TRUE(workers->LeaseTile(&leaseCtx, lr, &lease).ok());
+  for (auto& w : watches) w->ctx.TryCancel();
+  cq.Shutdown();
+  void* tag;
+  bool ok;
+  while (cq.Next(&tag, &ok)) {
+    const intptr_t i = reinterpret_cast<intptr_t>(tag) / 4, phase = reinterpret_cast<intptr_t>(tag) % 4;
+    if (phase == 1 && ok) watches[size_t(i)]->reader->Finish(&watches[size_t(i)]->status, reinterpret_cast<void*>(i * 4 + 2));
+  }
+}
+
+// R15: uploads that were started and never finished piled up without bound (each a
+// .part file and a row). Past the quota the idle ones make room; with none idle, a new
+// upload is refused and the ones in progress are untouched.
+TEST(Hardening, R15_PendingUploadsHaveAQuota) {
+  TempDir dir("cpvs_r15_uploads");
+  auto start = [&](server::SceneStore& scenes, int i) {
+    pb::UploadSceneChunk first;
+    char hash[33];
+    std::snprintf(hash, sizeof hash, "%032x", i + 1);
+    first.set_scene_hash(hash);
+    first.set_file_name("s.obj");
+    first.set_total_size(1000);
+    first.set_offset(0);
+    scenes.beginUpload(first);
+    scenes.appendUpload(hash, 0, "v 0 0 0\n");
+  };
+  {
+    InProcessFarm farm(dir / "data");
+    int refused = 0;
+    for (int i = 0; i < 200; ++i) {
+      try {
+        start(farm.coordinator.scenes(), i);
+      } catch (const net::FarmError& e) {
+        EXPECT_EQ(e.kind, net::ErrorKind::ResourceExhausted) << e.what();
+        ++refused;
+      }
+    }
+    EXPECT_EQ(refused, 200 - 64);
+    EXPECT_EQ(farm.coordinator.scenes().uploadStatus(std::string(31, '0') + "1").received(), 8u);  // kept
+  }
+  // After a restart none of them is known to move: a new upload makes room by dropping idle ones.
+  InProcessFarm farm(dir / "data");
+  EXPECT_NO_THROW(start(farm.coordinator.scenes(), 500));
+  EXPECT_FALSE(farm.coordinator.scenes().uploadStatus(std::string(31, '0') + "1").known());
+  size_t parts = 0;
+  for (const auto& e : fs::directory_iterator(dir / "data/scenes")) parts += e.path().extension() == ".part";
+  EXPECT_EQ(parts, 1u);
+}
+
 }  // namespace
 }  // namespace cpvs
