@@ -9,6 +9,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <mutex>
+#include <condition_variable>
+#include <atomic>
 #include <chrono>
 #include <cerrno>
 #include <cstring>
@@ -188,20 +191,59 @@ pb::JobStatus FarmClient::submit(const std::string& requestId, const pb::BakeSpe
 pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<void(const pb::JobStatus&)>& onUpdate) {
   pb::JobRef ref;
   ref.set_job_id(jobId);
-  grpc::ClientContext ctx;
-  net::prepare(ctx, transport_->connection);
-  auto reader = transport_->stub->WatchJob(&ctx, ref);
-  pb::JobStatus status, last;
+  // The server sends a status at least once a second. A watch that hears nothing for
+  // kWatchSilenceSeconds reconnects; one that gets no status for kWatchGiveUpSeconds
+  // (a coordinator down, a partition) gives up as Unavailable. A coordinator restarted on
+  // its folder keeps the job, and the watch carries on (R17).
+  using Clock = std::chrono::steady_clock;
+  constexpr int kWatchSilenceSeconds = 30, kWatchGiveUpSeconds = 120;
+  pb::JobStatus last;
   bool any = false;
-  while (reader->Read(&status)) {
-    last = status;
-    any = true;
-    if (onUpdate) onUpdate(last);
+  auto lastHeard = Clock::now();
+  int backoffMs = 250;
+  for (;;) {
+    grpc::ClientContext ctx;
+    net::prepare(ctx, transport_->connection);
+    std::mutex m;
+    std::condition_variable cv;
+    bool done = false;
+    std::atomic<int64_t> heardMs{0};
+    const auto opened = Clock::now();
+    std::thread watchdog([&] {
+      std::unique_lock lock(m);
+      while (!cv.wait_for(lock, std::chrono::seconds(1), [&] { return done; })) {
+        const auto since = std::chrono::milliseconds(heardMs.load());
+        if (Clock::now() - (opened + since) > std::chrono::seconds(kWatchSilenceSeconds)) ctx.TryCancel();
+      }
+    });
+    auto reader = transport_->stub->WatchJob(&ctx, ref);
+    pb::JobStatus status;
+    while (reader->Read(&status)) {
+      heardMs = std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - opened).count();
+      lastHeard = Clock::now();
+      backoffMs = 250;
+      last = status;
+      any = true;
+      if (onUpdate) onUpdate(last);
+    }
+    const grpc::Status finished = reader->Finish();
+    {
+      std::lock_guard lock(m);
+      done = true;
+    }
+    cv.notify_all();
+    watchdog.join();
+    if (finished.ok() && any && isFinalState(last.state())) return last;
+    const bool lost = finished.error_code() == grpc::StatusCode::UNAVAILABLE ||
+                      finished.error_code() == grpc::StatusCode::CANCELLED ||
+                      finished.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
+    if (!finished.ok() && !lost) check(finished);
+    if (finished.ok())
+      throw callError(net::ErrorKind::Internal, "the server ended the watch of job " + jobId + " before the job ended");
+    if (Clock::now() - lastHeard > std::chrono::seconds(kWatchGiveUpSeconds)) check(finished);
+    std::this_thread::sleep_for(std::chrono::milliseconds(backoffMs));
+    backoffMs = std::min(backoffMs * 2, 5000);
   }
-  check(reader->Finish());
-  if (!any || !isFinalState(last.state()))
-    throw callError(net::ErrorKind::Internal, "the server ended the watch of job " + jobId + " before the job ended");
-  return last;
 }
 
 pb::JobStatus FarmClient::cancel(const std::string& jobId) {
