@@ -54,6 +54,8 @@ class Coordinator {
   ~Coordinator();
 
   const CoordinatorConfig& config() const { return config_; }
+  /// Whether the coordinator can take work now: its store answers within half a second.
+  bool healthy() { return store_.responsive(500); }
   SceneStore& scenes() { return scenes_; }
   JobService& jobs() { return jobs_; }
   LeaseService& leases() { return leases_; }

@@ -1,5 +1,7 @@
 #include "rpc/farm_server.h"
 
+#include <spdlog/spdlog.h>
+
 #include <grpcpp/resource_quota.h>
 
 #include <chrono>
@@ -37,12 +39,36 @@ FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const
   builder.RegisterService(&workers_);
   server_ = builder.BuildAndStart();
   if (!server_ || port_ == 0) throw InputError("cannot listen on " + listen);
+  // The standard health service says NOT_SERVING while the store cannot take a write
+  // (held busy, wedged), not SERVING whatever happens (R27).
+  health_ = std::thread([this, &coordinator] {
+    bool serving = true;
+    std::unique_lock lock(healthMutex_);
+    while (!healthStop_) {
+      lock.unlock();
+      const bool now = coordinator.healthy();
+      lock.lock();
+      if (healthStop_) break;
+      if (now != serving) {
+        serving = now;
+        server_->GetHealthCheckService()->SetServingStatus(serving);
+        spdlog::warn("health: {}", serving ? "SERVING again" : "NOT_SERVING (the job store does not answer)");
+      }
+      healthWake_.wait_for(lock, std::chrono::milliseconds(500), [&] { return healthStop_; });
+    }
+  });
   address_ = listen.substr(0, listen.rfind(':')) + ":" + std::to_string(port_);
 }
 
 FarmServer::~FarmServer() { shutdown(0); }
 
 void FarmServer::shutdown(double graceSeconds) {
+  {
+    std::lock_guard lock(healthMutex_);
+    healthStop_ = true;
+  }
+  healthWake_.notify_all();
+  if (health_.joinable()) health_.join();
   if (!server_) return;
   server_->Shutdown(std::chrono::system_clock::now() +
                     std::chrono::milliseconds(static_cast<int64_t>(graceSeconds * 1000)));

@@ -3,6 +3,10 @@
 // port 0 (Arrow Flight's pattern).
 #pragma once
 
+#include <condition_variable>
+#include <mutex>
+#include <thread>
+
 #include <grpcpp/grpcpp.h>
 
 #include <memory>
@@ -36,6 +40,11 @@ class FarmServer {
   WorkerService workers_;
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
+  // Sets the health service's status from the coordinator's every half second.
+  std::thread health_;
+  std::mutex healthMutex_;
+  std::condition_variable healthWake_;
+  bool healthStop_ = false;
   std::string address_;
 };
 

@@ -1,5 +1,7 @@
 #include "store/farm_store.h"
 
+#include <chrono>
+
 #include <sqlite3.h>
 
 #include <stdexcept>
@@ -279,6 +281,16 @@ void FarmStore::putScene(const SceneRecord& r) {
   s.text(1, r.hash).text(2, r.fileName).bind(3, int64_t(r.totalSize)).bind(4, int64_t(r.received));
   s.bind(5, int64_t(r.complete)).bind(6, int64_t(r.triangles)).text(7, r.geometryHash);
   s.run();
+}
+
+bool FarmStore::responsive(int timeoutMs) {
+  std::unique_lock lock(mutex_, std::defer_lock);
+  if (!lock.try_lock_for(std::chrono::milliseconds(timeoutMs))) return false;
+  sqlite3_busy_timeout(db_, timeoutMs);
+  const bool free = sqlite3_exec(db_, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK;
+  if (free) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+  sqlite3_busy_timeout(db_, 5000);
+  return free;
 }
 
 std::vector<std::string> FarmStore::incompleteScenes() {

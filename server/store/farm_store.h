@@ -110,6 +110,9 @@ class FarmStore {
   // Scenes.
   std::optional<SceneRecord> scene(const std::string& hash);
   void putScene(const SceneRecord& s);
+  /// Whether the store can take a write within `timeoutMs`: its lock and SQLite's write
+  /// lock both free (what the health service reports, R27).
+  bool responsive(int timeoutMs);
   /// Hashes of the scenes whose upload started and is not complete.
   std::vector<std::string> incompleteScenes();
   void deleteScene(const std::string& hash);
@@ -191,7 +194,7 @@ class FarmStore {
  private:
   void exec(const char* sql);
   sqlite3* db_ = nullptr;
-  std::mutex mutex_;
+  std::timed_mutex mutex_;
 };
 
 }  // namespace cpvs::server

@@ -1,6 +1,7 @@
 // Findings of the reliability review (../shared/notes/reliability-review.md), each
 // reproduced by the test named after it before it was fixed.
 #include <gtest/gtest.h>
+#include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/spdlog.h>
@@ -11,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <future>
 #include <mutex>
 #include <sstream>
 #include <thread>
@@ -22,6 +24,7 @@
 #include "cpvs/base/text.h"
 #include "cpvs/net/channel.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/status.h"
 #include "cpvs/scene/mesh_file.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/scene/source.h"
@@ -1071,6 +1074,51 @@ TEST(Hardening, R15_PendingUploadsHaveAQuota) {
   size_t parts = 0;
   for (const auto& e : fs::directory_iterator(dir / "data/scenes")) parts += e.path().extension() == ".part";
   EXPECT_EQ(parts, 1u);
+}
+
+/// What the standard health service answers for the whole server: "SERVING",
+/// "NOT_SERVING", or the call's error.
+std::string healthOf(const std::string& address) {
+  grpc::GenericStub stub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+  grpc::Slice nothing(std::string{});  // HealthCheckRequest{service: ""} is empty
+  grpc::ByteBuffer request(&nothing, 1), response;
+  std::promise<grpc::Status> done;
+  stub.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request, &response,
+                 [&](grpc::Status s) { done.set_value(s); });
+  const grpc::Status s = done.get_future().get();
+  if (!s.ok()) return net::describe(s);
+  std::vector<grpc::Slice> slices;
+  response.Dump(&slices);
+  std::string bytes;
+  for (const auto& slice : slices) bytes.append(reinterpret_cast<const char*>(slice.begin()), slice.size());
+  // HealthCheckResponse{status = 1 (SERVING) or 2 (NOT_SERVING)}: field 1, a varint.
+  if (bytes == std::string("\x08\x01", 2)) return "SERVING";
+  if (bytes == std::string("\x08\x02", 2)) return "NOT_SERVING";
+  return "unexpected answer of " + std::to_string(bytes.size()) + " bytes";
+}
+
+// R27: the health service answered SERVING whatever happened, even with the store held
+// busy (a long transaction, a wedged disk). It follows the store now.
+TEST(Hardening, R27_HealthIsNotServingWhileTheStoreIsHeldBusy) {
+  TempDir dir("cpvs_r27");
+  InProcessFarm farm(dir / "data");
+  EXPECT_EQ(healthOf(farm.server.address()), "SERVING");
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir / "data/farm.sqlite").c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);  // holds the write lock
+  auto waitFor = [&](const std::string& want) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    std::string got;
+    while ((got = healthOf(farm.server.address())) != want && std::chrono::steady_clock::now() < end)
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    return got;
+  };
+  EXPECT_EQ(waitFor("NOT_SERVING"), "NOT_SERVING");
+  sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
+  sqlite3_close(db);
+  EXPECT_EQ(waitFor("SERVING"), "SERVING");
 }
 
 }  // namespace
