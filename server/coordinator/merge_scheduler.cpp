@@ -175,12 +175,10 @@ bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
       artifacts_.removeTiles(j.id);
       return true;
     }
-  } catch (const InputError& e) {
+  } catch (const std::exception& e) {
+    // A full disk (InputError from the write) or a store that cannot commit now.
+    if (!dynamic_cast<const InputError*>(&e) && !dynamic_cast<const StoreUnavailable*>(&e)) throw;
     spdlog::warn("job {}: cannot write its artifact now ({}); trying again in 1 s, its tiles kept", j.id, e.what());
-    retryLater({Item::Kind::WriteArtifact, j.id, 0});
-    return false;
-  } catch (const StoreUnavailable& e) {
-    spdlog::warn("job {}: {}; writing its artifact again in 1 s, its tiles kept", j.id, e.what());
     retryLater({Item::Kind::WriteArtifact, j.id, 0});
     return false;
   }

@@ -39,16 +39,15 @@ std::optional<std::string> weaknessOf(const std::string& token) {
   if (token.size() < kMinTokenChars)
     return "it has " + std::to_string(token.size()) + " characters, fewer than " + std::to_string(kMinTokenChars);
   // Bits a random token of this length over the character classes it uses would hold.
-  bool digit = false, lowerCase = false, upperCase = false, other = false;
+  bool digit = false, lowerCase = false, upperCase = false, other = false, hex = true;
   for (unsigned char c : token) {
     if (c < 0x21 || c > 0x7e) return std::string("it holds a character that is not printable ASCII");
     if (std::isdigit(c)) digit = true;
     else if (std::islower(c)) lowerCase = true;
     else if (std::isupper(c)) upperCase = true;
     else other = true;
+    hex = hex && std::isxdigit(c);
   }
-  bool hex = true;
-  for (unsigned char c : token) hex = hex && std::isxdigit(c);
   const double alphabet = !lowerCase && !upperCase && !other ? 10
                           : hex && !(lowerCase && upperCase)  ? 16
                                                               : digit * 10 + lowerCase * 26 + upperCase * 26 + other * 32;

@@ -199,7 +199,11 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
   constexpr int kWatchSilenceSeconds = 30, kWatchGiveUpSeconds = 120;
   pb::JobStatus last;
   bool any = false;
-  auto lastHeard = Clock::now();
+  // When a status (or a new connection) was last seen, read by the watchdog thread too.
+  auto sinceEpochMs = [] {
+    return std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now().time_since_epoch()).count();
+  };
+  std::atomic<int64_t> lastHeardMs{sinceEpochMs()};
   int backoffMs = 250;
   for (;;) {
     grpc::ClientContext ctx;
@@ -207,20 +211,16 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
     std::mutex m;
     std::condition_variable cv;
     bool done = false;
-    std::atomic<int64_t> heardMs{0};
-    const auto opened = Clock::now();
+    const int64_t openedMs = sinceEpochMs();
     std::thread watchdog([&] {
       std::unique_lock lock(m);
-      while (!cv.wait_for(lock, std::chrono::seconds(1), [&] { return done; })) {
-        const auto since = std::chrono::milliseconds(heardMs.load());
-        if (Clock::now() - (opened + since) > std::chrono::seconds(kWatchSilenceSeconds)) ctx.TryCancel();
-      }
+      while (!cv.wait_for(lock, std::chrono::seconds(1), [&] { return done; }))
+        if (sinceEpochMs() - std::max(openedMs, lastHeardMs.load()) > kWatchSilenceSeconds * 1000) ctx.TryCancel();
     });
     auto reader = transport_->stub->WatchJob(&ctx, ref);
     pb::JobStatus status;
     while (reader->Read(&status)) {
-      heardMs = std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - opened).count();
-      lastHeard = Clock::now();
+      lastHeardMs = sinceEpochMs();
       backoffMs = 250;
       last = status;
       any = true;
@@ -240,7 +240,7 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
     if (!finished.ok() && !lost) check(finished);
     if (finished.ok())
       throw callError(net::ErrorKind::Internal, "the server ended the watch of job " + jobId + " before the job ended");
-    if (Clock::now() - lastHeard > std::chrono::seconds(kWatchGiveUpSeconds)) check(finished);
+    if (sinceEpochMs() - lastHeardMs.load() > kWatchGiveUpSeconds * 1000) check(finished);
     std::this_thread::sleep_for(std::chrono::milliseconds(backoffMs));
     backoffMs = std::min(backoffMs * 2, 5000);
   }
