@@ -84,6 +84,18 @@ int main(int argc, char** argv) {
                  "A worker that fails 3 tiles in a row (or reports trouble of its own) gets no tile for this long, "
                  "doubling each time up to 10 minutes")
       ->capture_default_str()->check(CLI::Range(0.0, 86400.0));
+  double keepFinishedHours = config.retention.keepFinishedSeconds / 3600;
+  double uploadExpiryHours = config.retention.uploadExpirySeconds / 3600;
+  app.add_option("--keep-finished-hours", keepFinishedHours,
+                 "How long a finished job, its artifact and its place in listings are kept (0: forever); a track's "
+                 "kept versions are kept while the track holds them")
+      ->capture_default_str()->check(CLI::Range(0.0, 1e6));
+  app.add_option("--upload-expiry-hours", uploadExpiryHours,
+                 "An upload that received no byte for this long is dropped (0: never)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1e6));
+  app.add_option("--housekeeping-seconds", config.retention.intervalSeconds,
+                 "How often finished jobs and idle uploads are checked against the two limits above")
+      ->capture_default_str()->check(CLI::Range(0.1, 86400.0));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -93,6 +105,8 @@ int main(int argc, char** argv) {
   try {
     if (tlsCert.empty() != tlsKey.empty()) throw cpvs::InputError("give both --tls-cert and --tls-key, or neither");
     config.dataDir = data;
+    config.retention.keepFinishedSeconds = keepFinishedHours * 3600;
+    config.retention.uploadExpirySeconds = uploadExpiryHours * 3600;
     config.maxLog2Resolution = cpvs::parseResolution(maxResolution);
     config.maxUploadBytes = uint64_t(maxUploadMb * 1024 * 1024);
     config.import.memoryBytes = uint64_t(importMemoryMb * 1024 * 1024);

@@ -9,12 +9,12 @@ namespace cpvs::server {
 namespace fs = std::filesystem;
 
 ArtifactStore::ArtifactStore(const std::string& dataDir) : dataDir_(dataDir) {
-  for (const char* sub : {"tiles", "artifacts"}) fs::create_directories(fs::path(dataDir_) / sub);
+  // Durable folders: a power cut must not take the folder of an acknowledged tile away.
+  for (const char* sub : {"tiles", "artifacts"}) createFolderDurably((fs::path(dataDir_) / sub).string());
 }
 
 void ArtifactStore::createTileFolder(const std::string& jobId) const {
-  fs::create_directories(fs::path(dataDir_) / "tiles" / jobId);
-  syncParentFolder((fs::path(dataDir_) / "tiles" / jobId).string());
+  createFolderDurably((fs::path(dataDir_) / "tiles" / jobId).string());
 }
 
 std::string ArtifactStore::tilePath(const std::string& jobId, uint64_t tile) const {
@@ -39,6 +39,14 @@ std::vector<std::string> ArtifactStore::jobsWithTiles() const {
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(fs::path(dataDir_) / "tiles", ec))
     out.push_back(entry.path().filename().string());
+  return out;
+}
+
+std::vector<std::string> ArtifactStore::jobsWithArtifacts() const {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(fs::path(dataDir_) / "artifacts", ec))
+    if (entry.path().extension() == ".cpvs") out.push_back(entry.path().stem().string());
   return out;
 }
 

@@ -27,8 +27,10 @@ class ArtifactStore {
 
   std::string artifactPath(const std::string& jobId) const;
   void writeArtifact(const std::string& jobId, const std::vector<uint8_t>& bytes) const;
-  /// Removes an artifact (of a job that ended otherwise while it was written).
+  /// Removes an artifact (of a job that ended otherwise while it was written, or pruned).
   void removeArtifact(const std::string& jobId) const;
+  /// The job ids that have an artifact file.
+  std::vector<std::string> jobsWithArtifacts() const;
 
  private:
   std::string dataDir_;

@@ -29,7 +29,8 @@ Coordinator::Coordinator(CoordinatorConfig config)
                       config_.maxTilesPerJob}),
       leases_(store_, scenes_, artifacts_, merges_, jobs_, feed_,
               LeaseRules{config_.leaseSeconds, config_.maxAttempts, config_.maxTileSeconds, config_.quarantineSeconds}),
-      tracks_(store_, jobs_, feed_) {
+      tracks_(store_, jobs_, feed_),
+      housekeeper_(store_, artifacts_, scenes_, config_.retention) {
   // Resume: every acknowledged tile of an unfinished job goes back into its merge.
   size_t jobs = 0, tiles = 0;
   for (const auto& j : store_.jobs(false)) {
@@ -54,6 +55,7 @@ Coordinator::Coordinator(CoordinatorConfig config)
   merges_.start();
   leases_.start();
   tracks_.start();  // active tracks carry on from what the store holds
+  housekeeper_.start();
 }
 
 Coordinator::~Coordinator() { stop(); }
@@ -61,6 +63,7 @@ Coordinator::~Coordinator() { stop(); }
 void Coordinator::stop() {
   if (stopped_) return;
   stopped_ = true;
+  housekeeper_.stop();
   tracks_.stop();
   leases_.stop();
   merges_.stop();

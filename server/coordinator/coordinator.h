@@ -1,7 +1,8 @@
-// The coordinator's logic, free of gRPC, as six concerns wired together: the scene store
+// The coordinator's logic, free of gRPC, as seven concerns wired together: the scene store
 // (uploads), the job service (lifecycle), the lease service (tiles out to workers, the
-// reaper), the merge scheduler (the streaming merge), the artifact store (bytes on disk)
-// and the track service (sun keyframes ahead, published as versions), over the durable
+// reaper), the merge scheduler (the streaming merge), the artifact store (bytes on disk),
+// the track service (sun keyframes ahead, published as versions) and the housekeeper
+// (retention of finished jobs, expiry of abandoned uploads), over the durable
 // FarmStore. The services in rpc/ are a thin edge over it; errors
 // are FarmError values.
 #pragma once
@@ -14,6 +15,7 @@
 #include "coordinator/artifact_store.h"
 #include "coordinator/change_feed.h"
 #include "coordinator/data_folder_lock.h"
+#include "coordinator/housekeeper.h"
 #include "coordinator/job_service.h"
 #include "coordinator/lease_service.h"
 #include "coordinator/merge_scheduler.h"
@@ -44,6 +46,7 @@ struct CoordinatorConfig {
   int maxConcurrentImports = 2;
   int maxWatches = 256;                         // WatchJob and Subscribe streams open at once
   size_t maxPendingUploads = 64;                // uploads started and not complete
+  RetentionRules retention;                     // finished jobs and abandoned uploads forgotten
 };
 
 class Coordinator {
@@ -79,6 +82,7 @@ class Coordinator {
   JobService jobs_;
   LeaseService leases_;
   TrackService tracks_;
+  Housekeeper housekeeper_;
   bool stopped_ = false;
 };
 

@@ -9,11 +9,12 @@
 #include <filesystem>
 
 #include "cpvs/base/error.h"
+#include "cpvs/base/file.h"
 
 namespace cpvs::server {
 
 DataFolderLock::DataFolderLock(const std::string& dataDir) {
-  std::filesystem::create_directories(dataDir);
+  createFolderDurably(dataDir);  // durable: the store and every result go in it
   const std::string path = (std::filesystem::path(dataDir) / "lock").string();
   fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
   if (fd_ < 0) throw InputError("cannot open " + path + ": " + std::strerror(errno));

@@ -3,7 +3,9 @@
 #include <spdlog/spdlog.h>
 
 #include <bit>
+#include <cctype>
 #include <cmath>
+#include <limits>
 
 #include "coordinator/clock.h"
 #include "cpvs/bake/bake_plan.h"
@@ -167,10 +169,45 @@ pb::JobStatus JobService::status(const std::string& jobId) {
   return toStatus(*j);
 }
 
-std::vector<pb::JobStatus> JobService::list(bool includeFinished) {
-  std::vector<pb::JobStatus> out;
-  for (const auto& j : store_.jobs(includeFinished)) out.push_back(toStatus(j));
-  return out;
+JobService::Page JobService::list(bool includeFinished, uint32_t pageSize, const std::string& pageToken) {
+  const size_t limit = pageSize == 0 ? 100 : std::min<size_t>(pageSize, 1000);
+  // The token is the position of the last job shown: its creation time and id, which
+  // stay valid while jobs come and go (a job pruned meanwhile is simply not there).
+  int64_t afterMs = std::numeric_limits<int64_t>::min();
+  std::string afterId;
+  if (!pageToken.empty()) {
+    const size_t colon = pageToken.find(':');
+    bool valid = pageToken.size() <= 128 && colon != std::string::npos && colon > 0 && colon + 1 < pageToken.size();
+    for (size_t i = 0; valid && i < pageToken.size(); ++i) {
+      const char c = pageToken[i];
+      valid = i < colon ? (c >= '0' && c <= '9') || (i == 0 && c == '-')
+                        : i == colon || std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_';
+    }
+    if (valid) {
+      try {
+        afterMs = std::stoll(pageToken.substr(0, colon));
+      } catch (const std::exception&) {
+        valid = false;
+      }
+    }
+    if (!valid) throw FarmError(ErrorKind::InvalidArgument, "page_token is not one this coordinator gave");
+    afterId = pageToken.substr(colon + 1);
+  }
+  Page page;
+  size_t bytes = 0;
+  const std::vector<JobRecord> records = store_.jobsAfter(includeFinished, afterMs, afterId, limit + 1);
+  for (size_t i = 0; i < records.size(); ++i) {
+    pb::JobStatus status = toStatus(records[i]);
+    const size_t size = status.ByteSizeLong() + 8;  // with its field tag and length
+    if (i == limit || (!page.jobs.empty() && bytes + size > kListReplyBytes)) {
+      const JobRecord& last = records[i - 1];
+      page.nextPageToken = std::to_string(last.createdMs) + ":" + last.id;
+      break;
+    }
+    bytes += size;
+    page.jobs.push_back(std::move(status));
+  }
+  return page;
 }
 
 pb::JobStatus JobService::cancel(const std::string& jobId) {

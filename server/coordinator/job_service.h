@@ -25,6 +25,9 @@ struct JobLimits {
   uint64_t maxTilesPerJob = 65536;
 };
 
+/// A ListJobs reply stays well inside gRPC's 4 MiB message limit and a client's default.
+constexpr size_t kListReplyBytes = 512 * 1024;
+
 class JobService {
  public:
   JobService(FarmStore& store, SceneStore& scenes, ArtifactStore& artifacts, MergeScheduler& merges, ChangeFeed& feed,
@@ -32,7 +35,14 @@ class JobService {
 
   pb::JobStatus submit(const pb::SubmitBakeRequest& request);
   pb::JobStatus status(const std::string& jobId);
-  std::vector<pb::JobStatus> list(bool includeFinished);
+  /// One page of the listing, oldest first (R16): at most `pageSize` jobs (0: 100, at most
+  /// 1000) and fewer when the reply would pass kListReplyBytes; the next page starts after
+  /// the position in `pageToken` (empty: the start). nextPageToken is empty on the last page.
+  struct Page {
+    std::vector<pb::JobStatus> jobs;
+    std::string nextPageToken;
+  };
+  Page list(bool includeFinished, uint32_t pageSize = 0, const std::string& pageToken = "");
   pb::JobStatus cancel(const std::string& jobId);
   /// The artifact of a finished job and its checksum (hex).
   std::string artifactPath(const std::string& jobId, std::string* checksum);

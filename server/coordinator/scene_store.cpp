@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -50,7 +51,7 @@ SceneStore::SceneStore(FarmStore& store, const std::string& dataDir, uint64_t ma
       limits_(std::move(limits)),
       maxConcurrentImports_(std::max(1, maxConcurrentImports)),
       maxPendingUploads_(maxPendingUploads) {
-  fs::create_directories(folder_);
+  createFolderDurably(folder_);
 }
 
 std::string SceneStore::partPath(const std::string& hash) const { return (fs::path(folder_) / (hash + ".part")).string(); }
@@ -102,10 +103,7 @@ void SceneStore::beginUpload(const pb::UploadSceneChunk& first) {
       for (const std::string& hash : pending) {
         const auto last = lastActivity_.find(hash);
         if (importing_.count(hash) || (last != lastActivity_.end() && now - last->second < kUploadIdleTakeover)) continue;
-        std::error_code ec;
-        fs::remove(partPath(hash), ec);
-        store_.deleteScene(hash);
-        lastActivity_.erase(hash);
+        dropUpload(hash);
         spdlog::info("upload of scene {} dropped: idle, and {} uploads are waiting", hash, pending.size());
       }
       if (store_.incompleteScenes().size() >= maxPendingUploads_)
@@ -120,6 +118,57 @@ void SceneStore::beginUpload(const pb::UploadSceneChunk& first) {
                                                        std::to_string(first.offset()));
   store_.putScene(rec);
   touch(rec.hash);
+}
+
+void SceneStore::dropUpload(const std::string& hash) {
+  store_.deleteScene(hash);
+  std::error_code ec;
+  for (const fs::path& file : uploadFiles(hash)) fs::remove(file, ec);
+  lastActivity_.erase(hash);
+  withoutFilesSince_.erase(hash);
+}
+
+std::vector<fs::path> SceneStore::uploadFiles(const std::string& hash) const {
+  // The part being received, or the whole file renamed into place before its import was
+  // committed (R5): HASH.part, HASH.EXT.
+  std::vector<fs::path> out;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(folder_, ec))
+    if (entry.path().filename().string().rfind(hash + ".", 0) == 0) out.push_back(entry.path());
+  return out;
+}
+
+size_t SceneStore::expireIdleUploads(std::chrono::seconds maxIdle) {
+  std::lock_guard lock(mutex_);
+  size_t dropped = 0;
+  const auto now = fs::file_time_type::clock::now();
+  const std::vector<std::string> pending = store_.incompleteScenes();
+  std::erase_if(withoutFilesSince_, [&](const auto& entry) {  // uploads completed since
+    return std::find(pending.begin(), pending.end(), entry.first) == pending.end();
+  });
+  for (const std::string& hash : pending) {
+    if (importing_.count(hash)) continue;
+    const auto last = lastActivity_.find(hash);
+    if (last != lastActivity_.end() && std::chrono::steady_clock::now() - last->second < maxIdle) continue;
+    // Its files' times outlive a restart; an upload with no file yet is timed from when
+    // this coordinator first found it so.
+    const std::vector<fs::path> files = uploadFiles(hash);
+    bool recent = false;
+    for (const fs::path& file : files) {
+      std::error_code ec;
+      const auto written = fs::last_write_time(file, ec);
+      recent = recent || ec || now - written < maxIdle;
+    }
+    if (files.empty()) {
+      const auto seen = withoutFilesSince_.try_emplace(hash, std::chrono::steady_clock::now()).first;
+      recent = std::chrono::steady_clock::now() - seen->second < maxIdle;
+    }
+    if (recent) continue;
+    dropUpload(hash);
+    ++dropped;
+    spdlog::info("upload of scene {} expired: no byte for {} s", hash, maxIdle.count());
+  }
+  return dropped;
 }
 
 void SceneStore::touch(const std::string& hash) {

@@ -4,11 +4,13 @@
 
 #include <chrono>
 #include <cstdint>
+#include <filesystem>
 #include <condition_variable>
 #include <map>
 #include <set>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "coordinator/scene_importer.h"
 #include "cpvs/scene/scene.h"
@@ -44,12 +46,19 @@ class SceneStore {
   /// The imported geometry of a complete scene: its mesh as kept at upload (imported
   /// again, isolated, only when that mesh is missing or damaged).
   Scene load(const std::string& sceneHash, SceneStats* stats = nullptr);
+  /// Drops the uploads in progress that received no byte for `maxIdle` (by their part
+  /// file's time, which outlives a restart); returns how many (R15).
+  size_t expireIdleUploads(std::chrono::seconds maxIdle);
 
  private:
   std::string partPath(const std::string& hash) const;
   std::string meshPath(const std::string& hash) const;
   /// Notes that an upload made progress now (under mutex_).
   void touch(const std::string& hash);
+  /// Forgets an upload in progress: its files and its row (under mutex_).
+  void dropUpload(const std::string& hash);
+  /// The files an unfinished upload has in the scenes folder.
+  std::vector<std::filesystem::path> uploadFiles(const std::string& hash) const;
 
   FarmStore& store_;
   std::string folder_;
@@ -63,6 +72,8 @@ class SceneStore {
   int activeImports_ = 0;
   // When each upload in progress last moved, for R19's takeover rule.
   std::map<std::string, std::chrono::steady_clock::time_point> lastActivity_;
+  // Uploads in progress found with no file yet, and since when (for their expiry).
+  std::map<std::string, std::chrono::steady_clock::time_point> withoutFilesSince_;
 };
 
 /// An upload idle this long may be taken over by an announcement of another size or format.

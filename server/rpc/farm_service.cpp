@@ -166,7 +166,9 @@ grpc::Status FarmService::CancelJob(grpc::ServerContext* ctx, const pb::JobRef* 
 
 grpc::Status FarmService::ListJobs(grpc::ServerContext* ctx, const pb::ListJobsRequest* req, pb::ListJobsReply* out) {
   return guarded(ctx, tokens_, Role::Client, "ListJobs", [&] {
-    for (auto& s : c_.jobs().list(req->include_finished())) *out->add_jobs() = std::move(s);
+    JobService::Page page = c_.jobs().list(req->include_finished(), req->page_size(), req->page_token());
+    for (auto& s : page.jobs) *out->add_jobs() = std::move(s);
+    out->set_next_page_token(page.nextPageToken);
     return grpc::Status::OK;
   });
 }

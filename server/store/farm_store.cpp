@@ -228,6 +228,8 @@ FarmStore::FarmStore(const std::string& path) {
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
       "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, failed_by TEXT, PRIMARY KEY(job_id, idx))");
   exec("CREATE INDEX IF NOT EXISTS tiles_by_state ON tiles(state, job_id)");
+  exec("CREATE INDEX IF NOT EXISTS jobs_by_created ON jobs(created_ms, id)");
+  exec("CREATE INDEX IF NOT EXISTS jobs_by_finished ON jobs(state, finished_ms)");
   exec(
       "CREATE TABLE IF NOT EXISTS leases(lease_id TEXT PRIMARY KEY, job_id TEXT, idx INTEGER, worker_id TEXT, "
       "granted_ms INTEGER)");
@@ -314,15 +316,19 @@ std::optional<JobRecord> FarmStore::job(const std::string& id) {
   s.text(1, id);
   if (!s.step()) return std::nullopt;
   JobRecord j = readJob(s);
+  fillJobCounts(j);
+  return j;
+}
+
+void FarmStore::fillJobCounts(JobRecord& j) {
   Statement d(db_, "SELECT COUNT(*), COALESCE(SUM(state = 4), 0) FROM tiles WHERE job_id = ? AND state IN (2, 4)");
-  d.text(1, id);
+  d.text(1, j.id);
   d.step();
   j.tilesDone = uint64_t(d.i64(0));
   j.tilesUntouched = uint64_t(d.i64(1));
   Statement st(db_, "SELECT stage, seconds FROM job_stages WHERE job_id = ?");
-  st.text(1, id);
+  st.text(1, j.id);
   while (st.step()) j.stages[st.str(0)] = st.f64(1);
-  return j;
 }
 
 std::optional<JobRecord> FarmStore::jobByRequest(const std::string& requestId) {
@@ -369,6 +375,54 @@ std::vector<JobRecord> FarmStore::jobs(bool includeFinished) {
   for (const auto& id : ids)
     if (auto j = job(id)) out.push_back(std::move(*j));
   return out;
+}
+
+std::vector<JobRecord> FarmStore::jobsAfter(bool includeFinished, int64_t createdMs, const std::string& id,
+                                            size_t limit) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, (std::string("SELECT ") + kJobColumns +
+                    " FROM jobs WHERE (created_ms > ?1 OR (created_ms = ?1 AND id > ?2))" +
+                    (includeFinished ? "" : " AND state IN (1, 2, 3)") + " ORDER BY created_ms, id LIMIT ?3")
+                       .c_str());
+  s.bind(1, createdMs).text(2, id).bind(3, int64_t(limit));
+  std::vector<JobRecord> out;
+  while (s.step()) out.push_back(readJob(s));
+  for (JobRecord& j : out) fillJobCounts(j);
+  return out;
+}
+
+std::vector<std::string> FarmStore::pruneFinishedJobs(int64_t beforeMs, size_t limit) {
+  std::lock_guard lock(mutex_);
+  Transaction t(db_);
+  std::vector<std::string> ids;
+  {
+    Statement s(db_,
+                "SELECT id FROM jobs WHERE state IN (4, 5, 6) AND finished_ms < ? "
+                "AND id NOT IN (SELECT job_id FROM versions) "
+                "AND id NOT IN (SELECT k.job_id FROM keyframes k JOIN tracks t ON t.id = k.track_id "
+                "WHERE k.state = 0 AND t.state = 1 AND k.job_id IS NOT NULL) "
+                "ORDER BY finished_ms, id LIMIT ?");
+    s.bind(1, beforeMs).bind(2, int64_t(limit));
+    while (s.step()) ids.push_back(s.str(0));
+  }
+  for (const char* sql : {"DELETE FROM leases WHERE job_id = ?", "DELETE FROM tiles WHERE job_id = ?",
+                          "DELETE FROM job_stages WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"}) {
+    Statement d(db_, sql);
+    for (const std::string& id : ids) {
+      d.text(1, id);
+      d.run();
+      d.reset();
+    }
+  }
+  t.commit();
+  return ids;
+}
+
+bool FarmStore::jobExists(const std::string& id) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT 1 FROM jobs WHERE id = ?");
+  s.text(1, id);
+  return s.step();
 }
 
 size_t FarmStore::activeJobCount() {

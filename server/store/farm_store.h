@@ -125,6 +125,15 @@ class FarmStore {
   /// the others.
   void createJob(const JobRecord& j, const std::vector<uint64_t>& untouched = {});
   std::vector<JobRecord> jobs(bool includeFinished);
+  /// At most `limit` jobs after the position (createdMs, id), oldest first: a page of a
+  /// listing that stays bounded however many jobs the store holds (R16).
+  std::vector<JobRecord> jobsAfter(bool includeFinished, int64_t createdMs, const std::string& id, size_t limit);
+  /// Forgets at most `limit` jobs that ended before `beforeMs` and that no track still
+  /// needs (a kept version or a pending keyframe): their rows, tiles, leases and stages, in
+  /// one transaction. Returns their ids, whose files the caller removes (R16, R25).
+  std::vector<std::string> pruneFinishedJobs(int64_t beforeMs, size_t limit);
+  /// Whether a job id is known (the files of one that is not are leftovers).
+  bool jobExists(const std::string& id);
   size_t activeJobCount();
   void setJobState(const std::string& id, JobState s, const std::string& error, int64_t nowMs);
   /// Marks an unfinished job done with its artifact; false (and nothing changed) when the
@@ -193,6 +202,8 @@ class FarmStore {
 
  private:
   void exec(const char* sql);
+  /// Fills the tile counts and stage seconds of a job read from its row (under mutex_).
+  void fillJobCounts(JobRecord& j);
   sqlite3* db_ = nullptr;
   std::timed_mutex mutex_;
 };

@@ -24,6 +24,7 @@
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "cpvs/net/channel.h"
 #include "cpvs/net/status.h"
+#include "powercut.h"
 #include "process_testing.h"
 
 namespace cpvs {
@@ -109,8 +110,10 @@ class FarmTest : public ::testing::Test {
     net::prepare(ctx, c, 5);
     v1::ListJobsRequest req;
     req.set_include_finished(true);
+    req.set_page_size(1000);
     v1::ListJobsReply reply;
     if (!stub->ListJobs(&ctx, req, &reply).ok()) return {};
+    EXPECT_TRUE(reply.next_page_token().empty()) << "more than one page of jobs";
     return {reply.jobs().begin(), reply.jobs().end()};
   }
 
@@ -469,6 +472,88 @@ TEST_F(FarmTest, EveryRenameIsSyncedBeforeAndItsFolderAfterAndBeforeItsAcknowled
       }
     }
   }
+}
+
+// The power-cut model itself (tests/support/powercut_shim.c journals, powercut.h replays),
+// on shell commands whose fate is known: a file keeps what was synced, a name stays only
+// when its folder was synced after it came.
+TEST_F(FarmTest, APowerCutKeepsWhatWasSyncedAndNothingElse) {
+  const std::string d = path("cut-model"), journal = path("cut-model.journal");
+  fs::create_directories(d);
+  Ran r = testing::runShell("cd " + d + " && LD_PRELOAD=" CPVS_POWERCUT_SHIM " CPVS_POWERCUT_DIR=" + d +
+                            " CPVS_POWERCUT_LOG=" + journal +
+                            " sh -c 'printf abc > a; printf xyz > b; sync b; sync .; printf more >> b; printf c > c;"
+                            " mkdir sub; printf s > sub/s; sync sub/s; sync sub; printf t > t; sync t; mv t u' 2>&1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const testing::PowerCut cut = testing::dropUnsyncedWrites(journal, d);
+  EXPECT_EQ(bytesOf(d + "/a").size(), 0u);  // its name was synced, its bytes never
+  EXPECT_TRUE(fs::exists(d + "/a"));
+  const std::vector<uint8_t> b = bytesOf(d + "/b");
+  EXPECT_EQ(std::string(b.begin(), b.end()), "xyz");  // "more" came after the sync
+  for (const char* gone : {"/c", "/sub", "/t", "/u"}) EXPECT_FALSE(fs::exists(d + gone)) << gone;
+  EXPECT_EQ(cut.removed.size(), 3u);    // c, sub (with s), u
+  EXPECT_EQ(cut.truncated.size(), 2u);  // a, b
+}
+
+// A power cut, not only a crash: the coordinator runs with the journaling shim, is killed
+// at a crash point (or after its job is done and downloaded), and everything a power cut
+// would lose is dropped from its data folder before it restarts. No acknowledged tile is
+// lost (none is baked again, none is found unreadable), the done job's artifact is still
+// there, and the job ends with the local bake's bytes.
+TEST_F(FarmTest, APowerCutLosesNoAcknowledgedWork) {
+  size_t removed = 0, truncated = 0;
+  for (const std::string point : {"tile-acknowledged", "artifact-written", "upload-renamed", "done"}) {
+    SCOPED_TRACE(point);
+    const std::string name = "cut-" + point, data = path(name + ".data"), journal = path(name + ".journal");
+    const std::vector<std::string> shortLeases{"--lease-seconds", "2"};
+    std::vector<std::string> env{"LD_PRELOAD=" CPVS_POWERCUT_SHIM, "CPVS_POWERCUT_DIR=" + data,
+                                 "CPVS_POWERCUT_LOG=" + journal};
+    if (point != "done") env.push_back("CPVS_FAILPOINT=" + point);
+    const std::string address = startServer(name, "127.0.0.1:0", shortLeases, env);
+    ChildProcess& coordinator = *servers_.back();
+    ChildProcess& worker = startWorker(address, "w-" + name, {"--threads", "1"});
+    const std::string scene = path(name + ".obj");
+    fs::copy_file(path("city.obj"), scene, fs::copy_options::overwrite_existing);
+    std::ofstream(scene, std::ios::app) << "# " << name << "\n";
+    const std::string submitLine = "submit --server " + address + " --token " + kClientToken + " " + scene + kSpec +
+                                   " --request-id " + name + " --wait --json --out " + path(name + ".cpvs");
+    auto first = std::async(std::launch::async, [&] { return runCli(submitLine); });
+    if (point == "done") {
+      Ran done = first.get();
+      ASSERT_EQ(done.status, 0) << done.out;
+      coordinator.stop(SIGKILL);
+    } else {
+      const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+      while (coordinator.running() && std::chrono::steady_clock::now() < end)
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      ASSERT_EQ(coordinator.stop(SIGKILL), -SIGKILL) << "the failpoint was not reached: " << coordinator.log();
+    }
+    const std::set<uint64_t> acked = acknowledgedTiles(data + "/farm.sqlite");
+    const testing::PowerCut cut = testing::dropUnsyncedWrites(journal, data);
+    removed += cut.removed.size();
+    truncated += cut.truncated.size();
+    for (const std::string& lost : cut.removed) std::printf("%s: power cut dropped %s\n", point.c_str(), lost.c_str());
+    for (const std::string& lost : cut.truncated) std::printf("%s: power cut shortened %s\n", point.c_str(), lost.c_str());
+    const size_t logBefore = worker.log().size();
+
+    startServer(name, address, shortLeases);  // no shim, no failpoint: after the power came back
+    if (point != "done") first.get();
+    Ran again = runCli(submitLine);
+    ASSERT_EQ(again.status, 0) << again.out << servers_.back()->log();
+    EXPECT_EQ(bytesOf(path(name + ".cpvs")), bytesOf(path("local.cpvs")));
+    const std::string after = worker.log().substr(logBefore);
+    std::regex baking("tile ([0-9]+) \\([0-9]+, [0-9]+\\) of job [^:]+: baking");
+    for (std::sregex_iterator it(after.begin(), after.end(), baking), stop; it != stop; ++it)
+      EXPECT_EQ(acked.count(std::stoull((*it)[1])), 0u) << "acknowledged tile " << (*it)[1] << " was lost and baked again";
+    if (point == "done") {
+      EXPECT_EQ(after.find(": baking"), std::string::npos) << "a done job was baked again";
+    }
+    EXPECT_EQ(servers_.back()->log().find("baking it again"), std::string::npos) << servers_.back()->log();
+    worker.stop(SIGKILL);
+    servers_.back()->stop(SIGTERM);
+  }
+  std::printf("power cuts: 4, unsynced names dropped %zu, files cut back to their synced size %zu\n", removed,
+              truncated);
 }
 
 // Soak: 200 small jobs from four clients on a farm of three workers, while a seeded chaos

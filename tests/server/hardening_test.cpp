@@ -14,6 +14,7 @@
 #include <functional>
 #include <future>
 #include <mutex>
+#include <set>
 #include <sstream>
 #include <thread>
 #include <tuple>
@@ -605,7 +606,7 @@ TEST(Hardening, R11_RenewalsFollowTheLeaseLengthWhateverTheClocks) {
   }
   if (seconds < 0.4) GTEST_SKIP() << "the tile baked in " << seconds << " s, too fast to need renewals here";
   EXPECT_GE(proxy.renewals.load(), 2);
-  EXPECT_EQ(farm.coordinator.jobs().list(true).at(0).tiles_done(), 1u);  // the lease held to the end
+  EXPECT_EQ(farm.coordinator.jobs().list(true).jobs.at(0).tiles_done(), 1u);  // the lease held to the end
 }
 
 // R10: a worker that failed every tile at once took the lowest queued tile again each time
@@ -1119,6 +1120,140 @@ TEST(Hardening, R27_HealthIsNotServingWhileTheStoreIsHeldBusy) {
   sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
   sqlite3_close(db);
   EXPECT_EQ(waitFor("SERVING"), "SERVING");
+}
+
+int64_t epochMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+void sqlExec(sqlite3* db, const std::string& sql) {
+  char* err = nullptr;
+  ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err), SQLITE_OK) << (err ? err : "") << " in " << sql;
+}
+
+/// `count` cancelled jobs with 256-character request ids and long errors in the store at
+/// `path`, copied from one record in one transaction: what years of use leave, in a second.
+void fillFinishedJobs(const std::string& path, int count) {
+  {
+    server::FarmStore store(path);
+    server::JobRecord j = oneTileJob("j000000");
+    j.requestId = std::string(256, 'r');
+    store.createJob(j);
+    store.setJobState(j.id, server::JobState::Cancelled, std::string(2000, 'e'), epochMs());
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  sqlExec(db, "BEGIN; CREATE TEMP TABLE proto AS SELECT * FROM jobs");
+  for (int i = 1; i < count; ++i)
+    sqlExec(db, "UPDATE proto SET id = printf('j%06d', " + std::to_string(i) + "), request_id = printf('%06d', " +
+                    std::to_string(i) + ") || substr(request_id, 7), created_ms = created_ms + 1; "
+                    "INSERT INTO jobs SELECT * FROM proto");
+  sqlExec(db, "COMMIT");
+  sqlite3_close(db);
+}
+
+// R16: ListJobs answered every job in one reply, so a few thousand finished jobs passed the
+// message limit and `cpvs jobs --all` stopped working. It answers pages now, bounded in
+// jobs and in bytes, and the client walks them.
+TEST(Hardening, R16_ThousandsOfJobsAreListedPageByPage) {
+  TempDir dir("cpvs_r16_pages");
+  fs::create_directories(dir / "data");
+  fillFinishedJobs(dir / "data/farm.sqlite", 3000);
+  InProcessFarm farm(dir / "data");
+  auto stub = pb::Farm::NewStub(net::makeChannel(farm.connection()));
+  auto page = [&](uint32_t size, const std::string& token, pb::ListJobsReply* reply) {
+    grpc::ClientContext ctx;
+    pb::ListJobsRequest req;
+    req.set_include_finished(true);
+    req.set_page_size(size);
+    req.set_page_token(token);
+    return stub->ListJobs(&ctx, req, reply);
+  };
+  pb::ListJobsReply first, big, bad;
+  ASSERT_TRUE(page(0, "", &first).ok());
+  EXPECT_EQ(first.jobs_size(), 100);  // the default page
+  EXPECT_FALSE(first.next_page_token().empty());
+  ASSERT_TRUE(page(100000, "", &big).ok());
+  EXPECT_LE(big.ByteSizeLong(), server::kListReplyBytes + 256);  // bounded in bytes before the 1000 jobs
+  EXPECT_GT(big.jobs_size(), 100);
+  EXPECT_LT(big.jobs_size(), 1000);
+  std::vector<std::string> ids;
+  std::string token;
+  int pages = 0;
+  do {
+    pb::ListJobsReply reply;
+    ASSERT_TRUE(page(1000, token, &reply).ok());
+    for (const auto& j : reply.jobs()) ids.push_back(j.job_id());
+    token = reply.next_page_token();
+    ASSERT_LT(++pages, 100);
+  } while (!token.empty());
+  ASSERT_EQ(ids.size(), 3000u);  // every job once, oldest first
+  EXPECT_TRUE(std::is_sorted(ids.begin(), ids.end()));
+  EXPECT_EQ(std::set<std::string>(ids.begin(), ids.end()).size(), ids.size());
+  EXPECT_EQ(farm.client.list(true).size(), 3000u);
+  EXPECT_TRUE(farm.client.list(false).empty());
+  for (const char* wrong : {"not-a-token", "12:../etc", ":j1", "99999999999999999999999:j1"})
+    EXPECT_EQ(page(10, wrong, &bad).error_code(), grpc::StatusCode::INVALID_ARGUMENT) << wrong;
+}
+
+// R16, R25: jobs, their artifacts and tile results, and uploads abandoned half-way were
+// never forgotten. A finished job goes after its retention (unless a track still serves
+// it), an upload after its expiry, and files a crash left without a job at start.
+TEST(Hardening, R16_R25_FinishedJobsAndAbandonedUploadsAreForgottenInTime) {
+  TempDir dir("cpvs_r16_retention");
+  const fs::path data = dir / "data";
+  for (const char* sub : {"artifacts", "scenes", "tiles/jold"}) fs::create_directories(data / sub);
+  const int64_t now = epochMs(), twoHoursAgo = now - 2 * 3600 * 1000;
+  const std::string oldUpload(32, 'a'), newUpload(32, 'f');
+  {
+    server::FarmStore store(data / "farm.sqlite");
+    for (const char* id : {"jold", "jnew", "jrun", "jtrack"}) store.createJob(oneTileJob(id));
+    store.setJobState("jold", server::JobState::Done, "", twoHoursAgo);
+    store.setJobState("jnew", server::JobState::Failed, "failed", now);
+    store.setJobState("jrun", server::JobState::Running, "", twoHoursAgo);
+    store.setJobState("jtrack", server::JobState::Done, "", twoHoursAgo);
+    for (const std::string& hash : {oldUpload, newUpload}) store.putScene({hash, "s.obj", "", 1000, 8, 0, false});
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((data / "farm.sqlite").c_str(), &db), SQLITE_OK);
+  sqlExec(db, "INSERT INTO versions(track_id, sequence, job_id) VALUES('t1', 1, 'jtrack')");  // a track still serves it
+  sqlite3_close(db);
+  for (const char* id : {"jold", "jnew", "jtrack", "jgone"}) writeFileAtomic(data / "artifacts" / (std::string(id) + ".cpvs"), {1, 2});
+  writeFileAtomic(data / "tiles/jold/0.cpvt", {1});
+  for (const std::string& hash : {oldUpload, newUpload}) writeFileAtomic(data / "scenes" / (hash + ".part"), {'v', ' '});
+  fs::last_write_time(data / "scenes" / (oldUpload + ".part"), fs::file_time_type::clock::now() - std::chrono::hours(25));
+
+  server::CoordinatorConfig config;
+  config.dataDir = data;
+  config.retention.keepFinishedSeconds = 3600;
+  config.retention.uploadExpirySeconds = 86400;
+  {
+    InProcessFarm farm(config);
+    std::set<std::string> listed;
+    for (const auto& j : farm.client.list(true)) listed.insert(j.job_id());
+    EXPECT_EQ(listed, (std::set<std::string>{"jnew", "jrun", "jtrack"}));
+    EXPECT_THROW(farm.coordinator.jobs().status("jold"), net::FarmError);
+    EXPECT_FALSE(fs::exists(data / "artifacts/jold.cpvs"));
+    EXPECT_FALSE(fs::exists(data / "tiles/jold"));
+    EXPECT_FALSE(fs::exists(data / "artifacts/jgone.cpvs"));  // no job: a prune cut short
+    EXPECT_TRUE(fs::exists(data / "artifacts/jnew.cpvs"));
+    EXPECT_TRUE(fs::exists(data / "artifacts/jtrack.cpvs"));
+    EXPECT_FALSE(farm.coordinator.scenes().uploadStatus(oldUpload).known());
+    EXPECT_FALSE(fs::exists(data / "scenes" / (oldUpload + ".part")));
+    EXPECT_EQ(farm.coordinator.scenes().uploadStatus(newUpload).received(), 8u);
+  }
+  // While it runs: a job that ends is forgotten once its retention has passed.
+  config.retention.keepFinishedSeconds = 2;
+  config.retention.intervalSeconds = 0.2;
+  InProcessFarm farm(config);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(15);
+  while (fs::exists(data / "artifacts/jnew.cpvs") && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_FALSE(fs::exists(data / "artifacts/jnew.cpvs"));
+  std::set<std::string> listed;
+  for (const auto& j : farm.client.list(true)) listed.insert(j.job_id());
+  EXPECT_EQ(listed, (std::set<std::string>{"jrun", "jtrack"}));
 }
 
 }  // namespace

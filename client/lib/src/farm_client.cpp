@@ -253,10 +253,19 @@ pb::JobStatus FarmClient::cancel(const std::string& jobId) {
 }
 
 std::vector<pb::JobStatus> FarmClient::list(bool includeFinished) {
+  // Page by page (the coordinator bounds each reply, R16) until the last one.
   pb::ListJobsRequest request;
   request.set_include_finished(includeFinished);
-  const pb::ListJobsReply reply = transport_->unary(&pb::Farm::Stub::ListJobs, request);
-  return {reply.jobs().begin(), reply.jobs().end()};
+  request.set_page_size(1000);
+  std::vector<pb::JobStatus> out;
+  for (;;) {
+    const pb::ListJobsReply reply = transport_->unary(&pb::Farm::Stub::ListJobs, request);
+    out.insert(out.end(), reply.jobs().begin(), reply.jobs().end());
+    if (reply.next_page_token().empty()) return out;
+    if (reply.next_page_token() == request.page_token() || reply.jobs().empty())
+      throw callError(net::ErrorKind::Internal, "the coordinator's job listing does not move on");
+    request.set_page_token(reply.next_page_token());
+  }
 }
 
 pb::TrackStatus FarmClient::createTrack(const std::string& requestId, const pb::TrackSpec& spec) {

@@ -54,6 +54,20 @@ void syncParentFolder(const std::string& path) {
   ::close(fd);
 }
 
+void createFolderDurably(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::vector<fs::path> missing;
+  std::error_code ec;
+  for (fs::path p = fs::path(path).lexically_normal(); !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
+    missing.push_back(p);
+    if (p == p.parent_path()) break;
+  }
+  for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
+    if (!fs::create_directory(*it, ec) && ec) fail("create folder", it->string(), ec.value());
+    syncParentFolder(it->string());
+  }
+}
+
 void writeFileAtomic(const std::string& path, const std::vector<uint8_t>& bytes) {
   const std::string tmp = temporaryName(path);
   int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);

@@ -21,6 +21,10 @@ std::vector<uint8_t> readFile(const std::string& path);
 /// InputError naming the folder on failure.
 void syncParentFolder(const std::string& path);
 
+/// Creates the folder at `path` and any missing folder above it, syncing the folder that
+/// holds each one it creates, so that the new folders survive a power cut. InputError.
+void createFolderDurably(const std::string& path);
+
 /// Keeps the first `keep` bytes of the file at `path` (created when absent), writes
 /// `data` after them, and syncs it: a resumable transfer that continues exactly at the
 /// bytes it acknowledged, whatever a crash left after them. InputError naming the path.

@@ -1,0 +1,77 @@
+#include "coordinator/housekeeper.h"
+
+#include <algorithm>
+
+#include <spdlog/spdlog.h>
+
+#include "coordinator/clock.h"
+
+namespace cpvs::server {
+
+Housekeeper::Housekeeper(FarmStore& store, ArtifactStore& artifacts, SceneStore& scenes, RetentionRules rules)
+    : store_(store), artifacts_(artifacts), scenes_(scenes), rules_(rules) {}
+
+void Housekeeper::start() {
+  // The store forgets a job before its files go: files of a job it does not know are
+  // what a crash between the two left behind.
+  for (const std::string& jobId : artifacts_.jobsWithArtifacts())
+    if (!store_.jobExists(jobId)) {
+      artifacts_.removeArtifact(jobId);
+      spdlog::info("removed the artifact of job {}, which the store no longer holds", jobId);
+    }
+  runOnce();
+  stopping_ = false;
+  thread_ = std::thread([this] { loop(); });
+}
+
+void Housekeeper::stop() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+size_t Housekeeper::runOnce() {
+  size_t pruned = 0;
+  try {
+    if (rules_.uploadExpirySeconds > 0)
+      scenes_.expireIdleUploads(std::chrono::seconds(int64_t(std::max(1.0, rules_.uploadExpirySeconds))));
+    if (rules_.keepFinishedSeconds > 0) {
+      const int64_t before = nowMs() - int64_t(rules_.keepFinishedSeconds * 1000);
+      // In batches: one transaction never holds the store for long.
+      for (;;) {
+        const std::vector<std::string> ids = store_.pruneFinishedJobs(before, 256);
+        for (const std::string& id : ids) {
+          artifacts_.removeArtifact(id);
+          artifacts_.removeTiles(id);
+        }
+        pruned += ids.size();
+        if (ids.size() < 256) break;
+      }
+      if (pruned) spdlog::info("pruned {} job(s) that ended more than {} s ago", pruned, rules_.keepFinishedSeconds);
+    }
+  } catch (const StoreUnavailable& e) {
+    spdlog::warn("housekeeping put off: {}", e.what());  // the next round tries again
+  }
+  return pruned;
+}
+
+void Housekeeper::loop() {
+  std::unique_lock lock(mutex_);
+  while (!stopping_) {
+    wake_.wait_for(lock, std::chrono::milliseconds(int64_t(rules_.intervalSeconds * 1000)), [&] { return stopping_; });
+    if (stopping_) break;
+    lock.unlock();
+    try {
+      runOnce();
+    } catch (const std::exception& e) {
+      // Housekeeping never takes the coordinator down (R9): the next round tries again.
+      spdlog::error("housekeeping failed: {}", e.what());
+    }
+    lock.lock();
+  }
+}
+
+}  // namespace cpvs::server
