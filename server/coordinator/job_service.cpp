@@ -28,9 +28,12 @@ JobService::JobService(FarmStore& store, SceneStore& scenes, ArtifactStore& arti
                        ChangeFeed& feed, JobLimits limits)
     : store_(store), scenes_(scenes), artifacts_(artifacts), merges_(merges), feed_(feed), limits_(limits) {}
 
-std::optional<pb::JobStatus> JobService::knownRequest(const pb::SubmitBakeRequest& request) {
+std::optional<pb::JobStatus> JobService::knownRequest(const pb::SubmitBakeRequest& request, const Access& access) {
   auto existing = store_.jobByRequest(request.request_id());
   if (!existing) return std::nullopt;
+  // Request ids are one namespace: another client's says nothing about its job.
+  if (!access.sees(existing->owner))
+    throw FarmError(ErrorKind::AlreadyExists, "request_id " + request.request_id() + " is taken; use another");
   if (existing->spec != request.spec().SerializeAsString())
     throw FarmError(ErrorKind::AlreadyExists,
                     "request_id " + request.request_id() + " was used for a different job (" + existing->id + ")");
@@ -76,11 +79,11 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   return s;
 }
 
-pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
+pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Access& access) {
   const pb::BakeSpec& spec = request.spec();
   if (request.request_id().empty() || request.request_id().size() > 128)
     throw FarmError(ErrorKind::InvalidArgument, "request_id must be 1..128 characters");
-  if (auto existing = knownRequest(request)) return *existing;
+  if (auto existing = knownRequest(request, access)) return *existing;
   if (spec.name().size() > 256) throw FarmError(ErrorKind::InvalidArgument, "name is longer than 256 characters");
   if (std::abs(spec.priority()) > 1000) throw FarmError(ErrorKind::InvalidArgument, "priority must be in -1000..1000");
   JobRecord j;
@@ -121,6 +124,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
   }
   j.id = randomId("j");
   j.requestId = request.request_id();
+  j.owner = access.owner;
   j.sceneHash = spec.scene_hash();
   j.geometryHash = sceneHash(scene).hex();
   j.spec = spec.SerializeAsString();
@@ -150,7 +154,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
     // submitted at once cannot together exceed the job limit. The tile folder exists
     // before a worker can lease a tile of the job.
     std::lock_guard lock(submitMutex_);
-    if (auto existing = knownRequest(request)) return *existing;
+    if (auto existing = knownRequest(request, access)) return *existing;
     checkRoom();
     artifacts_.createTileFolder(j.id);
     store_.createJob(j, untouched);
@@ -163,13 +167,19 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request) {
   return status(j.id);
 }
 
-pb::JobStatus JobService::status(const std::string& jobId) {
+JobRecord JobService::visibleJob(const std::string& jobId, const Access& access) {
   auto j = store_.job(jobId);
   if (!j) throw FarmError(ErrorKind::NotFound, "no job " + jobId);
-  return toStatus(*j);
+  if (!access.sees(j->owner)) throw FarmError(ErrorKind::PermissionDenied, "job " + jobId + " is another client's");
+  return std::move(*j);
 }
 
-JobService::Page JobService::list(bool includeFinished, uint32_t pageSize, const std::string& pageToken) {
+pb::JobStatus JobService::status(const std::string& jobId, const Access& access) {
+  return toStatus(visibleJob(jobId, access));
+}
+
+JobService::Page JobService::list(bool includeFinished, uint32_t pageSize, const std::string& pageToken,
+                                  const Access& access) {
   const size_t limit = pageSize == 0 ? 100 : std::min<size_t>(pageSize, 1000);
   // The token is the position of the last job shown: its creation time and id, which
   // stay valid while jobs come and go (a job pruned meanwhile is simply not there).
@@ -195,7 +205,9 @@ JobService::Page JobService::list(bool includeFinished, uint32_t pageSize, const
   }
   Page page;
   size_t bytes = 0;
-  const std::vector<JobRecord> records = store_.jobsAfter(includeFinished, afterMs, afterId, limit + 1);
+  const std::vector<JobRecord> records =
+      store_.jobsAfter(includeFinished, afterMs, afterId, limit + 1,
+                       access.everything ? std::nullopt : std::optional<std::string>(access.owner));
   for (size_t i = 0; i < records.size(); ++i) {
     pb::JobStatus status = toStatus(records[i]);
     const size_t size = status.ByteSizeLong() + 8;  // with its field tag and length
@@ -210,16 +222,14 @@ JobService::Page JobService::list(bool includeFinished, uint32_t pageSize, const
   return page;
 }
 
-pb::JobStatus JobService::cancel(const std::string& jobId) {
-  auto j = store_.job(jobId);
-  if (!j) throw FarmError(ErrorKind::NotFound, "no job " + jobId);
+pb::JobStatus JobService::cancel(const std::string& jobId, const Access& access) {
+  visibleJob(jobId, access);
   if (endJob(jobId, JobState::Cancelled, "cancelled")) spdlog::info("job {} cancelled", jobId);
   return status(jobId);
 }
 
-std::string JobService::artifactPath(const std::string& jobId, std::string* checksum) {
-  auto j = store_.job(jobId);
-  if (!j) throw FarmError(ErrorKind::NotFound, "no job " + jobId);
+std::string JobService::artifactPath(const std::string& jobId, std::string* checksum, const Access& access) {
+  const std::optional<JobRecord> j = visibleJob(jobId, access);
   if (j->state != JobState::Done)
     throw FarmError(ErrorKind::FailedPrecondition,
                     "job " + jobId + " is " + net::jobStateName(pb::JobState(int(j->state))) + ", not done");

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "coordinator/access.h"
 #include "coordinator/artifact_store.h"
 #include "coordinator/change_feed.h"
 #include "coordinator/merge_scheduler.h"
@@ -33,8 +34,10 @@ class JobService {
   JobService(FarmStore& store, SceneStore& scenes, ArtifactStore& artifacts, MergeScheduler& merges, ChangeFeed& feed,
              JobLimits limits);
 
-  pb::JobStatus submit(const pb::SubmitBakeRequest& request);
-  pb::JobStatus status(const std::string& jobId);
+  /// Jobs are the submitting client's (`access`): another client's job is PermissionDenied
+  /// to status, cancel and artifactPath, and missing from its listing (R28).
+  pb::JobStatus submit(const pb::SubmitBakeRequest& request, const Access& access = Access::all());
+  pb::JobStatus status(const std::string& jobId, const Access& access = Access::all());
   /// One page of the listing, oldest first (R16): at most `pageSize` jobs (0: 100, at most
   /// 1000) and fewer when the reply would pass kListReplyBytes; the next page starts after
   /// the position in `pageToken` (empty: the start). nextPageToken is empty on the last page.
@@ -42,10 +45,11 @@ class JobService {
     std::vector<pb::JobStatus> jobs;
     std::string nextPageToken;
   };
-  Page list(bool includeFinished, uint32_t pageSize = 0, const std::string& pageToken = "");
-  pb::JobStatus cancel(const std::string& jobId);
+  Page list(bool includeFinished, uint32_t pageSize = 0, const std::string& pageToken = "",
+            const Access& access = Access::all());
+  pb::JobStatus cancel(const std::string& jobId, const Access& access = Access::all());
   /// The artifact of a finished job and its checksum (hex).
-  std::string artifactPath(const std::string& jobId, std::string* checksum);
+  std::string artifactPath(const std::string& jobId, std::string* checksum, const Access& access = Access::all());
 
   /// Ends an unfinished job as failed (logged); a job already ended keeps its end.
   void failJob(const std::string& jobId, const std::string& error);
@@ -58,7 +62,9 @@ class JobService {
   /// Ends an unfinished job as cancelled or failed; false when it had already ended.
   bool endJob(const std::string& jobId, JobState state, const std::string& why);
   /// The job a request id already names: the same spec is a retry, another is refused.
-  std::optional<pb::JobStatus> knownRequest(const pb::SubmitBakeRequest& request);
+  std::optional<pb::JobStatus> knownRequest(const pb::SubmitBakeRequest& request, const Access& access);
+  /// The job, when `access` may see it: NotFound, PermissionDenied otherwise.
+  JobRecord visibleJob(const std::string& jobId, const Access& access);
   void checkRoom();
 
   FarmStore& store_;

@@ -116,7 +116,7 @@ pb::TrackStatus TrackService::toStatus(const TrackRecord& t) const {
   return s;
 }
 
-std::string TrackService::submitKeyframe(const pb::TrackSpec& spec, const Vec3& direction) {
+std::string TrackService::submitKeyframe(const pb::TrackSpec& spec, const Vec3& direction, const std::string& owner) {
   pb::SubmitBakeRequest req;
   pb::BakeSpec& b = *req.mutable_spec();
   b.set_scene_hash(spec.scene_hash());
@@ -125,17 +125,20 @@ std::string TrackService::submitKeyframe(const pb::TrackSpec& spec, const Vec3& 
   *b.mutable_options() = spec.options();
   b.set_priority(kKeyframePriority);
   b.set_name("keyframe");
-  // Named by what it bakes: the same keyframe from any track is the same job.
-  const std::string content = b.SerializeAsString();
+  // Named by what it bakes: the same keyframe from any of one owner's tracks is the same
+  // job (owners share no job, R28).
+  const std::string content = b.SerializeAsString() + (owner.empty() ? "" : "\n" + owner);
   req.set_request_id("keyframe-" + contentHash(content.data(), content.size()).hex());
-  return jobs_.submit(req).job_id();
+  return jobs_.submit(req, Access::of(owner)).job_id();
 }
 
-pb::TrackStatus TrackService::create(const pb::CreateTrackRequest& request) {
+pb::TrackStatus TrackService::create(const pb::CreateTrackRequest& request, const Access& access) {
   const pb::TrackSpec& spec = request.spec();
   if (request.request_id().empty() || request.request_id().size() > 128)
     throw FarmError(ErrorKind::InvalidArgument, "request_id must be 1..128 characters");
   if (auto known = store_.trackByRequest(request.request_id())) {
+    if (!access.sees(known->owner))
+      throw FarmError(ErrorKind::AlreadyExists, "request_id " + request.request_id() + " is taken; use another");
     if (known->spec != spec.SerializeAsString())
       throw FarmError(ErrorKind::AlreadyExists, "request_id " + request.request_id() + " names another track");
     return toStatus(*known);
@@ -168,10 +171,11 @@ pb::TrackStatus TrackService::create(const pb::CreateTrackRequest& request) {
     k.keyframe = t.nextKeyframe;
     k.instantMs = k0.instantMs;
     k.direction = quantized(k0.direction);
-    k.jobId = submitKeyframe(spec, k.direction);
+    k.jobId = submitKeyframe(spec, k.direction, access.owner);
   }
   t.id = randomId("t");
   t.requestId = request.request_id();
+  t.owner = access.owner;
   t.spec = spec.SerializeAsString();
   t.state = kActive;
   t.createdMs = nowMs();
@@ -193,22 +197,27 @@ pb::TrackStatus TrackService::create(const pb::CreateTrackRequest& request) {
   return status(t.id);
 }
 
-pb::TrackStatus TrackService::status(const std::string& trackId) {
+TrackRecord TrackService::visibleTrack(const std::string& trackId, const Access& access) {
   auto t = store_.track(trackId);
   if (!t) throw FarmError(ErrorKind::NotFound, "no track " + trackId);
-  return toStatus(*t);
+  if (!access.sees(t->owner)) throw FarmError(ErrorKind::PermissionDenied, "track " + trackId + " is another client's");
+  return std::move(*t);
 }
 
-std::vector<pb::TrackStatus> TrackService::list(bool includeEnded) {
+pb::TrackStatus TrackService::status(const std::string& trackId, const Access& access) {
+  return toStatus(visibleTrack(trackId, access));
+}
+
+std::vector<pb::TrackStatus> TrackService::list(bool includeEnded, const Access& access) {
   std::vector<pb::TrackStatus> out;
-  for (const TrackRecord& t : store_.tracks(includeEnded)) out.push_back(toStatus(t));
+  for (const TrackRecord& t : store_.tracks(includeEnded))
+    if (access.sees(t.owner)) out.push_back(toStatus(t));
   return out;
 }
 
-pb::TrackStatus TrackService::cancel(const std::string& trackId) {
+pb::TrackStatus TrackService::cancel(const std::string& trackId, const Access& access) {
   std::lock_guard lock(tickMutex_);
-  auto t = store_.track(trackId);
-  if (!t) throw FarmError(ErrorKind::NotFound, "no track " + trackId);
+  const std::optional<TrackRecord> t = visibleTrack(trackId, access);
   if (t->state == kActive) {
     store_.setTrackState(trackId, kCancelled, "cancelled");
     for (const KeyframeRecord& k : store_.pendingKeyframes(trackId))
@@ -274,7 +283,7 @@ void TrackService::advance(const TrackRecord& t) {
     r.instantMs = k.instantMs;
     r.direction = quantized(k.direction);
     try {
-      r.jobId = submitKeyframe(spec, r.direction);
+      r.jobId = submitKeyframe(spec, r.direction, t.owner);
     } catch (const FarmError& e) {
       // No room for another job now (the farm's quota): try again on the next pass.
       if (e.kind == ErrorKind::ResourceExhausted) break;

@@ -40,11 +40,12 @@ class TrackService {
 
   /// Validates the spec (a path with keyframes above the horizon, within the limits) and
   /// submits its first keyframes; idempotent by request id like SubmitBake.
-  pb::TrackStatus create(const pb::CreateTrackRequest& request);
-  pb::TrackStatus status(const std::string& trackId);
-  std::vector<pb::TrackStatus> list(bool includeEnded);
+  /// Tracks and their keyframe jobs are the creating client's (`access`, R28).
+  pb::TrackStatus create(const pb::CreateTrackRequest& request, const Access& access = Access::all());
+  pb::TrackStatus status(const std::string& trackId, const Access& access = Access::all());
+  std::vector<pb::TrackStatus> list(bool includeEnded, const Access& access = Access::all());
   /// Ends the track; its pending keyframe jobs that no other track waits for are cancelled.
-  pb::TrackStatus cancel(const std::string& trackId);
+  pb::TrackStatus cancel(const std::string& trackId, const Access& access = Access::all());
   /// The first kept version after `sequence`; nullopt when there is none yet.
   std::optional<VersionRecord> versionAfter(const std::string& trackId, uint64_t sequence);
 
@@ -59,7 +60,9 @@ class TrackService {
   pb::TrackStatus toStatus(const TrackRecord& t) const;
   void advance(const TrackRecord& t);
   /// Submits keyframe `k`'s job; returns its id.
-  std::string submitKeyframe(const pb::TrackSpec& spec, const Vec3& direction);
+  std::string submitKeyframe(const pb::TrackSpec& spec, const Vec3& direction, const std::string& owner);
+  /// The track, when `access` may see it: NotFound, PermissionDenied otherwise.
+  TrackRecord visibleTrack(const std::string& trackId, const Access& access);
 
   FarmStore& store_;
   JobService& jobs_;

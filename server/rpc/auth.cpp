@@ -86,10 +86,13 @@ TokenTable TokenTable::load(const std::string& path) {
     ++lineNo;
     if (auto hash = line.find('#'); hash != std::string::npos) line.resize(hash);
     std::istringstream words(line);
-    std::string role, token, extra;
+    std::string role, token, owner, extra;
     if (!(words >> role)) continue;
     std::string where = path + " line " + std::to_string(lineNo);
-    if (!(words >> token) || (words >> extra)) throw InputError(where + ": expected ROLE TOKEN");
+    if (!(words >> token) || ((words >> owner) && (words >> extra))) throw InputError(where + ": expected ROLE TOKEN [OWNER]");
+    bool ownerValid = owner.size() <= 64;
+    for (char c : owner) ownerValid = ownerValid && (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-');
+    if (!ownerValid) throw InputError(where + ": an owner is 1-64 of A-Z a-z 0-9 . _ -");
     if (auto weak = weaknessOf(token))
       throw InputError(where + ": the " + role + " token is too weak to trust: " + *weak +
                        " (bash deploy/make-secrets.sh makes random ones: 64 hex digits)");
@@ -98,7 +101,13 @@ TokenTable TokenTable::load(const std::string& path) {
     else if (role == "worker") r = Role::Worker;
     else if (role == "admin") r = Role::Admin;
     else throw InputError(where + ": unknown role '" + role + "' (client, worker or admin)");
-    if (!t.roles_.emplace(digestOf(token), r).second) throw InputError(where + ": the token is listed twice");
+    const std::string digest = digestOf(token);
+    if (owner.empty()) {
+      char hex[3];
+      owner = "token-";
+      for (int i = 0; i < 6; ++i) owner += (std::snprintf(hex, sizeof hex, "%02x", static_cast<unsigned char>(digest[i])), hex);
+    }
+    if (!t.roles_.emplace(digest, Holder{r, owner}).second) throw InputError(where + ": the token is listed twice");
   }
   if (t.roles_.empty()) throw InputError(path + ": no tokens");
   return t;
@@ -107,12 +116,18 @@ TokenTable TokenTable::load(const std::string& path) {
 std::optional<Role> TokenTable::roleOf(const std::string& token) const {
   auto it = roles_.find(digestOf(token));
   if (it == roles_.end()) return std::nullopt;
-  return it->second;
+  return it->second.role;
+}
+
+std::optional<std::string> TokenTable::ownerOf(const std::string& token) const {
+  auto it = roles_.find(digestOf(token));
+  if (it == roles_.end()) return std::nullopt;
+  return it->second.owner;
 }
 
 std::vector<std::string> TokenTable::digestsForTests() const {
   std::vector<std::string> out;
-  for (const auto& [digest, role] : roles_) {
+  for (const auto& [digest, holder] : roles_) {
     std::string hex;
     char b[3];
     for (unsigned char c : digest) hex += (std::snprintf(b, sizeof b, "%02x", c), b);

@@ -27,8 +27,10 @@ class TokenTable {
  public:
   /// No tokens: every call is allowed (a farm on a trusted network, or tests).
   TokenTable() = default;
-  /// Reads "ROLE TOKEN" lines (ROLE: client, worker or admin; '#' starts a comment).
-  /// Throws InputError naming the file and line for anything else.
+  /// Reads "ROLE TOKEN [OWNER]" lines (ROLE: client, worker or admin; '#' starts a
+  /// comment). OWNER (1-64 of A-Z a-z 0-9 . _ -) names whose jobs a client token sees:
+  /// tokens of one owner share their jobs and tracks; without it each token is its own
+  /// owner (R28). Throws InputError naming the file and line for anything else.
   static TokenTable load(const std::string& path);
 
   bool enabled() const { return !roles_.empty(); }
@@ -36,13 +38,20 @@ class TokenTable {
   /// a token up by its digest: no plaintext stays in memory, and how long a lookup takes
   /// tells nothing about how much of a guess matches a token (R18).
   std::optional<Role> roleOf(const std::string& token) const;
+  /// The owner a token's jobs are recorded under (its OWNER, or "token-" and 12 hex
+  /// digits of its digest); nullopt for an unknown token.
+  std::optional<std::string> ownerOf(const std::string& token) const;
   /// The digests held, in hex: for the test that no token is kept as sent.
   std::vector<std::string> digestsForTests() const;
   /// Whether `role` may call an RPC that needs `needed` (admin may call anything).
   static bool allows(Role role, Role needed) { return role == Role::Admin || role == needed; }
 
  private:
-  std::map<std::string, Role> roles_;  // by SHA-256 digest (32 raw bytes)
+  struct Holder {
+    Role role;
+    std::string owner;
+  };
+  std::map<std::string, Holder> roles_;  // by SHA-256 digest (32 raw bytes)
 };
 
 }  // namespace cpvs::server

@@ -8,6 +8,7 @@
 #include <spdlog/spdlog.h>
 
 #include <optional>
+#include <type_traits>
 
 #include "cpvs/net/channel.h"
 #include "cpvs/net/chunked_stream.h"
@@ -21,8 +22,10 @@ namespace {
 /// Largest sub-DAG a worker may send (a 4K tile of a dense scene is tens of MB).
 constexpr uint64_t kMaxTileResultBytes = uint64_t(2) << 30;
 
-/// Checks the caller's bearer token against the role an RPC needs.
-grpc::Status authorize(const grpc::ServerContext* ctx, const TokenTable& tokens, Role needed) {
+/// Checks the caller's bearer token against the role an RPC needs, and says in `access`
+/// which jobs and tracks the caller may see (R28).
+grpc::Status authorize(const grpc::ServerContext* ctx, const TokenTable& tokens, Role needed, Access* access) {
+  *access = Access::all();
   if (!tokens.enabled()) return grpc::Status::OK;
   const auto& md = ctx->client_metadata();
   auto it = md.find("authorization");
@@ -31,8 +34,10 @@ grpc::Status authorize(const grpc::ServerContext* ctx, const TokenTable& tokens,
   const std::string prefix = "Bearer ";
   if (value.rfind(prefix, 0) != 0)
     return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "authorization is not a bearer token");
-  auto role = tokens.roleOf(value.substr(prefix.size()));
+  const std::string token = value.substr(prefix.size());
+  auto role = tokens.roleOf(token);
   if (!role) return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "unknown token");
+  *access = Access{tokens.ownerOf(token).value_or(""), *role == Role::Admin};
   if (!TokenTable::allows(*role, needed))
     return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
                         std::string("a ") + roleName(*role) + " token cannot call this (needs " + roleName(needed) + ")");
@@ -43,10 +48,14 @@ grpc::Status authorize(const grpc::ServerContext* ctx, const TokenTable& tokens,
 /// serving whatever a request holds.
 template <class F>
 grpc::Status guarded(const grpc::ServerContext* ctx, const TokenTable& tokens, Role needed, const char* rpc, F&& body) {
-  grpc::Status auth = authorize(ctx, tokens, needed);
+  Access access;
+  grpc::Status auth = authorize(ctx, tokens, needed, &access);
   if (!auth.ok()) return auth;
   try {
-    return body();
+    if constexpr (std::is_invocable_v<F, const Access&>)
+      return body(access);
+    else
+      return body();
   } catch (const FarmError& e) {
     if (e.kind == ErrorKind::Internal) spdlog::error("{}: {}", rpc, e.what());
     return net::toGrpcStatus(e);
@@ -123,8 +132,8 @@ grpc::Status FarmService::UploadScene(grpc::ServerContext* ctx, grpc::ServerRead
 }
 
 grpc::Status FarmService::SubmitBake(grpc::ServerContext* ctx, const pb::SubmitBakeRequest* req, pb::JobStatus* out) {
-  return guarded(ctx, tokens_, Role::Client, "SubmitBake", [&] {
-    *out = c_.jobs().submit(*req);
+  return guarded(ctx, tokens_, Role::Client, "SubmitBake", [&](const Access& access) {
+    *out = c_.jobs().submit(*req, access);
     return grpc::Status::OK;
   });
 }
@@ -141,7 +150,8 @@ std::shared_ptr<void> FarmService::streamSlot() {
 
 grpc::Status FarmService::WatchJob(grpc::ServerContext* ctx, const pb::JobRef* req,
                                    grpc::ServerWriter<pb::JobStatus>* writer) {
-  return guarded(ctx, tokens_, Role::Client, "WatchJob", [&] {
+  return guarded(ctx, tokens_, Role::Client, "WatchJob", [&](const Access& access) {
+    c_.jobs().status(req->job_id(), access);  // another client's job is not followed
     const auto slot = streamSlot();
     uint64_t seen = c_.waitForChange(~uint64_t(0), 0);
     for (;;) {
@@ -158,15 +168,15 @@ grpc::Status FarmService::WatchJob(grpc::ServerContext* ctx, const pb::JobRef* r
 }
 
 grpc::Status FarmService::CancelJob(grpc::ServerContext* ctx, const pb::JobRef* req, pb::JobStatus* out) {
-  return guarded(ctx, tokens_, Role::Client, "CancelJob", [&] {
-    *out = c_.jobs().cancel(req->job_id());
+  return guarded(ctx, tokens_, Role::Client, "CancelJob", [&](const Access& access) {
+    *out = c_.jobs().cancel(req->job_id(), access);
     return grpc::Status::OK;
   });
 }
 
 grpc::Status FarmService::ListJobs(grpc::ServerContext* ctx, const pb::ListJobsRequest* req, pb::ListJobsReply* out) {
-  return guarded(ctx, tokens_, Role::Client, "ListJobs", [&] {
-    JobService::Page page = c_.jobs().list(req->include_finished(), req->page_size(), req->page_token());
+  return guarded(ctx, tokens_, Role::Client, "ListJobs", [&](const Access& access) {
+    JobService::Page page = c_.jobs().list(req->include_finished(), req->page_size(), req->page_token(), access);
     for (auto& s : page.jobs) *out->add_jobs() = std::move(s);
     out->set_next_page_token(page.nextPageToken);
     return grpc::Status::OK;
@@ -175,40 +185,40 @@ grpc::Status FarmService::ListJobs(grpc::ServerContext* ctx, const pb::ListJobsR
 
 grpc::Status FarmService::DownloadArtifact(grpc::ServerContext* ctx, const pb::DownloadRequest* req,
                                            grpc::ServerWriter<pb::ArtifactChunk>* writer) {
-  return guarded(ctx, tokens_, Role::Client, "DownloadArtifact", [&] {
+  return guarded(ctx, tokens_, Role::Client, "DownloadArtifact", [&](const Access& access) {
     std::string checksum;
-    std::string path = c_.jobs().artifactPath(req->job_id(), &checksum);
+    std::string path = c_.jobs().artifactPath(req->job_id(), &checksum, access);
     return streamFile(path, req->offset(), writer, [&](pb::ArtifactChunk& m) { m.set_checksum(checksum); });
   });
 }
 
 grpc::Status FarmService::CreateTrack(grpc::ServerContext* ctx, const pb::CreateTrackRequest* req, pb::TrackStatus* out) {
-  return guarded(ctx, tokens_, Role::Client, "CreateTrack", [&] {
-    *out = c_.tracks().create(*req);
+  return guarded(ctx, tokens_, Role::Client, "CreateTrack", [&](const Access& access) {
+    *out = c_.tracks().create(*req, access);
     return grpc::Status::OK;
   });
 }
 
 grpc::Status FarmService::ListTracks(grpc::ServerContext* ctx, const pb::ListJobsRequest* req, pb::ListTracksReply* out) {
-  return guarded(ctx, tokens_, Role::Client, "ListTracks", [&] {
-    for (auto& t : c_.tracks().list(req->include_finished())) *out->add_tracks() = std::move(t);
+  return guarded(ctx, tokens_, Role::Client, "ListTracks", [&](const Access& access) {
+    for (auto& t : c_.tracks().list(req->include_finished(), access)) *out->add_tracks() = std::move(t);
     return grpc::Status::OK;
   });
 }
 
 grpc::Status FarmService::CancelTrack(grpc::ServerContext* ctx, const pb::TrackRef* req, pb::TrackStatus* out) {
-  return guarded(ctx, tokens_, Role::Client, "CancelTrack", [&] {
-    *out = c_.tracks().cancel(req->track_id());
+  return guarded(ctx, tokens_, Role::Client, "CancelTrack", [&](const Access& access) {
+    *out = c_.tracks().cancel(req->track_id(), access);
     return grpc::Status::OK;
   });
 }
 
 grpc::Status FarmService::Subscribe(grpc::ServerContext* ctx, const pb::SubscribeRequest* req,
                                     grpc::ServerWriter<pb::VersionChunk>* writer) {
-  return guarded(ctx, tokens_, Role::Client, "Subscribe", [&] {
+  return guarded(ctx, tokens_, Role::Client, "Subscribe", [&](const Access& access) {
     const auto slot = streamSlot();
     const std::string& id = req->track_id();
-    const pb::TrackStatus first = c_.tracks().status(id);  // NOT_FOUND for an unknown track
+    const pb::TrackStatus first = c_.tracks().status(id, access);  // NOT_FOUND, or another client's
     if (req->after_sequence() > first.latest_sequence())
       throw FarmError(ErrorKind::OutOfRange, "after_sequence " + std::to_string(req->after_sequence()) +
                                                  " is ahead of the track's latest version (" +

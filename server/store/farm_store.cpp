@@ -91,8 +91,8 @@ constexpr const char* kJobColumns =
     "light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, frame_u_z, frame_v_x, frame_v_y, frame_v_z, "
     "origin_x, origin_y, origin_z, u0, v0, d0, extent, depth_extent, log2_resolution, "
     "closed, exit_mode, cull, compress, undefined_rule, log2_tile_size, hash_kind, renderer, receivers, receiver_pcf, "
-    "receiver_hash, plan";
-constexpr int kJobColumnCount = 46;
+    "receiver_hash, plan, owner";
+constexpr int kJobColumnCount = 47;
 constexpr int kGridColumn = 16, kOptionsColumn = 34;
 
 /// The schema this build writes (PRAGMA user_version). 2: typed grid and option columns;
@@ -100,8 +100,9 @@ constexpr int kGridColumn = 16, kOptionsColumn = 34;
 /// 4: sun tracks, keyframes and versions (tables added to a version 2 or 3 store);
 /// 5: the receiver declaration's columns and the plan (added to a version 2 to 4 store:
 /// receivers everywhere, no plan recorded); 6: the worker that failed a tile last
-/// (added to a version 2 to 5 store).
-constexpr int kSchemaVersion = 6;
+/// (added to a version 2 to 5 store); 7: the owner of jobs and tracks (R28; added to a
+/// version 2 to 6 store as '', made without tokens: every client sees them).
+constexpr int kSchemaVersion = 7;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -149,6 +150,7 @@ JobRecord readJob(const Statement& s) {
   o.receiverPcf = uint8_t(s.i64(c + 9));
   if (!s.str(c + 10).empty()) j.receiverHash = parseHashHex(s.str(c + 10), "the job's receiver hash");
   j.plan = s.str(c + 11);
+  j.owner = s.str(c + 12);
   return j;
 }
 
@@ -170,6 +172,7 @@ void bindJob(Statement& s, const JobRecord& j) {
     s.bind(c++, v);
   s.text(c++, j.receiverHash == Hash128{} ? std::string() : j.receiverHash.hex());
   s.text(c++, j.plan);
+  s.text(c++, j.owner);
 }
 
 }  // namespace
@@ -213,6 +216,12 @@ FarmStore::FarmStore(const std::string& path) {
       exec("ALTER TABLE jobs ADD COLUMN plan TEXT NOT NULL DEFAULT ''");
     }
     if (upgradable && version <= 5) exec("ALTER TABLE tiles ADD COLUMN failed_by TEXT");
+    if (upgradable && version <= 6) {
+      exec("ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
+      Statement tracks(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'tracks'");
+      tracks.step();
+      if (tracks.i64(0) > 0) exec("ALTER TABLE tracks ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
+    }
   }
   exec(
       "CREATE TABLE IF NOT EXISTS jobs(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, scene_hash TEXT, geometry_hash "
@@ -223,7 +232,7 @@ FarmStore::FarmStore(const std::string& path) {
       "frame_v_x REAL, frame_v_y REAL, frame_v_z REAL, origin_x REAL, origin_y REAL, origin_z REAL, u0 REAL, v0 REAL, "
       "d0 REAL, extent REAL, depth_extent REAL, log2_resolution INTEGER, closed INTEGER, exit_mode INTEGER, cull "
       "INTEGER, compress INTEGER, undefined_rule INTEGER, log2_tile_size INTEGER, hash_kind INTEGER, renderer INTEGER, "
-      "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT, plan TEXT)");
+      "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT, plan TEXT, owner TEXT NOT NULL DEFAULT '')");
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
       "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, failed_by TEXT, PRIMARY KEY(job_id, idx))");
@@ -237,7 +246,7 @@ FarmStore::FarmStore(const std::string& path) {
   exec(
       "CREATE TABLE IF NOT EXISTS tracks(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, spec BLOB, state INTEGER, "
       "created_ms INTEGER, error TEXT, keyframes_total INTEGER, next_keyframe INTEGER, published INTEGER, "
-      "skipped INTEGER, latest_sequence INTEGER)");
+      "skipped INTEGER, latest_sequence INTEGER, owner TEXT NOT NULL DEFAULT '')");
   exec(
       "CREATE TABLE IF NOT EXISTS keyframes(track_id TEXT REFERENCES tracks(id), keyframe INTEGER, instant_ms "
       "INTEGER, dir_x REAL, dir_y REAL, dir_z REAL, job_id TEXT, state INTEGER, PRIMARY KEY(track_id, keyframe))");
@@ -378,13 +387,15 @@ std::vector<JobRecord> FarmStore::jobs(bool includeFinished) {
 }
 
 std::vector<JobRecord> FarmStore::jobsAfter(bool includeFinished, int64_t createdMs, const std::string& id,
-                                            size_t limit) {
+                                            size_t limit, const std::optional<std::string>& owner) {
   std::lock_guard lock(mutex_);
   Statement s(db_, (std::string("SELECT ") + kJobColumns +
                     " FROM jobs WHERE (created_ms > ?1 OR (created_ms = ?1 AND id > ?2))" +
-                    (includeFinished ? "" : " AND state IN (1, 2, 3)") + " ORDER BY created_ms, id LIMIT ?3")
+                    (includeFinished ? "" : " AND state IN (1, 2, 3)") +
+                    (owner ? " AND owner IN (?4, '')" : "") + " ORDER BY created_ms, id LIMIT ?3")
                        .c_str());
   s.bind(1, createdMs).text(2, id).bind(3, int64_t(limit));
+  if (owner) s.text(4, *owner);
   std::vector<JobRecord> out;
   while (s.step()) out.push_back(readJob(s));
   for (JobRecord& j : out) fillJobCounts(j);
@@ -627,7 +638,8 @@ void FarmStore::cancelTiles(const std::string& jobId) {
 namespace {
 
 constexpr const char* kTrackColumns =
-    "id, request_id, spec, state, created_ms, error, keyframes_total, next_keyframe, published, skipped, latest_sequence";
+    "id, request_id, spec, state, created_ms, error, keyframes_total, next_keyframe, published, skipped, latest_sequence, "
+    "owner";
 
 TrackRecord readTrack(Statement& s) {
   TrackRecord t;
@@ -642,6 +654,7 @@ TrackRecord readTrack(Statement& s) {
   t.published = uint64_t(s.i64(8));
   t.skipped = uint64_t(s.i64(9));
   t.latestSequence = uint64_t(s.i64(10));
+  t.owner = s.str(11);
   return t;
 }
 
@@ -666,10 +679,10 @@ VersionRecord readVersion(Statement& s) {
 
 void FarmStore::createTrack(const TrackRecord& t) {
   std::lock_guard lock(mutex_);
-  Statement s(db_, (std::string("INSERT INTO tracks(") + kTrackColumns + ") VALUES(?,?,?,?,?,?,?,?,?,?,?)").c_str());
+  Statement s(db_, (std::string("INSERT INTO tracks(") + kTrackColumns + ") VALUES(?,?,?,?,?,?,?,?,?,?,?,?)").c_str());
   s.text(1, t.id).text(2, t.requestId).bind(3, t.spec).bind(4, int64_t(t.state)).bind(5, t.createdMs).text(6, t.error);
   s.bind(7, int64_t(t.keyframesTotal)).bind(8, int64_t(t.nextKeyframe)).bind(9, int64_t(t.published));
-  s.bind(10, int64_t(t.skipped)).bind(11, int64_t(t.latestSequence));
+  s.bind(10, int64_t(t.skipped)).bind(11, int64_t(t.latestSequence)).text(12, t.owner);
   s.run();
 }
 

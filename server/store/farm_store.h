@@ -50,6 +50,7 @@ struct JobRecord {
   BakeOptions options;
   Hash128 receiverHash;  // receiverHash of the job's declaration (zero: receivers everywhere)
   std::string plan;      // planJson of the bake, made at submit: the artifact records it
+  std::string owner;     // the client that submitted it (R28); '' without tokens
   JobState state = JobState::Queued;
   int priority = 0;
   int64_t createdMs = 0, startedMs = 0, finishedMs = 0;
@@ -71,6 +72,7 @@ struct LeaseRecord {
 /// values of cpvs.v1.TrackState.
 struct TrackRecord {
   std::string id, requestId, spec, error;
+  std::string owner;  // the client that created it (R28); '' without tokens
   int state = 1;
   int64_t createdMs = 0;
   uint64_t keyframesTotal = 0;  // 0: a clock, unbounded
@@ -126,8 +128,10 @@ class FarmStore {
   void createJob(const JobRecord& j, const std::vector<uint64_t>& untouched = {});
   std::vector<JobRecord> jobs(bool includeFinished);
   /// At most `limit` jobs after the position (createdMs, id), oldest first: a page of a
-  /// listing that stays bounded however many jobs the store holds (R16).
-  std::vector<JobRecord> jobsAfter(bool includeFinished, int64_t createdMs, const std::string& id, size_t limit);
+  /// listing that stays bounded however many jobs the store holds (R16); with `owner`,
+  /// only that owner's jobs and those made without one.
+  std::vector<JobRecord> jobsAfter(bool includeFinished, int64_t createdMs, const std::string& id, size_t limit,
+                                   const std::optional<std::string>& owner = std::nullopt);
   /// Forgets at most `limit` jobs that ended before `beforeMs` and that no track still
   /// needs (a kept version or a pending keyframe): their rows, tiles, leases and stages, in
   /// one transaction. Returns their ids, whose files the caller removes (R16, R25).

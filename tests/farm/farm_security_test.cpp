@@ -14,6 +14,7 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <set>
 #include <thread>
 
 #include "scene_testing.h"
@@ -45,6 +46,9 @@ using testing::ChildProcess;
 const std::string kClientToken = "bb34f308bb8754bc42d72ebdd4f9a39a9f0c6d49";
 const std::string kWorkerToken = "d09b8cf6586f9f8592c562a99c8627c0120b4013";
 const std::string kAdminToken = "b3d6ee7361a489443d75bc0c723658c0cf53cee6";
+// Two client tokens of one owner ("team"): they share their jobs, and see no other's.
+const std::string kTeamToken = "5e0c7a21f9d84b36a1c2e8f07d93b64a2f1e5c80";
+const std::string kTeamMateToken = "a7f3c9e1d2b8406f95e7c3a1b0d4f8e26c9a7b13";
 const std::string kWrongToken = "cb8f688657ebc5ee9f342fc9a1d5d709ea024985";  // a token's shape, in no table
 
 /// Every RPC of these tests ends within this many seconds.
@@ -323,7 +327,8 @@ struct SuiteState {
     fs::remove_all(dir);
     fs::create_directories(dir);
     std::ofstream(dir / "tokens") << "# the security test's tokens\nclient " << kClientToken << "\nworker "
-                                  << kWorkerToken << "\nadmin " << kAdminToken << "\n";
+                                  << kWorkerToken << "\nadmin " << kAdminToken << "\nclient " << kTeamToken
+                                  << " team\nclient " << kTeamMateToken << " team\n";
     sceneBytes = testSceneObj();
     scenePath = (dir / "scene.obj").string();
     std::ofstream(scenePath, std::ios::binary) << sceneBytes;
@@ -923,6 +928,45 @@ TEST_F(FarmSecurityTest, MalformedRequestsGetTheirStatusAndChangeNothing) {
   ASSERT_TRUE(s.ok()) << net::describe(s);
   EXPECT_TRUE(done.accepted());
   EXPECT_EQ(f.job(storedJob_).tiles_done(), 1u);
+}
+
+// R28: any client token could list, follow, cancel and download every job. A client sees
+// and touches its own jobs only (tokens of one owner share theirs); an administrator all.
+TEST_F(FarmSecurityTest, R28_AClientSeesAndTouchesOnlyItsOwnJobs) {
+  FarmUnderTest& f = *s_->farm;
+  pb::JobStatus theirs;
+  ASSERT_TRUE(f.submit(kTeamToken, s_->request("the-teams-job", 32), &theirs).ok());
+  auto listed = [&](const std::string& token) {
+    pb::ListJobsReply all;
+    EXPECT_TRUE(f.list(token, true, &all).ok());
+    std::set<std::string> ids;
+    for (const auto& j : all.jobs()) ids.insert(j.job_id());
+    return ids;
+  };
+  EXPECT_EQ(listed(kTeamToken), std::set<std::string>{theirs.job_id()});
+  EXPECT_EQ(listed(kTeamMateToken), std::set<std::string>{theirs.job_id()});
+  const std::set<std::string> mine = listed(kClientToken), everything = listed(kAdminToken);
+  EXPECT_EQ(mine.count(theirs.job_id()), 0u);
+  EXPECT_EQ(mine.count(doneJob_), 1u);
+  EXPECT_EQ(mine.count(storedJob_), 1u);
+  for (const std::string& id : {theirs.job_id(), doneJob_, storedJob_}) EXPECT_EQ(everything.count(id), 1u) << id;
+  // Another client's job, by its id: PERMISSION_DENIED, and nothing changes.
+  EXPECT_EQ(f.cancel(kClientToken, theirs.job_id()).error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_EQ(f.watch(kClientToken, theirs.job_id()).error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_EQ(f.download(kTeamToken, doneJob_, 0).error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_EQ(f.cancel(kTeamMateToken, storedJob_).error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  // A request id another client used is taken, without saying whose job it names.
+  const grpc::Status taken = f.submit(kClientToken, s_->request("the-teams-job", 32));
+  EXPECT_EQ(taken.error_code(), grpc::StatusCode::ALREADY_EXISTS);
+  EXPECT_EQ(taken.error_message().find(theirs.job_id()), std::string::npos) << taken.error_message();
+  // The owner's other token and the administrator may.
+  std::string bytes;
+  EXPECT_TRUE(f.download(kAdminToken, doneJob_, 0, &bytes).ok());
+  EXPECT_GT(bytes.size(), 0u);
+  pb::JobStatus cancelled;
+  EXPECT_TRUE(f.cancel(kTeamMateToken, theirs.job_id(), &cancelled).ok());
+  EXPECT_EQ(cancelled.state(), pb::JOB_CANCELLED);
+  expectIntact("R28");
 }
 
 TEST_F(FarmSecurityTest, ConcurrentRetriesOfOneRequestGiveOneJob) {

@@ -385,7 +385,8 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
                          "ALTER TABLE jobs DROP COLUMN renderer; ALTER TABLE jobs DROP COLUMN receivers; "
                          "ALTER TABLE jobs DROP COLUMN receiver_pcf; ALTER TABLE jobs DROP COLUMN receiver_hash; "
                          "ALTER TABLE jobs DROP COLUMN plan; ALTER TABLE tiles DROP COLUMN failed_by; "
-                         "PRAGMA user_version = 2",
+                         "ALTER TABLE jobs DROP COLUMN owner; DROP TABLE versions; DROP TABLE keyframes; "
+                         "DROP TABLE tracks; PRAGMA user_version = 2",
                          nullptr, nullptr, nullptr),
             SQLITE_OK);
   sqlite3_close(db);
@@ -397,6 +398,7 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
   EXPECT_EQ(back->receiverHash, Hash128{});
   EXPECT_EQ(back->grid.log2Resolution, 10);
   EXPECT_EQ(back->tilesTotal, 2u);
+  EXPECT_EQ(back->owner, "");  // made before owners: every client sees it
   server::JobRecord fresh = sampleJob("new", 0, 1);
   store.createJob(fresh);
   EXPECT_EQ(store.job("new")->options.renderer, Renderer::Raster);
@@ -440,6 +442,17 @@ TEST(TokenTable, RolesFromAFileAndWhatEachMayCall) {
   EXPECT_FALSE(server::TokenTable::allows(server::Role::Client, server::Role::Worker));
   std::ofstream(dir / "bad") << "superuser " << c << "\n";
   EXPECT_THROW(server::TokenTable::load(dir / "bad"), InputError);
+  // Owners (R28): named, shared by the tokens that name them; else each token its own.
+  EXPECT_EQ(t.ownerOf(c), "token-a36c0388b251");  // 12 hex digits of its SHA-256
+  EXPECT_FALSE(t.ownerOf("nope").has_value());
+  std::ofstream(dir / "owned") << "client " << c << " team-a\nclient " << w << " team-a\n";
+  const server::TokenTable owned = server::TokenTable::load(dir / "owned");
+  EXPECT_EQ(owned.ownerOf(c), "team-a");
+  EXPECT_EQ(owned.ownerOf(w), "team-a");
+  for (const std::string& line : {"client " + c + " two words", "client " + c + " team/a", "client " + c + " " + std::string(65, 'x')}) {
+    std::ofstream(dir / "bad") << line << "\n";
+    EXPECT_THROW(server::TokenTable::load(dir / "bad"), InputError) << line;
+  }
 }
 
 // R7: tokens a person made up, or left as shipped, are refused when the table loads.
