@@ -87,8 +87,8 @@ int main(int argc, char** argv) {
   double keepFinishedHours = config.retention.keepFinishedSeconds / 3600;
   double uploadExpiryHours = config.retention.uploadExpirySeconds / 3600;
   app.add_option("--keep-finished-hours", keepFinishedHours,
-                 "How long a finished job, its artifact and its place in listings are kept (0: forever); a track's "
-                 "kept versions are kept while the track holds them")
+                 "How long a finished job, its artifact and its place in listings are kept, and a stored scene no "
+                 "job names after its last use (0: forever); a track's kept versions stay while the track holds them")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
   app.add_option("--upload-expiry-hours", uploadExpiryHours,
                  "An upload that received no byte for this long is dropped (0: never)")

@@ -51,6 +51,8 @@ size_t Housekeeper::runOnce() {
         if (ids.size() < 256) break;
       }
       if (pruned) spdlog::info("pruned {} job(s) that ended more than {} s ago", pruned, rules_.keepFinishedSeconds);
+      if (const size_t scenes = scenes_.pruneUnused(before))
+        spdlog::info("pruned {} scene(s) no job used for {} s", scenes, rules_.keepFinishedSeconds);
     }
   } catch (const StoreUnavailable& e) {
     spdlog::warn("housekeeping put off: {}", e.what());  // the next round tries again

@@ -1,5 +1,6 @@
 // What the coordinator forgets on purpose (R16, R25, R15): finished jobs past their
-// retention, with their artifacts and tile results, and uploads abandoned half-way. Without
+// retention, with their artifacts and tile results, scenes no job has used as long, and
+// uploads abandoned half-way. Without
 // it every job and upload ever made stays on disk and in every listing.
 #pragma once
 
@@ -15,7 +16,7 @@
 namespace cpvs::server {
 
 struct RetentionRules {
-  double keepFinishedSeconds = 30 * 86400.0;  // a finished job (and its artifact) is kept this long; 0: forever
+  double keepFinishedSeconds = 30 * 86400.0;  // a finished job (and its artifact), an unused scene: kept this long; 0: forever
   double uploadExpirySeconds = 86400.0;       // an upload with no byte for this long is dropped; 0: never
   double intervalSeconds = 60;                // how often the rules are applied
 };

@@ -129,8 +129,8 @@ void SceneStore::dropUpload(const std::string& hash) {
 }
 
 std::vector<fs::path> SceneStore::uploadFiles(const std::string& hash) const {
-  // The part being received, or the whole file renamed into place before its import was
-  // committed (R5): HASH.part, HASH.EXT.
+  // The part being received, the whole file (renamed into place, perhaps before its
+  // import was committed, R5) and its mesh: HASH.part, HASH.EXT, HASH.mesh.
   std::vector<fs::path> out;
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(folder_, ec))
@@ -169,6 +169,21 @@ size_t SceneStore::expireIdleUploads(std::chrono::seconds maxIdle) {
     spdlog::info("upload of scene {} expired: no byte for {} s", hash, maxIdle.count());
   }
   return dropped;
+}
+
+size_t SceneStore::pruneUnused(int64_t beforeMs) {
+  // Under the upload lock: no upload of the same hash starts while its files go.
+  std::lock_guard lock(mutex_);
+  size_t pruned = 0;
+  for (;;) {
+    const std::vector<std::string> hashes = store_.pruneUnusedScenes(beforeMs, 256);
+    for (const std::string& hash : hashes) {
+      std::error_code ec;
+      for (const fs::path& file : uploadFiles(hash)) fs::remove(file, ec);
+    }
+    pruned += hashes.size();
+    if (hashes.size() < 256) return pruned;
+  }
 }
 
 void SceneStore::touch(const std::string& hash) {
@@ -329,6 +344,7 @@ bool SceneStore::verifyStored(const std::string& hash) {
 
 Scene SceneStore::load(const std::string& sceneHash, SceneStats* stats) {
   const std::string stored = scenePath(sceneHash);
+  store_.touchScene(sceneHash);  // used now: kept for the retention from here
   // The mesh kept at upload: a submit does not import the file again.
   const std::string mesh = meshPath(sceneHash);
   try {

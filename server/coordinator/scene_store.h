@@ -49,6 +49,9 @@ class SceneStore {
   /// Drops the uploads in progress that received no byte for `maxIdle` (by their part
   /// file's time, which outlives a restart); returns how many (R15).
   size_t expireIdleUploads(std::chrono::seconds maxIdle);
+  /// Forgets the stored scenes no job or active track names that no submit used since
+  /// `beforeMs` (Unix ms), with their files; returns how many (R25).
+  size_t pruneUnused(int64_t beforeMs);
 
  private:
   std::string partPath(const std::string& hash) const;
@@ -57,7 +60,7 @@ class SceneStore {
   void touch(const std::string& hash);
   /// Forgets an upload in progress: its files and its row (under mutex_).
   void dropUpload(const std::string& hash);
-  /// The files an unfinished upload has in the scenes folder.
+  /// The files a scene has in the scenes folder (HASH.part, HASH.EXT, HASH.mesh).
   std::vector<std::filesystem::path> uploadFiles(const std::string& hash) const;
 
   FarmStore& store_;

@@ -101,7 +101,8 @@ constexpr int kGridColumn = 16, kOptionsColumn = 34;
 /// 5: the receiver declaration's columns and the plan (added to a version 2 to 4 store:
 /// receivers everywhere, no plan recorded); 6: the worker that failed a tile last
 /// (added to a version 2 to 5 store); 7: the owner of jobs and tracks (R28; added to a
-/// version 2 to 6 store as '', made without tokens: every client sees them).
+/// version 2 to 6 store as '', made without tokens: every client sees them) and when a
+/// scene was last used (for its retention; now, for the scenes of an upgraded store).
 constexpr int kSchemaVersion = 7;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
@@ -177,6 +178,15 @@ void bindJob(Statement& s, const JobRecord& j) {
 
 }  // namespace
 
+namespace {
+
+int64_t wallClockMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
 FarmStore::FarmStore(const std::string& path) {
   if (sqlite3_open(path.c_str(), &db_) != SQLITE_OK) {
     std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
@@ -190,12 +200,29 @@ FarmStore::FarmStore(const std::string& path) {
     if (!wal.step() || wal.str(0) != "wal")
       throw std::runtime_error("the job store " + path + " cannot use write-ahead logging on this file system");
   }
+  {
+    // A damaged store is refused at start, with what to do, rather than found out by the
+    // first job that reads the damaged page (R25).
+    std::string problems;
+    try {
+      Statement check(db_, "PRAGMA quick_check(5)");
+      while (check.step())
+        if (check.str(0) != "ok") problems += (problems.empty() ? "" : "; ") + check.str(0);
+    } catch (const StoreUnavailable&) {
+      throw;
+    } catch (const std::runtime_error& e) {
+      problems = e.what();
+    }
+    if (!problems.empty())
+      throw std::runtime_error("the job store " + path + " is damaged (" + problems +
+                               "): restore it from a backup, or start with an empty --data folder");
+  }
   // FULL: an acknowledged tile or upload must survive a power cut, not only a crash.
   exec("PRAGMA synchronous=FULL");
   exec("PRAGMA foreign_keys=ON");
   exec(
       "CREATE TABLE IF NOT EXISTS scenes(hash TEXT PRIMARY KEY, file_name TEXT, total_size INTEGER, received INTEGER,"
-      " complete INTEGER, triangles INTEGER, geometry_hash TEXT)");
+      " complete INTEGER, triangles INTEGER, geometry_hash TEXT, last_used_ms INTEGER NOT NULL DEFAULT 0)");
   {
     Statement v(db_, "PRAGMA user_version");
     v.step();
@@ -217,6 +244,8 @@ FarmStore::FarmStore(const std::string& path) {
     }
     if (upgradable && version <= 5) exec("ALTER TABLE tiles ADD COLUMN failed_by TEXT");
     if (upgradable && version <= 6) {
+      exec("ALTER TABLE scenes ADD COLUMN last_used_ms INTEGER NOT NULL DEFAULT 0");
+      exec(("UPDATE scenes SET last_used_ms = " + std::to_string(wallClockMs())).c_str());  // their age is unknown
       exec("ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
       Statement tracks(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'tracks'");
       tracks.step();
@@ -288,10 +317,45 @@ std::optional<SceneRecord> FarmStore::scene(const std::string& hash) {
 
 void FarmStore::putScene(const SceneRecord& r) {
   std::lock_guard lock(mutex_);
-  Statement s(db_, "INSERT OR REPLACE INTO scenes VALUES(?, ?, ?, ?, ?, ?, ?)");
+  Statement s(db_,
+              "INSERT OR REPLACE INTO scenes(hash, file_name, total_size, received, complete, triangles, geometry_hash, "
+              "last_used_ms) VALUES(?, ?, ?, ?, ?, ?, ?, ?)");
   s.text(1, r.hash).text(2, r.fileName).bind(3, int64_t(r.totalSize)).bind(4, int64_t(r.received));
-  s.bind(5, int64_t(r.complete)).bind(6, int64_t(r.triangles)).text(7, r.geometryHash);
+  s.bind(5, int64_t(r.complete)).bind(6, int64_t(r.triangles)).text(7, r.geometryHash).bind(8, wallClockMs());
   s.run();
+}
+
+void FarmStore::touchScene(const std::string& hash) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "UPDATE scenes SET last_used_ms = ? WHERE hash = ?");
+  s.bind(1, wallClockMs()).text(2, hash);
+  s.run();
+}
+
+std::vector<std::string> FarmStore::pruneUnusedScenes(int64_t beforeMs, size_t limit) {
+  std::lock_guard lock(mutex_);
+  Transaction t(db_);
+  std::vector<std::string> hashes;
+  {
+    // A receiver volume is a scene too: a job names it in its spec, so a scene any job
+    // still names in any way is kept (the spec's bytes hold the hash as text).
+    Statement s(db_,
+                "SELECT hash FROM scenes WHERE complete = 1 AND last_used_ms < ? "
+                "AND hash NOT IN (SELECT scene_hash FROM jobs) "
+                "AND NOT EXISTS (SELECT 1 FROM jobs WHERE instr(spec, CAST(scenes.hash AS BLOB)) > 0) "
+                "AND NOT EXISTS (SELECT 1 FROM tracks WHERE state = 1 AND instr(spec, CAST(scenes.hash AS BLOB)) > 0) "
+                "ORDER BY last_used_ms LIMIT ?");
+    s.bind(1, beforeMs).bind(2, int64_t(limit));
+    while (s.step()) hashes.push_back(s.str(0));
+  }
+  Statement d(db_, "DELETE FROM scenes WHERE hash = ?");
+  for (const std::string& h : hashes) {
+    d.text(1, h);
+    d.run();
+    d.reset();
+  }
+  t.commit();
+  return hashes;
 }
 
 bool FarmStore::responsive(int timeoutMs) {

@@ -118,6 +118,11 @@ class FarmStore {
   /// Hashes of the scenes whose upload started and is not complete.
   std::vector<std::string> incompleteScenes();
   void deleteScene(const std::string& hash);
+  /// Notes that a job uses the scene now (its retention counts from the last use).
+  void touchScene(const std::string& hash);
+  /// Forgets at most `limit` complete scenes last used before `beforeMs` that no job and
+  /// no active track names; returns their hashes, whose files the caller removes.
+  std::vector<std::string> pruneUnusedScenes(int64_t beforeMs, size_t limit);
 
   // Jobs.
   std::optional<JobRecord> job(const std::string& id);

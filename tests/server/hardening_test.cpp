@@ -1197,15 +1197,17 @@ TEST(Hardening, R16_ThousandsOfJobsAreListedPageByPage) {
     EXPECT_EQ(page(10, wrong, &bad).error_code(), grpc::StatusCode::INVALID_ARGUMENT) << wrong;
 }
 
-// R16, R25: jobs, their artifacts and tile results, and uploads abandoned half-way were
-// never forgotten. A finished job goes after its retention (unless a track still serves
-// it), an upload after its expiry, and files a crash left without a job at start.
+// R16, R25: jobs, their artifacts and tile results, scenes and uploads abandoned half-way
+// were never forgotten. A finished job goes after its retention (unless a track still
+// serves it), a scene no job names after as long unused, an upload after its expiry, and
+// files a crash left without a job at start.
 TEST(Hardening, R16_R25_FinishedJobsAndAbandonedUploadsAreForgottenInTime) {
   TempDir dir("cpvs_r16_retention");
   const fs::path data = dir / "data";
   for (const char* sub : {"artifacts", "scenes", "tiles/jold"}) fs::create_directories(data / sub);
   const int64_t now = epochMs(), twoHoursAgo = now - 2 * 3600 * 1000;
   const std::string oldUpload(32, 'a'), newUpload(32, 'f');
+  const std::string unusedScene(32, 'd'), usedScene(32, 'b'), freshScene(32, 'e');
   {
     server::FarmStore store(data / "farm.sqlite");
     for (const char* id : {"jold", "jnew", "jrun", "jtrack"}) store.createJob(oneTileJob(id));
@@ -1214,11 +1216,16 @@ TEST(Hardening, R16_R25_FinishedJobsAndAbandonedUploadsAreForgottenInTime) {
     store.setJobState("jrun", server::JobState::Running, "", twoHoursAgo);
     store.setJobState("jtrack", server::JobState::Done, "", twoHoursAgo);
     for (const std::string& hash : {oldUpload, newUpload}) store.putScene({hash, "s.obj", "", 1000, 8, 0, false});
+    // Stored scenes: one no job names, one a running job names (oneTileJob's), one just used.
+    for (const std::string& hash : {unusedScene, usedScene, freshScene}) store.putScene({hash, "s.obj", "", 2, 2, 1, true});
   }
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open((data / "farm.sqlite").c_str(), &db), SQLITE_OK);
   sqlExec(db, "INSERT INTO versions(track_id, sequence, job_id) VALUES('t1', 1, 'jtrack')");  // a track still serves it
+  sqlExec(db, "UPDATE scenes SET last_used_ms = 0 WHERE hash IN ('" + unusedScene + "', '" + usedScene + "')");
   sqlite3_close(db);
+  for (const std::string& hash : {unusedScene, usedScene, freshScene})
+    for (const char* ext : {".obj", ".mesh"}) writeFileAtomic(data / "scenes" / (hash + ext), {'v'});
   for (const char* id : {"jold", "jnew", "jtrack", "jgone"}) writeFileAtomic(data / "artifacts" / (std::string(id) + ".cpvs"), {1, 2});
   writeFileAtomic(data / "tiles/jold/0.cpvt", {1});
   for (const std::string& hash : {oldUpload, newUpload}) writeFileAtomic(data / "scenes" / (hash + ".part"), {'v', ' '});
@@ -1242,6 +1249,13 @@ TEST(Hardening, R16_R25_FinishedJobsAndAbandonedUploadsAreForgottenInTime) {
     EXPECT_FALSE(farm.coordinator.scenes().uploadStatus(oldUpload).known());
     EXPECT_FALSE(fs::exists(data / "scenes" / (oldUpload + ".part")));
     EXPECT_EQ(farm.coordinator.scenes().uploadStatus(newUpload).received(), 8u);
+    EXPECT_FALSE(farm.coordinator.scenes().uploadStatus(unusedScene).known());
+    EXPECT_FALSE(fs::exists(data / "scenes" / (unusedScene + ".obj")));
+    EXPECT_FALSE(fs::exists(data / "scenes" / (unusedScene + ".mesh")));
+    for (const std::string& kept : {usedScene, freshScene}) {
+      EXPECT_TRUE(farm.coordinator.scenes().uploadStatus(kept).complete()) << kept;
+      EXPECT_TRUE(fs::exists(data / "scenes" / (kept + ".mesh"))) << kept;
+    }
   }
   // While it runs: a job that ends is forgotten once its retention has passed.
   config.retention.keepFinishedSeconds = 2;

@@ -385,7 +385,8 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
                          "ALTER TABLE jobs DROP COLUMN renderer; ALTER TABLE jobs DROP COLUMN receivers; "
                          "ALTER TABLE jobs DROP COLUMN receiver_pcf; ALTER TABLE jobs DROP COLUMN receiver_hash; "
                          "ALTER TABLE jobs DROP COLUMN plan; ALTER TABLE tiles DROP COLUMN failed_by; "
-                         "ALTER TABLE jobs DROP COLUMN owner; DROP TABLE versions; DROP TABLE keyframes; "
+                         "ALTER TABLE jobs DROP COLUMN owner; ALTER TABLE scenes DROP COLUMN last_used_ms; DROP TABLE versions; "
+                         "DROP TABLE keyframes; "
                          "DROP TABLE tracks; PRAGMA user_version = 2",
                          nullptr, nullptr, nullptr),
             SQLITE_OK);
@@ -402,6 +403,31 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
   server::JobRecord fresh = sampleJob("new", 0, 1);
   store.createJob(fresh);
   EXPECT_EQ(store.job("new")->options.renderer, Renderer::Raster);
+}
+
+// R25: a store whose pages were damaged (a bad disk, a copy cut short) is refused at
+// start with what to do, not found out by the first job that reads the page.
+TEST(FarmStore, ADamagedStoreIsRefusedAtStart) {
+  TempDir dir("cpvs_farm_store_damaged");
+  const std::string path = dir / "farm.sqlite";
+  {
+    server::FarmStore store(path);
+    for (int i = 0; i < 40; ++i) store.createJob(sampleJob("j" + std::to_string(i), 0, 64));
+  }
+  std::vector<uint8_t> bytes = readFile(path);
+  ASSERT_GT(bytes.size(), 5u * 4096);
+  for (size_t i = 3 * 4096; i < 3 * 4096 + 512; ++i) bytes[i] = uint8_t(i * 131);
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  }
+  try {
+    server::FarmStore store(path);
+    ADD_FAILURE() << "a damaged store was opened";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("is damaged"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("empty --data folder"), std::string::npos) << e.what();
+  }
 }
 
 TEST(FarmStore, ADatabaseOfAnotherSchemaIsRefusedWithWhatToDo) {
