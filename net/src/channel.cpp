@@ -42,6 +42,9 @@ std::shared_ptr<grpc::Channel> makeChannel(const Connection& c) {
   // A subscriber can wait hours for the next version: notice a dead connection meanwhile.
   args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, kKeepaliveMs);
   args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, kKeepaliveTimeoutMs);
+  // A channel of its own connections: one made anew after a silent partition must not
+  // pick up the old channel's dead connection from gRPC's process-wide pool.
+  args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
   std::shared_ptr<grpc::ChannelCredentials> creds;
   if (c.caFile.empty()) {
     creds = grpc::InsecureChannelCredentials();

@@ -12,14 +12,20 @@ Housekeeper::Housekeeper(FarmStore& store, ArtifactStore& artifacts, SceneStore&
     : store_(store), artifacts_(artifacts), scenes_(scenes), rules_(rules) {}
 
 void Housekeeper::start() {
-  // The store forgets a job before its files go: files of a job it does not know are
-  // what a crash between the two left behind.
-  for (const std::string& jobId : artifacts_.jobsWithArtifacts())
-    if (!store_.jobExists(jobId)) {
-      artifacts_.removeArtifact(jobId);
-      spdlog::info("removed the artifact of job {}, which the store no longer holds", jobId);
-    }
-  runOnce();
+  try {
+    // The store forgets a job or a scene before its files go: files it does not know are
+    // what a crash between the two left behind.
+    for (const std::string& jobId : artifacts_.jobsWithArtifacts())
+      if (!store_.jobExists(jobId)) {
+        artifacts_.removeArtifact(jobId);
+        spdlog::info("removed the artifact of job {}, which the store no longer holds", jobId);
+      }
+    if (const size_t files = scenes_.removeOrphanFiles())
+      spdlog::info("removed {} scene file(s) of scenes the store no longer holds", files);
+    runOnce();
+  } catch (const std::exception& e) {
+    spdlog::error("housekeeping at start failed: {}", e.what());  // the coordinator serves anyway
+  }
   stopping_ = false;
   thread_ = std::thread([this] { loop(); });
 }

@@ -65,6 +65,7 @@ pb::UploadStatus SceneStore::uploadStatus(const std::string& hash) {
     s.set_received(r->received);
     s.set_total_size(r->totalSize);
     s.set_complete(r->complete);
+    if (r->complete) store_.touchScene(hash);  // a client that finds it stored submits next
   }
   return s;
 }
@@ -78,7 +79,10 @@ void SceneStore::beginUpload(const pb::UploadSceneChunk& first) {
                                                       " bytes; the limit is " + std::to_string(maxUploadBytes_));
   std::lock_guard lock(mutex_);
   auto r = store_.scene(first.scene_hash());
-  if (r && r->complete) return;  // known: nothing to do
+  if (r && r->complete) {  // known: nothing to do but note the use (the submit follows)
+    store_.touchScene(r->hash);
+    return;
+  }
   // The hash names one file: two clients uploading it send the same bytes, and the one
   // that comes second carries on from the first's offset, under the first's file name
   // when only the name differs (R19). Another size or format is a different claim about
@@ -169,6 +173,22 @@ size_t SceneStore::expireIdleUploads(std::chrono::seconds maxIdle) {
     spdlog::info("upload of scene {} expired: no byte for {} s", hash, maxIdle.count());
   }
   return dropped;
+}
+
+size_t SceneStore::removeOrphanFiles() {
+  // The row goes before the files (a prune, a dropped upload): a crash between the two
+  // leaves files no row names.
+  std::lock_guard lock(mutex_);
+  size_t removed = 0;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(folder_, ec)) {
+    const std::string name = entry.path().filename().string();
+    const std::string hash = name.substr(0, name.find('.'));
+    if (hash.size() != 32 || name.find(".tmp.") != std::string::npos || store_.scene(hash)) continue;
+    std::error_code gone;
+    if (fs::remove(entry.path(), gone)) ++removed;
+  }
+  return removed;
 }
 
 size_t SceneStore::pruneUnused(int64_t beforeMs) {
@@ -343,8 +363,8 @@ bool SceneStore::verifyStored(const std::string& hash) {
 }
 
 Scene SceneStore::load(const std::string& sceneHash, SceneStats* stats) {
+  store_.touchScene(sceneHash);  // used now, before it is looked up: no prune takes it from here
   const std::string stored = scenePath(sceneHash);
-  store_.touchScene(sceneHash);  // used now: kept for the retention from here
   // The mesh kept at upload: a submit does not import the file again.
   const std::string mesh = meshPath(sceneHash);
   try {

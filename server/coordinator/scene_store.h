@@ -52,6 +52,9 @@ class SceneStore {
   /// Forgets the stored scenes no job or active track names that no submit used since
   /// `beforeMs` (Unix ms), with their files; returns how many (R25).
   size_t pruneUnused(int64_t beforeMs);
+  /// Removes the files of scenes the store does not hold (a prune or a dropped upload cut
+  /// short by a crash); returns how many. At start, before any upload.
+  size_t removeOrphanFiles();
 
  private:
   std::string partPath(const std::string& hash) const;

@@ -128,7 +128,7 @@ std::string TrackService::submitKeyframe(const pb::TrackSpec& spec, const Vec3& 
   // Named by what it bakes: the same keyframe from any of one owner's tracks is the same
   // job (owners share no job, R28).
   const std::string content = b.SerializeAsString() + (owner.empty() ? "" : "\n" + owner);
-  req.set_request_id("keyframe-" + contentHash(content.data(), content.size()).hex());
+  req.set_request_id(kKeyframeRequestPrefix + contentHash(content.data(), content.size()).hex());
   return jobs_.submit(req, Access::of(owner)).job_id();
 }
 
@@ -242,7 +242,19 @@ void TrackService::advance(const TrackRecord& t) {
   std::vector<KeyframeRecord> pending = store_.pendingKeyframes(t.id);
   size_t published = 0;
   for (const KeyframeRecord& k : pending) {
-    const pb::JobStatus job = jobs_.status(k.jobId);
+    pb::JobStatus job;
+    try {
+      job = jobs_.status(k.jobId);
+    } catch (const FarmError& e) {
+      if (e.kind != ErrorKind::NotFound) throw;
+      // A finished job reused from long ago and pruned before this track recorded it:
+      // skipped, not a track stalled behind it for good.
+      store_.skipKeyframe(t.id, k.keyframe);
+      spdlog::warn("track {}: keyframe {} skipped: its job {} is no longer held", t.id, k.keyframe, k.jobId);
+      ++published;
+      changed = true;
+      continue;
+    }
     if (job.state() == pb::JOB_DONE) {
       std::string checksum;
       jobs_.artifactPath(k.jobId, &checksum);

@@ -30,6 +30,9 @@ struct TrackLimits {
   uint32_t maxKeep = 1024;
 };
 
+/// How the request id of every keyframe job starts (clients may not use it).
+constexpr const char* kKeyframeRequestPrefix = "keyframe-";
+
 /// Priority of keyframe jobs: below every interactive bake's default (0).
 constexpr int kKeyframePriority = -100;
 

@@ -133,6 +133,11 @@ grpc::Status FarmService::UploadScene(grpc::ServerContext* ctx, grpc::ServerRead
 
 grpc::Status FarmService::SubmitBake(grpc::ServerContext* ctx, const pb::SubmitBakeRequest* req, pb::JobStatus* out) {
   return guarded(ctx, tokens_, Role::Client, "SubmitBake", [&](const Access& access) {
+    // Keyframe jobs are named by the tracks that need them: a client taking such a name
+    // could stall another's track.
+    if (req->request_id().rfind(kKeyframeRequestPrefix, 0) == 0)
+      throw FarmError(ErrorKind::InvalidArgument,
+                      std::string("request ids starting with '") + kKeyframeRequestPrefix + "' are the farm's own");
     *out = c_.jobs().submit(*req, access);
     return grpc::Status::OK;
   });

@@ -220,6 +220,9 @@ FarmStore::FarmStore(const std::string& path) {
   // FULL: an acknowledged tile or upload must survive a power cut, not only a crash.
   exec("PRAGMA synchronous=FULL");
   exec("PRAGMA foreign_keys=ON");
+  // The schema is made or upgraded in one transaction with its version: a crash half-way
+  // leaves the store as it was, never a version whose columns are half there.
+  Transaction schema(db_);
   exec(
       "CREATE TABLE IF NOT EXISTS scenes(hash TEXT PRIMARY KEY, file_name TEXT, total_size INTEGER, received INTEGER,"
       " complete INTEGER, triangles INTEGER, geometry_hash TEXT, last_used_ms INTEGER NOT NULL DEFAULT 0)");
@@ -284,6 +287,7 @@ FarmStore::FarmStore(const std::string& path) {
       "instant_ms INTEGER, dir_x REAL, dir_y REAL, dir_z REAL, job_id TEXT, checksum TEXT, file_bytes INTEGER, "
       "published_ms INTEGER, PRIMARY KEY(track_id, sequence))");
   exec(("PRAGMA user_version = " + std::to_string(kSchemaVersion)).c_str());
+  schema.commit();
 }
 
 FarmStore::~FarmStore() { sqlite3_close(db_); }

@@ -959,6 +959,9 @@ TEST_F(FarmSecurityTest, R28_AClientSeesAndTouchesOnlyItsOwnJobs) {
   const grpc::Status taken = f.submit(kClientToken, s_->request("the-teams-job", 32));
   EXPECT_EQ(taken.error_code(), grpc::StatusCode::ALREADY_EXISTS);
   EXPECT_EQ(taken.error_message().find(theirs.job_id()), std::string::npos) << taken.error_message();
+  // Nor may a client take the name of a track's keyframe job (it would stall that track).
+  EXPECT_EQ(f.submit(kClientToken, s_->request("keyframe-0123456789abcdef0123456789abcdef", 32)).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
   // The owner's other token and the administrator may.
   std::string bytes;
   EXPECT_TRUE(f.download(kAdminToken, doneJob_, 0, &bytes).ok());

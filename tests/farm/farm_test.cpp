@@ -24,6 +24,7 @@
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "cpvs/net/channel.h"
 #include "cpvs/net/status.h"
+#include "partition_proxy.h"
 #include "powercut.h"
 #include "process_testing.h"
 
@@ -554,6 +555,37 @@ TEST_F(FarmTest, APowerCutLosesNoAcknowledgedWork) {
   }
   std::printf("power cuts: 4, unsynced names dropped %zu, files cut back to their synced size %zu\n", removed,
               truncated);
+}
+
+// R17: a silent partition (packets dropped, no RST) left `cpvs submit --wait` hanging for
+// ever on a watch that heard nothing and never noticed. The client here goes through a
+// forwarder that cuts its connections silently while the job runs (connections made
+// afterwards go through): it notices (keepalive pings unanswered, a watch silent for
+// 30 s), connects again, and downloads the local bytes.
+TEST_F(FarmTest, ASilentPartitionDoesNotHangTheClient) {
+  const std::string address = startServer("partition");
+  testing::PartitionProxy proxy(address);
+  auto run = std::async(std::launch::async, [&] {
+    return runCli("submit --server " + proxy.address() + " --token " + kClientToken + " " + path("city.obj") + kSpec +
+                  " --request-id partition --wait --json --out " + path("partition.cpvs"));
+  });
+  // The job is in (no worker yet: it waits, and the client watches), then the cut.
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (jobs(address).empty() && std::chrono::steady_clock::now() < end)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_EQ(jobs(address).size(), 1u);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the watch is open
+  proxy.cutOpenConnections();
+  const int before = proxy.connections();
+  const auto cut = std::chrono::steady_clock::now();
+  startWorker(address, "w-partition", {"--threads", "1"});
+  const Ran r = run.get();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - cut).count();
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(bytesOf(path("partition.cpvs")), bytesOf(path("local.cpvs")));
+  EXPECT_GT(proxy.connections(), before);  // it connected again
+  EXPECT_LT(seconds, 60);  // the review's bound; the watch notices in 15 s
+  std::printf("partition: the client finished %.1f s after its connections were cut silently\n", seconds);
 }
 
 // Soak: 200 small jobs from four clients on a farm of three workers, while a seeded chaos

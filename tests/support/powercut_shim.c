@@ -32,6 +32,8 @@ static const char* folder(void) { return getenv("CPVS_POWERCUT_DIR"); }
 static int under(const char* path) {
   const char* dir = folder();
   if (dir == NULL || path == NULL) return 0;
+  size_t n = strlen(dir);
+  while (n > 1 && dir[n - 1] == '/') --n;  // "/data/" is "/data"
   char resolved[4096];
   if (path[0] != '/') {
     if (getcwd(resolved, sizeof resolved - 1) == NULL) return 0;
@@ -39,7 +41,6 @@ static int under(const char* path) {
     snprintf(resolved + n, sizeof resolved - n, "/%s", path);
     path = resolved;
   }
-  const size_t n = strlen(dir);
   return strncmp(path, dir, n) == 0 && (path[n] == '/' || path[n] == 0);
 }
 
@@ -67,7 +68,9 @@ static void journal(const char* line) {
   if (fd < 0) {
     const char* log = getenv("CPVS_POWERCUT_LOG");
     if (log == NULL) return;
-    fd = open(log, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);  // a plain open: not journaled
+    typedef int (*plain_open)(const char*, int, ...);
+    plain_open real = (plain_open)dlsym(RTLD_NEXT, "open");  // the journal itself is not journaled
+    fd = real(log, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
     if (fd < 0) return;
   }
   ssize_t ignored = write(fd, line, strlen(line));
@@ -82,6 +85,9 @@ static int fdPath(int fd, char* out, size_t size) {
   out[n] = 0;
   return 1;
 }
+
+/// Whether open's flags say a mode follows (O_TMPFILE holds O_DIRECTORY's bit).
+static int takesMode(int flags) { return (flags & O_CREAT) || (flags & O_TMPFILE) == O_TMPFILE; }
 
 typedef int (*openat_fn)(int, const char*, int, ...);
 typedef int (*open_fn)(const char*, int, ...);
@@ -109,7 +115,7 @@ static int existsNow(const char* path) {
 
 #define OPEN_BODY(name, call)                                       \
   mode_t mode = 0;                                                  \
-  if (flags & (O_CREAT | O_TMPFILE)) {                              \
+  if (takesMode(flags)) {                                           \
     va_list ap;                                                     \
     va_start(ap, flags);                                            \
     mode = (mode_t)va_arg(ap, int);                                 \
@@ -136,7 +142,7 @@ int openat(int dirfd, const char* path, int flags, ...) {
   // Paths relative to another descriptor than the working folder are not journaled.
   if (dirfd != AT_FDCWD && path[0] != '/') {
     mode_t mode = 0;
-    if (flags & (O_CREAT | O_TMPFILE)) {
+    if (takesMode(flags)) {
       va_list ap;
       va_start(ap, flags);
       mode = (mode_t)va_arg(ap, int);
@@ -151,7 +157,7 @@ int openat64(int dirfd, const char* path, int flags, ...) {
   REAL("openat64", openat_fn);
   if (dirfd != AT_FDCWD && path[0] != '/') {
     mode_t mode = 0;
-    if (flags & (O_CREAT | O_TMPFILE)) {
+    if (takesMode(flags)) {
       va_list ap;
       va_start(ap, flags);
       mode = (mode_t)va_arg(ap, int);

@@ -102,6 +102,14 @@ struct FarmClient::Transport {
     return reply;
   }
 
+  /// A new channel, on new connections: after a stream went silent, the connection under
+  /// it may be dead without gRPC knowing yet (a silent partition), and every call on it
+  /// would wait for the keepalive to find out.
+  void renewChannel() {
+    channel = net::makeChannel(connection);
+    stub = pb::Farm::NewStub(channel);
+  }
+
   net::Connection connection;
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<pb::Farm::Stub> stub;
@@ -192,11 +200,12 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
   pb::JobRef ref;
   ref.set_job_id(jobId);
   // The server sends a status at least once a second. A watch that hears nothing for
-  // kWatchSilenceSeconds reconnects; one that gets no status for kWatchGiveUpSeconds
+  // kWatchSilenceSeconds reconnects on a new channel (the old connection may be dead
+  // without a word, a silent partition); one that gets no status for kWatchGiveUpSeconds
   // (a coordinator down, a partition) gives up as Unavailable. A coordinator restarted on
   // its folder keeps the job, and the watch carries on (R17).
   using Clock = std::chrono::steady_clock;
-  constexpr int kWatchSilenceSeconds = 30, kWatchGiveUpSeconds = 120;
+  constexpr int kWatchSilenceSeconds = 15, kWatchGiveUpSeconds = 120;
   pb::JobStatus last;
   bool any = false;
   // When a status (or a new connection) was last seen, read by the watchdog thread too.
@@ -212,10 +221,14 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
     std::condition_variable cv;
     bool done = false;
     const int64_t openedMs = sinceEpochMs();
+    std::atomic<bool> silent{false};
     std::thread watchdog([&] {
       std::unique_lock lock(m);
       while (!cv.wait_for(lock, std::chrono::seconds(1), [&] { return done; }))
-        if (sinceEpochMs() - std::max(openedMs, lastHeardMs.load()) > kWatchSilenceSeconds * 1000) ctx.TryCancel();
+        if (sinceEpochMs() - std::max(openedMs, lastHeardMs.load()) > kWatchSilenceSeconds * 1000) {
+          silent = true;
+          ctx.TryCancel();
+        }
     });
     auto reader = transport_->stub->WatchJob(&ctx, ref);
     pb::JobStatus status;
@@ -241,6 +254,7 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
     if (finished.ok())
       throw callError(net::ErrorKind::Internal, "the server ended the watch of job " + jobId + " before the job ended");
     if (sinceEpochMs() - lastHeardMs.load() > kWatchGiveUpSeconds * 1000) check(finished);
+    if (silent) transport_->renewChannel();
     std::this_thread::sleep_for(std::chrono::milliseconds(backoffMs));
     backoffMs = std::min(backoffMs * 2, 5000);
   }
