@@ -557,15 +557,26 @@ std::optional<LeaseRecord> FarmStore::leaseNextTile(const std::string& workerId,
                                                     int64_t nowMs, int64_t deadlineMs) {
   std::lock_guard lock(mutex_);
   Transaction t(db_);
-  Statement pick(db_,
-                 "SELECT t.job_id, t.idx FROM tiles t JOIN jobs j ON j.id = t.job_id "
-                 "WHERE t.state = 0 AND j.state IN (1, 2) "
-                 "ORDER BY j.priority DESC, COALESCE(t.failed_by = ?, 0), "
-                 "(SELECT COUNT(*) FROM tiles l WHERE l.job_id = t.job_id AND l.state = 1), "
-                 "j.created_ms, j.id, t.idx LIMIT 1");
-  pick.text(1, workerId);
-  if (!pick.step()) return std::nullopt;
-  LeaseRecord r{leaseId, pick.str(0), workerId, uint64_t(pick.i64(1)), deadlineMs, nowMs};
+  // The job first, from the few unfinished ones (never a sort of every queued tile: R2):
+  // its priority, whether it has a tile this worker did not fail last, its tiles out on
+  // lease (counted once per job from the state index), its age. Then its first such tile.
+  Statement pickJob(db_,
+                    "WITH leased AS (SELECT job_id, COUNT(*) AS n FROM tiles WHERE state = 1 GROUP BY job_id) "
+                    "SELECT j.id, NOT EXISTS (SELECT 1 FROM tiles t WHERE t.job_id = j.id AND t.state = 0 "
+                    "AND t.failed_by IS NOT ?1) AS onlyFailed FROM jobs j LEFT JOIN leased l ON l.job_id = j.id "
+                    "WHERE j.state IN (1, 2) AND EXISTS (SELECT 1 FROM tiles t WHERE t.job_id = j.id AND t.state = 0) "
+                    "ORDER BY j.priority DESC, onlyFailed, COALESCE(l.n, 0), j.created_ms, j.id LIMIT 1");
+  pickJob.text(1, workerId);
+  if (!pickJob.step()) return std::nullopt;
+  const std::string jobId = pickJob.str(0);
+  const bool onlyFailed = pickJob.i64(1) != 0;
+  Statement pickTile(db_, onlyFailed ? "SELECT idx FROM tiles WHERE job_id = ?1 AND state = 0 ORDER BY idx LIMIT 1"
+                                     : "SELECT idx FROM tiles WHERE job_id = ?1 AND state = 0 AND failed_by IS NOT ?2 "
+                                       "ORDER BY idx LIMIT 1");
+  pickTile.text(1, jobId);
+  if (!onlyFailed) pickTile.text(2, workerId);
+  if (!pickTile.step()) return std::nullopt;
+  LeaseRecord r{leaseId, jobId, workerId, uint64_t(pickTile.i64(0)), deadlineMs, nowMs};
   Statement upd(db_, "UPDATE tiles SET state = 1, attempts = attempts + 1, lease_id = ?, deadline_ms = ? "
                      "WHERE job_id = ? AND idx = ?");
   upd.text(1, leaseId).bind(2, deadlineMs).text(3, r.jobId).bind(4, int64_t(r.tile));
