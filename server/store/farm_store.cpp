@@ -180,6 +180,27 @@ void bindJob(Statement& s, const JobRecord& j) {
 
 namespace {
 
+/// The keys a query selects (one text column, bound to `beforeMs` and `limit`), then each
+/// deleted by every statement of `deletes`: one pruning pass, inside the caller's transaction.
+std::vector<std::string> selectAndDelete(sqlite3* db, const char* select, int64_t beforeMs, size_t limit,
+                                         std::initializer_list<const char*> deletes) {
+  std::vector<std::string> keys;
+  {
+    Statement s(db, select);
+    s.bind(1, beforeMs).bind(2, int64_t(limit));
+    while (s.step()) keys.push_back(s.str(0));
+  }
+  for (const char* sql : deletes) {
+    Statement d(db, sql);
+    for (const std::string& key : keys) {
+      d.text(1, key);
+      d.run();
+      d.reset();
+    }
+  }
+  return keys;
+}
+
 int64_t wallClockMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
       .count();
@@ -339,25 +360,16 @@ void FarmStore::touchScene(const std::string& hash) {
 std::vector<std::string> FarmStore::pruneUnusedScenes(int64_t beforeMs, size_t limit) {
   std::lock_guard lock(mutex_);
   Transaction t(db_);
-  std::vector<std::string> hashes;
-  {
-    // A receiver volume is a scene too: a job names it in its spec, so a scene any job
-    // still names in any way is kept (the spec's bytes hold the hash as text).
-    Statement s(db_,
-                "SELECT hash FROM scenes WHERE complete = 1 AND last_used_ms < ? "
-                "AND hash NOT IN (SELECT scene_hash FROM jobs) "
-                "AND NOT EXISTS (SELECT 1 FROM jobs WHERE instr(spec, CAST(scenes.hash AS BLOB)) > 0) "
-                "AND NOT EXISTS (SELECT 1 FROM tracks WHERE state = 1 AND instr(spec, CAST(scenes.hash AS BLOB)) > 0) "
-                "ORDER BY last_used_ms LIMIT ?");
-    s.bind(1, beforeMs).bind(2, int64_t(limit));
-    while (s.step()) hashes.push_back(s.str(0));
-  }
-  Statement d(db_, "DELETE FROM scenes WHERE hash = ?");
-  for (const std::string& h : hashes) {
-    d.text(1, h);
-    d.run();
-    d.reset();
-  }
+  // A receiver volume is a scene too: a job names it in its spec, so a scene any job
+  // still names in any way is kept (the spec's bytes hold the hash as text).
+  std::vector<std::string> hashes = selectAndDelete(
+      db_,
+      "SELECT hash FROM scenes WHERE complete = 1 AND last_used_ms < ? "
+      "AND hash NOT IN (SELECT scene_hash FROM jobs) "
+      "AND NOT EXISTS (SELECT 1 FROM jobs WHERE instr(spec, CAST(scenes.hash AS BLOB)) > 0) "
+      "AND NOT EXISTS (SELECT 1 FROM tracks WHERE state = 1 AND instr(spec, CAST(scenes.hash AS BLOB)) > 0) "
+      "ORDER BY last_used_ms LIMIT ?",
+      beforeMs, limit, {"DELETE FROM scenes WHERE hash = ?"});
   t.commit();
   return hashes;
 }
@@ -473,26 +485,16 @@ std::vector<JobRecord> FarmStore::jobsAfter(bool includeFinished, int64_t create
 std::vector<std::string> FarmStore::pruneFinishedJobs(int64_t beforeMs, size_t limit) {
   std::lock_guard lock(mutex_);
   Transaction t(db_);
-  std::vector<std::string> ids;
-  {
-    Statement s(db_,
-                "SELECT id FROM jobs WHERE state IN (4, 5, 6) AND finished_ms < ? "
-                "AND id NOT IN (SELECT job_id FROM versions) "
-                "AND id NOT IN (SELECT k.job_id FROM keyframes k JOIN tracks t ON t.id = k.track_id "
-                "WHERE k.state = 0 AND t.state = 1 AND k.job_id IS NOT NULL) "
-                "ORDER BY finished_ms, id LIMIT ?");
-    s.bind(1, beforeMs).bind(2, int64_t(limit));
-    while (s.step()) ids.push_back(s.str(0));
-  }
-  for (const char* sql : {"DELETE FROM leases WHERE job_id = ?", "DELETE FROM tiles WHERE job_id = ?",
-                          "DELETE FROM job_stages WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"}) {
-    Statement d(db_, sql);
-    for (const std::string& id : ids) {
-      d.text(1, id);
-      d.run();
-      d.reset();
-    }
-  }
+  std::vector<std::string> ids = selectAndDelete(
+      db_,
+      "SELECT id FROM jobs WHERE state IN (4, 5, 6) AND finished_ms < ? "
+      "AND id NOT IN (SELECT job_id FROM versions) "
+      "AND id NOT IN (SELECT k.job_id FROM keyframes k JOIN tracks t ON t.id = k.track_id "
+      "WHERE k.state = 0 AND t.state = 1 AND k.job_id IS NOT NULL) "
+      "ORDER BY finished_ms, id LIMIT ?",
+      beforeMs, limit,
+      {"DELETE FROM leases WHERE job_id = ?", "DELETE FROM tiles WHERE job_id = ?",
+       "DELETE FROM job_stages WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"});
   t.commit();
   return ids;
 }

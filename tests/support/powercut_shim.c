@@ -90,7 +90,6 @@ static int fdPath(int fd, char* out, size_t size) {
 static int takesMode(int flags) { return (flags & O_CREAT) || (flags & O_TMPFILE) == O_TMPFILE; }
 
 typedef int (*openat_fn)(int, const char*, int, ...);
-typedef int (*open_fn)(const char*, int, ...);
 
 /// Journals a successful open of `path` that may have created or truncated it.
 static void opened(int fd, const char* path, int flags, int existed) {
@@ -113,59 +112,47 @@ static int existsNow(const char* path) {
   return stat(path, &st) == 0;
 }
 
-#define OPEN_BODY(name, call)                                       \
-  mode_t mode = 0;                                                  \
-  if (takesMode(flags)) {                                           \
-    va_list ap;                                                     \
-    va_start(ap, flags);                                            \
-    mode = (mode_t)va_arg(ap, int);                                 \
-    va_end(ap);                                                     \
-  }                                                                 \
-  const int watched = (flags & (O_CREAT | O_TRUNC)) && under(path); \
-  const int existed = watched ? existsNow(path) : 1;                \
-  const int fd = call;                                              \
-  if (watched) opened(fd, path, flags, existed);                    \
-  return fd
+/// Every open goes through here with its mode read: `dirfd` is AT_FDCWD for open and
+/// open64. Paths relative to another descriptor than the working folder are not journaled.
+static int journaledOpen(openat_fn real, int dirfd, const char* path, int flags, mode_t mode) {
+  const int watched = (flags & (O_CREAT | O_TRUNC)) && (dirfd == AT_FDCWD || path[0] == '/') && under(path);
+  const int existed = watched ? existsNow(path) : 1;
+  const int fd = real(dirfd, path, flags, mode);
+  if (watched) opened(fd, path, flags, existed);
+  return fd;
+}
+
+#define MODE_ARG(mode)              \
+  mode_t mode = 0;                  \
+  if (takesMode(flags)) {           \
+    va_list ap;                     \
+    va_start(ap, flags);            \
+    mode = (mode_t)va_arg(ap, int); \
+    va_end(ap);                     \
+  }
 
 int open(const char* path, int flags, ...) {
-  REAL("open", open_fn);
-  OPEN_BODY("open", real(path, flags, mode));
+  MODE_ARG(mode);
+  REAL("openat", openat_fn);
+  return journaledOpen(real, AT_FDCWD, path, flags, mode);
 }
 
 int open64(const char* path, int flags, ...) {
-  REAL("open64", open_fn);
-  OPEN_BODY("open64", real(path, flags, mode));
+  MODE_ARG(mode);
+  REAL("openat64", openat_fn);
+  return journaledOpen(real, AT_FDCWD, path, flags, mode);
 }
 
 int openat(int dirfd, const char* path, int flags, ...) {
+  MODE_ARG(mode);
   REAL("openat", openat_fn);
-  // Paths relative to another descriptor than the working folder are not journaled.
-  if (dirfd != AT_FDCWD && path[0] != '/') {
-    mode_t mode = 0;
-    if (takesMode(flags)) {
-      va_list ap;
-      va_start(ap, flags);
-      mode = (mode_t)va_arg(ap, int);
-      va_end(ap);
-    }
-    return real(dirfd, path, flags, mode);
-  }
-  OPEN_BODY("openat", real(dirfd, path, flags, mode));
+  return journaledOpen(real, dirfd, path, flags, mode);
 }
 
 int openat64(int dirfd, const char* path, int flags, ...) {
+  MODE_ARG(mode);
   REAL("openat64", openat_fn);
-  if (dirfd != AT_FDCWD && path[0] != '/') {
-    mode_t mode = 0;
-    if (takesMode(flags)) {
-      va_list ap;
-      va_start(ap, flags);
-      mode = (mode_t)va_arg(ap, int);
-      va_end(ap);
-    }
-    return real(dirfd, path, flags, mode);
-  }
-  OPEN_BODY("openat64", real(dirfd, path, flags, mode));
+  return journaledOpen(real, dirfd, path, flags, mode);
 }
 
 int creat(const char* path, mode_t mode) { return open(path, O_WRONLY | O_CREAT | O_TRUNC, mode); }
