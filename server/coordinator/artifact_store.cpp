@@ -63,4 +63,13 @@ void ArtifactStore::removeArtifact(const std::string& jobId) const {
   fs::remove(artifactPath(jobId), ec);
 }
 
+std::string ArtifactStore::withoutDataFolder(std::string text) const {
+  for (const std::string& folder : {fs::absolute(dataDir_).lexically_normal().string(), dataDir_}) {
+    if (folder.empty()) continue;
+    for (size_t at = text.find(folder); at != std::string::npos; at = text.find(folder, at))
+      text.replace(at, folder.size(), "the data folder");
+  }
+  return text;
+}
+
 }  // namespace cpvs::server

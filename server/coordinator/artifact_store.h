@@ -31,6 +31,9 @@ class ArtifactStore {
   void removeArtifact(const std::string& jobId) const;
   /// The job ids that have an artifact file.
   std::vector<std::string> jobsWithArtifacts() const;
+  /// `text` with every mention of the data folder's path replaced by "the data folder":
+  /// what a client is told names no path on the coordinator (R21).
+  std::string withoutDataFolder(std::string text) const;
 
  private:
   std::string dataDir_;

@@ -248,7 +248,7 @@ bool JobService::endJob(const std::string& jobId, JobState state, const std::str
     std::lock_guard resultLock(resultMutex_);
     auto j = store_.job(jobId);
     if (!j || isFinal(j->state)) return false;  // the first end stands (cancel vs a late failure)
-    store_.setJobState(jobId, state, why, nowMs());
+    store_.setJobState(jobId, state, artifacts_.withoutDataFolder(why), nowMs());
     store_.cancelTiles(jobId);
   }
   // Its tile results are removed by the merge thread, after any merge of them queued

@@ -325,6 +325,12 @@ TEST(Hardening, R21_AMissingStoredFileDoesNotNameTheDataFolder) {
     EXPECT_EQ(e.kind(), net::ErrorKind::DataLoss) << e.what();
     EXPECT_EQ(std::string(e.what()).find(dir / "data"), std::string::npos) << e.what();
   }
+  // Nor does a job failed by an error that names a file in it (a merge that could not read).
+  const std::string failing = farm.client.submit("r21-failed", spec).job_id();
+  farm.coordinator.jobs().failJob(failing, "merge failed: cannot read " + (dir / "data") + "/tiles/x/0.cpvt");
+  const std::string error = farm.client.watch(failing).error();
+  EXPECT_EQ(error.find(dir / "data"), std::string::npos) << error;
+  EXPECT_NE(error.find("cannot read the data folder/tiles/x/0.cpvt"), std::string::npos) << error;
 }
 
 // R9: a store error in the reaper thread (here: the database held by another writer past
