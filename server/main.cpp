@@ -65,6 +65,10 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(1, 100));
   app.add_option("--max-resolution", maxResolution, "Largest resolution accepted")->capture_default_str();
   app.add_option("--max-jobs", config.maxActiveJobs, "Most unfinished jobs held at once")->capture_default_str();
+  app.add_option("--max-jobs-per-client", config.maxActiveJobsPerClient,
+                 "Most unfinished jobs of one client (one owner in --tokens; admin tokens are not counted), so that "
+                 "one client cannot take every place")
+      ->capture_default_str()->check(CLI::Range(size_t(1), size_t(1000000)));
   app.add_option("--max-tiles-per-job", config.maxTilesPerJob, "Most tiles one job may have (65536: 256K in 1024-texel tiles)")
       ->capture_default_str()->check(CLI::Range(uint64_t(1), uint64_t(1) << 24));
   app.add_option("--max-upload-mb", maxUploadMb, "Largest scene upload in MiB")->capture_default_str();

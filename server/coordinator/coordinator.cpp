@@ -26,7 +26,7 @@ Coordinator::Coordinator(CoordinatorConfig config)
       }),
       jobs_(store_, scenes_, artifacts_, merges_, feed_,
             JobLimits{config_.minLog2Resolution, config_.maxLog2Resolution, config_.maxActiveJobs,
-                      config_.maxTilesPerJob}),
+                      config_.maxActiveJobsPerClient, config_.maxTilesPerJob}),
       leases_(store_, scenes_, artifacts_, merges_, jobs_, feed_,
               LeaseRules{config_.leaseSeconds, config_.maxAttempts, config_.maxTileSeconds, config_.quarantineSeconds}),
       tracks_(store_, jobs_, feed_),

@@ -41,6 +41,7 @@ struct CoordinatorConfig {
   int minLog2Resolution = 6;                    // 64
   uint64_t maxUploadBytes = uint64_t(4) << 30;  // per scene
   size_t maxActiveJobs = 64;
+  size_t maxActiveJobsPerClient = 32;           // see JobLimits
   uint64_t maxTilesPerJob = 65536;              // see JobLimits
   ImportLimits import;                          // how uploads are imported (isolated when it names a helper)
   int maxConcurrentImports = 2;

@@ -40,10 +40,16 @@ std::optional<pb::JobStatus> JobService::knownRequest(const pb::SubmitBakeReques
   return toStatus(*existing);
 }
 
-void JobService::checkRoom() {
+void JobService::checkRoom(const Access& access) {
   if (store_.activeJobCount() >= limits_.maxActiveJobs)
     throw FarmError(ErrorKind::ResourceExhausted,
                     "the farm already holds " + std::to_string(limits_.maxActiveJobs) + " unfinished jobs");
+  // One client cannot take every place (R15): an administrator, or a farm without
+  // tokens, is not counted per client.
+  if (!access.everything && store_.activeJobCount(access.owner) >= limits_.maxActiveJobsPerClient)
+    throw FarmError(ErrorKind::ResourceExhausted, "this client already has " +
+                                                      std::to_string(limits_.maxActiveJobsPerClient) +
+                                                      " unfinished jobs, the most one client may have");
 }
 
 pb::JobStatus JobService::toStatus(const JobRecord& j) const {
@@ -111,7 +117,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
                         std::to_string(limits_.maxTilesPerJob) + " per job (tiles of at least " +
                         std::to_string(smallest) + " texels at this resolution)");
   }
-  checkRoom();  // before loading the scene, which may take long
+  checkRoom(access);  // before loading the scene, which may take long
   SceneStats stats;
   Scene scene = scenes_.load(spec.scene_hash(), &stats);
   OrthoGrid grid;
@@ -155,7 +161,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
     // before a worker can lease a tile of the job.
     std::lock_guard lock(submitMutex_);
     if (auto existing = knownRequest(request, access)) return *existing;
-    checkRoom();
+    checkRoom(access);
     artifacts_.createTileFolder(j.id);
     store_.createJob(j, untouched);
     if (untouched.size() == j.tilesTotal) store_.setJobState(j.id, JobState::Merging, "", nowMs());

@@ -21,6 +21,7 @@ struct JobLimits {
   int minLog2Resolution = 6;   // 64
   int maxLog2Resolution = 18;  // 256K
   size_t maxActiveJobs = 64;
+  size_t maxActiveJobsPerClient = 32;  // of them, one client's (an owner's; admin not counted)
   /// Most tiles one job may have: 65536 is 256K³ in tiles of 1024 texels. Bounds the rows
   /// a submit creates and the work one client can ask for in one request.
   uint64_t maxTilesPerJob = 65536;
@@ -65,7 +66,7 @@ class JobService {
   std::optional<pb::JobStatus> knownRequest(const pb::SubmitBakeRequest& request, const Access& access);
   /// The job, when `access` may see it: NotFound, PermissionDenied otherwise.
   JobRecord visibleJob(const std::string& jobId, const Access& access);
-  void checkRoom();
+  void checkRoom(const Access& access);
 
   FarmStore& store_;
   SceneStore& scenes_;

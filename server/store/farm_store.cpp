@@ -513,6 +513,14 @@ size_t FarmStore::activeJobCount() {
   return size_t(s.i64(0));
 }
 
+size_t FarmStore::activeJobCount(const std::string& owner) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT COUNT(*) FROM jobs WHERE state IN (1, 2, 3) AND owner = ?");
+  s.text(1, owner);
+  s.step();
+  return size_t(s.i64(0));
+}
+
 void FarmStore::setJobState(const std::string& id, JobState state, const std::string& error, int64_t nowMs) {
   std::lock_guard lock(mutex_);
   Statement s(db_,

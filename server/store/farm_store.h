@@ -144,6 +144,8 @@ class FarmStore {
   /// Whether a job id is known (the files of one that is not are leftovers).
   bool jobExists(const std::string& id);
   size_t activeJobCount();
+  /// Of them, those of one owner.
+  size_t activeJobCount(const std::string& owner);
   void setJobState(const std::string& id, JobState s, const std::string& error, int64_t nowMs);
   /// Marks an unfinished job done with its artifact; false (and nothing changed) when the
   /// job ended meanwhile (a cancel stands).

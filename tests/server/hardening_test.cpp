@@ -1106,6 +1106,40 @@ std::string healthOf(const std::string& address) {
   return "unexpected answer of " + std::to_string(bytes.size()) + " bytes";
 }
 
+// R15: one client could take every one of the farm's unfinished-job places, and every
+// other client was refused. A client (an owner) holds at most its share.
+TEST(Hardening, R15_OneClientCannotTakeEveryJobPlace) {
+  TempDir dir("cpvs_r15_per_client");
+  server::CoordinatorConfig config;
+  config.dataDir = dir / "data";
+  config.maxActiveJobs = 4;
+  config.maxActiveJobsPerClient = 2;
+  InProcessFarm farm(config);
+  const pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+  auto submitAs = [&](const server::Access& access, const std::string& requestId) {
+    pb::SubmitBakeRequest req;
+    req.set_request_id(requestId);
+    *req.mutable_spec() = spec;
+    return farm.coordinator.jobs().submit(req, access);
+  };
+  const server::Access alice = server::Access::of("alice"), bob = server::Access::of("bob");
+  submitAs(alice, "a1");
+  submitAs(alice, "a2");
+  try {
+    submitAs(alice, "a3");
+    ADD_FAILURE() << "a third job of one client was taken";
+  } catch (const net::FarmError& e) {
+    EXPECT_EQ(e.kind, net::ErrorKind::ResourceExhausted) << e.what();
+    EXPECT_NE(std::string(e.what()).find("this client"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(submitAs(alice, "a1").request_id(), "a1");  // a retry of a job it has is no new place
+  submitAs(bob, "b1");  // the others still get in
+  farm.coordinator.jobs().cancel(submitAs(alice, "a2").job_id());
+  submitAs(alice, "a3");  // a place given back is taken again
+  submitAs(server::Access::all(), "admin-1");  // an administrator is not counted per client
+  EXPECT_THROW(submitAs(server::Access::all(), "admin-2"), net::FarmError);  // but the farm's limit (4) holds
+}
+
 // R27: the health service answered SERVING whatever happened, even with the store held
 // busy (a long transaction, a wedged disk). It follows the store now.
 TEST(Hardening, R27_HealthIsNotServingWhileTheStoreIsHeldBusy) {
