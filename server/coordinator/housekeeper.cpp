@@ -16,7 +16,7 @@ void Housekeeper::start() {
     // The store forgets a job or a scene before its files go: files it does not know are
     // what a crash between the two left behind.
     for (const std::string& jobId : artifacts_.jobsWithArtifacts())
-      if (!store_.jobExists(jobId)) {
+      if (!store_.job(jobId)) {
         artifacts_.removeArtifact(jobId);
         spdlog::info("removed the artifact of job {}, which the store no longer holds", jobId);
       }
@@ -39,14 +39,14 @@ void Housekeeper::stop() {
   if (thread_.joinable()) thread_.join();
 }
 
-size_t Housekeeper::runOnce() {
-  size_t pruned = 0;
+void Housekeeper::runOnce() {
   try {
     if (rules_.uploadExpirySeconds > 0)
       scenes_.expireIdleUploads(std::chrono::seconds(int64_t(std::max(1.0, rules_.uploadExpirySeconds))));
     if (rules_.keepFinishedSeconds > 0) {
       const int64_t before = nowMs() - int64_t(rules_.keepFinishedSeconds * 1000);
       // In batches: one transaction never holds the store for long.
+      size_t pruned = 0;
       for (;;) {
         const std::vector<std::string> ids = store_.pruneFinishedJobs(before, 256);
         for (const std::string& id : ids) {
@@ -63,7 +63,6 @@ size_t Housekeeper::runOnce() {
   } catch (const StoreUnavailable& e) {
     spdlog::warn("housekeeping put off: {}", e.what());  // the next round tries again
   }
-  return pruned;
 }
 
 void Housekeeper::loop() {

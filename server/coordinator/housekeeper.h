@@ -28,9 +28,9 @@ class Housekeeper {
 
   void start();
   void stop();
-  /// Applies the rules once now; returns the jobs pruned. Called by the thread, and at start
-  /// after removing artifacts of jobs the store no longer knows (a prune cut short).
-  size_t runOnce();
+  /// Applies the rules once now. Called by the thread, and at start after removing files
+  /// the store no longer knows (a prune cut short).
+  void runOnce();
 
  private:
   void loop();

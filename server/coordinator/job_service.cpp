@@ -3,7 +3,9 @@
 #include <spdlog/spdlog.h>
 
 #include <bit>
+#include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <limits>
 
@@ -193,21 +195,14 @@ JobService::Page JobService::list(bool includeFinished, uint32_t pageSize, const
   std::string afterId;
   if (!pageToken.empty()) {
     const size_t colon = pageToken.find(':');
-    bool valid = pageToken.size() <= 128 && colon != std::string::npos && colon > 0 && colon + 1 < pageToken.size();
-    for (size_t i = 0; valid && i < pageToken.size(); ++i) {
-      const char c = pageToken[i];
-      valid = i < colon ? (c >= '0' && c <= '9') || (i == 0 && c == '-')
-                        : i == colon || std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_';
-    }
-    if (valid) {
-      try {
-        afterMs = std::stoll(pageToken.substr(0, colon));
-      } catch (const std::exception&) {
-        valid = false;
-      }
-    }
+    afterId = colon == std::string::npos ? "" : pageToken.substr(colon + 1);
+    const char* msEnd = pageToken.data() + (colon == std::string::npos ? 0 : colon);
+    const auto [end, error] = std::from_chars(pageToken.data(), msEnd, afterMs);
+    const bool valid = pageToken.size() <= 128 && colon != std::string::npos && colon > 0 && end == msEnd &&
+                       error == std::errc() && !afterId.empty() && std::all_of(afterId.begin(), afterId.end(), [](char c) {
+                         return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_';
+                       });
     if (!valid) throw FarmError(ErrorKind::InvalidArgument, "page_token is not one this coordinator gave");
-    afterId = pageToken.substr(colon + 1);
   }
   Page page;
   size_t bytes = 0;
@@ -235,11 +230,11 @@ pb::JobStatus JobService::cancel(const std::string& jobId, const Access& access)
 }
 
 std::string JobService::artifactPath(const std::string& jobId, std::string* checksum, const Access& access) {
-  const std::optional<JobRecord> j = visibleJob(jobId, access);
-  if (j->state != JobState::Done)
+  const JobRecord j = visibleJob(jobId, access);
+  if (j.state != JobState::Done)
     throw FarmError(ErrorKind::FailedPrecondition,
-                    "job " + jobId + " is " + net::jobStateName(pb::JobState(int(j->state))) + ", not done");
-  if (checksum) *checksum = j->artifactChecksum;
+                    "job " + jobId + " is " + net::jobStateName(pb::JobState(int(j.state))) + ", not done");
+  if (checksum) *checksum = j.artifactChecksum;
   return artifacts_.artifactPath(jobId);
 }
 

@@ -217,8 +217,7 @@ std::vector<pb::TrackStatus> TrackService::list(bool includeEnded, const Access&
 
 pb::TrackStatus TrackService::cancel(const std::string& trackId, const Access& access) {
   std::lock_guard lock(tickMutex_);
-  const std::optional<TrackRecord> t = visibleTrack(trackId, access);
-  if (t->state == kActive) {
+  if (visibleTrack(trackId, access).state == kActive) {
     store_.setTrackState(trackId, kCancelled, "cancelled");
     for (const KeyframeRecord& k : store_.pendingKeyframes(trackId))
       if (!store_.jobWantedByAnotherTrack(k.jobId, trackId)) jobs_.cancel(k.jobId);

@@ -27,6 +27,13 @@ std::string digestOf(const std::string& token) {
   return std::string(reinterpret_cast<const char*>(out), size);
 }
 
+std::string hexOf(const std::string& bytes) {
+  std::string hex;
+  char b[3];
+  for (unsigned char c : bytes) hex += (std::snprintf(b, sizeof b, "%02x", c), b);
+  return hex;
+}
+
 }  // namespace
 
 std::optional<std::string> weaknessOf(const std::string& token) {
@@ -102,37 +109,32 @@ TokenTable TokenTable::load(const std::string& path) {
     else if (role == "admin") r = Role::Admin;
     else throw InputError(where + ": unknown role '" + role + "' (client, worker or admin)");
     const std::string digest = digestOf(token);
-    if (owner.empty()) {
-      char hex[3];
-      owner = "token-";
-      for (int i = 0; i < 6; ++i) owner += (std::snprintf(hex, sizeof hex, "%02x", static_cast<unsigned char>(digest[i])), hex);
-    }
-    if (!t.roles_.emplace(digest, Holder{r, owner}).second) throw InputError(where + ": the token is listed twice");
+    if (owner.empty()) owner = "token-" + hexOf(digest.substr(0, 6));
+    if (!t.roles_.emplace(digest, TokenHolder{r, owner}).second) throw InputError(where + ": the token is listed twice");
   }
   if (t.roles_.empty()) throw InputError(path + ": no tokens");
   return t;
 }
 
-std::optional<Role> TokenTable::roleOf(const std::string& token) const {
+std::optional<TokenHolder> TokenTable::holderOf(const std::string& token) const {
   auto it = roles_.find(digestOf(token));
   if (it == roles_.end()) return std::nullopt;
-  return it->second.role;
+  return it->second;
+}
+
+std::optional<Role> TokenTable::roleOf(const std::string& token) const {
+  const auto holder = holderOf(token);
+  return holder ? std::optional<Role>(holder->role) : std::nullopt;
 }
 
 std::optional<std::string> TokenTable::ownerOf(const std::string& token) const {
-  auto it = roles_.find(digestOf(token));
-  if (it == roles_.end()) return std::nullopt;
-  return it->second.owner;
+  const auto holder = holderOf(token);
+  return holder ? std::optional<std::string>(holder->owner) : std::nullopt;
 }
 
 std::vector<std::string> TokenTable::digestsForTests() const {
   std::vector<std::string> out;
-  for (const auto& [digest, holder] : roles_) {
-    std::string hex;
-    char b[3];
-    for (unsigned char c : digest) hex += (std::snprintf(b, sizeof b, "%02x", c), b);
-    out.push_back(hex);
-  }
+  for (const auto& entry : roles_) out.push_back(hexOf(entry.first));
   return out;
 }
 

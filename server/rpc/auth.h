@@ -23,6 +23,12 @@ enum class Role { Client, Worker, Admin };
 
 const char* roleName(Role r);
 
+/// Who a token is: its role, and the owner its jobs are recorded under.
+struct TokenHolder {
+  Role role;
+  std::string owner;
+};
+
 class TokenTable {
  public:
   /// No tokens: every call is allowed (a farm on a trusted network, or tests).
@@ -37,6 +43,7 @@ class TokenTable {
   /// The role of a token, if it is known. The table holds SHA-256 digests only, and looks
   /// a token up by its digest: no plaintext stays in memory, and how long a lookup takes
   /// tells nothing about how much of a guess matches a token (R18).
+  std::optional<TokenHolder> holderOf(const std::string& token) const;
   std::optional<Role> roleOf(const std::string& token) const;
   /// The owner a token's jobs are recorded under (its OWNER, or "token-" and 12 hex
   /// digits of its digest); nullopt for an unknown token.
@@ -47,11 +54,7 @@ class TokenTable {
   static bool allows(Role role, Role needed) { return role == Role::Admin || role == needed; }
 
  private:
-  struct Holder {
-    Role role;
-    std::string owner;
-  };
-  std::map<std::string, Holder> roles_;  // by SHA-256 digest (32 raw bytes)
+  std::map<std::string, TokenHolder> roles_;  // by SHA-256 digest (32 raw bytes)
 };
 
 }  // namespace cpvs::server

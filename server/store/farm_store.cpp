@@ -4,6 +4,7 @@
 
 #include <sqlite3.h>
 
+#include <limits>
 #include <stdexcept>
 
 namespace cpvs::server {
@@ -201,10 +202,8 @@ std::vector<std::string> selectAndDelete(sqlite3* db, const char* select, int64_
   return keys;
 }
 
-int64_t wallClockMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
+/// Now, in Unix milliseconds, by SQLite's clock (the system's): when a scene was last used.
+constexpr const char* kNowMs = "CAST(strftime('%s', 'now') AS INTEGER) * 1000";
 
 }  // namespace
 
@@ -269,7 +268,7 @@ FarmStore::FarmStore(const std::string& path) {
     if (upgradable && version <= 5) exec("ALTER TABLE tiles ADD COLUMN failed_by TEXT");
     if (upgradable && version <= 6) {
       exec("ALTER TABLE scenes ADD COLUMN last_used_ms INTEGER NOT NULL DEFAULT 0");
-      exec(("UPDATE scenes SET last_used_ms = " + std::to_string(wallClockMs())).c_str());  // their age is unknown
+      exec((std::string("UPDATE scenes SET last_used_ms = ") + kNowMs).c_str());  // their age is unknown
       exec("ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
       Statement tracks(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'tracks'");
       tracks.step();
@@ -342,18 +341,19 @@ std::optional<SceneRecord> FarmStore::scene(const std::string& hash) {
 
 void FarmStore::putScene(const SceneRecord& r) {
   std::lock_guard lock(mutex_);
-  Statement s(db_,
-              "INSERT OR REPLACE INTO scenes(hash, file_name, total_size, received, complete, triangles, geometry_hash, "
-              "last_used_ms) VALUES(?, ?, ?, ?, ?, ?, ?, ?)");
+  Statement s(db_, (std::string("INSERT OR REPLACE INTO scenes(hash, file_name, total_size, received, complete, "
+                                 "triangles, geometry_hash, last_used_ms) VALUES(?, ?, ?, ?, ?, ?, ?, ") +
+                     kNowMs + ")")
+                        .c_str());
   s.text(1, r.hash).text(2, r.fileName).bind(3, int64_t(r.totalSize)).bind(4, int64_t(r.received));
-  s.bind(5, int64_t(r.complete)).bind(6, int64_t(r.triangles)).text(7, r.geometryHash).bind(8, wallClockMs());
+  s.bind(5, int64_t(r.complete)).bind(6, int64_t(r.triangles)).text(7, r.geometryHash);
   s.run();
 }
 
 void FarmStore::touchScene(const std::string& hash) {
   std::lock_guard lock(mutex_);
-  Statement s(db_, "UPDATE scenes SET last_used_ms = ? WHERE hash = ?");
-  s.bind(1, wallClockMs()).text(2, hash);
+  Statement s(db_, (std::string("UPDATE scenes SET last_used_ms = ") + kNowMs + " WHERE hash = ?").c_str());
+  s.text(1, hash);
   s.run();
 }
 
@@ -453,17 +453,7 @@ void FarmStore::createJob(const JobRecord& j, const std::vector<uint64_t>& untou
 }
 
 std::vector<JobRecord> FarmStore::jobs(bool includeFinished) {
-  std::vector<std::string> ids;
-  {
-    std::lock_guard lock(mutex_);
-    Statement s(db_, includeFinished ? "SELECT id FROM jobs ORDER BY created_ms, id"
-                                     : "SELECT id FROM jobs WHERE state IN (1, 2, 3) ORDER BY created_ms, id");
-    while (s.step()) ids.push_back(s.str(0));
-  }
-  std::vector<JobRecord> out;
-  for (const auto& id : ids)
-    if (auto j = job(id)) out.push_back(std::move(*j));
-  return out;
+  return jobsAfter(includeFinished, std::numeric_limits<int64_t>::min(), "", kNoLimit);
 }
 
 std::vector<JobRecord> FarmStore::jobsAfter(bool includeFinished, int64_t createdMs, const std::string& id,
@@ -474,7 +464,7 @@ std::vector<JobRecord> FarmStore::jobsAfter(bool includeFinished, int64_t create
                     (includeFinished ? "" : " AND state IN (1, 2, 3)") +
                     (owner ? " AND owner IN (?4, '')" : "") + " ORDER BY created_ms, id LIMIT ?3")
                        .c_str());
-  s.bind(1, createdMs).text(2, id).bind(3, int64_t(limit));
+  s.bind(1, createdMs).text(2, id).bind(3, limit == kNoLimit ? int64_t(-1) : int64_t(limit));  // -1: no limit
   if (owner) s.text(4, *owner);
   std::vector<JobRecord> out;
   while (s.step()) out.push_back(readJob(s));
@@ -497,13 +487,6 @@ std::vector<std::string> FarmStore::pruneFinishedJobs(int64_t beforeMs, size_t l
        "DELETE FROM job_stages WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"});
   t.commit();
   return ids;
-}
-
-bool FarmStore::jobExists(const std::string& id) {
-  std::lock_guard lock(mutex_);
-  Statement s(db_, "SELECT 1 FROM jobs WHERE id = ?");
-  s.text(1, id);
-  return s.step();
 }
 
 size_t FarmStore::activeJobCount() {

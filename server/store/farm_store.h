@@ -135,14 +135,13 @@ class FarmStore {
   /// At most `limit` jobs after the position (createdMs, id), oldest first: a page of a
   /// listing that stays bounded however many jobs the store holds (R16); with `owner`,
   /// only that owner's jobs and those made without one.
+  static constexpr size_t kNoLimit = ~size_t(0);
   std::vector<JobRecord> jobsAfter(bool includeFinished, int64_t createdMs, const std::string& id, size_t limit,
                                    const std::optional<std::string>& owner = std::nullopt);
   /// Forgets at most `limit` jobs that ended before `beforeMs` and that no track still
   /// needs (a kept version or a pending keyframe): their rows, tiles, leases and stages, in
   /// one transaction. Returns their ids, whose files the caller removes (R16, R25).
   std::vector<std::string> pruneFinishedJobs(int64_t beforeMs, size_t limit);
-  /// Whether a job id is known (the files of one that is not are leftovers).
-  bool jobExists(const std::string& id);
   size_t activeJobCount();
   /// Of them, those of one owner.
   size_t activeJobCount(const std::string& owner);
