@@ -1,6 +1,7 @@
 #include "bake_flags.h"
 
 #include <algorithm>
+#include <tuple>
 #include <vector>
 
 #include "cpvs/base/error.h"
@@ -57,6 +58,13 @@ void addReceiverFlags(CLI::App* c, OptionFlags& o) {
   c->add_option("--receiver-box", o.receiverBoxes,
                 "A box of the receiver volume, MINX,MINY,MINZ,MAXX,MAXY,MAXZ in scene units (repeatable; with "
                 "--receivers volume)");
+  c->add_option("--ground-layer", o.groundLayer,
+                "With --receivers volume or cameras: receivers also anywhere from FROM (default 0) up to TO scene "
+                "units above a walkable surface, with any normal: characters and vehicles on the ground "
+                "([FROM:]TO; a layer that touches the ground costs as much as receivers everywhere there)");
+  c->add_option("--ground-slope", o.groundSlope,
+                "With --ground-layer: the steepest surface that is walkable, degrees from level (Y up)")
+      ->capture_default_str();
   c->add_option("--receiver-pcf", o.receiverPcf, "The widest PCF filter receivers' lookups use (1, 3, 5, 7, 9)")
       ->capture_default_str();
   c->add_option("--camera-region", o.cameraRegions,
@@ -77,6 +85,16 @@ std::vector<std::pair<Vec3, Vec3>> boxesOf(const std::vector<std::string>& texts
   return boxes;
 }
 
+std::pair<double, double> groundLayerOf(const std::string& text) {
+  if (text.empty()) return {0, 0};
+  const size_t colon = text.find(':');
+  const double from = colon == std::string::npos ? 0 : parseNumbers(text.substr(0, colon), "--ground-layer").at(0);
+  const std::vector<double> to = parseNumbers(colon == std::string::npos ? text : text.substr(colon + 1), "--ground-layer");
+  if (to.size() != 1 || !(from >= 0 && from < to[0]))
+    throw InputError("--ground-layer: '" + text + "' is not [FROM:]TO with 0 <= FROM < TO");
+  return {from, to[0]};
+}
+
 ReceiverDeclaration receiversOf(const OptionFlags& f) {
   ReceiverDeclaration d;
   const size_t colon = f.receivers.find(':');
@@ -86,12 +104,15 @@ ReceiverDeclaration receiversOf(const OptionFlags& f) {
   if (colon != std::string::npos && !volume)
     throw InputError("--receivers: only 'volume' and 'cameras' take a file ('" + f.receivers + "')");
   if (!f.receiverBoxes.empty() && !volume) throw InputError("--receiver-box needs --receivers volume or cameras");
+  if (!f.groundLayer.empty() && !volume) throw InputError("--ground-layer needs --receivers volume or cameras");
   if (!cameras && (!f.cameraRegions.empty() || f.viewDistance != 0))
     throw InputError("--camera-region and --view-distance need --receivers cameras");
   if (volume) {
     if (colon != std::string::npos) d.volume = loadScene(f.receivers.substr(colon + 1));
     for (const auto& [lo, hi] : boxesOf(f.receiverBoxes, "--receiver-box")) appendBox(d.volume, lo, hi);
     finalizeScene(d.volume);
+    std::tie(d.groundLayerFrom, d.groundLayer) = groundLayerOf(f.groundLayer);
+    d.groundSlopeDeg = f.groundSlope;
   }
   if (cameras) {
     d.cameraRegions = boxesOf(f.cameraRegions, "--camera-region");

@@ -33,17 +33,22 @@ struct OptionFlags {
   std::vector<std::string> receiverBoxes, cameraRegions;
   int receiverPcf = kMaxPcfWidthOption;
   double viewDistance = 0;
+  std::string groundLayer;  // "[FROM:]TO"
+  double groundSlope = kDefaultGroundSlopeDeg;
 };
 /// `tileHelp` says what the tile size means to this command.
 void addOptionFlags(CLI::App* c, OptionFlags& options, const std::string& tileHelp);
-/// --receivers, --receiver-box, --receiver-pcf, --camera-region, --view-distance (part of
-/// addOptionFlags).
+/// --receivers, --receiver-box, --ground-layer, --ground-slope, --receiver-pcf,
+/// --camera-region, --view-distance (part of addOptionFlags).
 void addReceiverFlags(CLI::App* c, OptionFlags& options);
 /// The bake options the flags name; InputError naming the flag otherwise.
 BakeOptions optionsOf(const OptionFlags& flags);
 /// Boxes given as MINX,MINY,MINZ,MAXX,MAXY,MAXZ (--receiver-box, --camera-region) as
 /// (min, max); InputError naming `flag` unless six numbers with min < max.
 std::vector<std::pair<Vec3, Vec3>> boxesOf(const std::vector<std::string>& texts, const std::string& flag);
+/// --ground-layer "[FROM:]TO" as (from, to) scene units above the ground, (0, 0) when
+/// empty; InputError unless 0 <= FROM < TO, finite.
+std::pair<double, double> groundLayerOf(const std::string& text);
 /// The receiver declaration of --receivers, --receiver-box and --receiver-pcf, its volume
 /// loaded (a mesh file, boxes); InputError naming the flag otherwise.
 ReceiverDeclaration receiversOf(const OptionFlags& flags);

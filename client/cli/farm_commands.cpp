@@ -208,7 +208,7 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
   if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
   std::string mesh;
   if (given("--receivers") || given("--receiver-box") || given("--receiver-pcf") || given("--camera-region") ||
-      given("--view-distance")) {
+      given("--view-distance") || given("--ground-layer") || given("--ground-slope")) {
     pb::Receivers& r = *o.mutable_receivers();
     if (given("--receivers")) {
       r.set_kind(pb::ReceiverKind(flags.receivers));
@@ -239,6 +239,12 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
       }
     }
     if (given("--view-distance")) r.set_view_distance(options.viewDistance);
+    if (given("--ground-layer")) {
+      const auto [from, to] = groundLayerOf(options.groundLayer);
+      r.set_ground_layer(to);
+      r.set_ground_layer_from(from);
+    }
+    if (given("--ground-slope")) r.set_ground_slope_deg(options.groundSlope);
   }
   // A mesh still to upload stands for the hash it will have.
   pb::BakeOptions check = o;

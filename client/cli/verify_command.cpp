@@ -31,12 +31,12 @@ ReceiverDeclaration bakedReceivers(const VerifyArgs& a, const CpvsArtifact& art)
   d.maxPcf = art.options.receiverPcf;
   const OptionFlags& f = a.receivers;
   const bool given = f.receivers != optionName(ReceiverKind::Everywhere) || !f.receiverBoxes.empty() ||
-                     !f.cameraRegions.empty() || f.viewDistance != 0;
+                     !f.cameraRegions.empty() || f.viewDistance != 0 || !f.groundLayer.empty();
   const std::string baked = optionName(d.kind);
   if (d.kind == ReceiverKind::Volume || d.kind == ReceiverKind::Cameras) {
     if (!given)
       throw InputError(a.file + " was baked for '" + baked + "' receivers: give them again (--receivers " + baked +
-                       "[:MESH], --receiver-box, --camera-region, --view-distance)");
+                       "[:MESH], --receiver-box, --ground-layer, --camera-region, --view-distance)");
     OptionFlags copy = f;
     copy.receiverPcf = d.maxPcf;
     d = receiversOf(copy);

@@ -81,22 +81,42 @@ std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& r
   // By area over the triangles that receive, on a side that receives (receivingSides).
   std::vector<uint8_t> sides(scene.triangleCount());
   for (size_t t = 0; t < sides.size(); ++t) sides[t] = receivingSides(scene, d, t);
-  const uint64_t inVolume = d.volume.triangleCount() ? count / 2 : 0;
+  const bool mesh = d.volume.triangleCount() != 0, layer = d.groundLayer > 0;
+  const uint64_t inVolume = mesh || layer ? count / 2 : 0;
   std::vector<SurfaceSample> out = sampleByArea(
       scene, rays, closed, lightDir, count - inVolume, seed,
       [&](uint32_t t) { return sides[t] != 0; },
       [&](uint32_t t, SplitMix64& rng) { return sides[t] == 2 || (sides[t] == 3 && rng.uniform01() < 0.5) ? -1.0 : 1.0; });
   if (inVolume == 0) return out;
+  // Points of the ground layer: on a walkable triangle (by area), raised by up to its height.
+  std::vector<double> cdf(scene.triangleCount() + 1, 0.0);
+  for (size_t t = 0; layer && t < scene.triangleCount(); ++t) {
+    const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+    cdf[t + 1] = cdf[t] + (walkable(scene, d, t) ? 0.5 * length(cross(b - a, c - a)) : 0.0);
+  }
+  const bool layerSampled = layer && cdf.back() > 0;
+  if (!mesh && !layerSampled) return out;
   Vec3 lo, hi;
-  sceneBounds(d.volume, lo, hi);
+  if (mesh) sceneBounds(d.volume, lo, hi);
   std::vector<SurfaceSample> inside(inVolume);
   tbb::parallel_for(uint64_t(0), inVolume, [&](uint64_t i) {
     SplitMix64 rng = SplitMix64::forItem(seed ^ 0x766f6c756d65ull, i);
     Vec3 p;
-    do {
-      p = {lo.x + (hi.x - lo.x) * rng.uniform01(), lo.y + (hi.y - lo.y) * rng.uniform01(),
-           lo.z + (hi.z - lo.z) * rng.uniform01()};
-    } while (!insideClosedMesh(d.volume, p));
+    if (layerSampled && (!mesh || i % 2 == 1)) {
+      const size_t tris = scene.triangleCount();
+      size_t t = size_t(std::upper_bound(cdf.begin(), cdf.end(), rng.uniform01() * cdf[tris]) - cdf.begin());
+      t = std::clamp<size_t>(t, 1, tris) - 1;
+      double r1 = rng.uniform01(), r2 = rng.uniform01();
+      if (r1 + r2 > 1) r1 = 1 - r1, r2 = 1 - r2;
+      const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+      const double h = d.groundLayerFrom + (d.groundLayer - d.groundLayerFrom) * rng.uniform01();
+      p = a + (b - a) * r1 + (c - a) * r2 + Vec3{0, h, 0};
+    } else {
+      do {
+        p = {lo.x + (hi.x - lo.x) * rng.uniform01(), lo.y + (hi.y - lo.y) * rng.uniform01(),
+             lo.z + (hi.z - lo.z) * rng.uniform01()};
+      } while (!insideClosedMesh(d.volume, p));
+    }
     Vec3 n{};
     if (i % 8 != 0) {
       do n = Vec3{2 * rng.uniform01() - 1, 2 * rng.uniform01() - 1, 2 * rng.uniform01() - 1};

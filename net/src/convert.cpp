@@ -45,14 +45,23 @@ void checkReceivers(const pb::Receivers& r) {
   if (pcf != 0 && (pcf % 2 == 0 || pcf > uint32_t(kMaxPcfWidthOption)))
     throw InputError("options.receivers.max_pcf " + std::to_string(pcf) + " must be odd and between 1 and 9");
   const bool volume = r.kind() == pb::RECEIVERS_VOLUME, cameras = r.kind() == pb::RECEIVERS_CAMERAS;
-  const bool declared = !r.volume_scene_hash().empty() || r.boxes_size() > 0;
-  if (volume && !declared) throw InputError("options.receivers: RECEIVERS_VOLUME needs volume_scene_hash or boxes");
+  const bool declared = !r.volume_scene_hash().empty() || r.boxes_size() > 0 || r.ground_layer() != 0;
+  if (volume && !declared)
+    throw InputError("options.receivers: RECEIVERS_VOLUME needs volume_scene_hash, boxes or ground_layer");
   if (!volume && !cameras && declared)
     throw InputError("options.receivers: only RECEIVERS_VOLUME and RECEIVERS_CAMERAS take a volume");
   if (cameras != (r.camera_regions_size() > 0))
     throw InputError("options.receivers: camera_regions are needed for RECEIVERS_CAMERAS, and only there");
   if (cameras ? !(r.view_distance() > 0 && std::isfinite(r.view_distance())) : r.view_distance() != 0)
     throw InputError("options.receivers.view_distance must be positive and finite for RECEIVERS_CAMERAS, 0 otherwise");
+  if (!(r.ground_layer() >= 0 && std::isfinite(r.ground_layer())))
+    throw InputError("options.receivers.ground_layer must be a finite number >= 0");
+  if (r.has_ground_slope_deg() && !(r.ground_slope_deg() >= 0 && r.ground_slope_deg() < 90))
+    throw InputError("options.receivers.ground_slope_deg must be at least 0 and below 90");
+  if (!(r.ground_layer_from() >= 0 && (r.ground_layer_from() < r.ground_layer() || r.ground_layer_from() == 0)))
+    throw InputError("options.receivers.ground_layer_from must be at least 0 and below ground_layer");
+  if (r.has_ground_slope_deg() && r.ground_layer() == 0)
+    throw InputError("options.receivers.ground_slope_deg needs a ground_layer");
   if (r.camera_regions_size() > kMaxReceiverBoxes)
     throw InputError("options.receivers: " + std::to_string(r.camera_regions_size()) + " camera regions; at most " +
                      std::to_string(kMaxReceiverBoxes));

@@ -4,6 +4,7 @@
 // classification requires; and the bake is smaller than one for receivers everywhere.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <random>
 
 #include "cpvs/bake/bake.h"
@@ -102,6 +103,30 @@ std::vector<Lookup> volumeLookups(const Scene& volume, int maxPcf, std::mt19937_
   return out;
 }
 
+// Points of the declaration's ground layer: on walkable triangles (faces, edges, vertices),
+// raised between the layer's bottom and top (both included), with any normal.
+std::vector<Lookup> layerLookups(const Scene& s, const ReceiverDeclaration& d, std::mt19937_64& rng, int perTriangle) {
+  std::uniform_real_distribution<double> u(0, 1), sym(-1, 1);
+  std::vector<Lookup> out;
+  for (size_t t = 0; t < s.triangleCount(); ++t) {
+    if (!walkable(s, d, t)) continue;
+    const Vec3 a = s.vertex(t, 0), b = s.vertex(t, 1), c = s.vertex(t, 2);
+    for (int k = 0; k < perTriangle; ++k) {
+      double x = u(rng), y = u(rng);
+      if (x + y > 1) x = 1 - x, y = 1 - y;
+      if (k % 8 == 0) x = 0;
+      if (k % 16 == 1) x = y = 0;
+      const double span = d.groundLayer - d.groundLayerFrom;
+      const double h = d.groundLayerFrom + (k % 5 == 0 ? span : k % 5 == 1 ? 0 : span * u(rng));
+      Vec3 n{sym(rng), sym(rng), sym(rng)};
+      if (k % 7 == 0) n = Vec3{};
+      if (k % 7 == 1) n = Vec3{0, double(rng() % 2) * 2 - 1, 0};
+      out.push_back({a + (b - a) * x + (c - a) * y + Vec3{0, h, 0}, n, 1 + 2 * int(rng() % uint64_t(d.maxPcf / 2 + 1))});
+    }
+  }
+  return out;
+}
+
 // Checks every voxel the lookups read: returns the reads checked; adds failures.
 uint64_t checkReads(const ShadowQuery& q, const TexelSlices& truth, const std::vector<Lookup>& lookups, int& failures) {
   const int64_t R = int64_t(q.grid().resolution());
@@ -162,14 +187,20 @@ TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
   const uint64_t everywhere = bytesOf(bake(scene, grid, options, {}), grid);
 
   std::mt19937_64 rng(GetParam().log2R * 1000 + uint64_t(GetParam().sun.x * 100));
-  for (ReceiverKind kind :
-       {ReceiverKind::Surfaces, ReceiverKind::SurfacesTwoSided, ReceiverKind::Volume, ReceiverKind::Cameras}) {
+  // The fifth and sixth: a volume that is only a ground layer, on the ground and above it.
+  for (int k = 0; k < 6; ++k) {
+    const ReceiverKind kind = std::array{ReceiverKind::Surfaces, ReceiverKind::SurfacesTwoSided, ReceiverKind::Volume,
+                                         ReceiverKind::Cameras, ReceiverKind::Volume, ReceiverKind::Volume}[size_t(k)];
+    const bool layer = k >= 4;
     for (int maxPcf : {1, 3, 9}) {
-      SCOPED_TRACE(std::string(optionName(kind)) + " pcf " + std::to_string(maxPcf));
+      SCOPED_TRACE(std::string(optionName(kind)) + (layer ? " (ground layer)" : "") + " pcf " + std::to_string(maxPcf));
       ReceiverDeclaration d;
       d.kind = kind;
       d.maxPcf = maxPcf;
-      if (kind == ReceiverKind::Volume) {
+      if (layer) {
+        d.groundLayer = 1.5;
+        d.groundLayerFrom = k == 5 ? 0.4 : 0;
+      } else if (kind == ReceiverKind::Volume) {
         appendBox(d.volume, {-9, 0.2, 1}, {9, 2.5, 9});  // over the ground, through the wall and the crate
         appendBox(d.volume, {-8, 4.5, -8}, {0, 5.5, 1});  // above the building's roof
         finalizeScene(d.volume);
@@ -188,6 +219,11 @@ TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
       if (d.volume.triangleCount() != 0) {
         const auto inside = volumeLookups(d.volume, maxPcf, rng, 20000);
         lookups.insert(lookups.end(), inside.begin(), inside.end());
+      }
+      if (layer) {
+        const auto above = layerLookups(scene, d, rng, 4000);
+        EXPECT_GT(above.size(), 8000u);  // the ground, the roof, the crate's top
+        lookups.insert(lookups.end(), above.begin(), above.end());
       }
       int failures = 0;
       const uint64_t checked = checkReads(q, truth, lookups, failures);
@@ -261,6 +297,51 @@ TEST(Receivers, CameraRegionsReceiveTheSidesTheyFace) {
   finalizeScene(box);
   d.cameraRegions = {{Vec3{-0.5, -0.5, -0.5}, Vec3{1.5, 1.5, 1.5}}};  // around it: every outside
   for (size_t t = 0; t < box.triangleCount(); ++t) EXPECT_EQ(receivingSides(box, d, t), 1) << t;  // never the inside
+}
+
+// Walkable: a front side facing up within the slope; a layer changes the hash.
+TEST(Receivers, AGroundLayerCoversWalkableSurfaces) {
+  Scene s;
+  appendQuad(s, {0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0});      // level, facing +y
+  appendQuad(s, {0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1});      // level, facing -y
+  appendQuad(s, {0, 0, 0}, {0, 0.9, 1}, {1, 0.9, 1}, {1, 0, 0});  // 42 degrees
+  appendQuad(s, {0, 0, 0}, {0, 1.1, 1}, {1, 1.1, 1}, {1, 0, 0});  // 48 degrees
+  appendQuad(s, {0, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0});      // a wall
+  finalizeScene(s);
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Volume;
+  std::vector<bool> expected{true, true, false, false, true, true, false, false, false, false};
+  for (size_t t = 0; t < s.triangleCount(); ++t) EXPECT_FALSE(walkable(s, d, t)) << t;  // no layer declared
+  d.groundLayer = 2;
+  for (size_t t = 0; t < s.triangleCount(); ++t) EXPECT_EQ(walkable(s, d, t), expected[t]) << t;
+  EXPECT_NO_THROW(checkReceiverDeclaration(d));
+  const Hash128 h45 = receiverHash(d);
+  d.groundSlopeDeg = 50;
+  expected[6] = expected[7] = true;
+  for (size_t t = 0; t < s.triangleCount(); ++t) EXPECT_EQ(walkable(s, d, t), expected[t]) << t;
+  EXPECT_NE(receiverHash(d), h45);
+  d.groundSlopeDeg = 90;
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);
+  d.groundSlopeDeg = 45;
+  d.groundLayer = -1;
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);
+  d.groundLayer = 1;
+  d.groundLayerFrom = 1;
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);  // a layer from its top
+  d.groundLayerFrom = 0.5;
+  EXPECT_NO_THROW(checkReceiverDeclaration(d));
+  d.groundLayerFrom = 0;
+  d.groundLayer = 1;
+  d.kind = ReceiverKind::Surfaces;
+  EXPECT_THROW(checkReceiverDeclaration(d), InputError);  // a layer for surfaces
+  // A layer added to a box volume changes its hash.
+  ReceiverDeclaration box;
+  box.kind = ReceiverKind::Volume;
+  appendBox(box.volume, {0, 0, 0}, {1, 1, 1});
+  finalizeScene(box.volume);
+  const Hash128 before = receiverHash(box);
+  box.groundLayer = 0.5;
+  EXPECT_NE(receiverHash(box), before);
 }
 
 TEST(Receivers, BadDeclarationsAreRefused) {

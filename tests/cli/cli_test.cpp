@@ -148,6 +148,21 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
   EXPECT_GT(v["samples"].get<uint64_t>(), 3000u);
   EXPECT_EQ(v["mismatch_elsewhere_count"], 0);
 
+  // A ground layer from 0.2 to 2 units over every walkable surface: verify samples it (and
+  // wants it again), and it is larger than surfaces alone and smaller than everywhere.
+  const std::string layer = " --receivers volume --ground-layer 0.2:2";
+  r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json" + layer + " -o " + path("g.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const uint64_t layerBytes = parse(r)["bytes"].get<uint64_t>();
+  EXPECT_LT(layerBytes, bake_["bytes"].get<uint64_t>());
+  r = cpvs("verify -n 3000 " + path("g.cpvs") + " city:3 --receivers volume --ground-layer 2");
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("not the one"), std::string::npos) << r.out;
+  r = cpvs("verify --json -n 6000 " + path("g.cpvs") + " city:3" + layer);
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_GT(parse(r)["samples"].get<uint64_t>(), 3000u);
+  EXPECT_EQ(parse(r)["mismatch_elsewhere_count"], 0);
+
   // Cameras in a corner of the city seeing 40 units: verify wants the regions again.
   const std::string cams = " --receivers cameras --camera-region 0,1,0,20,3,20 --view-distance 40";
   r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json" + cams + " -o " + path("k.cpvs"));
@@ -406,10 +421,13 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
       {"bake city --sun-dir 0,-1,0 --receivers volume --receiver-box 0,0,0,1,1", "MINX"},
       {"bake city --sun-dir 0,-1,0 --receivers surfaces --receiver-pcf 4", "must be odd"},
       {"bake city --sun-dir 0,-1,0 --receivers surfaces:x.obj", "only 'volume' and 'cameras' take a file"},
-      {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers volume", "needs volume_scene_hash or boxes"},
+      {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers volume", "needs volume_scene_hash, boxes or ground_layer"},
       {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers surfaces --receiver-pcf 6", "must be odd"},
       {"bake city --sun-dir 0,-1,0 --receivers cameras --camera-region 0,0,0,1,1,1", "view distance"},
       {"bake city --sun-dir 0,-1,0 --receivers surfaces --view-distance 5", "need --receivers cameras"},
+      {"bake city --sun-dir 0,-1,0 --receivers surfaces --ground-layer 2", "needs --receivers volume or cameras"},
+      {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 3:1", "0 <= FROM < TO"},
+      {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 2 --ground-slope 95", "below 90"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     std::string args = cases[i].args;

@@ -235,6 +235,13 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
       d.volume = loadScene(meshObj);
       appendBox(d.volume, {-4, 5, -4}, {3, 7, 2});
       finalizeScene(d.volume);
+      // And a ground layer, from 0.5 to 2 units over surfaces within 30 degrees of level.
+      r.set_ground_layer(2);
+      r.set_ground_layer_from(0.5);
+      r.set_ground_slope_deg(30);
+      d.groundLayer = 2;
+      d.groundLayerFrom = 0.5;
+      d.groundSlopeDeg = 30;
     }
     if (kind == ReceiverKind::Cameras) {
       pb::ReceiverBox& b = *r.add_camera_regions();
@@ -554,7 +561,21 @@ TEST(Convert, ReceiversRoundTripAndBadOnesAreNamed) {
   r.set_volume_scene_hash("../../etc/passwd");
   refused(r, "volume_scene_hash");
   r.clear_volume_scene_hash();
-  refused(r, "needs volume_scene_hash or boxes");
+  refused(r, "needs volume_scene_hash, boxes or ground_layer");
+  r.set_ground_layer(-2);
+  refused(r, "ground_layer must be a finite number >= 0");
+  r.set_ground_layer(2);
+  EXPECT_NO_THROW(net::checkReceivers(r));  // a volume that is only a ground layer
+  r.set_ground_layer_from(2);
+  refused(r, "ground_layer_from must be at least 0 and below ground_layer");
+  r.set_ground_layer_from(0.5);
+  r.set_ground_slope_deg(90);
+  refused(r, "ground_slope_deg must be at least 0 and below 90");
+  r.set_ground_slope_deg(30);
+  EXPECT_NO_THROW(net::checkReceivers(r));
+  r.clear_ground_slope_deg();
+  r.set_ground_layer(0);
+  r.set_ground_layer_from(0);
   pb::ReceiverBox& b = *r.add_boxes();
   *b.mutable_min() = net::toProto(Vec3{0, 0, 0});
   *b.mutable_max() = net::toProto(Vec3{1, std::nan(""), 1});

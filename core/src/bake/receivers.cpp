@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <numeric>
 
 #include "cpvs/base/error.h"
@@ -148,6 +149,13 @@ uint8_t receivingSides(const Scene& scene, const ReceiverDeclaration& d, size_t 
   return sides;
 }
 
+bool walkable(const Scene& scene, const ReceiverDeclaration& d, size_t t) {
+  if (!(d.groundLayer > 0)) return false;
+  const Vec3 n = triangleNormal(scene, t);
+  const double len = length(n);
+  return len > 0 && n.y >= std::cos(d.groundSlopeDeg * std::numbers::pi / 180.0) * len;
+}
+
 void checkReceiverDeclaration(const ReceiverDeclaration& d) {
   if (!isOptionValue<ReceiverKind>(int64_t(d.kind))) throw InputError("receivers: unknown kind " + std::to_string(int(d.kind)));
   checkPcfWidth(d.maxPcf);
@@ -166,8 +174,17 @@ void checkReceiverDeclaration(const ReceiverDeclaration& d) {
     if (!(d.viewDistance > 0) || !std::isfinite(d.viewDistance))
       throw InputError("receivers: 'cameras' needs a positive, finite view distance");
   }
-  if (wantsVolume && d.volume.triangleCount() == 0)
-    throw InputError("receivers: 'volume' needs a volume (a closed mesh file or boxes)");
+  if (!(d.groundLayer >= 0 && std::isfinite(d.groundLayer)))
+    throw InputError("receivers: the ground layer's height must be a finite number >= 0");
+  if (!(d.groundLayerFrom >= 0 && (d.groundLayerFrom < d.groundLayer || d.groundLayerFrom == 0)))
+    throw InputError("receivers: the ground layer must start at 0 or above and below its top");
+  if (!(d.groundSlopeDeg >= 0 && d.groundSlopeDeg < 90))
+    throw InputError("receivers: the ground layer's slope must be at least 0 and below 90 degrees");
+  if (!wantsVolume && !cameras && d.groundLayer > 0)
+    throw InputError(std::string("receivers: a ground layer is declared for '") + optionName(d.kind) +
+                     "' receivers; only 'volume' and 'cameras' take one");
+  if (wantsVolume && d.volume.triangleCount() == 0 && d.groundLayer == 0)
+    throw InputError("receivers: 'volume' needs a volume (a closed mesh file, boxes or a ground layer)");
   if (d.volume.triangleCount() != 0 && std::find(d.volume.closed.begin(), d.volume.closed.end(), 0) != d.volume.closed.end()) {
     const size_t open = size_t(std::count(d.volume.closed.begin(), d.volume.closed.end(), 0));
     throw InputError("receivers: the volume must be closed (watertight and consistently oriented); " +
@@ -183,6 +200,9 @@ Hash128 receiverHash(const ReceiverDeclaration& d) {
                             double(volume.hi >> 32), double(volume.hi & 0xFFFFFFFF), d.viewDistance};
   for (const auto& [lo, hi] : d.cameraRegions)
     for (double v : {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z}) words.push_back(v);
+  // Only a declared layer adds words: declarations without one keep their hashes.
+  if (d.groundLayer > 0) words.insert(words.end(), {-1.0, d.groundLayer, d.groundSlopeDeg});
+  if (d.groundLayerFrom > 0) words.insert(words.end(), {-2.0, d.groundLayerFrom});
   return contentHash(words.data(), words.size() * sizeof(double));
 }
 
@@ -256,6 +276,27 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
       const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
       const double window = half + cube;
       add(plane, v, {Vec3{}}, window, -g * window - cube, g * window + cube, cube, 0, 0, parts[t]);
+    }
+  }
+
+  // The ground layer: per walkable triangle the prism between its copies raised by the
+  // layer's bottom and top, any point in it with any normal (the volume's cube): the reads
+  // at a column lie between the two copies' planes, widened as a volume's.
+  if (d.groundLayer > 0) {
+    const double cube = normalOffsetVoxels(maxPcf_) * kOffsetExcess;
+    const double window = half + cube;
+    const Vec3 bottom{0, d.groundLayerFrom, 0};
+    const Vec3 up = mappedDirection(m, Vec3{0, d.groundLayer - d.groundLayerFrom, 0});
+    for (size_t t = 0; t < scene.triangleCount(); ++t) {
+      if (!walkable(scene, d, t)) continue;
+      Vec3 v[3];
+      for (int c = 0; c < 3; ++c) v[c] = mappedVoxel(m, scene.vertex(t, c) + bottom);
+      Span plane{};
+      plane.planar = fitPlane(v, plane);
+      const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
+      const double rise = plane.planar ? up.z - plane.gx * up.x - plane.gy * up.y : 0;
+      add(plane, v, {Vec3{}, up}, window, std::min(0.0, rise) - g * window - cube,
+          std::max(0.0, rise) + g * window + cube, cube, std::min(0.0, up.z), std::max(0.0, up.z), 0);
     }
   }
 

@@ -14,14 +14,22 @@
 
 namespace cpvs {
 
+/// Steepest walkable surface a ground layer covers by default, in degrees from level.
+constexpr double kDefaultGroundSlopeDeg = 45;
+
 /// What a bake is declared for: who receives (options.h), the widest PCF filter their
-/// lookups use; for ReceiverKind::Volume (and optionally Cameras) the volume, closed
-/// meshes in world space (boxes: appendBox) in which dynamic receivers move; for Cameras
-/// the boxes cameras can be in and how far they see.
+/// lookups use; for ReceiverKind::Volume (and optionally Cameras) the volume in which
+/// dynamic receivers move: closed meshes in world space (boxes: appendBox) and a ground
+/// layer (where characters and vehicles are: every point from groundLayerFrom up to
+/// groundLayer scene units above a walkable surface, see walkable()); for Cameras the boxes cameras can be in and
+/// how far they see.
 struct ReceiverDeclaration {
   ReceiverKind kind = ReceiverKind::Everywhere;
   int maxPcf = kMaxPcfWidthOption;
   Scene volume;
+  double groundLayer = 0;  // 0: no layer
+  double groundLayerFrom = 0;
+  double groundSlopeDeg = kDefaultGroundSlopeDeg;
   std::vector<std::pair<Vec3, Vec3>> cameraRegions;  // (min, max)
   double viewDistance = 0;
 };
@@ -34,13 +42,19 @@ struct ReceiverDeclaration {
 /// only). What the bake frees by and `verify` samples.
 uint8_t receivingSides(const Scene& scene, const ReceiverDeclaration& declaration, size_t t);
 
+/// Whether scene triangle t carries the declaration's ground layer: a layer is declared
+/// and the triangle's front side faces up (+y) within groundSlopeDeg of level ground.
+bool walkable(const Scene& scene, const ReceiverDeclaration& declaration, size_t t);
+
 /// InputError unless the declaration is usable: an odd PCF width in [1, 9]; a volume
 /// (closed) for ReceiverKind::Volume, none but for Volume and Cameras; camera regions
-/// (finite, min < max) and a positive view distance exactly for Cameras.
+/// (finite, min < max) and a positive view distance exactly for Cameras; a ground layer
+/// (finite, 0 <= from < height; a slope in [0, 90)) only for Volume and Cameras.
 void checkReceiverDeclaration(const ReceiverDeclaration& declaration);
 
 /// Content hash of what the declaration lets a bake leave free: the kind, the PCF width,
-/// the volume's geometry, the camera regions and view distance. Zero for Everywhere (nothing declared).
+/// the volume's geometry, the camera regions and view distance, the ground layer. Zero for
+/// Everywhere (nothing declared).
 Hash128 receiverHash(const ReceiverDeclaration& declaration);
 
 /// The reads of every declared receiver, projected onto one grid. Each receiver triangle
@@ -49,7 +63,9 @@ Hash128 receiverHash(const ReceiverDeclaration& declaration);
 /// the receiver's point moved by the normal offset of any PCF width up to maxPcf (along
 /// the side's geometric normal for surfaces, in any direction for volumes, with the 1/256
 /// the offset may exceed), read at that slice over the filter's footprint. A volume part's
-/// reads at a column are the hull of its boundary's: they cover its interior too.
+/// reads at a column are the hull of its boundary's: they cover its interior too. A
+/// walkable triangle's ground layer is one prism, swept from the triangle raised by the
+/// layer's bottom to the triangle raised by its top: its reads at a column are one range.
 /// Built once per bake and shared read-only.
 class ReceiverSet {
  public:

@@ -26,8 +26,10 @@ std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& ra
 /// `count` points where the declared receivers are, deterministic for a seed: for
 /// Everywhere, sampleSurfaces; for Surfaces, uniformly by area with the front side's
 /// normal; for SurfacesTwoSided, either side of open triangles (the outside of closed
-/// ones); for Volume, half as Surfaces and half uniformly inside the volume with random
-/// unit normals (every 8th without one).
+/// ones); for Volume, half as Surfaces and half uniformly inside the volume (its meshes,
+/// and its ground layer: a point of a walkable triangle by area, raised uniformly between
+/// the layer's bottom and top; with both, every other point in each) with random unit normals (every
+/// 8th without one).
 std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                            const Vec3& lightDir, const ReceiverDeclaration& receivers,
                                            uint64_t count, uint64_t seed);
