@@ -7,6 +7,8 @@
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/bake/bake_plan.h"
+#include "cpvs/bake/tile_plan.h"
+#include "cpvs/eval/image.h"
 #include "cpvs/scene/source.h"
 
 namespace cpvs::cli {
@@ -17,8 +19,40 @@ struct PlanArgs {
   std::string scene, resolution = "4K";
   SunFlags sun;
   OptionFlags options;
+  std::string coveragePng;
   bool json = false;
 };
+
+// The grid seen from the sun, at most 1024 pixels a side: tiles no triangle touches
+// (black), tiles no receiver reads (dark grey), tiles to render (light grey), and over
+// them the columns the receivers' lookups reach (orange, counted at min(R, 4096)).
+void writeCoveragePng(const std::string& path, const Scene& scene, const OrthoGrid& grid, const BakeOptions& options,
+                      const ReceiverDeclaration& receivers, const RasterScene& raster, const ReceiverSet& reads) {
+  OrthoGrid coarse = grid;
+  coarse.log2Resolution = std::min(grid.log2Resolution, 12);
+  const std::vector<uint8_t> reached = ReceiverSet(scene, coarse, receivers).reachedColumns();
+  const uint64_t C = coarse.resolution(), side = std::min<uint64_t>(C, 1024), per = C / side;
+  const TilePlan tiles(grid.log2Resolution, options.log2TileSize);
+  const uint64_t T = uint64_t(1) << tiles.log2TileSize(), perSide = tiles.perSide();
+  std::vector<float> shade(perSide * perSide);
+  for (uint64_t ty = 0; ty < perSide; ++ty)
+    for (uint64_t tx = 0; tx < perSide; ++tx)
+      shade[ty * perSide + tx] = !raster.touchesRectangle(tx * T, ty * T, T, T) ? 0.0f
+                                 : !reads.touchesRectangle(tx * T, ty * T, T, T) ? 0.06f
+                                                                                   : 0.45f;
+  Image image{int(side), int(side)};
+  for (uint64_t py = 0; py < side; ++py)
+    for (uint64_t px = 0; px < side; ++px) {
+      bool hit = false;
+      for (uint64_t y = py * per; y < (py + 1) * per && !hit; ++y)
+        for (uint64_t x = px * per; x < (px + 1) * per && !hit; ++x) hit = reached[y * C + x] != 0;
+      const uint64_t tx = px * perSide / side, ty = py * perSide / side;
+      const bool border = perSide <= 64 && side / perSide >= 8 && ((px * perSide) % side == 0 || (py * perSide) % side == 0);
+      const float g = border ? 0.02f : shade[ty * perSide + tx];
+      image.at(int(px), int(py)) = hit ? Rgb{1.0f, 0.35f, 0.03f} : Rgb{g, g, g};
+    }
+  writePng(path, image);
+}
 
 int runPlan(const PlanArgs& a) {
   const BakeOptions options = optionsOf(a.options);
@@ -31,6 +65,7 @@ int runPlan(const PlanArgs& a) {
   const RasterScene raster(scene, grid);
   const ReceiverSet reads(scene, grid, receivers);
   const BakePlan plan = planBake(scene, stats, options, receivers, raster, reads);
+  if (!a.coveragePng.empty()) writeCoveragePng(a.coveragePng, scene, grid, options, receivers, raster, reads);
   if (a.json)
     std::cout << planJson(plan) << "\n";
   else
@@ -50,6 +85,9 @@ void addPlanCommand(CLI::App& app, int& status) {
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R, as for bake")->capture_default_str();
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
   c->add_flag("--json", a->json, "Print the plan as JSON (what the artifact records)");
+  c->add_option("--coverage-png", a->coveragePng,
+                "Also draw the grid from the sun: tiles no triangle touches (black), tiles no receiver reads (dark "
+                "grey), tiles to render (grey), the columns receivers' lookups reach (orange)");
   c->callback([a, &status] { status = runPlan(*a); });
 }
 

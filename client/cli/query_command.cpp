@@ -1,4 +1,5 @@
 // `cpvs query`: sun visibility at world points, one from the command line or many from CSV.
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -7,6 +8,7 @@
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/base/error.h"
+#include "cpvs/bake/bake_plan.h"
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/runtime/runtime.h"
 
@@ -50,11 +52,54 @@ void readPointsCsv(const std::string& path, std::vector<Vec3>& points, std::vect
   if (!anyNormal) normals.clear();
 }
 
+// What a file was baked for, to say when a lookup is not one it promises to answer.
+class ReceiverNotice {
+ public:
+  ReceiverNotice(const CpvsArtifact& art, const std::string& file, int pcf)
+      : kind_(art.options.receivers), resolution_(art.grid.resolution()) {
+    if (kind_ == ReceiverKind::Everywhere) return;
+    const int baked = art.options.receiverPcf;
+    std::fprintf(stderr, "note: %s was baked for '%s' receivers (lookups up to PCF %d); a lookup elsewhere may be wrong\n",
+                 file.c_str(), optionName(kind_), baked);
+    if (pcf > baked)
+      std::fprintf(stderr, "warning: --pcf %d is wider than the %d %s was baked for: filtered answers may be wrong\n", pcf,
+                   baked, file.c_str());
+    if (!planCoverage(art.plan, cells_, coverage_))
+      std::fprintf(stderr, "note: %s records no receiver coverage: lookups outside it cannot be told\n", file.c_str());
+  }
+
+  // A surface receiver is looked up with its normal; any other kind also without one.
+  bool needsNormal() const { return kind_ == ReceiverKind::Surfaces || kind_ == ReceiverKind::SurfacesTwoSided; }
+
+  // True when the lookup reads the grid only where no declared receiver reads.
+  bool outside(const ShadowQuery& q, const Vec3& p, const Vec3& n, int pcf) const {
+    if (cells_ == 0) return false;
+    const VoxelCoord v = q.voxelOf(p, n, pcf);
+    if (v.z < 0) return false;  // in front of the grid: lit, read nowhere
+    const int64_t R = int64_t(resolution_), side = R / int64_t(cells_), r = pcf / 2;
+    bool read = false;
+    for (int64_t y = v.y - r; y <= v.y + r; ++y)
+      for (int64_t x = v.x - r; x <= v.x + r; ++x) {
+        if (x < 0 || y < 0 || x >= R || y >= R) continue;
+        read = true;
+        if (coverage_[size_t(y / side) * cells_ + size_t(x / side)]) return false;
+      }
+    return read;
+  }
+
+ private:
+  ReceiverKind kind_;
+  uint64_t resolution_;
+  uint32_t cells_ = 0;
+  std::vector<uint8_t> coverage_;
+};
+
 int runQuery(const QueryArgs& a) {
   if (a.point.empty() == a.pointsCsv.empty()) throw InputError("give exactly one of --point X,Y,Z and --points FILE.csv");
   if (!a.pointsCsv.empty() && !a.normal.empty())
     throw InputError("--normal goes with --point; in --points files put the normal in columns 4-6");
   CpvsArtifact art = readCpvs(a.file);
+  const ReceiverNotice notice(art, a.file, a.pcf);
   auto artifact = std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, std::move(art.packed)));
   const ShadowQuery& q = artifact->cpu();
   std::unique_ptr<runtime::ShadowLookups> gpu;
@@ -75,6 +120,11 @@ int runQuery(const QueryArgs& a) {
     VoxelCoord v = q.voxelOf(p, n, a.pcf);
     std::printf("%s  visibility %.4g  (voxel %lld, %lld, %lld)\n", vis == 1.0f ? "lit" : (vis == 0.0f ? "shadowed" : "partly lit"),
                 vis, static_cast<long long>(v.x), static_cast<long long>(v.y), static_cast<long long>(v.z));
+    if (notice.needsNormal() && a.normal.empty())
+      std::fprintf(stderr, "warning: a surface receiver is looked up with its --normal; this lookup has none\n");
+    if (notice.outside(q, p, n, a.pcf))
+      std::fprintf(stderr, "warning: undefined here: outside the declared receivers (no receiver's lookup reads this "
+                           "part of the grid), so this answer may be wrong\n");
     return 0;
   }
   std::vector<Vec3> points, normals;
@@ -84,6 +134,17 @@ int runQuery(const QueryArgs& a) {
   std::printf("x,y,z,visibility\n");
   for (size_t i = 0; i < points.size(); ++i)
     std::printf("%.9g,%.9g,%.9g,%.6g\n", points[i].x, points[i].y, points[i].z, out[i]);
+  if (notice.needsNormal() && normals.empty())
+    std::fprintf(stderr, "warning: surface receivers are looked up with their normals; %s gives none\n", a.pointsCsv.c_str());
+  std::vector<size_t> outside;
+  for (size_t i = 0; i < points.size(); ++i)
+    if (notice.outside(q, points[i], normals.empty() ? Vec3{} : normals[i], a.pcf)) outside.push_back(i);
+  if (!outside.empty()) {
+    std::string which;
+    for (size_t k = 0; k < std::min<size_t>(outside.size(), 10); ++k) which += (k ? ", " : "") + std::to_string(outside[k] + 1);
+    std::fprintf(stderr, "warning: %zu of %zu points are outside the declared receivers (point%s %s%s): their answers may be wrong\n",
+                 outside.size(), points.size(), outside.size() == 1 ? "" : "s", which.c_str(), outside.size() > 10 ? ", ..." : "");
+  }
   return 0;
 }
 

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_plan.h"
 #include "cpvs/bake/raster_slices.h"
 #include "cpvs/bake/receivers.h"
 #include "cpvs/io/cpvs_file.h"
@@ -272,6 +273,60 @@ TEST(Receivers, TilesNoReceiverReadsAreNotRendered) {
   EXPECT_TRUE(seen.touchesRectangle(ax, ay, 1, 1));
   EXPECT_FALSE(seen.touchesRectangle(bx, by, 1, 1));
   EXPECT_FALSE(seen.touchesRectangle(std::max(ax, bx) - 32, std::max(ay, by) - 32, 64, 64));
+}
+
+// The plan records where receivers read (cells of the grid, by their spans' bounds) and
+// reads it back; a plan without it, or with anything else there, gives none.
+TEST(Receivers, ThePlanRecordsTheirCoverageAndReadsItBack) {
+  Scene scene;
+  appendQuad(scene, {0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0});
+  appendQuad(scene, {30, 0, 30}, {30, 0, 31}, {31, 0, 31}, {31, 0, 30});
+  SceneStats stats = finalizeScene(scene);
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection({0, -1, 0}), 9);
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Surfaces;
+  BakeOptions options;
+  options.receivers = d.kind;
+  const RasterScene raster(scene, grid);
+  const ReceiverSet reads(scene, grid, d);
+  const BakePlan plan = planBake(scene, stats, options, d, raster, reads);
+  ASSERT_EQ(plan.coverageCells, kPlanCoverageCells);
+  const uint64_t side = grid.resolution() / plan.coverageCells;
+  uint64_t covered = 0;
+  for (uint32_t cy = 0; cy < plan.coverageCells; ++cy)
+    for (uint32_t cx = 0; cx < plan.coverageCells; ++cx) {
+      const bool read = reads.touchesRectangle(cx * side, cy * side, side, side);
+      EXPECT_EQ(plan.coverage[cy * plan.coverageCells + cx], read ? 1 : 0) << cx << ", " << cy;
+      covered += read;
+    }
+  EXPECT_GT(covered, 0u);
+  EXPECT_LT(covered, 32u);  // two small quads in opposite corners, of 4096 cells
+  // Each quad's own cell is covered.
+  for (const Vec3& p : {Vec3{0.5, 0, 0.5}, Vec3{30.5, 0, 30.5}}) {
+    const Vec3 v = grid.voxelFromWorld(p);
+    EXPECT_EQ(plan.coverage[size_t(v.y) / side * plan.coverageCells + size_t(v.x) / side], 1);
+  }
+
+  const std::string json = planJson(plan);
+  uint32_t cells = 0;
+  std::vector<uint8_t> coverage;
+  ASSERT_TRUE(planCoverage(json, cells, coverage));
+  EXPECT_EQ(cells, plan.coverageCells);
+  EXPECT_EQ(coverage, plan.coverage);
+  // Everywhere records none; damaged coverage is not read.
+  const BakePlan everywhere = planBake(scene, stats, BakeOptions{}, ReceiverDeclaration{}, raster, ReceiverSet(scene, grid, {}));
+  EXPECT_EQ(everywhere.coverageCells, 0u);
+  EXPECT_NE(planJson(everywhere).find("\"coverage\": null"), std::string::npos);
+  EXPECT_FALSE(planCoverage(planJson(everywhere), cells, coverage));
+  EXPECT_TRUE(coverage.empty());
+  const size_t rows = json.find("\"rows\": [\"") + 10;
+  for (const auto& [at, text] : std::vector<std::pair<size_t, std::string>>{
+           {rows, "g"}, {rows + 16, "0"}, {json.find("\"cells\": 64") + 9, "65"}, {json.find("\"cells\": 64") + 9, "0"}}) {
+    std::string bad = json;
+    bad.replace(at, text.size(), text);
+    EXPECT_FALSE(planCoverage(bad, cells, coverage)) << bad.substr(at - 10, 40);
+  }
+  EXPECT_FALSE(planCoverage(json.substr(0, rows + 100), cells, coverage));
 }
 
 // The sides a camera region faces within the view distance, by brute force on a quad.

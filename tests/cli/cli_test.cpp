@@ -249,6 +249,54 @@ TEST_F(Cli, QueryOnePointAndACsv) {
   EXPECT_EQ(many.out, "x,y,z,visibility\n40,200,40,1\n40,-5,40,0\n40,200,40,1\n");
 }
 
+// A file baked for declared receivers says so on every query, warns for a filter wider
+// than it was baked for, for a surface lookup without a normal, and for lookups that read
+// only where no receiver reads (the coverage its plan records); plan draws that coverage.
+TEST_F(Cli, QueryWarnsOutsideTheDeclaredReceivers) {
+  // Two small squares far apart, facing up.
+  std::ofstream(path("two.obj")) << "v 0 0 0\nv 0 0 1\nv 1 0 1\nv 1 0 0\nv 30 0 30\nv 30 0 31\nv 31 0 31\nv 31 0 30\n"
+                                    "f 1 2 3 4\nf 5 6 7 8\n";
+  CliRun r = cpvs("bake " + path("two.obj") + " --sun-dir 0.1,-1,0.1 -r 512 --receivers surfaces --receiver-pcf 3 -q -o " +
+                  path("two.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = cpvs("query " + path("two.cpvs") + " --point 0.5,0,0.5 --normal 0,1,0");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("lit"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("baked for 'surfaces' receivers (lookups up to PCF 3)"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
+  r = cpvs("query " + path("two.cpvs") + " --point 15,0,15 --normal 0,1,0");  // between them: nobody reads there
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("outside the declared receivers"), std::string::npos) << r.out;
+  r = cpvs("query " + path("two.cpvs") + " --point 0.5,0,0.5 --pcf 9");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("--pcf 9 is wider than the 3"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("this lookup has none"), std::string::npos) << r.out;
+  std::ofstream(path("two.csv")) << "0.5,0,0.5,0,1,0\n15,0,15,0,1,0\n30.5,0,30.5,0,1,0\n20,0,8,0,1,0\n";
+  r = cpvs("query " + path("two.cpvs") + " --points " + path("two.csv"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("2 of 4 points are outside the declared receivers (points 2, 4)"), std::string::npos) << r.out;
+  // A file baked for everywhere warns about nothing.
+  r = cpvs("query " + path("c.cpvs") + " --points " + path("two.csv"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(r.out.find("note"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
+
+  r = cpvs("plan " + path("two.obj") + " --sun-dir 0.1,-1,0.1 -r 512 --tile-size 64 --receivers surfaces --coverage-png " +
+           path("coverage.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("receiver coverage: "), std::string::npos) << r.out;
+  const Image img = readPng(path("coverage.png"));
+  ASSERT_EQ(img.width, 512);
+  ASSERT_EQ(img.height, 512);
+  size_t orange = 0, black = 0;
+  for (const Rgb& p : img.pixels) {
+    orange += p.r > 0.9f && p.b < 0.1f;
+    black += p.r < 0.01f && p.g < 0.01f;
+  }
+  EXPECT_GT(orange, 10u);       // the squares and their lookups' reach
+  EXPECT_GT(black, 512u * 256);  // most tiles hold no triangle
+}
+
 TEST_F(Cli, RenderWritesPicturesAndReference) {
   CliRun r = cpvs("render " + path("c.cpvs") + " city:3 --size 64x48 --reference --out " + path("shot.png"));
   ASSERT_EQ(r.status, 0) << r.out;

@@ -23,7 +23,56 @@ std::string percent(double share) {
   return b;
 }
 
+// {"cells": N, "rows": [N rows of N/4 hex digits, the first cell the highest bit]}, or null.
+std::string coverageJson(const BakePlan& p) {
+  if (p.coverageCells == 0) return "null";
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string o = "{\"cells\": " + std::to_string(p.coverageCells) + ", \"rows\": [";
+  for (uint32_t y = 0; y < p.coverageCells; ++y) {
+    o += y ? ", \"" : "\"";
+    for (uint32_t x = 0; x < p.coverageCells; x += 4) {
+      int digit = 0;
+      for (uint32_t k = 0; k < 4; ++k)
+        digit = 2 * digit + (x + k < p.coverageCells && p.coverage[size_t(y) * p.coverageCells + x + k] ? 1 : 0);
+      o += kHex[digit];
+    }
+    o += "\"";
+  }
+  return o + "]}";
+}
+
 }  // namespace
+
+bool planCoverage(const std::string& json, uint32_t& cells, std::vector<uint8_t>& coverage) {
+  cells = 0;
+  coverage.clear();
+  const std::string key = "\"coverage\": {\"cells\": ";
+  const size_t at = json.find(key);
+  if (at == std::string::npos) return false;
+  size_t i = at + key.size();
+  uint32_t n = 0;
+  while (i < json.size() && json[i] >= '0' && json[i] <= '9' && n <= kPlanCoverageCells) n = 10 * n + uint32_t(json[i++] - '0');
+  const std::string rows = ", \"rows\": [";
+  if (n == 0 || n > kPlanCoverageCells || json.compare(i, rows.size(), rows) != 0) return false;
+  i += rows.size();
+  std::vector<uint8_t> bits(size_t(n) * n, 0);
+  const uint32_t digits = (n + 3) / 4;
+  for (uint32_t y = 0; y < n; ++y) {
+    if (y && json.compare(i, 2, ", ") == 0) i += 2;
+    if (i + digits + 2 > json.size() || json[i] != '"' || json[i + 1 + digits] != '"') return false;
+    for (uint32_t k = 0; k < digits; ++k) {
+      const char c = json[i + 1 + k];
+      const int v = c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1;
+      if (v < 0) return false;
+      for (uint32_t b = 0; b < 4 && 4 * k + b < n; ++b) bits[size_t(y) * n + 4 * k + b] = uint8_t((v >> (3 - b)) & 1);
+    }
+    i += digits + 2;
+  }
+  if (json.compare(i, 2, "]}") != 0) return false;
+  cells = n;
+  coverage = std::move(bits);
+  return true;
+}
 
 BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions& o, const ReceiverDeclaration& d,
                   const RasterScene& raster, const ReceiverSet& reads) {
@@ -55,6 +104,14 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
       ++p.tilesUntouched;
     else if (!reads.touchesRectangle(t.x * T, t.y * T, T, T))
       ++p.tilesUnread;
+  }
+  if (d.kind != ReceiverKind::Everywhere) {
+    p.coverageCells = uint32_t(std::min<uint64_t>(kPlanCoverageCells, grid.resolution()));
+    const uint64_t side = grid.resolution() / p.coverageCells;
+    p.coverage.resize(size_t(p.coverageCells) * p.coverageCells);
+    for (uint32_t cy = 0; cy < p.coverageCells; ++cy)
+      for (uint32_t cx = 0; cx < p.coverageCells; ++cx)
+        p.coverage[size_t(cy) * p.coverageCells + cx] = reads.touchesRectangle(cx * side, cy * side, side, side) ? 1 : 0;
   }
   OrthoGrid coarse = grid;
   coarse.log2Resolution = std::min(grid.log2Resolution, kLog2PlanColumns);
@@ -132,7 +189,7 @@ std::string planJson(const BakePlan& p) {
     << ", \"receivers\": {\"kind\": " << jsonString(optionName(p.receivers))
     << ", \"pcf\": " << (p.receiverPcf ? std::to_string(p.receiverPcf) : "null")
     << ", \"columns_read_share\": " << jsonNumber(p.columnsReadShare) << ", \"counted_at\": " << p.columnsSampledSide
-    << "}, \"tiles\": {\"total\": " << p.tiles << ", \"untouched\": " << p.tilesUntouched << ", \"unread\": " << p.tilesUnread
+    << "}, \"coverage\": " << coverageJson(p) << ", \"tiles\": {\"total\": " << p.tiles << ", \"untouched\": " << p.tilesUntouched << ", \"unread\": " << p.tilesUnread
     << "}, \"lights\": [";
   for (size_t i = 0; i < p.lights.size(); ++i) {
     const BakePlan::Light& l = p.lights[i];
@@ -158,6 +215,10 @@ std::string planText(const BakePlan& p) {
   if (p.receivers != ReceiverKind::Everywhere)
     o << ", PCF up to " << p.receiverPcf << ": their lookups reach " << percent(p.columnsReadShare)
       << " of the texel columns (counted at " << p.columnsSampledSide << "^2); the rest is free";
+  if (p.coverageCells)
+    o << "\n  receiver coverage: " << std::count(p.coverage.begin(), p.coverage.end(), 1) << " of "
+      << p.coverage.size() << " cells of " << p.resolution / p.coverageCells << "^2 texels can be read"
+      << " (recorded in the file: a lookup elsewhere is outside the declared receivers)";
   o << "\n  lights in the file: " << (p.lights.empty() ? "none" : std::to_string(p.lights.size())) << "\n";
   for (const BakePlan::Light& l : p.lights)
     o << "    " << lightTypeName(l.light.type) << " '" << loggable(l.light.name) << "': " << l.reason << "\n";

@@ -332,13 +332,19 @@ bool ReceiverSet::touchesRectangle(uint64_t x0, uint64_t y0, uint64_t width, uin
 
 uint64_t ReceiverSet::columnsReached() const {
   if (kind_ == ReceiverKind::Everywhere) return uint64_t(R_) * R_;
-  std::vector<uint8_t> reached(size_t(R_) * R_, 0);
+  const std::vector<uint8_t> reached = reachedColumns();
+  return uint64_t(std::count(reached.begin(), reached.end(), 1));
+}
+
+std::vector<uint8_t> ReceiverSet::reachedColumns() const {
+  std::vector<uint8_t> reached(size_t(R_) * R_, kind_ == ReceiverKind::Everywhere ? 1 : 0);
+  if (kind_ == ReceiverKind::Everywhere) return reached;
   for (const Span& s : spans_)
     for (int64_t y = s.yMin; y <= s.yMax; ++y) {
       int64_t x0 = 0, x1 = 0;
       if (columnRange(s, double(y) + 0.5, x0, x1)) std::fill_n(reached.begin() + ptrdiff_t(size_t(y) * R_ + size_t(x0)), x1 - x0 + 1, 1);
     }
-  return uint64_t(std::count(reached.begin(), reached.end(), 1));
+  return reached;
 }
 
 // The columns of row centre cy inside the span's coverage, [x0, x1]; false when none.

@@ -17,6 +17,9 @@
 
 namespace cpvs {
 
+/// Cells per side of a plan's receiver coverage (fewer when R is smaller).
+constexpr uint32_t kPlanCoverageCells = 64;
+
 struct BakePlan {
   std::string scene;
   uint64_t triangles = 0, parts = 0, closedParts = 0, closedTriangles = 0;
@@ -29,6 +32,12 @@ struct BakePlan {
   uint64_t tilesUnread = 0;            // touched, but no declared receiver reads them: not rendered either
   double columnsReadShare = 1;         // texel columns some receiver's lookups reach (1 for everywhere)
   uint64_t columnsSampledSide = 0;     // the grid side that share was counted at (min(R, 4096))
+  // Where declared receivers may read: coverageCells^2 cells of R / coverageCells texels
+  // square, row by row (texel y, then x); 1 where some receiver's lookup may read a
+  // column of the cell (by its bounding box: a superset), 0 where none can. Empty for
+  // everywhere. Recorded in artifacts, so that a lookup can tell it is outside.
+  uint32_t coverageCells = 0;
+  std::vector<uint8_t> coverage;
   struct Light {
     SceneLight light;
     bool baked = false;
@@ -55,5 +64,10 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
 std::string planJson(const BakePlan& plan);
 /// The plan for people, one line per fact.
 std::string planText(const BakePlan& plan);
+
+/// The receiver coverage a plan's JSON records (planJson's "coverage"), into `cells` and
+/// `coverage` as BakePlan holds them; false (both cleared) when it records none (a bake
+/// for everywhere, a file from before coverage was recorded) or holds something else.
+bool planCoverage(const std::string& planJson, uint32_t& cells, std::vector<uint8_t>& coverage);
 
 }  // namespace cpvs

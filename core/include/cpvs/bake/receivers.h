@@ -83,6 +83,8 @@ class ReceiverSet {
   /// How many texel columns of the grid some receiver's lookups may reach (their
   /// coverage, before any depth is known); R² for Everywhere.
   uint64_t columnsReached() const;
+  /// Those columns, R² flags row by row (all 1 for Everywhere).
+  std::vector<uint8_t> reachedColumns() const;
 
   /// Widens the classification of the texels [x0, x0 + width) x [y0, y0 + height) (row
   /// major, as rendered) to what the receivers need: firstUndefined becomes one past the
