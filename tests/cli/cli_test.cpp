@@ -155,6 +155,14 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
   ASSERT_EQ(r.status, 0) << r.out;
   const uint64_t layerBytes = parse(r)["bytes"].get<uint64_t>();
   EXPECT_LT(layerBytes, bake_["bytes"].get<uint64_t>());
+  r = cpvs("inspect --json " + path("g.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json ground = parse(r)["plan"]["receivers"]["ground_layer"];
+  EXPECT_EQ(ground["from"], 0.2);
+  EXPECT_EQ(ground["to"], 2);
+  EXPECT_EQ(ground["slope_deg"], 45);
+  EXPECT_GT(ground["walkable_triangles"].get<uint64_t>(), 0u);
+  EXPECT_GT(ground["walkable_area_share"].get<double>(), 0.1);
   r = cpvs("verify -n 3000 " + path("g.cpvs") + " city:3 --receivers volume --ground-layer 2");
   EXPECT_EQ(r.status, 2) << r.out;
   EXPECT_NE(r.out.find("not the one"), std::string::npos) << r.out;

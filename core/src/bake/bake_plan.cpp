@@ -83,14 +83,21 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
   p.parts = stats.parts;
   p.closedParts = stats.closedParts;
   p.closedTriangles = stats.closedTriangles;
-  double area = 0, closedArea = 0;
+  double area = 0, closedArea = 0, walkableArea = 0;
   for (size_t t = 0; t < scene.triangleCount(); ++t) {
     const Vec3 a = scene.vertex(t, 0);
     const double at = 0.5 * length(cross(scene.vertex(t, 1) - a, scene.vertex(t, 2) - a));
     area += at;
     if (scene.closed[t]) closedArea += at;
+    if (walkable(scene, d, t)) walkableArea += at, ++p.walkableTriangles;
   }
   p.closedAreaShare = area > 0 ? closedArea / area : 0;
+  p.walkableAreaShare = area > 0 ? walkableArea / area : 0;
+  if (d.groundLayer > 0) {
+    p.groundLayerFrom = d.groundLayerFrom;
+    p.groundLayer = d.groundLayer;
+    p.groundSlopeDeg = d.groundSlopeDeg;
+  }
   p.resolution = grid.resolution();
   p.receivers = d.kind;
   p.receiverPcf = d.kind == ReceiverKind::Everywhere ? 0 : d.maxPcf;
@@ -189,8 +196,15 @@ std::string planJson(const BakePlan& p) {
     << ", \"receivers\": {\"kind\": " << jsonString(optionName(p.receivers))
     << ", \"pcf\": " << (p.receiverPcf ? std::to_string(p.receiverPcf) : "null")
     << ", \"columns_read_share\": " << jsonNumber(p.columnsReadShare) << ", \"counted_at\": " << p.columnsSampledSide
-    << "}, \"coverage\": " << coverageJson(p) << ", \"tiles\": {\"total\": " << p.tiles << ", \"untouched\": " << p.tilesUntouched << ", \"unread\": " << p.tilesUnread
-    << "}, \"lights\": [";
+    << ", \"ground_layer\": ";
+  if (p.groundLayer > 0)
+    o << "{\"from\": " << jsonNumber(p.groundLayerFrom) << ", \"to\": " << jsonNumber(p.groundLayer)
+      << ", \"slope_deg\": " << jsonNumber(p.groundSlopeDeg) << ", \"walkable_triangles\": " << p.walkableTriangles
+      << ", \"walkable_area_share\": " << jsonNumber(p.walkableAreaShare) << "}";
+  else
+    o << "null";
+  o << "}, \"coverage\": " << coverageJson(p) << ", \"tiles\": {\"total\": " << p.tiles
+    << ", \"untouched\": " << p.tilesUntouched << ", \"unread\": " << p.tilesUnread << "}, \"lights\": [";
   for (size_t i = 0; i < p.lights.size(); ++i) {
     const BakePlan::Light& l = p.lights[i];
     o << (i ? ", " : "") << "{\"name\": " << jsonString(l.light.name) << ", \"type\": " << jsonString(lightTypeName(l.light.type))
@@ -215,6 +229,10 @@ std::string planText(const BakePlan& p) {
   if (p.receivers != ReceiverKind::Everywhere)
     o << ", PCF up to " << p.receiverPcf << ": their lookups reach " << percent(p.columnsReadShare)
       << " of the texel columns (counted at " << p.columnsSampledSide << "^2); the rest is free";
+  if (p.groundLayer > 0)
+    o << "\n  ground layer: from " << p.groundLayerFrom << " to " << p.groundLayer << " scene units above "
+      << p.walkableTriangles << " walkable triangles (facing up within " << p.groundSlopeDeg << " degrees; "
+      << percent(p.walkableAreaShare) << " of the area)";
   if (p.coverageCells)
     o << "\n  receiver coverage: " << std::count(p.coverage.begin(), p.coverage.end(), 1) << " of "
       << p.coverage.size() << " cells of " << p.resolution / p.coverageCells << "^2 texels can be read"

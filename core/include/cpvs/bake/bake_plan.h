@@ -38,6 +38,10 @@ struct BakePlan {
   // everywhere. Recorded in artifacts, so that a lookup can tell it is outside.
   uint32_t coverageCells = 0;
   std::vector<uint8_t> coverage;
+  // The declaration's ground layer (height 0: none) and the walkable triangles it covers.
+  double groundLayerFrom = 0, groundLayer = 0, groundSlopeDeg = 0;
+  uint64_t walkableTriangles = 0;
+  double walkableAreaShare = 0;  // of the scene's surface area
   struct Light {
     SceneLight light;
     bool baked = false;
