@@ -87,12 +87,17 @@ std::vector<std::pair<Vec3, Vec3>> boxesOf(const std::vector<std::string>& texts
 
 std::pair<double, double> groundLayerOf(const std::string& text) {
   if (text.empty()) return {0, 0};
+  const InputError bad("--ground-layer: '" + text + "' is not [FROM:]TO with 0 <= FROM < TO");
   const size_t colon = text.find(':');
-  const double from = colon == std::string::npos ? 0 : parseNumbers(text.substr(0, colon), "--ground-layer").at(0);
-  const std::vector<double> to = parseNumbers(colon == std::string::npos ? text : text.substr(colon + 1), "--ground-layer");
-  if (to.size() != 1 || !(from >= 0 && from < to[0]))
-    throw InputError("--ground-layer: '" + text + "' is not [FROM:]TO with 0 <= FROM < TO");
-  return {from, to[0]};
+  auto one = [&](const std::string& part) {
+    const std::vector<double> v = part.empty() ? std::vector<double>{} : parseNumbers(part, "--ground-layer");
+    if (v.size() != 1) throw bad;
+    return v[0];
+  };
+  const double from = colon == std::string::npos ? 0 : one(text.substr(0, colon));
+  const double to = one(colon == std::string::npos ? text : text.substr(colon + 1));
+  if (!(from >= 0 && from < to)) throw bad;
+  return {from, to};
 }
 
 ReceiverDeclaration receiversOf(const OptionFlags& f) {
@@ -105,6 +110,8 @@ ReceiverDeclaration receiversOf(const OptionFlags& f) {
     throw InputError("--receivers: only 'volume' and 'cameras' take a file ('" + f.receivers + "')");
   if (!f.receiverBoxes.empty() && !volume) throw InputError("--receiver-box needs --receivers volume or cameras");
   if (!f.groundLayer.empty() && !volume) throw InputError("--ground-layer needs --receivers volume or cameras");
+  if (f.groundSlope != kDefaultGroundSlopeDeg && f.groundLayer.empty())
+    throw InputError("--ground-slope needs --ground-layer");
   if (!cameras && (!f.cameraRegions.empty() || f.viewDistance != 0))
     throw InputError("--camera-region and --view-distance need --receivers cameras");
   if (volume) {

@@ -29,7 +29,7 @@ struct PlanArgs {
 void writeCoveragePng(const std::string& path, const Scene& scene, const OrthoGrid& grid, const BakeOptions& options,
                       const ReceiverDeclaration& receivers, const RasterScene& raster, const ReceiverSet& reads) {
   OrthoGrid coarse = grid;
-  coarse.log2Resolution = std::min(grid.log2Resolution, 12);
+  coarse.log2Resolution = std::min(grid.log2Resolution, kLog2PlanColumns);
   const std::vector<uint8_t> reached = ReceiverSet(scene, coarse, receivers).reachedColumns();
   const uint64_t C = coarse.resolution(), side = std::min<uint64_t>(C, 1024), per = C / side;
   const TilePlan tiles(grid.log2Resolution, options.log2TileSize);

@@ -64,7 +64,7 @@ class ReceiverNotice {
     if (pcf > baked)
       std::fprintf(stderr, "warning: --pcf %d is wider than the %d %s was baked for: filtered answers may be wrong\n", pcf,
                    baked, file.c_str());
-    if (!planCoverage(art.plan, cells_, coverage_))
+    if (!planCoverage(art.plan, resolution_, cells_, coverage_))
       std::fprintf(stderr, "note: %s records no receiver coverage: lookups outside it cannot be told\n", file.c_str());
   }
 
@@ -134,8 +134,12 @@ int runQuery(const QueryArgs& a) {
   std::printf("x,y,z,visibility\n");
   for (size_t i = 0; i < points.size(); ++i)
     std::printf("%.9g,%.9g,%.9g,%.6g\n", points[i].x, points[i].y, points[i].z, out[i]);
-  if (notice.needsNormal() && normals.empty())
-    std::fprintf(stderr, "warning: surface receivers are looked up with their normals; %s gives none\n", a.pointsCsv.c_str());
+  if (notice.needsNormal()) {
+    const size_t without = normals.empty() ? points.size() : size_t(std::count(normals.begin(), normals.end(), Vec3{}));
+    if (without)
+      std::fprintf(stderr, "warning: %zu of %zu points have no normal; surface receivers are looked up with theirs\n",
+                   without, points.size());
+  }
   std::vector<size_t> outside;
   for (size_t i = 0; i < points.size(); ++i)
     if (notice.outside(q, points[i], normals.empty() ? Vec3{} : normals[i], a.pcf)) outside.push_back(i);

@@ -12,32 +12,48 @@ namespace cpvs {
 
 namespace {
 
+// Triangles picked with probability proportional to their area, among those `take`
+// accepts, and uniform points on them.
+class AreaPicker {
+ public:
+  template <class Take>
+  AreaPicker(const Scene& scene, Take&& take) : scene_(scene), cdf_(scene.triangleCount() + 1, 0.0) {
+    for (size_t t = 0; t < scene.triangleCount(); ++t) {
+      const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+      cdf_[t + 1] = cdf_[t] + (take(uint32_t(t)) ? 0.5 * length(cross(b - a, c - a)) : 0.0);
+    }
+  }
+
+  bool empty() const { return !(cdf_.back() > 0); }
+
+  // A triangle and a uniform point on it, from three draws of rng.
+  std::pair<size_t, Vec3> pick(SplitMix64& rng) const {
+    const size_t tris = scene_.triangleCount();
+    size_t t = size_t(std::upper_bound(cdf_.begin(), cdf_.end(), rng.uniform01() * cdf_[tris]) - cdf_.begin());
+    t = std::clamp<size_t>(t, 1, tris) - 1;
+    double r1 = rng.uniform01(), r2 = rng.uniform01();
+    if (r1 + r2 > 1) r1 = 1 - r1, r2 = 1 - r2;
+    const Vec3 a = scene_.vertex(t, 0), b = scene_.vertex(t, 1), c = scene_.vertex(t, 2);
+    return {t, a + (b - a) * r1 + (c - a) * r2};
+  }
+
+ private:
+  const Scene& scene_;
+  std::vector<double> cdf_;
+};
+
 // `count` points uniform by area over the triangles `take` accepts, each with the normal
 // of the side `side(t, rng)` picks (+1 front, -1 back).
 template <class Take, class Side>
-std::vector<SurfaceSample> sampleByArea(const Scene& scene, const RayScene& rays, ClosedMode closed,
-                                        const Vec3& lightDir, uint64_t count, uint64_t seed, Take&& take, Side&& side) {
-  size_t tris = scene.triangleCount();
-  std::vector<double> cdf(tris + 1, 0.0);
-  for (size_t t = 0; t < tris; ++t) {
-    Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-    cdf[t + 1] = cdf[t] + (take(uint32_t(t)) ? 0.5 * length(cross(b - a, c - a)) : 0.0);
-  }
+std::vector<SurfaceSample> sampleByArea(const Scene& scene, uint64_t count, uint64_t seed, Take&& take, Side&& side) {
+  const AreaPicker picker(scene, take);
+  if (picker.empty()) return {};
   std::vector<SurfaceSample> out(count);
-  if (tris == 0 || !(cdf[tris] > 0)) return {};
   tbb::parallel_for(uint64_t(0), count, [&](uint64_t i) {
     SplitMix64 rng = SplitMix64::forItem(seed, i);
-    double pick = rng.uniform01() * cdf[tris];
-    size_t t = size_t(std::upper_bound(cdf.begin(), cdf.end(), pick) - cdf.begin());
-    t = std::clamp<size_t>(t, 1, tris) - 1;
-    double r1 = rng.uniform01(), r2 = rng.uniform01();
-    if (r1 + r2 > 1) {
-      r1 = 1 - r1;
-      r2 = 1 - r2;
-    }
-    Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-    const Vec3 n = normalize(cross(b - a, c - a));
-    out[i] = SurfaceSample{a + (b - a) * r1 + (c - a) * r2, n * side(uint32_t(t), rng)};
+    const auto [t, p] = picker.pick(rng);
+    const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+    out[i] = SurfaceSample{p, normalize(cross(b - a, c - a)) * side(uint32_t(t), rng)};
   });
   return out;
 }
@@ -67,7 +83,7 @@ bool insideClosedMesh(const Scene& mesh, const Vec3& p) {
 
 std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                           const Vec3& lightDir, uint64_t count, uint64_t seed) {
-  return sampleByArea(scene, rays, closed, lightDir, count, seed, [](uint32_t) { return true; },
+  return sampleByArea(scene, count, seed, [](uint32_t) { return true; },
                       [&](uint32_t t, SplitMix64&) {
                         const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
                         return !rays.triangleClosed(t, closed) && dot(cross(b - a, c - a), lightDir) > 0 ? -1.0 : 1.0;
@@ -84,17 +100,13 @@ std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& r
   const bool mesh = d.volume.triangleCount() != 0, layer = d.groundLayer > 0;
   const uint64_t inVolume = mesh || layer ? count / 2 : 0;
   std::vector<SurfaceSample> out = sampleByArea(
-      scene, rays, closed, lightDir, count - inVolume, seed,
+      scene, count - inVolume, seed,
       [&](uint32_t t) { return sides[t] != 0; },
       [&](uint32_t t, SplitMix64& rng) { return sides[t] == 2 || (sides[t] == 3 && rng.uniform01() < 0.5) ? -1.0 : 1.0; });
   if (inVolume == 0) return out;
-  // Points of the ground layer: on a walkable triangle (by area), raised by up to its height.
-  std::vector<double> cdf(scene.triangleCount() + 1, 0.0);
-  for (size_t t = 0; layer && t < scene.triangleCount(); ++t) {
-    const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-    cdf[t + 1] = cdf[t] + (walkable(scene, d, t) ? 0.5 * length(cross(b - a, c - a)) : 0.0);
-  }
-  const bool layerSampled = layer && cdf.back() > 0;
+  // Points of the ground layer: on a walkable triangle (by area), raised within the layer.
+  const AreaPicker walkableArea(scene, [&](uint32_t t) { return walkable(scene, d, t); });
+  const bool layerSampled = !walkableArea.empty();
   if (!mesh && !layerSampled) return out;
   Vec3 lo, hi;
   if (mesh) sceneBounds(d.volume, lo, hi);
@@ -103,14 +115,8 @@ std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& r
     SplitMix64 rng = SplitMix64::forItem(seed ^ 0x766f6c756d65ull, i);
     Vec3 p;
     if (layerSampled && (!mesh || i % 2 == 1)) {
-      const size_t tris = scene.triangleCount();
-      size_t t = size_t(std::upper_bound(cdf.begin(), cdf.end(), rng.uniform01() * cdf[tris]) - cdf.begin());
-      t = std::clamp<size_t>(t, 1, tris) - 1;
-      double r1 = rng.uniform01(), r2 = rng.uniform01();
-      if (r1 + r2 > 1) r1 = 1 - r1, r2 = 1 - r2;
-      const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-      const double h = d.groundLayerFrom + (d.groundLayer - d.groundLayerFrom) * rng.uniform01();
-      p = a + (b - a) * r1 + (c - a) * r2 + Vec3{0, h, 0};
+      p = walkableArea.pick(rng).second;
+      p.y += d.groundLayerFrom + (d.groundLayer - d.groundLayerFrom) * rng.uniform01();
     } else {
       do {
         p = {lo.x + (hi.x - lo.x) * rng.uniform01(), lo.y + (hi.y - lo.y) * rng.uniform01(),

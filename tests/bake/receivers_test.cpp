@@ -310,23 +310,24 @@ TEST(Receivers, ThePlanRecordsTheirCoverageAndReadsItBack) {
   const std::string json = planJson(plan);
   uint32_t cells = 0;
   std::vector<uint8_t> coverage;
-  ASSERT_TRUE(planCoverage(json, cells, coverage));
+  ASSERT_TRUE(planCoverage(json, grid.resolution(), cells, coverage));
   EXPECT_EQ(cells, plan.coverageCells);
   EXPECT_EQ(coverage, plan.coverage);
   // Everywhere records none; damaged coverage is not read.
   const BakePlan everywhere = planBake(scene, stats, BakeOptions{}, ReceiverDeclaration{}, raster, ReceiverSet(scene, grid, {}));
   EXPECT_EQ(everywhere.coverageCells, 0u);
   EXPECT_NE(planJson(everywhere).find("\"coverage\": null"), std::string::npos);
-  EXPECT_FALSE(planCoverage(planJson(everywhere), cells, coverage));
+  EXPECT_FALSE(planCoverage(planJson(everywhere), grid.resolution(), cells, coverage));
   EXPECT_TRUE(coverage.empty());
   const size_t rows = json.find("\"rows\": [\"") + 10;
   for (const auto& [at, text] : std::vector<std::pair<size_t, std::string>>{
            {rows, "g"}, {rows + 16, "0"}, {json.find("\"cells\": 64") + 9, "65"}, {json.find("\"cells\": 64") + 9, "0"}}) {
     std::string bad = json;
     bad.replace(at, text.size(), text);
-    EXPECT_FALSE(planCoverage(bad, cells, coverage)) << bad.substr(at - 10, 40);
+    EXPECT_FALSE(planCoverage(bad, grid.resolution(), cells, coverage)) << bad.substr(at - 10, 40);
   }
-  EXPECT_FALSE(planCoverage(json.substr(0, rows + 100), cells, coverage));
+  EXPECT_FALSE(planCoverage(json.substr(0, rows + 100), grid.resolution(), cells, coverage));
+  EXPECT_FALSE(planCoverage(json, 32, cells, coverage));    // 64 cells cannot cover a grid of 32
 }
 
 // The sides a camera region faces within the view distance, by brute force on a quad.
@@ -362,10 +363,11 @@ TEST(Receivers, AGroundLayerCoversWalkableSurfaces) {
   appendQuad(s, {0, 0, 0}, {0, 0.9, 1}, {1, 0.9, 1}, {1, 0, 0});  // 42 degrees
   appendQuad(s, {0, 0, 0}, {0, 1.1, 1}, {1, 1.1, 1}, {1, 0, 0});  // 48 degrees
   appendQuad(s, {0, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0});      // a wall
+  appendQuad(s, {0, 0, 0}, {0, 1, 1}, {1, 1, 1}, {1, 0, 0});      // exactly 45 degrees: walkable
   finalizeScene(s);
   ReceiverDeclaration d;
   d.kind = ReceiverKind::Volume;
-  std::vector<bool> expected{true, true, false, false, true, true, false, false, false, false};
+  std::vector<bool> expected{true, true, false, false, true, true, false, false, false, false, true, true};
   for (size_t t = 0; t < s.triangleCount(); ++t) EXPECT_FALSE(walkable(s, d, t)) << t;  // no layer declared
   d.groundLayer = 2;
   for (size_t t = 0; t < s.triangleCount(); ++t) EXPECT_EQ(walkable(s, d, t), expected[t]) << t;
@@ -377,6 +379,12 @@ TEST(Receivers, AGroundLayerCoversWalkableSurfaces) {
   EXPECT_NE(receiverHash(d), h45);
   d.groundSlopeDeg = 90;
   EXPECT_THROW(checkReceiverDeclaration(d), InputError);
+  d.groundSlopeDeg = 45;
+  const OrthoGrid grid = makeGrid(s, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
+  d.groundLayer = 2 * std::max(grid.extent, grid.depthExtent) * 1.001;
+  EXPECT_THROW(ReceiverSet(s, grid, d), InputError);  // taller than the grid: nobody declares that
+  d.groundLayer = 2;
+  EXPECT_NO_THROW(ReceiverSet(s, grid, d));
   d.groundSlopeDeg = 45;
   d.groundLayer = -1;
   EXPECT_THROW(checkReceiverDeclaration(d), InputError);

@@ -155,6 +155,10 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
   ASSERT_EQ(r.status, 0) << r.out;
   const uint64_t layerBytes = parse(r)["bytes"].get<uint64_t>();
   EXPECT_LT(layerBytes, bake_["bytes"].get<uint64_t>());
+  r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json --receivers surfaces -o " +
+           path("s.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_GT(layerBytes, parse(r)["bytes"].get<uint64_t>());
   r = cpvs("inspect --json " + path("g.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;
   const json ground = parse(r)["plan"]["receivers"]["ground_layer"];
@@ -283,6 +287,11 @@ TEST_F(Cli, QueryWarnsOutsideTheDeclaredReceivers) {
   r = cpvs("query " + path("two.cpvs") + " --points " + path("two.csv"));
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("2 of 4 points are outside the declared receivers (points 2, 4)"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("have no normal"), std::string::npos) << r.out;
+  std::ofstream(path("two-mixed.csv")) << "0.5,0,0.5,0,1,0\n30.5,0,30.5\n";
+  r = cpvs("query " + path("two.cpvs") + " --points " + path("two-mixed.csv"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("1 of 2 points have no normal"), std::string::npos) << r.out;
   // A file baked for everywhere warns about nothing.
   r = cpvs("query " + path("c.cpvs") + " --points " + path("two.csv"));
   ASSERT_EQ(r.status, 0) << r.out;
@@ -423,7 +432,9 @@ TEST_F(Cli, ContactSheetAndAnimation) {
     const uint32_t crc = uint32_t(crc32(0, reinterpret_cast<const Bytef*>(png.data() + at + 4), uInt(n + 4)));
     EXPECT_EQ(be(at + 8 + n), crc) << type;
     if (type == "fcTL" || type == "fdAT") sequence.push_back(be(at + 8));
-    if (type == "acTL") EXPECT_EQ(be(at + 8), 2u);
+    if (type == "acTL") {
+      EXPECT_EQ(be(at + 8), 2u);
+    }
     types.push_back(type);
     at += 12 + n;
   }
@@ -483,6 +494,10 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
       {"bake city --sun-dir 0,-1,0 --receivers surfaces --view-distance 5", "need --receivers cameras"},
       {"bake city --sun-dir 0,-1,0 --receivers surfaces --ground-layer 2", "needs --receivers volume or cameras"},
       {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 3:1", "0 <= FROM < TO"},
+      {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer :2", "0 <= FROM < TO"},
+      {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 1,5:2", "0 <= FROM < TO"},
+      {"bake city --sun-dir 0,-1,0 --receivers volume --receiver-box 0,0,0,1,1,1 --ground-slope 30", "needs --ground-layer"},
+      {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 1e9", "taller than twice the scene's grid"},
       {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 2 --ground-slope 95", "below 90"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {

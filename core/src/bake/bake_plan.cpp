@@ -11,8 +11,6 @@ namespace cpvs {
 
 namespace {
 
-constexpr int kLog2PlanColumns = 12;  // the side the read columns are counted at
-
 std::string vecJson(const Vec3& v) {
   return "[" + jsonNumber(v.x) + ", " + jsonNumber(v.y) + ", " + jsonNumber(v.z) + "]";
 }
@@ -43,7 +41,7 @@ std::string coverageJson(const BakePlan& p) {
 
 }  // namespace
 
-bool planCoverage(const std::string& json, uint32_t& cells, std::vector<uint8_t>& coverage) {
+bool planCoverage(const std::string& json, uint64_t resolution, uint32_t& cells, std::vector<uint8_t>& coverage) {
   cells = 0;
   coverage.clear();
   const std::string key = "\"coverage\": {\"cells\": ";
@@ -53,7 +51,7 @@ bool planCoverage(const std::string& json, uint32_t& cells, std::vector<uint8_t>
   uint32_t n = 0;
   while (i < json.size() && json[i] >= '0' && json[i] <= '9' && n <= kPlanCoverageCells) n = 10 * n + uint32_t(json[i++] - '0');
   const std::string rows = ", \"rows\": [";
-  if (n == 0 || n > kPlanCoverageCells || json.compare(i, rows.size(), rows) != 0) return false;
+  if (n != std::min<uint64_t>(kPlanCoverageCells, resolution) || json.compare(i, rows.size(), rows) != 0) return false;
   i += rows.size();
   std::vector<uint8_t> bits(size_t(n) * n, 0);
   const uint32_t digits = (n + 3) / 4;

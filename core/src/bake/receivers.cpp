@@ -47,9 +47,12 @@ bool fitPlane(const Vec3 (&v)[3], ReceiverSet::Span& s) {
   return std::isfinite(s.gx) && std::isfinite(s.gy) && std::fabs(s.gx) + std::fabs(s.gy) < 1e6;
 }
 
-// Column bounds and the six supporting half-planes of the triangle swept by `sweep`
-// (its xy moved by each), dilated by the square of half-width h.
-bool fitCoverage(const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double h, uint32_t R, ReceiverSet::Span& s) {
+// Column bounds and the supporting half-planes of the triangle swept by `sweep` (its xy
+// moved by each), dilated by the square of half-width h: along the triangle's edges, and
+// with `alongSweep` also along a two-point sweep (a long one: a ground layer's seen from
+// a low sun, which the bounds alone would widen into a box).
+bool fitCoverage(const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double h, uint32_t R, bool alongSweep,
+                 ReceiverSet::Span& s) {
   std::vector<Point2> hull;
   for (const Vec3& o : sweep)
     for (const Vec3& p : v) hull.push_back({p.x + o.x, p.y + o.y});
@@ -65,10 +68,9 @@ bool fitCoverage(const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double h, u
   if (!(x0 <= last && y0 <= last && x1 >= 0 && y1 >= 0 && x0 <= x1 && y0 <= y1)) return false;
   s.xMin = int64_t(std::max(0.0, x0)), s.xMax = int64_t(std::min(last, x1));
   s.yMin = int64_t(std::max(0.0, y0)), s.yMax = int64_t(std::min(last, y1));
-  for (int e = 0; e < 3; ++e) {
-    const Vec3& a = v[e];
-    const Vec3& b = v[(e + 1) % 3];
-    const double dx = -(b.y - a.y), dy = b.x - a.x;
+  for (int e = 0; e < 4; ++e) {
+    const Vec3 along = e < 3 ? v[(e + 1) % 3] - v[e] : alongSweep && sweep.size() == 2 ? sweep[1] - sweep[0] : Vec3{};
+    const double dx = -along.y, dy = along.x;
     for (int sign = 0; sign < 2; ++sign) {
       const int k = 2 * e + sign;
       const double ux = sign ? -dx : dx, uy = sign ? -dy : dy;
@@ -153,7 +155,9 @@ bool walkable(const Scene& scene, const ReceiverDeclaration& d, size_t t) {
   if (!(d.groundLayer > 0)) return false;
   const Vec3 n = triangleNormal(scene, t);
   const double len = length(n);
-  return len > 0 && n.y >= std::cos(d.groundSlopeDeg * std::numbers::pi / 180.0) * len;
+  // A part in 10^9 of slack: a ramp of exactly the limit counts, whatever the last bit of
+  // the cosine (the C library's, which may differ between a client and a worker).
+  return len > 0 && n.y >= std::cos(d.groundSlopeDeg * std::numbers::pi / 180.0) * len * (1 - 1e-9);
 }
 
 void checkReceiverDeclaration(const ReceiverDeclaration& d) {
@@ -214,10 +218,10 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
   const double rho = 0.5 * (maxPcf_ - 1);  // footprint radius, texels
   const double half = rho + 0.5;           // a column's window: the footprint around a texel
   // `s` holds the triangle's plane (fitPlane); the rest is filled here.
-  auto add = [&](Span s, const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double coverHalf, double loOff,
-                 double hiOff, double depthPad, double sweepLo, double sweepHi, uint32_t part) {
+  auto add = [&](Span s, const Vec3 (&v)[3], const std::vector<Vec3>& sweep, bool alongSweep, double coverHalf,
+                 double loOff, double hiOff, double depthPad, double sweepLo, double sweepHi, uint32_t part) {
     s.part = part;
-    if (!fitCoverage(v, sweep, coverHalf + kSlack, R_, s)) return;
+    if (!fitCoverage(v, sweep, coverHalf + kSlack, R_, alongSweep, s)) return;
     const double zMin = std::min({v[0].z, v[1].z, v[2].z}), zMax = std::max({v[0].z, v[1].z, v[2].z});
     s.zLo = zMin + sweepLo - depthPad - kSlack;
     s.zHi = zMax + sweepHi + depthPad + kSlack;
@@ -259,7 +263,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
           if ((width == 1 && f == 1.0) || (width == maxPcf_ && f != 1.0)) sweep.push_back(o);
         }
       }
-      add(plane, v, sweep, half, loOff, hiOff, 0, sweepLo, sweepHi, 0);
+      add(plane, v, sweep, false, half, loOff, hiOff, 0, sweepLo, sweepHi, 0);
     }
   }
 
@@ -275,7 +279,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
       plane.planar = fitPlane(v, plane);
       const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
       const double window = half + cube;
-      add(plane, v, {Vec3{}}, window, -g * window - cube, g * window + cube, cube, 0, 0, parts[t]);
+      add(plane, v, {Vec3{}}, false, window, -g * window - cube, g * window + cube, cube, 0, 0, parts[t]);
     }
   }
 
@@ -283,6 +287,11 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
   // layer's bottom and top, any point in it with any normal (the volume's cube): the reads
   // at a column lie between the two copies' planes, widened as a volume's.
   if (d.groundLayer > 0) {
+    // Taller than the grid it would sweep across all of it: no level has such a layer.
+    const double tallest = 2 * std::max(grid.extent, grid.depthExtent);
+    if (d.groundLayer > tallest)
+      throw InputError("receivers: a ground layer " + std::to_string(d.groundLayer) +
+                       " scene units tall is taller than twice the scene's grid (" + std::to_string(tallest) + ")");
     const double cube = normalOffsetVoxels(maxPcf_) * kOffsetExcess;
     const double window = half + cube;
     const Vec3 bottom{0, d.groundLayerFrom, 0};
@@ -295,7 +304,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
       plane.planar = fitPlane(v, plane);
       const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
       const double rise = plane.planar ? up.z - plane.gx * up.x - plane.gy * up.y : 0;
-      add(plane, v, {Vec3{}, up}, window, std::min(0.0, rise) - g * window - cube,
+      add(plane, v, {Vec3{}, up}, true, window, std::min(0.0, rise) - g * window - cube,
           std::max(0.0, rise) + g * window + cube, cube, std::min(0.0, up.z), std::max(0.0, up.z), 0);
     }
   }
@@ -308,7 +317,11 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
     for (int64_t cy = s.yMin >> log2Cell_; cy <= s.yMax >> log2Cell_; ++cy)
       for (int64_t cx = s.xMin >> log2Cell_; cx <= s.xMax >> log2Cell_; ++cx) fn(size_t(cy) * cellsPerSide_ + size_t(cx));
   };
-  for (const Span& s : spans_) forCells(s, [&](size_t c) { ++cellBegin_[c + 1]; });
+  uint64_t entries = 0;
+  for (const Span& s : spans_) forCells(s, [&](size_t c) { ++cellBegin_[c + 1], ++entries; });
+  if (entries > std::numeric_limits<uint32_t>::max())
+    throw InputError("receivers: the declared receivers reach too much of the grid to be listed (" +
+                     std::to_string(entries) + " cell entries)");
   for (size_t c = 0; c < cells; ++c) cellBegin_[c + 1] += cellBegin_[c];
   cellItems_.resize(cellBegin_[cells]);
   std::vector<uint32_t> fill(cellBegin_.begin(), cellBegin_.end() - 1);
@@ -350,7 +363,7 @@ std::vector<uint8_t> ReceiverSet::reachedColumns() const {
 // The columns of row centre cy inside the span's coverage, [x0, x1]; false when none.
 bool ReceiverSet::columnRange(const Span& s, double cy, int64_t& x0, int64_t& x1) const {
   double lo = double(s.xMin), hi = double(s.xMax);
-  for (int k = 0; k < 6; ++k) {
+  for (int k = 0; k < 8; ++k) {
     const double room = s.support[k] - s.dirY[k] * cy;  // dirX * cx <= room
     if (s.dirX[k] > 0) {
       hi = std::min(hi, std::floor(room / s.dirX[k] - 0.5));

@@ -19,6 +19,8 @@ namespace cpvs {
 
 /// Cells per side of a plan's receiver coverage (fewer when R is smaller).
 constexpr uint32_t kPlanCoverageCells = 64;
+/// log2 of the grid side at which a plan counts the columns receivers reach.
+constexpr int kLog2PlanColumns = 12;
 
 struct BakePlan {
   std::string scene;
@@ -69,9 +71,10 @@ std::string planJson(const BakePlan& plan);
 /// The plan for people, one line per fact.
 std::string planText(const BakePlan& plan);
 
-/// The receiver coverage a plan's JSON records (planJson's "coverage"), into `cells` and
-/// `coverage` as BakePlan holds them; false (both cleared) when it records none (a bake
-/// for everywhere, a file from before coverage was recorded) or holds something else.
-bool planCoverage(const std::string& planJson, uint32_t& cells, std::vector<uint8_t>& coverage);
+/// The receiver coverage a plan's JSON records (planJson's "coverage") for a grid of
+/// `resolution`, into `cells` and `coverage` as BakePlan holds them; false (both cleared)
+/// when it records none (a bake for everywhere, a file from before coverage was recorded)
+/// or holds anything else (cells other than min(kPlanCoverageCells, resolution) included).
+bool planCoverage(const std::string& planJson, uint64_t resolution, uint32_t& cells, std::vector<uint8_t>& coverage);
 
 }  // namespace cpvs

@@ -99,7 +99,7 @@ class ReceiverSet {
     double gx, gy;                // ... and slope: the triangle's depth plane, unless !planar (too thin)
     double loOff, hiOff;          // read depths relative to the plane at a column's centre
     double zLo, zHi;              // and the bounds of every read depth
-    double dirX[6], dirY[6], support[6];  // column centres c with dir . c <= support
+    double dirX[8], dirY[8], support[8];  // column centres c with dir . c <= support
     int64_t xMin, yMin, xMax, yMax;       // columns reached (inclusive, inside the grid)
     uint32_t part;                // 0: a surface; k > 0: the k-th volume part (hulled)
     bool planar;
