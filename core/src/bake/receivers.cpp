@@ -47,12 +47,23 @@ bool fitPlane(const Vec3 (&v)[3], ReceiverSet::Span& s) {
   return std::isfinite(s.gx) && std::isfinite(s.gy) && std::fabs(s.gx) + std::fabs(s.gy) < 1e6;
 }
 
-// Column bounds and the supporting half-planes of the triangle swept by `sweep` (its xy
-// moved by each), dilated by the square of half-width h: along the triangle's edges, and
-// with `alongSweep` also along a two-point sweep (a long one: a ground layer's seen from
-// a low sun, which the bounds alone would widen into a box).
-bool fitCoverage(const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double h, uint32_t R, bool alongSweep,
-                 ReceiverSet::Span& s) {
+// The directions of a span's supporting half-planes: normal to the triangle's edges
+// and, when `sweep` has two points (a long sweep: a ground layer's seen from a low sun,
+// which bounds alone would widen into a box), to the sweep; both senses of each.
+void fitDirections(const Vec3 (&v)[3], const std::vector<Vec3>& sweep, ReceiverSet::Span& s) {
+  for (int e = 0; e < 4; ++e) {
+    const Vec3 along = e < 3 ? v[(e + 1) % 3] - v[e] : sweep.size() == 2 ? sweep[1] - sweep[0] : Vec3{};
+    for (int sign = 0; sign < 2; ++sign) {
+      s.dirX[2 * e + sign] = sign ? along.y : -along.y;
+      s.dirY[2 * e + sign] = sign ? -along.x : along.x;
+    }
+  }
+}
+
+// A ring's column bounds and supports: the triangle swept by `sweep` (its xy moved by
+// each), dilated by the square of half-width h. False when it reaches no column.
+bool fitRing(const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double h, uint32_t R, const ReceiverSet::Span& s,
+             ReceiverSet::Ring& ring) {
   std::vector<Point2> hull;
   for (const Vec3& o : sweep)
     for (const Vec3& p : v) hull.push_back({p.x + o.x, p.y + o.y});
@@ -66,22 +77,15 @@ bool fitCoverage(const Vec3 (&v)[3], const std::vector<Vec3>& sweep, double h, u
   const double x0 = std::ceil(minX - h - 0.5), x1 = std::floor(maxX + h - 0.5);
   const double y0 = std::ceil(minY - h - 0.5), y1 = std::floor(maxY + h - 0.5);
   if (!(x0 <= last && y0 <= last && x1 >= 0 && y1 >= 0 && x0 <= x1 && y0 <= y1)) return false;
-  s.xMin = int64_t(std::max(0.0, x0)), s.xMax = int64_t(std::min(last, x1));
-  s.yMin = int64_t(std::max(0.0, y0)), s.yMax = int64_t(std::min(last, y1));
-  for (int e = 0; e < 4; ++e) {
-    const Vec3 along = e < 3 ? v[(e + 1) % 3] - v[e] : alongSweep && sweep.size() == 2 ? sweep[1] - sweep[0] : Vec3{};
-    const double dx = -along.y, dy = along.x;
-    for (int sign = 0; sign < 2; ++sign) {
-      const int k = 2 * e + sign;
-      const double ux = sign ? -dx : dx, uy = sign ? -dy : dy;
-      double support = -std::numeric_limits<double>::infinity();
-      for (const Point2& p : hull) support = std::max(support, ux * p.x + uy * p.y);
-      s.dirX[k] = ux;
-      s.dirY[k] = uy;
-      // Rounding of the dot products is far below the slack carried by h.
-      s.support[k] = support + h * (std::fabs(ux) + std::fabs(uy));
-      if (ux == 0 && uy == 0) s.support[k] = std::numeric_limits<double>::infinity();
-    }
+  ring.xMin = int64_t(std::max(0.0, x0)), ring.xMax = int64_t(std::min(last, x1));
+  ring.yMin = int64_t(std::max(0.0, y0)), ring.yMax = int64_t(std::min(last, y1));
+  for (int k = 0; k < 8; ++k) {
+    const double ux = s.dirX[k], uy = s.dirY[k];
+    double support = -std::numeric_limits<double>::infinity();
+    for (const Point2& p : hull) support = std::max(support, ux * p.x + uy * p.y);
+    // Rounding of the dot products is far below the slack carried by h.
+    ring.support[k] = support + h * (std::fabs(ux) + std::fabs(uy));
+    if (ux == 0 && uy == 0) ring.support[k] = std::numeric_limits<double>::infinity();
   }
   return true;
 }
@@ -217,16 +221,36 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
   const LookupMapping m = grid.lookupMapping();
   const double rho = 0.5 * (maxPcf_ - 1);  // footprint radius, texels
   const double half = rho + 0.5;           // a column's window: the footprint around a texel
-  // `s` holds the triangle's plane (fitPlane); the rest is filled here.
-  auto add = [&](Span s, const Vec3 (&v)[3], const std::vector<Vec3>& sweep, bool alongSweep, double coverHalf,
-                 double loOff, double hiOff, double depthPad, double sweepLo, double sweepHi, uint32_t part) {
+  // A group of lookups: the sweep of their points' offsets, the half-width of their
+  // footprint's window and their read depths relative to the plane.
+  struct RingSpec {
+    std::vector<Vec3> sweep;
+    double coverHalf, loOff, hiOff;
+  };
+  // `s` holds the triangle's plane (fitPlane); the rest is filled here. `alongSweep`: also
+  // bound the coverage along the (one) ring's sweep.
+  auto add = [&](Span s, const Vec3 (&v)[3], const std::vector<RingSpec>& specs, bool alongSweep, double depthPad,
+                 double sweepLo, double sweepHi, uint32_t part) {
     s.part = part;
-    if (!fitCoverage(v, sweep, coverHalf + kSlack, R_, alongSweep, s)) return;
+    fitDirections(v, alongSweep ? specs[0].sweep : std::vector<Vec3>{}, s);
+    s.rings = 0;
+    for (const RingSpec& spec : specs) {
+      Ring& ring = s.ring[s.rings];
+      if (!fitRing(v, spec.sweep, spec.coverHalf + kSlack, R_, s, ring)) continue;
+      ring.loOff = spec.loOff - kSlack;
+      ring.hiOff = spec.hiOff + kSlack;
+      if (s.rings == 0) {
+        s.xMin = ring.xMin, s.xMax = ring.xMax, s.yMin = ring.yMin, s.yMax = ring.yMax;
+      } else {
+        s.xMin = std::min(s.xMin, ring.xMin), s.xMax = std::max(s.xMax, ring.xMax);
+        s.yMin = std::min(s.yMin, ring.yMin), s.yMax = std::max(s.yMax, ring.yMax);
+      }
+      ++s.rings;
+    }
+    if (s.rings == 0) return;
     const double zMin = std::min({v[0].z, v[1].z, v[2].z}), zMax = std::max({v[0].z, v[1].z, v[2].z});
     s.zLo = zMin + sweepLo - depthPad - kSlack;
     s.zHi = zMax + sweepHi + depthPad + kSlack;
-    s.loOff = loOff - kSlack;
-    s.hiOff = hiOff + kSlack;
     if (s.zHi < 0) return;  // in front of the grid: lit without reading the DAG
     spans_.push_back(s);
   };
@@ -246,24 +270,27 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
       Vec3 nv = mappedDirection(m, side ? -nWorld : nWorld);
       const double big = std::max({std::fabs(nv.x), std::fabs(nv.y), std::fabs(nv.z)});
       if (!(big > 0) || !std::isfinite(big)) continue;
-      double loOff = std::numeric_limits<double>::infinity(), hiOff = -loOff;
-      double sweepLo = loOff, sweepHi = hiOff;
-      std::vector<Vec3> sweep;
-      for (int width : {1, maxPcf_}) {
+      // One ring per filter width: a wide filter's offset and window are not a narrow
+      // one's, and bounding them together pins texels that neither reads.
+      double sweepLo = std::numeric_limits<double>::infinity(), sweepHi = -sweepLo;
+      std::vector<RingSpec> specs;
+      for (int width = 1; width <= maxPcf_; width += 2) {
+        const double r = 0.5 * (width - 1) + 0.5;
+        RingSpec spec{{}, r, std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
         for (double f : {1.0, kOffsetExcess}) {
           const Vec3 o = nv * (normalOffsetVoxels(width) * f / big);
-          const double r = 0.5 * (width - 1) + 0.5;
           const double shift = o.z - plane.gx * o.x - plane.gy * o.y;
           if (plane.planar) {
-            loOff = std::min(loOff, shift - g * r);
-            hiOff = std::max(hiOff, shift + g * r);
+            spec.loOff = std::min(spec.loOff, shift - g * r);
+            spec.hiOff = std::max(spec.hiOff, shift + g * r);
           }
           sweepLo = std::min(sweepLo, o.z);
           sweepHi = std::max(sweepHi, o.z);
-          if ((width == 1 && f == 1.0) || (width == maxPcf_ && f != 1.0)) sweep.push_back(o);
+          spec.sweep.push_back(o);
         }
+        specs.push_back(std::move(spec));
       }
-      add(plane, v, sweep, false, half, loOff, hiOff, 0, sweepLo, sweepHi, 0);
+      add(plane, v, specs, false, 0, sweepLo, sweepHi, 0);
     }
   }
 
@@ -279,7 +306,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
       plane.planar = fitPlane(v, plane);
       const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
       const double window = half + cube;
-      add(plane, v, {Vec3{}}, false, window, -g * window - cube, g * window + cube, cube, 0, 0, parts[t]);
+      add(plane, v, {{{Vec3{}}, window, -g * window - cube, g * window + cube}}, false, cube, 0, 0, parts[t]);
     }
   }
 
@@ -304,8 +331,8 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
       plane.planar = fitPlane(v, plane);
       const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
       const double rise = plane.planar ? up.z - plane.gx * up.x - plane.gy * up.y : 0;
-      add(plane, v, {Vec3{}, up}, true, window, std::min(0.0, rise) - g * window - cube,
-          std::max(0.0, rise) + g * window + cube, cube, std::min(0.0, up.z), std::max(0.0, up.z), 0);
+      add(plane, v, {{{Vec3{}, up}, window, std::min(0.0, rise) - g * window - cube, std::max(0.0, rise) + g * window + cube}},
+          true, cube, std::min(0.0, up.z), std::max(0.0, up.z), 0);
     }
   }
 
@@ -355,16 +382,18 @@ std::vector<uint8_t> ReceiverSet::reachedColumns() const {
   for (const Span& s : spans_)
     for (int64_t y = s.yMin; y <= s.yMax; ++y) {
       int64_t x0 = 0, x1 = 0;
-      if (columnRange(s, double(y) + 0.5, x0, x1)) std::fill_n(reached.begin() + ptrdiff_t(size_t(y) * R_ + size_t(x0)), x1 - x0 + 1, 1);
+      for (uint32_t k = 0; k < s.rings; ++k)
+        if (y >= s.ring[k].yMin && y <= s.ring[k].yMax && columnRange(s, s.ring[k], double(y) + 0.5, x0, x1))
+          std::fill_n(reached.begin() + ptrdiff_t(size_t(y) * R_ + size_t(x0)), x1 - x0 + 1, 1);
     }
   return reached;
 }
 
-// The columns of row centre cy inside the span's coverage, [x0, x1]; false when none.
-bool ReceiverSet::columnRange(const Span& s, double cy, int64_t& x0, int64_t& x1) const {
-  double lo = double(s.xMin), hi = double(s.xMax);
+// The columns of row centre cy a ring of the span reaches, [x0, x1]; false when none.
+bool ReceiverSet::columnRange(const Span& s, const Ring& r, double cy, int64_t& x0, int64_t& x1) const {
+  double lo = double(r.xMin), hi = double(r.xMax);
   for (int k = 0; k < 8; ++k) {
-    const double room = s.support[k] - s.dirY[k] * cy;  // dirX * cx <= room
+    const double room = r.support[k] - s.dirY[k] * cy;  // dirX * cx <= room
     if (s.dirX[k] > 0) {
       hi = std::min(hi, std::floor(room / s.dirX[k] - 0.5));
     } else if (s.dirX[k] < 0) {
@@ -415,24 +444,47 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
     auto forColumns = [&](const Span& s, auto&& fn) {
       const int64_t ya = std::max<int64_t>(s.yMin, int64_t(gy0)), yb = std::min<int64_t>(s.yMax, int64_t(gy1));
       for (int64_t y = ya; y <= yb; ++y) {
-        int64_t xa = 0, xb = 0;
         const double cy = double(y) + 0.5;
-        if (!columnRange(s, cy, xa, xb)) continue;
-        xa = std::max<int64_t>(xa, int64_t(x0));
-        xb = std::min<int64_t>(xb, int64_t(gx1));
-        const size_t row = size_t(y - int64_t(gy0)) * width - size_t(x0);
-        if (!s.planar) {
-          if (!(s.zLo <= s.zHi) || s.zHi < 0) continue;
-          const uint32_t a = uint32_t(std::min(top, std::max(0.0, s.zLo))), b = uint32_t(std::min(top, s.zHi));
-          for (int64_t x = xa; x <= xb; ++x) fn(row + size_t(x), a, b);
-          continue;
+        // Each ring's columns in the row, cut at their ends into runs that the same
+        // rings reach: a run reads the union of their depth ranges.
+        int64_t from[kMaxRings], to[kMaxRings], cuts[2 * kMaxRings];
+        uint32_t rings = 0, ncuts = 0;
+        int ringOf[kMaxRings];
+        for (uint32_t k = 0; k < s.rings; ++k) {
+          const Ring& r = s.ring[k];
+          int64_t xa = 0, xb = 0;
+          if (y < r.yMin || y > r.yMax || !columnRange(s, r, cy, xa, xb)) continue;
+          xa = std::max<int64_t>(xa, int64_t(x0));
+          xb = std::min<int64_t>(xb, int64_t(gx1));
+          if (xa > xb) continue;
+          from[rings] = xa, to[rings] = xb, ringOf[rings] = int(k), ++rings;
+          cuts[ncuts++] = xa, cuts[ncuts++] = xb + 1;
         }
+        if (rings == 0) continue;
+        std::sort(cuts, cuts + ncuts);
+        const size_t row = size_t(y - int64_t(gy0)) * width - size_t(x0);
         const double base = s.pz - s.gx * s.px + s.gy * (cy - s.py);
-        for (int64_t x = xa; x <= xb; ++x) {
-          const double z = base + s.gx * (double(x) + 0.5);
-          const double lower = std::max(s.zLo, z + s.loOff), upper = std::min(s.zHi, z + s.hiOff);
-          if (!(lower <= upper) || upper < 0) continue;
-          fn(row + size_t(x), uint32_t(std::min(top, std::max(0.0, lower))), uint32_t(std::min(top, upper)));
+        for (uint32_t c = 0; c + 1 < ncuts; ++c) {
+          const int64_t xa = cuts[c], xb = cuts[c + 1] - 1;
+          double loOff = std::numeric_limits<double>::infinity(), hiOff = -loOff;
+          for (uint32_t k = 0; k < rings; ++k)
+            if (from[k] <= xa && xa <= to[k]) {
+              loOff = std::min(loOff, s.ring[ringOf[k]].loOff);
+              hiOff = std::max(hiOff, s.ring[ringOf[k]].hiOff);
+            }
+          if (xa > xb || !(loOff <= hiOff)) continue;  // between rings
+          if (!s.planar) {
+            if (!(s.zLo <= s.zHi) || s.zHi < 0) continue;
+            const uint32_t a = uint32_t(std::min(top, std::max(0.0, s.zLo))), b = uint32_t(std::min(top, s.zHi));
+            for (int64_t x = xa; x <= xb; ++x) fn(row + size_t(x), a, b);
+            continue;
+          }
+          for (int64_t x = xa; x <= xb; ++x) {
+            const double z = base + s.gx * (double(x) + 0.5);
+            const double lower = std::max(s.zLo, z + loOff), upper = std::min(s.zHi, z + hiOff);
+            if (!(lower <= upper) || upper < 0) continue;
+            fn(row + size_t(x), uint32_t(std::min(top, std::max(0.0, lower))), uint32_t(std::min(top, upper)));
+          }
         }
       }
     };

@@ -93,19 +93,31 @@ class ReceiverSet {
   /// Multithreaded; depends only on each texel's own position.
   void freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices) const;
 
+  /// The filter widths a surface's lookups are bounded for one by one (1, 3, ..., 9).
+  static constexpr int kMaxRings = (kMaxPcfWidthOption + 1) / 2;
+
+  /// Where one group of lookups of a receiver triangle lands (a surface's lookups of one
+  /// filter width; all of a volume's): the columns they reach and, at each, the read
+  /// depths relative to the triangle's plane.
+  struct Ring {
+    double support[8];                 // column centres c with dir . c <= support
+    int64_t xMin, yMin, xMax, yMax;    // columns reached (inclusive, inside the grid)
+    double loOff, hiOff;               // read depths relative to the plane at a column's centre
+  };
   /// A receiver triangle: where its lookups land, in voxel coordinates.
   struct Span {
     double px, py, pz;            // plane anchor (voxels) ...
     double gx, gy;                // ... and slope: the triangle's depth plane, unless !planar (too thin)
-    double loOff, hiOff;          // read depths relative to the plane at a column's centre
-    double zLo, zHi;              // and the bounds of every read depth
-    double dirX[8], dirY[8], support[8];  // column centres c with dir . c <= support
-    int64_t xMin, yMin, xMax, yMax;       // columns reached (inclusive, inside the grid)
+    double zLo, zHi;              // the bounds of every read depth
+    double dirX[8], dirY[8];      // the rings' half-plane directions
+    int64_t xMin, yMin, xMax, yMax;  // columns some ring reaches (their bounds' union)
+    Ring ring[kMaxRings];
+    uint32_t rings;
     uint32_t part;                // 0: a surface; k > 0: the k-th volume part (hulled)
     bool planar;
   };
  private:
-  bool columnRange(const Span& s, double cy, int64_t& x0, int64_t& x1) const;
+  bool columnRange(const Span& s, const Ring& r, double cy, int64_t& x0, int64_t& x1) const;
   ReceiverKind kind_;
   int maxPcf_;
   uint32_t R_ = 0;
