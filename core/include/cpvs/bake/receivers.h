@@ -93,11 +93,12 @@ class ReceiverSet {
   /// Multithreaded; depends only on each texel's own position.
   void freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices) const;
 
-  /// The filter widths a surface's lookups are bounded for one by one (1, 3, ..., 9).
-  static constexpr int kMaxRings = (kMaxPcfWidthOption + 1) / 2;
+  /// Rings a span may have: a surface's lookups are bounded per pair of filter widths
+  /// (1-3, 5-7, 9).
+  static constexpr int kMaxRings = (kMaxPcfWidthOption + 3) / 4;
 
-  /// Where one group of lookups of a receiver triangle lands (a surface's lookups of one
-  /// filter width; all of a volume's): the columns they reach and, at each, the read
+  /// Where one group of lookups of a receiver triangle lands (a surface's lookups of a
+  /// pair of filter widths; all of a volume's): the columns they reach and, at each, the read
   /// depths relative to the triangle's plane.
   struct Ring {
     double support[8];                 // column centres c with dir . c <= support
@@ -109,7 +110,9 @@ class ReceiverSet {
     double px, py, pz;            // plane anchor (voxels) ...
     double gx, gy;                // ... and slope: the triangle's depth plane, unless !planar (too thin)
     double zLo, zHi;              // the bounds of every read depth
-    double dirX[8], dirY[8];      // the rings' half-plane directions
+    double dirX[8], dirY[8];      // the rings' half-plane directions (the first `dirs` are not zero) ...
+    double invDirX[8];            // ... and 1 / dirX (0 where dirX is 0)
+    uint32_t dirs;
     int64_t xMin, yMin, xMax, yMax;  // columns some ring reaches (their bounds' union)
     Ring ring[kMaxRings];
     uint32_t rings;
@@ -117,7 +120,7 @@ class ReceiverSet {
     bool planar;
   };
  private:
-  bool columnRange(const Span& s, const Ring& r, double cy, int64_t& x0, int64_t& x1) const;
+  static bool columnRange(const Span& s, const Ring& r, const double* dirYTimesCy, int64_t& x0, int64_t& x1);
   ReceiverKind kind_;
   int maxPcf_;
   uint32_t R_ = 0;
