@@ -27,19 +27,13 @@ struct PlanArgs {
 // (black), tiles no receiver reads (dark grey), tiles to render (light grey), and over
 // them the columns the receivers' lookups reach (orange, counted at min(R, 4096)).
 void writeCoveragePng(const std::string& path, const Scene& scene, const OrthoGrid& grid, const BakeOptions& options,
-                      const ReceiverDeclaration& receivers, const RasterScene& raster, const ReceiverSet& reads) {
+                      const ReceiverDeclaration& receivers, const BakePlan& plan) {
   OrthoGrid coarse = grid;
   coarse.log2Resolution = std::min(grid.log2Resolution, kLog2PlanColumns);
   const std::vector<uint8_t> reached = ReceiverSet(scene, coarse, receivers).reachedColumns();
   const uint64_t C = coarse.resolution(), side = std::min<uint64_t>(C, 1024), per = C / side;
-  const TilePlan tiles(grid.log2Resolution, options.log2TileSize);
-  const uint64_t T = uint64_t(1) << tiles.log2TileSize(), perSide = tiles.perSide();
-  std::vector<float> shade(perSide * perSide);
-  for (uint64_t ty = 0; ty < perSide; ++ty)
-    for (uint64_t tx = 0; tx < perSide; ++tx)
-      shade[ty * perSide + tx] = !raster.touchesRectangle(tx * T, ty * T, T, T) ? 0.0f
-                                 : !reads.touchesRectangle(tx * T, ty * T, T, T) ? 0.06f
-                                                                                   : 0.45f;
+  const uint64_t perSide = TilePlan(grid.log2Resolution, options.log2TileSize).perSide();
+  constexpr float kShade[] = {0.0f, 0.06f, 0.45f};  // by BakePlan::TileClass
   Image image{int(side), int(side)};
   for (uint64_t py = 0; py < side; ++py)
     for (uint64_t px = 0; px < side; ++px) {
@@ -48,7 +42,7 @@ void writeCoveragePng(const std::string& path, const Scene& scene, const OrthoGr
         for (uint64_t x = px * per; x < (px + 1) * per && !hit; ++x) hit = reached[y * C + x] != 0;
       const uint64_t tx = px * perSide / side, ty = py * perSide / side;
       const bool border = perSide <= 64 && side / perSide >= 8 && ((px * perSide) % side == 0 || (py * perSide) % side == 0);
-      const float g = border ? 0.02f : shade[ty * perSide + tx];
+      const float g = border ? 0.02f : kShade[plan.tileClasses[ty * perSide + tx]];
       image.at(int(px), int(py)) = hit ? Rgb{1.0f, 0.35f, 0.03f} : Rgb{g, g, g};
     }
   writePng(path, image);
@@ -65,7 +59,7 @@ int runPlan(const PlanArgs& a) {
   const RasterScene raster(scene, grid);
   const ReceiverSet reads(scene, grid, receivers);
   const BakePlan plan = planBake(scene, stats, options, receivers, raster, reads);
-  if (!a.coveragePng.empty()) writeCoveragePng(a.coveragePng, scene, grid, options, receivers, raster, reads);
+  if (!a.coveragePng.empty()) writeCoveragePng(a.coveragePng, scene, grid, options, receivers, plan);
   if (a.json)
     std::cout << planJson(plan) << "\n";
   else

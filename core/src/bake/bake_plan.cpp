@@ -103,12 +103,14 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
   const TilePlan tiles(grid.log2Resolution, o.log2TileSize);
   const uint64_t T = uint64_t(1) << tiles.log2TileSize();
   p.tiles = tiles.count();
+  p.tileClasses.resize(tiles.count());
   for (uint64_t i = 0; i < tiles.count(); ++i) {
     const TileCoord t = tiles.tile(i);
-    if (!raster.touchesRectangle(t.x * T, t.y * T, T, T))
-      ++p.tilesUntouched;
-    else if (!reads.touchesRectangle(t.x * T, t.y * T, T, T))
-      ++p.tilesUnread;
+    p.tileClasses[i] = !raster.touchesRectangle(t.x * T, t.y * T, T, T) ? BakePlan::kUntouched
+                       : !reads.touchesRectangle(t.x * T, t.y * T, T, T) ? BakePlan::kUnread
+                                                                         : BakePlan::kRendered;
+    p.tilesUntouched += p.tileClasses[i] == BakePlan::kUntouched;
+    p.tilesUnread += p.tileClasses[i] == BakePlan::kUnread;
   }
   if (d.kind != ReceiverKind::Everywhere) {
     p.coverageCells = uint32_t(std::min<uint64_t>(kPlanCoverageCells, grid.resolution()));

@@ -32,6 +32,8 @@ struct BakePlan {
   uint64_t tiles = 0;
   uint64_t tilesUntouched = 0;         // no triangle can touch them: all lit, not rendered
   uint64_t tilesUnread = 0;            // touched, but no declared receiver reads them: not rendered either
+  enum TileClass : uint8_t { kUntouched, kUnread, kRendered };
+  std::vector<uint8_t> tileClasses;    // a TileClass per tile, in TilePlan order (y * per side + x)
   double columnsReadShare = 1;         // texel columns some receiver's lookups reach (1 for everywhere)
   uint64_t columnsSampledSide = 0;     // the grid side that share was counted at (min(R, 4096))
   // Where declared receivers may read: coverageCells^2 cells of R / coverageCells texels
