@@ -6,6 +6,7 @@
 
 #include "cpvs/base/error.h"
 #include "cpvs/base/parse.h"
+#include "cpvs/net/receiver_declaration.h"
 #include "cpvs/scene/boxes.h"
 #include "cpvs/query/normal_offset.h"
 #include "cpvs/scene/import.h"
@@ -52,8 +53,9 @@ void addReceiverFlags(CLI::App* c, OptionFlags& o) {
                 "Who queries the shadows; every voxel their lookups never read is left free: everywhere (any point "
                 "outside closed solids), surfaces (the front side of the scene's surfaces, with their geometric "
                 "normals), surfaces-two-sided (both sides of open surfaces), volume[:MESH] (front sides plus any "
-                "point, any normal, inside a closed mesh file and the --receiver-box boxes), cameras[:MESH] (the "
-                "sides of surfaces a --camera-region faces within --view-distance, plus an optional volume)")
+                "point, any normal, inside a closed mesh file and the --receiver-box boxes), cameras[:FILE] (the "
+                "sides of surfaces that cameras see within --view-distance; FILE.json is a camera file: regions, "
+                "points and paths, see the README; any other FILE a closed mesh of receiver volume)")
       ->capture_default_str();
   c->add_option("--receiver-box", o.receiverBoxes,
                 "A box of the receiver volume, MINX,MINY,MINZ,MAXX,MAXY,MAXZ in scene units (repeatable; with "
@@ -72,6 +74,17 @@ void addReceiverFlags(CLI::App* c, OptionFlags& o) {
   c->add_option("--view-distance", o.viewDistance,
                 "With --receivers cameras: how far cameras see (scene units); surfaces farther from every region "
                 "do not receive");
+  c->add_option("--camera-visibility", o.cameraVisibility,
+                "With --receivers cameras: faced (every side a camera place faces, occluders ignored: conservative, "
+                "the default) or sampled (the sides that rays from camera positions hit: smaller, may miss what is "
+                "seen only between samples; verify measures how often)")
+      ->check(CLI::IsMember(namesOf<CameraVisibility>()));
+  c->add_option("--camera-spacing", o.cameraSpacing,
+                "With --camera-visibility sampled: camera positions at most this far apart in regions and along "
+                "paths, scene units (default: a sixteenth of the view distance)");
+  c->add_option("--camera-rays", o.cameraRays,
+                "With --camera-visibility sampled: rays per side of each of the six cube faces a position casts "
+                "(default 128, at most 2048)");
 }
 
 std::vector<std::pair<Vec3, Vec3>> boxesOf(const std::vector<std::string>& texts, const std::string& flag) {
@@ -112,18 +125,25 @@ ReceiverDeclaration receiversOf(const OptionFlags& f) {
   if (!f.groundLayer.empty() && !volume) throw InputError("--ground-layer needs --receivers volume or cameras");
   if (f.groundSlope != kDefaultGroundSlopeDeg && f.groundLayer.empty())
     throw InputError("--ground-slope needs --ground-layer");
-  if (!cameras && (!f.cameraRegions.empty() || f.viewDistance != 0))
-    throw InputError("--camera-region and --view-distance need --receivers cameras");
+  if (!cameras && cameraFlagsGiven(f))
+    throw InputError("--camera-region, --view-distance and --camera-visibility, -spacing, -rays need --receivers cameras");
+  const std::string file = colon == std::string::npos ? "" : f.receivers.substr(colon + 1);
+  const bool cameraFile = cameras && net::isCameraFile(file);
   if (volume) {
-    if (colon != std::string::npos) d.volume = loadScene(f.receivers.substr(colon + 1));
+    if (!file.empty() && !cameraFile) d.volume = loadScene(file);
     for (const auto& [lo, hi] : boxesOf(f.receiverBoxes, "--receiver-box")) appendBox(d.volume, lo, hi);
     finalizeScene(d.volume);
     std::tie(d.groundLayerFrom, d.groundLayer) = groundLayerOf(f.groundLayer);
     d.groundSlopeDeg = f.groundSlope;
   }
   if (cameras) {
-    d.cameraRegions = boxesOf(f.cameraRegions, "--camera-region");
-    d.viewDistance = f.viewDistance;
+    if (cameraFile) net::setCameras(net::readCameraFile(file), d);
+    for (const auto& box : boxesOf(f.cameraRegions, "--camera-region")) d.cameraRegions.push_back(box);
+    if (f.viewDistance != 0) d.viewDistance = f.viewDistance;
+    if (!f.cameraVisibility.empty()) d.cameraVisibility = parseOption<CameraVisibility>(f.cameraVisibility, "--camera-visibility");
+    if (f.cameraSpacing != 0) d.cameraSpacing = f.cameraSpacing;
+    if (f.cameraRays < 0) throw InputError("--camera-rays must be at least 1");
+    if (f.cameraRays != 0) d.cameraRays = uint32_t(f.cameraRays);
   }
   try {
     checkReceiverDeclaration(d);
@@ -131,6 +151,11 @@ ReceiverDeclaration receiversOf(const OptionFlags& f) {
     throw InputError(std::string("--") + e.what());
   }
   return d;
+}
+
+bool cameraFlagsGiven(const OptionFlags& f) {
+  return !f.cameraRegions.empty() || f.viewDistance != 0 || !f.cameraVisibility.empty() || f.cameraSpacing != 0 ||
+         f.cameraRays != 0;
 }
 
 BakeOptions optionsOf(const OptionFlags& f) {

@@ -33,13 +33,17 @@ struct OptionFlags {
   std::vector<std::string> receiverBoxes, cameraRegions;
   int receiverPcf = kMaxPcfWidthOption;
   double viewDistance = 0;
+  std::string cameraVisibility;  // "" (the camera file's, else faced), faced, sampled
+  double cameraSpacing = 0;
+  int cameraRays = 0;
   std::string groundLayer;  // "[FROM:]TO"
   double groundSlope = kDefaultGroundSlopeDeg;
 };
 /// `tileHelp` says what the tile size means to this command.
 void addOptionFlags(CLI::App* c, OptionFlags& options, const std::string& tileHelp);
 /// --receivers, --receiver-box, --ground-layer, --ground-slope, --receiver-pcf,
-/// --camera-region, --view-distance (part of addOptionFlags).
+/// --camera-region, --view-distance, --camera-visibility, --camera-spacing, --camera-rays
+/// (part of addOptionFlags).
 void addReceiverFlags(CLI::App* c, OptionFlags& options);
 /// The bake options the flags name; InputError naming the flag otherwise.
 BakeOptions optionsOf(const OptionFlags& flags);
@@ -49,9 +53,13 @@ std::vector<std::pair<Vec3, Vec3>> boxesOf(const std::vector<std::string>& texts
 /// --ground-layer "[FROM:]TO" as (from, to) scene units above the ground, (0, 0) when
 /// empty; InputError unless 0 <= FROM < TO, finite.
 std::pair<double, double> groundLayerOf(const std::string& text);
-/// The receiver declaration of --receivers, --receiver-box and --receiver-pcf, its volume
-/// loaded (a mesh file, boxes); InputError naming the flag otherwise.
+/// The receiver declaration of --receivers, --receiver-box, --receiver-pcf and the camera
+/// flags, its volume loaded (a mesh file, boxes) and its camera file read (`cameras:FILE.json`,
+/// which the camera flags add to or override); InputError naming the flag otherwise.
 ReceiverDeclaration receiversOf(const OptionFlags& flags);
+/// Whether any camera flag is given (--camera-region, --view-distance, --camera-visibility,
+/// --camera-spacing, --camera-rays).
+bool cameraFlagsGiven(const OptionFlags& flags);
 
 /// The receiver declaration of an artifact, as `bake --json` and `inspect --json` show it:
 /// {"kind": ..., "pcf": ..., "hash": ...} (pcf and hash null for everywhere).

@@ -22,6 +22,7 @@
 #include "commands.h"
 #include "cpvs/base/error.h"
 #include "cpvs/scene/import.h"
+#include "cpvs/net/receiver_declaration.h"
 #include "cpvs/bake/stage_times.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/base/parse.h"
@@ -207,9 +208,10 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
   if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
   if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
   std::string mesh;
-  if (given("--receivers") || given("--receiver-box") || given("--receiver-pcf") || given("--camera-region") ||
-      given("--view-distance") || given("--ground-layer") || given("--ground-slope")) {
+  if (given("--receivers") || given("--receiver-box") || given("--receiver-pcf") || given("--ground-layer") ||
+      given("--ground-slope") || cameraFlagsGiven(options)) {
     pb::Receivers& r = *o.mutable_receivers();
+    bool cameraFile = false;
     if (given("--receivers")) {
       r.set_kind(pb::ReceiverKind(flags.receivers));
       r.clear_volume_scene_hash();
@@ -217,6 +219,17 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
       if (colon != std::string::npos) mesh = options.receivers.substr(colon + 1);
       if (!mesh.empty() && flags.receivers != ReceiverKind::Volume && flags.receivers != ReceiverKind::Cameras)
         throw InputError("--receivers: only 'volume' and 'cameras' take a file ('" + options.receivers + "')");
+      // A camera file sets every camera field; the camera flags then add to it or override.
+      if (flags.receivers == ReceiverKind::Cameras && net::isCameraFile(mesh)) {
+        for (auto clear : {&pb::Receivers::clear_camera_regions, &pb::Receivers::clear_camera_points,
+                           &pb::Receivers::clear_camera_paths, &pb::Receivers::clear_view_distance,
+                           &pb::Receivers::clear_camera_visibility, &pb::Receivers::clear_camera_spacing,
+                           &pb::Receivers::clear_camera_rays})
+          (r.*clear)();
+        r.MergeFrom(net::readCameraFile(mesh));
+        mesh.clear();
+        cameraFile = true;
+      }
     }
     if (given("--receiver-pcf")) {
       checkPcfWidth(options.receiverPcf);
@@ -231,7 +244,7 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
       }
     }
     if (given("--camera-region")) {
-      r.clear_camera_regions();
+      if (!cameraFile) r.clear_camera_regions();
       for (const auto& [lo, hi] : boxesOf(options.cameraRegions, "--camera-region")) {
         pb::ReceiverBox& b = *r.add_camera_regions();
         *b.mutable_min() = net::toProto(lo);
@@ -239,6 +252,13 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
       }
     }
     if (given("--view-distance")) r.set_view_distance(options.viewDistance);
+    if (given("--camera-visibility"))
+      r.set_camera_visibility(pb::CameraVisibility(parseOption<CameraVisibility>(options.cameraVisibility, "--camera-visibility")));
+    if (given("--camera-spacing")) r.set_camera_spacing(options.cameraSpacing);
+    if (given("--camera-rays")) {
+      if (options.cameraRays < 0) throw InputError("--camera-rays must be at least 1");
+      r.set_camera_rays(uint32_t(options.cameraRays));
+    }
     if (given("--ground-layer")) {
       const auto [from, to] = groundLayerOf(options.groundLayer);
       r.set_ground_layer(to);

@@ -95,8 +95,7 @@ std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& r
                                            uint64_t seed) {
   if (d.kind == ReceiverKind::Everywhere) return sampleSurfaces(scene, rays, closed, lightDir, count, seed);
   // By area over the triangles that receive, on a side that receives (receivingSides).
-  std::vector<uint8_t> sides(scene.triangleCount());
-  for (size_t t = 0; t < sides.size(); ++t) sides[t] = receivingSides(scene, d, t);
+  const std::vector<uint8_t> sides = receivingSides(scene, d);
   const bool mesh = d.volume.triangleCount() != 0, layer = d.groundLayer > 0;
   const uint64_t inVolume = mesh || layer ? count / 2 : 0;
   std::vector<SurfaceSample> out = sampleByArea(

@@ -37,6 +37,9 @@ static_assert(int(ReceiverKind::Everywhere) == pb::RECEIVERS_EVERYWHERE && int(R
               int(ReceiverKind::SurfacesTwoSided) == pb::RECEIVERS_SURFACES_TWO_SIDED &&
               int(ReceiverKind::Volume) == pb::RECEIVERS_VOLUME && int(ReceiverKind::Cameras) == pb::RECEIVERS_CAMERAS &&
               pb::ReceiverKind_ARRAYSIZE == int(OptionNames<ReceiverKind>::kNames.size()));
+static_assert(int(CameraVisibility::Faced) == pb::CAMERA_VISIBILITY_FACED &&
+              int(CameraVisibility::Sampled) == pb::CAMERA_VISIBILITY_SAMPLED &&
+              pb::CameraVisibility_ARRAYSIZE == int(OptionNames<CameraVisibility>::kNames.size()));
 
 void checkReceivers(const pb::Receivers& r) {
   if (!isOptionValue<ReceiverKind>(r.kind()))
@@ -50,8 +53,33 @@ void checkReceivers(const pb::Receivers& r) {
     throw InputError("options.receivers: RECEIVERS_VOLUME needs volume_scene_hash, boxes or ground_layer");
   if (!volume && !cameras && declared)
     throw InputError("options.receivers: only RECEIVERS_VOLUME and RECEIVERS_CAMERAS take a volume");
-  if (cameras != (r.camera_regions_size() > 0))
-    throw InputError("options.receivers: camera_regions are needed for RECEIVERS_CAMERAS, and only there");
+  const bool places = r.camera_regions_size() > 0 || r.camera_points_size() > 0 || r.camera_paths_size() > 0;
+  if (cameras != places)
+    throw InputError("options.receivers: camera_regions, camera_points or camera_paths are needed for RECEIVERS_CAMERAS, "
+                     "and only there");
+  if (!isOptionValue<CameraVisibility>(r.camera_visibility()))
+    throw InputError("options.receivers.camera_visibility: unknown value " + std::to_string(r.camera_visibility()));
+  const bool sampled = r.camera_visibility() == pb::CAMERA_VISIBILITY_SAMPLED;
+  if (sampled && !cameras) throw InputError("options.receivers.camera_visibility is for RECEIVERS_CAMERAS only");
+  if (!sampled && (r.camera_spacing() != 0 || r.camera_rays() != 0))
+    throw InputError("options.receivers: camera_spacing and camera_rays are for CAMERA_VISIBILITY_SAMPLED only");
+  if (!(r.camera_spacing() >= 0 && std::isfinite(r.camera_spacing())))
+    throw InputError("options.receivers.camera_spacing must be a finite number >= 0");
+  if (r.camera_rays() > kMaxCameraRays)
+    throw InputError("options.receivers.camera_rays " + std::to_string(r.camera_rays()) + " is above " +
+                     std::to_string(kMaxCameraRays));
+  size_t pathPoints = 0;
+  for (const pb::CameraPath& path : r.camera_paths()) {
+    if (path.points_size() == 0) throw InputError("options.receivers.camera_paths: a path has no points");
+    pathPoints += size_t(path.points_size());
+    for (const pb::Vec3& p : path.points())
+      if (!isFinite(fromProto(p))) throw InputError("options.receivers.camera_paths: a point is not finite");
+  }
+  for (const pb::Vec3& p : r.camera_points())
+    if (!isFinite(fromProto(p))) throw InputError("options.receivers.camera_points: a point is not finite");
+  if (size_t(r.camera_points_size()) + pathPoints > size_t(kMaxReceiverBoxes))
+    throw InputError("options.receivers: " + std::to_string(size_t(r.camera_points_size()) + pathPoints) +
+                     " camera points and path points; at most " + std::to_string(kMaxReceiverBoxes));
   if (cameras ? !(r.view_distance() > 0 && std::isfinite(r.view_distance())) : r.view_distance() != 0)
     throw InputError("options.receivers.view_distance must be positive and finite for RECEIVERS_CAMERAS, 0 otherwise");
   if (!(r.ground_layer() >= 0 && std::isfinite(r.ground_layer())))

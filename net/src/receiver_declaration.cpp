@@ -1,5 +1,9 @@
 #include "cpvs/net/receiver_declaration.h"
 
+#include <google/protobuf/util/json_util.h>
+
+#include "cpvs/base/error.h"
+#include "cpvs/base/file.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/scene/boxes.h"
 
@@ -10,8 +14,7 @@ ReceiverDeclaration declarationOf(const pb::Receivers& r, const std::function<Sc
   ReceiverDeclaration d;
   d.kind = ReceiverKind(r.kind());
   if (r.max_pcf() != 0) d.maxPcf = int(r.max_pcf());
-  for (const pb::ReceiverBox& b : r.camera_regions()) d.cameraRegions.push_back({fromProto(b.min()), fromProto(b.max())});
-  d.viewDistance = r.view_distance();
+  setCameras(r, d);
   if (d.kind != ReceiverKind::Volume && d.kind != ReceiverKind::Cameras) return d;
   d.groundLayer = r.ground_layer();
   d.groundLayerFrom = r.ground_layer_from();
@@ -21,6 +24,43 @@ ReceiverDeclaration declarationOf(const pb::Receivers& r, const std::function<Sc
   if (d.volume.triangleCount() != 0) finalizeScene(d.volume);
   checkReceiverDeclaration(d);
   return d;
+}
+
+void setCameras(const pb::Receivers& r, ReceiverDeclaration& d) {
+  d.cameraRegions.clear();
+  for (const pb::ReceiverBox& b : r.camera_regions()) d.cameraRegions.push_back({fromProto(b.min()), fromProto(b.max())});
+  d.cameraPoints.clear();
+  for (const pb::Vec3& p : r.camera_points()) d.cameraPoints.push_back(fromProto(p));
+  d.cameraPaths.clear();
+  for (const pb::CameraPath& path : r.camera_paths()) {
+    d.cameraPaths.emplace_back();
+    for (const pb::Vec3& p : path.points()) d.cameraPaths.back().push_back(fromProto(p));
+  }
+  d.viewDistance = r.view_distance();
+  d.cameraVisibility = CameraVisibility(r.camera_visibility());
+  d.cameraSpacing = r.camera_spacing();
+  d.cameraRays = r.camera_rays();
+}
+
+bool isCameraFile(const std::string& path) {
+  return path.size() >= 5 && path.compare(path.size() - 5, 5, ".json") == 0;
+}
+
+pb::Receivers readCameraFile(const std::string& path) {
+  const std::vector<uint8_t> bytes = readFile(path);
+  pb::Receivers r;
+  const auto status = google::protobuf::util::JsonStringToMessage(std::string(bytes.begin(), bytes.end()), &r);
+  if (!status.ok()) throw InputError(path + ": not a camera file: " + std::string(status.message()));
+  pb::Receivers rest = r;
+  for (auto clear : {&pb::Receivers::clear_camera_regions, &pb::Receivers::clear_camera_points,
+                     &pb::Receivers::clear_camera_paths, &pb::Receivers::clear_view_distance,
+                     &pb::Receivers::clear_camera_visibility, &pb::Receivers::clear_camera_spacing,
+                     &pb::Receivers::clear_camera_rays})
+    (rest.*clear)();
+  if (rest.ByteSizeLong() != 0)
+    throw InputError(path + ": a camera file holds only cameraRegions, cameraPoints, cameraPaths, viewDistance, "
+                     "cameraVisibility, cameraSpacing and cameraRays");
+  return r;
 }
 
 }  // namespace cpvs::net

@@ -56,10 +56,11 @@ std::vector<Lookup> surfaceLookups(const Scene& s, const ReceiverDeclaration& d,
   const int maxPcf = d.maxPcf;
   std::uniform_real_distribution<double> u(0, 1);
   std::vector<Lookup> out;
+  const std::vector<uint8_t> receiving = receivingSides(s, d);
   for (size_t t = 0; t < s.triangleCount(); ++t) {
     const Vec3 a = s.vertex(t, 0), b = s.vertex(t, 1), c = s.vertex(t, 2);
     const Vec3 n = normalize(cross(b - a, c - a));
-    const uint8_t sides = receivingSides(s, d, t);
+    const uint8_t sides = receiving[t];
     for (int k = 0; k < perTriangle && sides != 0; ++k) {
       double x = u(rng), y = u(rng);
       if (x + y > 1) x = 1 - x, y = 1 - y;
@@ -188,10 +189,12 @@ TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
   const uint64_t everywhere = bytesOf(bake(scene, grid, options, {}), grid);
 
   std::mt19937_64 rng(GetParam().log2R * 1000 + uint64_t(GetParam().sun.x * 100));
-  // The fifth and sixth: a volume that is only a ground layer, on the ground and above it.
-  for (int k = 0; k < 6; ++k) {
+  // The fifth and sixth: a volume that is only a ground layer, on the ground and above it;
+  // the seventh: cameras at a point and on a path, their visibility sampled.
+  for (int k = 0; k < 7; ++k) {
     const ReceiverKind kind = std::array{ReceiverKind::Surfaces, ReceiverKind::SurfacesTwoSided, ReceiverKind::Volume,
-                                         ReceiverKind::Cameras, ReceiverKind::Volume, ReceiverKind::Volume}[size_t(k)];
+                                         ReceiverKind::Cameras, ReceiverKind::Volume, ReceiverKind::Volume,
+                                         ReceiverKind::Cameras}[size_t(k)];
     const bool layer = k >= 4;
     for (int maxPcf : {1, 3, 9}) {
       SCOPED_TRACE(std::string(optionName(kind)) + (layer ? " (ground layer)" : "") + " pcf " + std::to_string(maxPcf));
@@ -206,7 +209,14 @@ TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
         appendBox(d.volume, {-8, 4.5, -8}, {0, 5.5, 1});  // above the building's roof
         finalizeScene(d.volume);
       }
-      if (kind == ReceiverKind::Cameras) {
+      if (k == 6) {
+        d.cameraPoints = {Vec3{6, 1, 1}};
+        d.cameraPaths = {{Vec3{3, 1, -3}, Vec3{8, 1.5, -3}}};
+        d.viewDistance = 8;
+        d.cameraVisibility = CameraVisibility::Sampled;
+        d.cameraSpacing = 1;
+        d.cameraRays = 32;
+      } else if (kind == ReceiverKind::Cameras) {
         // Cameras on the +x side of the ground seeing 4 units: the crate, the slanted
         // triangle and the wall's front; a small volume where a character stands.
         d.cameraRegions = {{Vec3{4, 0.5, -2}, Vec3{9, 2, 4}}};
@@ -339,20 +349,20 @@ TEST(Receivers, CameraRegionsReceiveTheSidesTheyFace) {
   d.kind = ReceiverKind::Cameras;
   d.viewDistance = 2;
   d.cameraRegions = {{Vec3{0, 1, 0}, Vec3{1, 2, 1}}};  // above
-  EXPECT_EQ(receivingSides(s, d, 0), 1);
+  EXPECT_EQ(receivingSides(s, d)[0], 1);
   d.cameraRegions = {{Vec3{0, -2, 0}, Vec3{1, -1, 1}}};  // below: the back
-  EXPECT_EQ(receivingSides(s, d, 0), 2);
+  EXPECT_EQ(receivingSides(s, d)[0], 2);
   d.cameraRegions.push_back({Vec3{0, 1, 0}, Vec3{1, 2, 1}});
-  EXPECT_EQ(receivingSides(s, d, 0), 3);
+  EXPECT_EQ(receivingSides(s, d)[0], 3);
   d.cameraRegions = {{Vec3{0, 3, 0}, Vec3{1, 4, 1}}};  // above, but 3 away
-  EXPECT_EQ(receivingSides(s, d, 0), 0);
+  EXPECT_EQ(receivingSides(s, d)[0], 0);
   d.cameraRegions = {{Vec3{-1, -1, -1}, Vec3{2, 0, 2}}};  // touching the plane from below only
-  EXPECT_EQ(receivingSides(s, d, 0), 2);
+  EXPECT_EQ(receivingSides(s, d)[0], 2);
   Scene box;
   appendBox(box, {0, 0, 0}, {1, 1, 1});
   finalizeScene(box);
   d.cameraRegions = {{Vec3{-0.5, -0.5, -0.5}, Vec3{1.5, 1.5, 1.5}}};  // around it: every outside
-  for (size_t t = 0; t < box.triangleCount(); ++t) EXPECT_EQ(receivingSides(box, d, t), 1) << t;  // never the inside
+  for (size_t t = 0; t < box.triangleCount(); ++t) EXPECT_EQ(receivingSides(box, d)[t], 1) << t;  // never the inside
 }
 
 // Walkable: a front side facing up within the slope; a layer changes the hash.

@@ -189,6 +189,49 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
   EXPECT_EQ(parse(r)["receivers"], "cameras");
   EXPECT_EQ(parse(r)["mismatch_elsewhere_count"], 0);
 
+  // The same places in a camera file, plus a point and a path, seen by sampled rays:
+  // occluders hide surfaces, so the bake is smaller still; verify reads the file again and
+  // measures an independent sample.
+  const std::string places =
+      R"("cameraRegions": [{"min": {"x": 0, "y": 1, "z": 0}, "max": {"x": 20, "y": 3, "z": 20}}],
+         "cameraPoints": [{"x": 30, "y": 2, "z": 5}],
+         "cameraPaths": [{"points": [{"x": 0, "y": 1.5, "z": 25}, {"x": 25, "y": 1.5, "z": 25}]}], "viewDistance": 40)";
+  std::ofstream(path("cams.json")) << "{" << places
+                                   << R"(, "cameraVisibility": "CAMERA_VISIBILITY_SAMPLED", "cameraSpacing": 5, "cameraRays": 48})";
+  std::ofstream(path("faced.json")) << "{" << places << "}";
+  const std::string sampled = " --receivers cameras:" + path("cams.json");
+  r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json" + sampled + " -o " + path("s.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const uint64_t sampledBytes = parse(r)["bytes"].get<uint64_t>();
+  r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json --receivers cameras:" +
+           path("faced.json") + " -o " + path("f.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_LT(sampledBytes, parse(r)["bytes"].get<uint64_t>());
+  r = cpvs("verify --json -n 6000 " + path("s.cpvs") + " city:3" + cams);
+  EXPECT_EQ(r.status, 2) << r.out;  // the regions alone are another declaration
+  r = cpvs("verify --json -n 6000 " + path("s.cpvs") + " city:3" + sampled);
+  ASSERT_EQ(r.status, 0) << r.out;
+  v = parse(r);
+  EXPECT_EQ(v["mismatch_elsewhere_count"], 0);
+  EXPECT_GT(v["independent_camera_sample"]["hits"].get<uint64_t>(), 10000u);
+  EXPECT_LT(v["independent_camera_sample"]["hits_outside_share"].get<double>(), 0.05);
+  // Camera files are checked: JSON, only camera fields, the declaration's rules.
+  std::ofstream(path("bad1.json")) << R"({"cameraRegions": [)";
+  std::ofstream(path("bad2.json")) << R"({"viewDistance": 40, "cameraPoints": [{"x": 1}], "maxPcf": 3})";
+  std::ofstream(path("bad3.json")) << R"({"viewDistance": 40, "cameraPoints": [{"x": 1}], "cameraSpacing": 2})";
+  for (const auto& [file, words] : std::vector<std::pair<std::string, std::string>>{
+           {"bad1.json", "not a camera file"},
+           {"bad2.json", "holds only cameraRegions"},
+           {"bad3.json", "for sampled camera visibility only"},
+           {"missing.json", "missing.json"}}) {
+    r = cpvs("bake city:3 --sun-dir 0,-1,0 -r 256 --receivers cameras:" + path(file) + " -o " + path("x.cpvs"));
+    EXPECT_EQ(r.status, 2) << file << ": " << r.out;
+    EXPECT_NE(r.out.find(words), std::string::npos) << file << ": " << r.out;
+  }
+  r = cpvs("bake city:3 --sun-dir 0,-1,0 -r 256 --receivers surfaces --camera-visibility sampled -o " + path("x.cpvs"));
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("need --receivers cameras"), std::string::npos) << r.out;
+
   CPVS_SHARED_SCENE_OR_SKIP(town, "flightgear/zone_maisons.obj");
   uint64_t bytes[2] = {};
   int k = 0;

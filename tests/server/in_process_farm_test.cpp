@@ -250,6 +250,19 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
       r.set_view_distance(6);
       d.cameraRegions = {{Vec3{3, 1, 3}, Vec3{8, 2, 8}}};
       d.viewDistance = 6;
+      // Sampled from the region, a point and a path: every worker casts the same rays.
+      *r.add_camera_points() = net::toProto(Vec3{-2, 1.5, 0});
+      pb::CameraPath& path = *r.add_camera_paths();
+      *path.add_points() = net::toProto(Vec3{-5, 1, -5});
+      *path.add_points() = net::toProto(Vec3{5, 1, -5});
+      r.set_camera_visibility(pb::CAMERA_VISIBILITY_SAMPLED);
+      r.set_camera_spacing(1.5);
+      r.set_camera_rays(24);
+      d.cameraPoints = {Vec3{-2, 1.5, 0}};
+      d.cameraPaths = {{Vec3{-5, 1, -5}, Vec3{5, 1, -5}}};
+      d.cameraVisibility = CameraVisibility::Sampled;
+      d.cameraSpacing = 1.5;
+      d.cameraRays = 24;
     }
     const pb::JobStatus done =
         farm.client.watch(farm.client.submit(std::string("receivers-") + optionName(kind), spec).job_id());
@@ -554,7 +567,7 @@ TEST(Convert, ReceiversRoundTripAndBadOnesAreNamed) {
   r.set_view_distance(5);
   refused(r, "view_distance must be positive and finite for RECEIVERS_CAMERAS, 0 otherwise");
   r.set_kind(pb::RECEIVERS_CAMERAS);
-  refused(r, "camera_regions are needed");
+  refused(r, "camera_points or camera_paths are needed");
   r.set_view_distance(0);
   r.set_volume_scene_hash(std::string(32, 'a'));
   r.set_kind(pb::RECEIVERS_VOLUME);
@@ -584,6 +597,30 @@ TEST(Convert, ReceiversRoundTripAndBadOnesAreNamed) {
   EXPECT_NO_THROW(net::checkReceivers(r));
   for (int i = 0; i < net::kMaxReceiverBoxes; ++i) *r.add_boxes() = b;
   refused(r, "at most 4096");
+
+  // Cameras: points and paths, sampled visibility and its settings.
+  pb::Receivers c;
+  c.set_kind(pb::RECEIVERS_CAMERAS);
+  c.set_view_distance(5);
+  *c.add_camera_points() = net::toProto(Vec3{0, std::nan(""), 0});
+  refused(c, "camera_points: a point is not finite");
+  *c.mutable_camera_points(0) = net::toProto(Vec3{0, 1, 0});
+  EXPECT_NO_THROW(net::checkReceivers(c));
+  c.set_camera_spacing(2);
+  refused(c, "camera_spacing and camera_rays are for CAMERA_VISIBILITY_SAMPLED only");
+  c.set_camera_visibility(pb::CAMERA_VISIBILITY_SAMPLED);
+  EXPECT_NO_THROW(net::checkReceivers(c));
+  c.set_camera_rays(5000);
+  refused(c, "camera_rays 5000 is above 2048");
+  c.set_camera_rays(64);
+  c.set_camera_visibility(pb::CameraVisibility(7));
+  refused(c, "camera_visibility: unknown value 7");
+  c.set_camera_visibility(pb::CAMERA_VISIBILITY_SAMPLED);
+  c.add_camera_paths();
+  refused(c, "a path has no points");
+  c.clear_camera_paths();
+  c.set_kind(pb::RECEIVERS_SURFACES);
+  refused(c, "camera_regions, camera_points or camera_paths are needed for RECEIVERS_CAMERAS, and only there");
 }
 
 TEST(Convert, OptionsAndGridsRoundTripAndTheWeakHashStaysHome) {

@@ -7,9 +7,11 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <numbers>
 #include <numeric>
 
+#include "cpvs/bake/camera_views.h"
 #include "cpvs/base/error.h"
 #include "cpvs/light/lookup_mapping.h"
 #include "cpvs/query/normal_offset.h"
@@ -127,33 +129,56 @@ std::vector<uint32_t> volumeParts(const Scene& volume) {
 
 }  // namespace
 
-uint8_t receivingSides(const Scene& scene, const ReceiverDeclaration& d, size_t t) {
-  const bool open = !scene.closed[t];
+std::vector<uint8_t> receivingSides(const Scene& scene, const ReceiverDeclaration& d) {
+  const size_t n = scene.triangleCount();
+  std::vector<uint8_t> sides(n);
   switch (d.kind) {
     case ReceiverKind::Everywhere:
     case ReceiverKind::SurfacesTwoSided:
-      return open ? 3 : 1;
+      for (size_t t = 0; t < n; ++t) sides[t] = scene.closed[t] ? 1 : 3;
+      return sides;
     case ReceiverKind::Surfaces:
     case ReceiverKind::Volume:
-      return 1;
+      std::fill(sides.begin(), sides.end(), uint8_t(1));
+      return sides;
     case ReceiverKind::Cameras:
       break;
   }
-  const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-  const Vec3 n = cross(b - a, c - a);
-  const Vec3 lo{std::min({a.x, b.x, c.x}), std::min({a.y, b.y, c.y}), std::min({a.z, b.z, c.z})};
-  const Vec3 hi{std::max({a.x, b.x, c.x}), std::max({a.y, b.y, c.y}), std::max({a.z, b.z, c.z})};
+  if (d.cameraVisibility == CameraVisibility::Sampled) {
+    const Hash128 sceneKey = sceneHash(scene), declarationKey = receiverHash(d);
+    std::lock_guard lock(d.seen->mutex);
+    if (d.seen->sides.size() != n || d.seen->scene != sceneKey || d.seen->declaration != declarationKey) {
+      d.seen->sides = sampleCameraViews(scene, d).sides;
+      d.seen->scene = sceneKey, d.seen->declaration = declarationKey;
+    }
+    return d.seen->sides;
+  }
+  // Faced: every place a camera can be, as a box (a point's is the point, a path segment's
+  // its bounds).
+  std::vector<std::pair<Vec3, Vec3>> places = d.cameraRegions;
+  for (const Vec3& p : d.cameraPoints) places.push_back({p, p});
+  for (const auto& path : d.cameraPaths) {
+    places.push_back({path[0], path[0]});
+    for (size_t i = 1; i < path.size(); ++i)
+      places.push_back({min(path[i - 1], path[i]), max(path[i - 1], path[i])});
+  }
   const double reach = d.viewDistance;
-  uint8_t sides = 0;
-  for (const auto& [rlo, rhi] : d.cameraRegions) {
-    if (lo.x > rhi.x + reach || hi.x < rlo.x - reach || lo.y > rhi.y + reach || hi.y < rlo.y - reach ||
-        lo.z > rhi.z + reach || hi.z < rlo.z - reach)
-      continue;
-    // The region's points on each side of the triangle's plane: its extreme corners along n.
-    const Vec3 far{n.x > 0 ? rhi.x : rlo.x, n.y > 0 ? rhi.y : rlo.y, n.z > 0 ? rhi.z : rlo.z};
-    const Vec3 near{n.x > 0 ? rlo.x : rhi.x, n.y > 0 ? rlo.y : rhi.y, n.z > 0 ? rlo.z : rhi.z};
-    if (dot(n, far - a) > 0) sides |= 1;
-    if (open && dot(n, near - a) < 0) sides |= 2;
+  for (size_t t = 0; t < n; ++t) {
+    const bool open = !scene.closed[t];
+    const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+    const Vec3 nt = cross(b - a, c - a);
+    const Vec3 lo{std::min({a.x, b.x, c.x}), std::min({a.y, b.y, c.y}), std::min({a.z, b.z, c.z})};
+    const Vec3 hi{std::max({a.x, b.x, c.x}), std::max({a.y, b.y, c.y}), std::max({a.z, b.z, c.z})};
+    for (const auto& [rlo, rhi] : places) {
+      if (lo.x > rhi.x + reach || hi.x < rlo.x - reach || lo.y > rhi.y + reach || hi.y < rlo.y - reach ||
+          lo.z > rhi.z + reach || hi.z < rlo.z - reach)
+        continue;
+      // The place's points on each side of the triangle's plane: its extreme corners along n.
+      const Vec3 far{nt.x > 0 ? rhi.x : rlo.x, nt.y > 0 ? rhi.y : rlo.y, nt.z > 0 ? rhi.z : rlo.z};
+      const Vec3 near{nt.x > 0 ? rlo.x : rhi.x, nt.y > 0 ? rlo.y : rhi.y, nt.z > 0 ? rlo.z : rhi.z};
+      if (dot(nt, far - a) > 0) sides[t] |= 1;
+      if (open && dot(nt, near - a) < 0) sides[t] |= 2;
+    }
   }
   return sides;
 }
@@ -174,16 +199,36 @@ void checkReceiverDeclaration(const ReceiverDeclaration& d) {
   if (!wantsVolume && !cameras && d.volume.triangleCount() != 0)
     throw InputError(std::string("receivers: a volume is declared for '") + optionName(d.kind) +
                      "' receivers; only 'volume' and 'cameras' take one");
-  if (!cameras && (!d.cameraRegions.empty() || d.viewDistance != 0))
-    throw InputError("receivers: camera regions and a view distance are for 'cameras' receivers only");
+  if (!isOptionValue<CameraVisibility>(int64_t(d.cameraVisibility)))
+    throw InputError("receivers: unknown camera visibility " + std::to_string(int(d.cameraVisibility)));
+  const bool anyCamera = !d.cameraRegions.empty() || !d.cameraPoints.empty() || !d.cameraPaths.empty() ||
+                         d.viewDistance != 0 || d.cameraVisibility != CameraVisibility::Faced ||
+                         d.cameraSpacing != 0 || d.cameraRays != 0;
+  if (!cameras && anyCamera)
+    throw InputError("receivers: camera places, a view distance and a camera visibility are for 'cameras' receivers only");
   if (cameras) {
-    if (d.cameraRegions.empty()) throw InputError("receivers: 'cameras' needs at least one camera region");
+    if (d.cameraRegions.empty() && d.cameraPoints.empty() && d.cameraPaths.empty())
+      throw InputError("receivers: 'cameras' needs at least one camera region, point or path");
     for (const auto& [lo, hi] : d.cameraRegions)
-      if (!(std::isfinite(lo.x) && std::isfinite(lo.y) && std::isfinite(lo.z) && std::isfinite(hi.x) &&
-            std::isfinite(hi.y) && std::isfinite(hi.z) && lo.x < hi.x && lo.y < hi.y && lo.z < hi.z))
+      if (!(isFinite(lo) && isFinite(hi) && lo.x < hi.x && lo.y < hi.y && lo.z < hi.z))
         throw InputError("receivers: a camera region is not finite with min < max");
+    for (const Vec3& p : d.cameraPoints)
+      if (!isFinite(p)) throw InputError("receivers: a camera point is not finite");
+    for (const auto& path : d.cameraPaths) {
+      if (path.empty()) throw InputError("receivers: a camera path has no points");
+      for (const Vec3& p : path)
+        if (!isFinite(p)) throw InputError("receivers: a camera path's point is not finite");
+    }
     if (!(d.viewDistance > 0) || !std::isfinite(d.viewDistance))
       throw InputError("receivers: 'cameras' needs a positive, finite view distance");
+    const bool sampled = d.cameraVisibility == CameraVisibility::Sampled;
+    if (!sampled && (d.cameraSpacing != 0 || d.cameraRays != 0))
+      throw InputError("receivers: a camera spacing and rays per face are for sampled camera visibility only");
+    if (!(d.cameraSpacing >= 0 && std::isfinite(d.cameraSpacing)))
+      throw InputError("receivers: the camera spacing must be a finite number >= 0 (0: a sixteenth of the view distance)");
+    if (d.cameraRays > kMaxCameraRays)
+      throw InputError("receivers: at most " + std::to_string(kMaxCameraRays) + " rays per side of a cube face, not " +
+                       std::to_string(d.cameraRays));
   }
   if (!(d.groundLayer >= 0 && std::isfinite(d.groundLayer)))
     throw InputError("receivers: the ground layer's height must be a finite number >= 0");
@@ -211,7 +256,14 @@ Hash128 receiverHash(const ReceiverDeclaration& d) {
                             double(volume.hi >> 32), double(volume.hi & 0xFFFFFFFF), d.viewDistance};
   for (const auto& [lo, hi] : d.cameraRegions)
     for (double v : {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z}) words.push_back(v);
-  // Only a declared layer adds words: declarations without one keep their hashes.
+  // Only what is declared adds words: declarations without it keep their hashes.
+  for (const Vec3& p : d.cameraPoints) words.insert(words.end(), {-3.0, p.x, p.y, p.z});
+  for (const auto& path : d.cameraPaths) {
+    words.insert(words.end(), {-4.0, double(path.size())});
+    for (const Vec3& p : path) words.insert(words.end(), {p.x, p.y, p.z});
+  }
+  if (d.cameraVisibility == CameraVisibility::Sampled)
+    words.insert(words.end(), {-5.0, cameraSpacing(d), double(d.cameraRays ? d.cameraRays : kDefaultCameraRays)});
   if (d.groundLayer > 0) words.insert(words.end(), {-1.0, d.groundLayer, d.groundSlopeDeg});
   if (d.groundLayerFrom > 0) words.insert(words.end(), {-2.0, d.groundLayerFrom});
   return contentHash(words.data(), words.size() * sizeof(double));
@@ -259,11 +311,12 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
   };
 
   // Surfaces: each side a receiver may be on, moved along its normal in voxels.
+  const std::vector<uint8_t> receiving = receivingSides(scene, d);
   for (size_t t = 0; t < scene.triangleCount(); ++t) {
+    const uint8_t sides = receiving[t];
+    if (sides == 0) continue;
     Vec3 v[3];
     for (int c = 0; c < 3; ++c) v[c] = mappedVoxel(m, scene.vertex(t, c));
-    const uint8_t sides = receivingSides(scene, d, t);
-    if (sides == 0) continue;
     const Vec3 nWorld = triangleNormal(scene, t);
     Span plane{};
     plane.planar = fitPlane(v, plane);

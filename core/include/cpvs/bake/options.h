@@ -51,8 +51,17 @@ enum class ReceiverKind : uint8_t {
   Surfaces = 1,          // the front side of the scene's static surfaces (back faces culled)
   SurfacesTwoSided = 2,  // both sides of every open surface, the outside of closed parts
   Volume = 3,            // the front sides plus any point of a declared closed volume
-  Cameras = 4,           // the sides a camera region can face within a view distance (plus a volume)
+  Cameras = 4,           // the sides cameras can see within a view distance (plus a volume)
 };
+
+/// How the sides that cameras see are found (ReceiverKind::Cameras).
+enum class CameraVisibility : uint8_t {
+  Faced = 0,    // every side a camera place faces within the view distance, occluders ignored: conservative
+  Sampled = 1,  // the sides that rays from sampled camera positions hit first: smaller, not conservative between samples
+};
+/// Sampled camera visibility: rays per side of each cube face a camera position casts.
+constexpr uint32_t kDefaultCameraRays = 128;
+constexpr uint32_t kMaxCameraRays = 2048;
 
 /// Hash functions for node content. Weak exists so tests can force collisions: every
 /// algorithm must stay correct when different nodes share a hash.
@@ -116,6 +125,11 @@ struct OptionNames<ReceiverKind> {
   static constexpr const char* kFlag = "receivers";
   static constexpr std::array<const char*, 5> kNames{"everywhere", "surfaces", "surfaces-two-sided", "volume",
                                                      "cameras"};
+};
+template <>
+struct OptionNames<CameraVisibility> {
+  static constexpr const char* kFlag = "camera-visibility";
+  static constexpr std::array<const char*, 2> kNames{"faced", "sampled"};
 };
 template <>
 struct OptionNames<HashKind> {

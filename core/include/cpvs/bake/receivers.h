@@ -4,6 +4,8 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <utility>
 #include <vector>
 
@@ -14,15 +16,26 @@
 
 namespace cpvs {
 
+/// Sampled camera visibility's default spacing of positions, as a share of the view distance.
+constexpr double kDefaultCameraSpacingShare = 1.0 / 16;
+
 /// Steepest walkable surface a ground layer covers by default, in degrees from level.
 constexpr double kDefaultGroundSlopeDeg = 45;
+
+/// The sides sampled cameras see, for one scene and declaration (their hashes).
+struct CameraViewsCache {
+  std::mutex mutex;
+  Hash128 scene, declaration;
+  std::vector<uint8_t> sides;
+};
 
 /// What a bake is declared for: who receives (options.h), the widest PCF filter their
 /// lookups use; for ReceiverKind::Volume (and optionally Cameras) the volume in which
 /// dynamic receivers move: closed meshes in world space (boxes: appendBox) and a ground
 /// layer (where characters and vehicles are: every point from groundLayerFrom up to
-/// groundLayer scene units above a walkable surface, see walkable()); for Cameras the boxes cameras can be in and
-/// how far they see.
+/// groundLayer scene units above a walkable surface, see walkable()); for Cameras where
+/// cameras can be (boxes, points, polyline paths), how far they see and how the sides they
+/// see are found (camera_views.h).
 struct ReceiverDeclaration {
   ReceiverKind kind = ReceiverKind::Everywhere;
   int maxPcf = kMaxPcfWidthOption;
@@ -31,16 +44,25 @@ struct ReceiverDeclaration {
   double groundLayerFrom = 0;
   double groundSlopeDeg = kDefaultGroundSlopeDeg;
   std::vector<std::pair<Vec3, Vec3>> cameraRegions;  // (min, max)
+  std::vector<Vec3> cameraPoints;
+  std::vector<std::vector<Vec3>> cameraPaths;
   double viewDistance = 0;
+  CameraVisibility cameraVisibility = CameraVisibility::Faced;
+  double cameraSpacing = 0;  // Sampled: positions this far apart; 0: kDefaultCameraSpacingShare of the view distance
+  uint32_t cameraRays = 0;   // Sampled: rays per side of a cube face; 0: kDefaultCameraRays
+  // Sampled: the sides seen, cast once per scene and declaration and shared by copies
+  // (receivingSides keys it by both hashes).
+  std::shared_ptr<CameraViewsCache> seen = std::make_shared<CameraViewsCache>();
 };
 
-/// Which sides of scene triangle t receive under the declaration (not Everywhere): bit 0
-/// the front (the side its winding faces), bit 1 the back. Surfaces and Volume: the front;
-/// SurfacesTwoSided: both for open triangles; Cameras: each side of a triangle whose
-/// bounding box lies within the view distance of a camera region (boxes compared, a
-/// conservative test) that some point of such a region faces (closed parts: the outside
-/// only). What the bake frees by and `verify` samples.
-uint8_t receivingSides(const Scene& scene, const ReceiverDeclaration& declaration, size_t t);
+/// Which sides of each scene triangle receive under the declaration: bit 0 the front (the
+/// side its winding faces), bit 1 the back. Surfaces and Volume: the front; Everywhere and
+/// SurfacesTwoSided: both for open triangles; Cameras, faced: each side of a triangle whose
+/// bounding box lies within the view distance of a camera place (a region, a point, a
+/// path's segment's box: boxes compared, a conservative test) that some point of that place
+/// faces; Cameras, sampled: the sides camera rays hit (sampleCameraViews). Closed parts
+/// receive on the outside only. What the bake frees by and `verify` samples.
+std::vector<uint8_t> receivingSides(const Scene& scene, const ReceiverDeclaration& declaration);
 
 /// Whether scene triangle t carries the declaration's ground layer: a layer is declared
 /// and the triangle's front side faces up (+y) within groundSlopeDeg of level ground.
@@ -48,7 +70,9 @@ bool walkable(const Scene& scene, const ReceiverDeclaration& declaration, size_t
 
 /// InputError unless the declaration is usable: an odd PCF width in [1, 9]; a volume
 /// (closed) for ReceiverKind::Volume, none but for Volume and Cameras; camera regions
-/// (finite, min < max) and a positive view distance exactly for Cameras; a ground layer
+/// (finite, min < max), points and paths (finite, a path of one point or more), a positive
+/// view distance and, when sampled, a spacing >= 0 and rays up to kMaxCameraRays exactly
+/// for Cameras; a ground layer
 /// (finite, 0 <= from < height; a slope in [0, 90)) only for Volume and Cameras.
 void checkReceiverDeclaration(const ReceiverDeclaration& declaration);
 

@@ -17,4 +17,17 @@ namespace cpvs::net {
 ReceiverDeclaration declarationOf(const ::cpvs::v1::Receivers& receivers,
                                   const std::function<Scene(const std::string& hash)>& loadMesh);
 
+/// Whether the file `cameras:FILE` names is a camera file (it ends in .json) rather than a
+/// volume mesh.
+bool isCameraFile(const std::string& path);
+
+/// A camera file: the camera fields of a job's receivers in proto JSON (cameraRegions,
+/// cameraPoints, cameraPaths, viewDistance, cameraVisibility, cameraSpacing, cameraRays),
+/// the same text a job file's "receivers" holds. InputError naming the file for anything
+/// unreadable, malformed or not a camera field.
+::cpvs::v1::Receivers readCameraFile(const std::string& path);
+
+/// Sets the camera fields of `declaration` from those of `receivers`.
+void setCameras(const ::cpvs::v1::Receivers& receivers, ReceiverDeclaration& declaration);
+
 }  // namespace cpvs::net
