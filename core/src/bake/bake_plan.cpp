@@ -1,5 +1,7 @@
 #include "cpvs/bake/bake_plan.h"
 
+#include "cpvs/bake/camera_views.h"
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -95,6 +97,26 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
     p.groundLayerFrom = d.groundLayerFrom;
     p.groundLayer = d.groundLayer;
     p.groundSlopeDeg = d.groundSlopeDeg;
+  }
+  if (d.kind != ReceiverKind::Everywhere) {
+    const std::vector<uint8_t> sides = receivingSides(scene, d);
+    double receivingArea = 0;
+    for (size_t t = 0; t < sides.size(); ++t) {
+      const int count = (sides[t] & 1) + (sides[t] >> 1 & 1);
+      const Vec3 a = scene.vertex(t, 0);
+      receivingArea += count * 0.5 * length(cross(scene.vertex(t, 1) - a, scene.vertex(t, 2) - a));
+      p.receivingSides += uint64_t(count);
+    }
+    p.receivingAreaShare = area > 0 ? receivingArea / area : 0;
+  }
+  if (d.kind == ReceiverKind::Cameras) {
+    p.cameras = true;
+    p.cameraVisibility = d.cameraVisibility;
+    if (d.cameraVisibility == CameraVisibility::Sampled) {
+      p.cameraPositions = cameraPositions(d).size();
+      const uint64_t r = d.cameraRays ? d.cameraRays : kDefaultCameraRays;
+      p.cameraRays = p.cameraPositions * 6 * r * r;
+    }
   }
   p.resolution = grid.resolution();
   p.receivers = d.kind;
@@ -203,6 +225,11 @@ std::string planJson(const BakePlan& p) {
       << ", \"walkable_area_share\": " << jsonNumber(p.walkableAreaShare) << "}";
   else
     o << "null";
+  if (p.receivers != ReceiverKind::Everywhere)
+    o << ", \"receiving_sides\": " << p.receivingSides << ", \"receiving_area_share\": " << jsonNumber(p.receivingAreaShare);
+  if (p.cameras)
+    o << ", \"cameras\": {\"visibility\": " << jsonString(optionName(p.cameraVisibility))
+      << ", \"positions\": " << p.cameraPositions << ", \"rays\": " << p.cameraRays << "}";
   o << "}, \"coverage\": " << coverageJson(p) << ", \"tiles\": {\"total\": " << p.tiles
     << ", \"untouched\": " << p.tilesUntouched << ", \"unread\": " << p.tilesUnread << "}, \"lights\": [";
   for (size_t i = 0; i < p.lights.size(); ++i) {
@@ -229,6 +256,14 @@ std::string planText(const BakePlan& p) {
   if (p.receivers != ReceiverKind::Everywhere)
     o << ", PCF up to " << p.receiverPcf << ": their lookups reach " << percent(p.columnsReadShare)
       << " of the texel columns (counted at " << p.columnsSampledSide << "^2); the rest is free";
+  if (p.receivers != ReceiverKind::Everywhere)
+    o << "\n  receiving surfaces: " << p.receivingSides << " triangle sides, " << percent(p.receivingAreaShare)
+      << " of the scene's area";
+  if (p.cameras && p.cameraVisibility == CameraVisibility::Sampled)
+    o << "\n  cameras, sampled: the sides " << p.cameraRays << " rays from " << p.cameraPositions
+      << " positions hit first (sides seen only between samples are missed: verify measures it)";
+  else if (p.cameras)
+    o << "\n  cameras, faced: every side a camera place faces within the view distance (occluders ignored)";
   if (p.groundLayer > 0)
     o << "\n  ground layer: from " << p.groundLayerFrom << " to " << p.groundLayer << " scene units above "
       << p.walkableTriangles << " walkable triangles (facing up within " << p.groundSlopeDeg << " degrees; "

@@ -46,6 +46,14 @@ struct BakePlan {
   double groundLayerFrom = 0, groundLayer = 0, groundSlopeDeg = 0;
   uint64_t walkableTriangles = 0;
   double walkableAreaShare = 0;  // of the scene's surface area
+  // The surfaces that receive (receivingSides; not for everywhere): their sides (a triangle
+  // receiving on both counts twice) and those sides' area over the scene's surface area.
+  uint64_t receivingSides = 0;
+  double receivingAreaShare = 0;
+  // Cameras: how the sides they see were found and, sampled, the positions and rays cast.
+  bool cameras = false;
+  CameraVisibility cameraVisibility = CameraVisibility::Faced;
+  uint64_t cameraPositions = 0, cameraRays = 0;
   struct Light {
     SceneLight light;
     bool baked = false;

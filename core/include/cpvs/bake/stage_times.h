@@ -12,12 +12,13 @@
 namespace cpvs {
 
 /// Every stage any process reports, in pipeline order: the one list that stage times,
-/// summaries and reports are keyed by. "load" (scene and BVH) and "write" belong to the
-/// command line, "encode" (a tile's sub-DAG bytes) to a farm worker.
-inline constexpr std::array<const char*, 9> kStageNames{"load",  "render",   "receivers", "masks", "insert",
-                                                        "compress", "merge", "encode",    "write"};
+/// summaries and reports are keyed by. "load" (scene and BVH), "cameras" (sampled camera
+/// visibility) and "write" belong to the command line, "encode" (a tile's sub-DAG bytes)
+/// to a farm worker.
+inline constexpr std::array<const char*, 10> kStageNames{"load",     "cameras", "render", "receivers", "masks",
+                                                         "insert",   "compress", "merge", "encode",    "write"};
 /// The stages bakeGrid reports: render .. merge.
-inline constexpr std::span<const char* const> kBakeGridStages{kStageNames.data() + 1, 6};
+inline constexpr std::span<const char* const> kBakeGridStages{kStageNames.data() + 2, 6};
 
 /// True when `name` is in kStageNames.
 bool isStageName(std::string_view name);
