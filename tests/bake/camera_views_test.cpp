@@ -11,16 +11,13 @@
 #include "cpvs/base/error.h"
 #include "cpvs/raytrace/exact_caster.h"
 #include "cpvs/scene/boxes.h"
+#include "scene_testing.h"
 #include "cpvs/scene/procedural_city.h"
 
 namespace cpvs {
 namespace {
 
-void appendQuad(Scene& s, Vec3 a, Vec3 b, Vec3 c, Vec3 d) {  // counter-clockwise seen from the front
-  const uint32_t base = uint32_t(s.positions.size());
-  for (const Vec3& p : {a, b, c, d}) s.positions.push_back(p);
-  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) s.indices.push_back(base + i);
-}
+using testing::appendQuad;
 
 TEST(ExactCaster, AgreesBitForBitWithTestingEveryTriangle) {
   // Random triangles and a grid of quads sharing edges and vertices (rays through them tie).

@@ -14,15 +14,12 @@
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/scene/boxes.h"
+#include "scene_testing.h"
 
 namespace cpvs {
 namespace {
 
-void appendQuad(Scene& s, Vec3 a, Vec3 b, Vec3 c, Vec3 d) {  // counter-clockwise seen from the front
-  const uint32_t base = uint32_t(s.positions.size());
-  for (const Vec3& p : {a, b, c, d}) s.positions.push_back(p);
-  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) s.indices.push_back(base + i);
-}
+using testing::appendQuad;
 
 // Open and closed geometry of every kind a level has: a ground sheet, a building without
 // a floor, a closed crate, a single-sided thin wall, a slanted roof-like triangle, and a

@@ -92,4 +92,10 @@ Dag bakeTileWith(const Scene& scene, const OrthoGrid& grid, uint64_t tileX, uint
   return bakeTile(prepared, tileX, tileY, options);
 }
 
+void appendQuad(Scene& s, Vec3 a, Vec3 b, Vec3 c, Vec3 d) {
+  const uint32_t base = uint32_t(s.positions.size());
+  for (const Vec3& p : {a, b, c, d}) s.positions.push_back(p);
+  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) s.indices.push_back(base + i);
+}
+
 }  // namespace cpvs::testing

@@ -50,6 +50,9 @@ Dag bakeWith(const Scene& scene, const OrthoGrid& grid, const BakeOptions& optio
 CpvsArtifact localArtifact(const Scene& scene, const OrthoGrid& grid, BakeOptions options,
                            const ReceiverDeclaration& receivers = {});
 
+/// Appends the quad a-b-c-d as two triangles, counter-clockwise seen from its front.
+void appendQuad(Scene& scene, Vec3 a, Vec3 b, Vec3 c, Vec3 d);
+
 /// bakeTile of the scene prepared for the options' renderer.
 Dag bakeTileWith(const Scene& scene, const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options);
 
