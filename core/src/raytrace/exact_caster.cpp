@@ -8,6 +8,10 @@ namespace cpvs {
 namespace {
 
 constexpr uint32_t kLeafTriangles = 4;
+constexpr uint32_t kBins = 16;
+// Below this depth nodes split at the median: at most 32 more levels for 2^32 triangles,
+// within the walk's stack of 128.
+constexpr int kMaxSahDepth = 64;
 // pbrt's gamma(3): the relative error of a slab's far distance; widening it by that keeps
 // the box test from cutting off a hit the triangle test finds.
 constexpr double kFarWiden = 1 + 2 * (3 * 0x1p-53) / (1 - 3 * 0x1p-53);
@@ -25,11 +29,11 @@ ExactCaster::ExactCaster(const Scene& scene) {
   }
   order_.resize(n);
   std::iota(order_.begin(), order_.end(), 0u);
-  nodes_.reserve(n ? 2 * n / kLeafTriangles + 1 : 1);
-  if (n) build(0, uint32_t(n), centroids);
+  nodes_.reserve(2 * n);
+  if (n) build(0, uint32_t(n), centroids, 0);
 }
 
-uint32_t ExactCaster::build(uint32_t begin, uint32_t end, std::vector<Vec3>& centroids) {
+uint32_t ExactCaster::build(uint32_t begin, uint32_t end, std::vector<Vec3>& centroids, int depth) {
   const uint32_t index = uint32_t(nodes_.size());
   nodes_.push_back({});
   Node node{};
@@ -55,18 +59,77 @@ uint32_t ExactCaster::build(uint32_t begin, uint32_t end, std::vector<Vec3>& cen
     nodes_[index] = node;
     return index;
   }
-  int axis = 0;
-  for (int k = 1; k < 3; ++k)
-    if (cHi[k] - cLo[k] > cHi[axis] - cLo[axis]) axis = k;
-  const uint32_t mid = begin + (end - begin) / 2;
-  std::sort(order_.begin() + begin, order_.begin() + end, [&](uint32_t p, uint32_t q) {
-    const double cp = centroids[p][axis], cq = centroids[q][axis];
-    return cp < cq || (cp == cq && p < q);
-  });
+  // Binned surface area heuristic over the centroids: the split plane of least expected
+  // cost, ties to the lowest axis and plane; a stable partition keeps the order a pure
+  // function of the scene. Centroids that do not split, and nodes below kMaxSahDepth
+  // (which keeps the walk's stack bounded), take the median along the widest axis.
+  struct Bin {
+    double lo[3], hi[3];
+    uint32_t count;
+  };
+  auto area = [](const double* lo, const double* hi) {
+    const double x = hi[0] - lo[0], y = hi[1] - lo[1], z = hi[2] - lo[2];
+    return x * y + y * z + z * x;
+  };
+  auto binOf = [&](double c, int k) {
+    const double scale = kBins / (cHi[k] - cLo[k]);
+    return std::min<uint32_t>(kBins - 1, uint32_t((c - cLo[k]) * scale));
+  };
+  int axis = -1;
+  uint32_t plane = 0;
+  double bestCost = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3 && depth < kMaxSahDepth; ++k) {
+    if (!(cHi[k] > cLo[k])) continue;
+    Bin bins[kBins];
+    for (Bin& b : bins) {
+      b.count = 0;
+      for (int j = 0; j < 3; ++j) b.lo[j] = std::numeric_limits<double>::infinity(), b.hi[j] = -b.lo[j];
+    }
+    for (uint32_t i = begin; i < end; ++i) {
+      Bin& b = bins[binOf(centroids[order_[i]][k], k)];
+      ++b.count;
+      const Triangle& tr = triangles_[order_[i]];
+      for (const Vec3& p : {tr.a, tr.a + tr.e1, tr.a + tr.e2})
+        for (int j = 0; j < 3; ++j) b.lo[j] = std::min(b.lo[j], p[j]), b.hi[j] = std::max(b.hi[j], p[j]);
+    }
+    // Costs of the planes after bin 0 .. kBins - 2: left areas swept up, right ones down.
+    double rightCost[kBins];
+    Bin acc{};
+    for (int j = 0; j < 3; ++j) acc.lo[j] = std::numeric_limits<double>::infinity(), acc.hi[j] = -acc.lo[j];
+    for (uint32_t b = kBins - 1; b > 0; --b) {
+      acc.count += bins[b].count;
+      for (int j = 0; j < 3; ++j) acc.lo[j] = std::min(acc.lo[j], bins[b].lo[j]), acc.hi[j] = std::max(acc.hi[j], bins[b].hi[j]);
+      rightCost[b - 1] = acc.count ? area(acc.lo, acc.hi) * acc.count : 0;
+    }
+    acc.count = 0;
+    for (int j = 0; j < 3; ++j) acc.lo[j] = std::numeric_limits<double>::infinity(), acc.hi[j] = -acc.lo[j];
+    for (uint32_t b = 0; b + 1 < kBins; ++b) {
+      acc.count += bins[b].count;
+      for (int j = 0; j < 3; ++j) acc.lo[j] = std::min(acc.lo[j], bins[b].lo[j]), acc.hi[j] = std::max(acc.hi[j], bins[b].hi[j]);
+      if (acc.count == 0 || acc.count == end - begin) continue;
+      const double cost = area(acc.lo, acc.hi) * acc.count + rightCost[b];
+      if (cost < bestCost) bestCost = cost, axis = k, plane = b;
+    }
+  }
+  uint32_t mid;
+  if (axis >= 0) {
+    mid = uint32_t(std::stable_partition(order_.begin() + begin, order_.begin() + end,
+                                         [&](uint32_t t) { return binOf(centroids[t][axis], axis) <= plane; }) -
+                   order_.begin());
+  } else {
+    axis = 0;
+    for (int k = 1; k < 3; ++k)
+      if (cHi[k] - cLo[k] > cHi[axis] - cLo[axis]) axis = k;
+    mid = begin + (end - begin) / 2;
+    std::sort(order_.begin() + begin, order_.begin() + end, [&](uint32_t p, uint32_t q) {
+      const double cp = centroids[p][axis], cq = centroids[q][axis];
+      return cp < cq || (cp == cq && p < q);
+    });
+  }
   node.axis = uint32_t(axis);
   node.count = 0;
-  build(begin, mid, centroids);
-  node.first = build(mid, end, centroids);
+  build(begin, mid, centroids, depth + 1);
+  node.first = build(mid, end, centroids, depth + 1);
   nodes_[index] = node;
   return index;
 }

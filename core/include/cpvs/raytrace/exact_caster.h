@@ -13,10 +13,11 @@
 namespace cpvs {
 
 /// A bounding volume hierarchy over a scene's triangles, built and walked the same way
-/// everywhere: nodes split at the median of centroids sorted with the triangle index as a
-/// tie-break, hits tested by Möller–Trumbore without fused multiply-adds, equal distances
-/// resolved to the lowest triangle index. A ray's hit depends only on the scene and the ray,
-/// never on the thread, the CPU or the traversal order.
+/// everywhere: nodes split by a binned surface area heuristic (a stable partition, ties to
+/// the lowest axis and plane), hits tested by Möller–Trumbore without fused multiply-adds,
+/// equal distances resolved to the lowest triangle index. The boxes only prune, widened
+/// for rounding, so a ray's hit depends only on the scene and the ray, never on the
+/// hierarchy, the thread, the CPU or the traversal order.
 class ExactCaster {
  public:
   static constexpr uint32_t kNoHit = std::numeric_limits<uint32_t>::max();
@@ -44,7 +45,7 @@ class ExactCaster {
   struct Triangle {
     Vec3 a, e1, e2;
   };
-  uint32_t build(uint32_t begin, uint32_t end, std::vector<Vec3>& centroids);
+  uint32_t build(uint32_t begin, uint32_t end, std::vector<Vec3>& centroids, int depth);
   bool intersect(uint32_t entry, const Vec3& o, const Vec3& d, double tMax, Hit& best) const;
 
   std::vector<Node> nodes_;
