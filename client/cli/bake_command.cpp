@@ -126,7 +126,7 @@ int runBake(const BakeArgs& a) {
     // Cast once here (the declaration keeps the sides), timed as a stage of its own.
     start = std::chrono::steady_clock::now();
     if (!a.json && !a.quiet)
-      spdlog::info("cameras: casting rays from {} positions to find the sides they see", cameraPositions(receivers).size());
+      spdlog::info("cameras: casting rays from {} positions to find the sides they see", cameraPositionCount(receivers));
     (void)receivingSides(scene, receivers);
     st.add("cameras", secondsSince(start));
   }

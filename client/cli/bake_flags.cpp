@@ -142,7 +142,7 @@ ReceiverDeclaration receiversOf(const OptionFlags& f) {
     if (f.viewDistance != 0) d.viewDistance = f.viewDistance;
     if (!f.cameraVisibility.empty()) d.cameraVisibility = parseOption<CameraVisibility>(f.cameraVisibility, "--camera-visibility");
     if (f.cameraSpacing != 0) d.cameraSpacing = f.cameraSpacing;
-    if (f.cameraRays < 0) throw InputError("--camera-rays must be at least 1");
+    if (f.cameraRays < 0) throw InputError("--camera-rays must be 0 (the default, 128) or more");
     if (f.cameraRays != 0) d.cameraRays = uint32_t(f.cameraRays);
   }
   try {

@@ -256,7 +256,7 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
       r.set_camera_visibility(pb::CameraVisibility(parseOption<CameraVisibility>(options.cameraVisibility, "--camera-visibility")));
     if (given("--camera-spacing")) r.set_camera_spacing(options.cameraSpacing);
     if (given("--camera-rays")) {
-      if (options.cameraRays < 0) throw InputError("--camera-rays must be at least 1");
+      if (options.cameraRays < 0) throw InputError("--camera-rays must be 0 (the default, 128) or more");
       r.set_camera_rays(uint32_t(options.cameraRays));
     }
     if (given("--ground-layer")) {

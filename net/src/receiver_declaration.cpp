@@ -2,6 +2,8 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include <cctype>
+
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
 #include "cpvs/net/convert.h"
@@ -43,7 +45,10 @@ void setCameras(const pb::Receivers& r, ReceiverDeclaration& d) {
 }
 
 bool isCameraFile(const std::string& path) {
-  return path.size() >= 5 && path.compare(path.size() - 5, 5, ".json") == 0;
+  if (path.size() < 5) return false;
+  std::string end = path.substr(path.size() - 5);
+  for (char& c : end) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return end == ".json";
 }
 
 pb::Receivers readCameraFile(const std::string& path) {

@@ -230,6 +230,22 @@ TEST(CameraViews, TheDeclarationIsCheckedAndHashed) {
   ReceiverDeclaration a = cameraAtOrigin(CameraVisibility::Faced), b = a;
   b.cameraPoints.push_back({1, 1, 1});
   EXPECT_NE(receiverHash(a), receiverHash(b));
+  // Points and regions whose numbers line up still hash apart: every list is counted.
+  ReceiverDeclaration points = cameraAtOrigin(CameraVisibility::Faced), regions = points;
+  points.cameraPoints = {Vec3{-5, 0, 0}, Vec3{1, 0, 0}, Vec3{1, 1, 1}};
+  regions.cameraPoints.clear();
+  regions.cameraRegions = {{Vec3{-3, -5, 0}, Vec3{0, -3, 1}}, {Vec3{0, 0, -3}, Vec3{1, 1, 1}}};
+  EXPECT_NE(receiverHash(points), receiverHash(regions));
+  // A sampled declaration too dense to cast is refused by the check itself.
+  ReceiverDeclaration dense = cameraAtOrigin(CameraVisibility::Sampled);
+  dense.cameraRegions = {{Vec3{0, 0, 0}, Vec3{1000, 10, 1000}}};
+  dense.cameraSpacing = 0.5;
+  try {
+    checkReceiverDeclaration(dense);
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("lower the rays per face (now 64)"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

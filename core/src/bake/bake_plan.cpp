@@ -113,7 +113,7 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
     p.cameras = true;
     p.cameraVisibility = d.cameraVisibility;
     if (d.cameraVisibility == CameraVisibility::Sampled) {
-      p.cameraPositions = cameraPositions(d).size();
+      p.cameraPositions = uint64_t(cameraPositionCount(d));
       const uint64_t r = d.cameraRays ? d.cameraRays : kDefaultCameraRays;
       p.cameraRays = p.cameraPositions * 6 * r * r;
     }
@@ -257,8 +257,8 @@ std::string planText(const BakePlan& p) {
     o << ", PCF up to " << p.receiverPcf << ": their lookups reach " << percent(p.columnsReadShare)
       << " of the texel columns (counted at " << p.columnsSampledSide << "^2); the rest is free";
   if (p.receivers != ReceiverKind::Everywhere)
-    o << "\n  receiving surfaces: " << p.receivingSides << " triangle sides, " << percent(p.receivingAreaShare)
-      << " of the scene's area";
+    o << "\n  receiving surfaces: " << p.receivingSides << " triangle sides, their area " << percent(p.receivingAreaShare)
+      << " of the scene's (both sides of a triangle count: two-sided receivers can pass 100 %)";
   if (p.cameras && p.cameraVisibility == CameraVisibility::Sampled)
     o << "\n  cameras, sampled: the sides " << p.cameraRays << " rays from " << p.cameraPositions
       << " positions hit first (sides seen only between samples are missed: verify measures it)";

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "cpvs/base/error.h"
@@ -36,9 +37,8 @@ double cameraSpacing(const ReceiverDeclaration& d) {
   return d.cameraSpacing > 0 ? d.cameraSpacing : d.viewDistance * kDefaultCameraSpacingShare;
 }
 
-std::vector<Vec3> cameraPositions(const ReceiverDeclaration& d, uint64_t seed) {
+double cameraPositionCount(const ReceiverDeclaration& d) {
   const double s = cameraSpacing(d);
-  // Counted first: a declaration too dense to cast is refused before anything is allocated.
   double count = double(d.cameraPoints.size());
   for (const auto& [lo, hi] : d.cameraRegions)
     count += (stepsOver(hi.x - lo.x, s) + 1) * (stepsOver(hi.y - lo.y, s) + 1) * (stepsOver(hi.z - lo.z, s) + 1);
@@ -46,11 +46,27 @@ std::vector<Vec3> cameraPositions(const ReceiverDeclaration& d, uint64_t seed) {
     count += 1;
     for (size_t i = 1; i < path.size(); ++i) count += stepsOver(length(path[i] - path[i - 1]), s);
   }
-  const double rays = 6.0 * raysPerSide(d) * raysPerSide(d);
-  if (count * rays > double(kMaxCameraSampleRays))
-    throw InputError("receivers: sampled cameras would cast " + std::to_string(uint64_t(count)) + " positions x " +
-                     std::to_string(uint64_t(rays)) + " rays, more than 2^32: raise the camera spacing (now " +
-                     std::to_string(s) + ") or lower the rays per face (now " + std::to_string(raysPerSide(d)) + ")");
+  return count;
+}
+
+void checkCameraBudget(const ReceiverDeclaration& d) {
+  if (d.kind != ReceiverKind::Cameras || d.cameraVisibility != CameraVisibility::Sampled) return;
+  const double count = cameraPositionCount(d), rays = 6.0 * raysPerSide(d) * raysPerSide(d);
+  char text[320];
+  if (count > double(kMaxCameraPositions) || count * rays > double(kMaxCameraSampleRays)) {
+    std::snprintf(text, sizeof text,
+                  "receivers: sampled cameras would cast from %.6g positions x %.6g rays, more than %.6g positions or "
+                  "%.6g rays: raise the camera spacing (now %.6g) or lower the rays per face (now %u)",
+                  count, rays, double(kMaxCameraPositions), double(kMaxCameraSampleRays), cameraSpacing(d),
+                  raysPerSide(d));
+    throw InputError(text);
+  }
+}
+
+std::vector<Vec3> cameraPositions(const ReceiverDeclaration& d, uint64_t seed) {
+  const double s = cameraSpacing(d);
+  checkCameraBudget(d);  // before anything is allocated
+  const double count = cameraPositionCount(d);
   std::vector<Vec3> out;
   out.reserve(size_t(count));
   // A position's own random stream: the sample does not depend on the order of the places.
@@ -125,10 +141,8 @@ CameraViews sampleCameraViews(const Scene& scene, const ReceiverDeclaration& d, 
           ++localRays;
           const ExactCaster::Hit hit = caster.firstHit(o, dir, tMax);
           if (hit.triangle == ExactCaster::kNoHit) continue;
-          const Vec3 a = scene.vertex(hit.triangle, 0);
-          const double facing = dot(dir, cross(scene.vertex(hit.triangle, 1) - a, scene.vertex(hit.triangle, 2) - a));
-          uint8_t side = facing < 0 ? 1 : facing > 0 ? 2 : 3;
-          if (scene.closed[hit.triangle]) side &= 1;  // inside a solid: nothing receives there
+          uint8_t side = hit.front ? 1 : 2;
+          if (scene.closed[hit.triangle] && !hit.front) continue;  // inside a solid: nothing receives there
           if (!side) continue;
           ++localHits;
           if (declared && (side & ~(*declared)[hit.triangle])) ++localOutside;

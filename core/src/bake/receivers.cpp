@@ -1,6 +1,7 @@
 #include "cpvs/bake/receivers.h"
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
@@ -148,7 +149,8 @@ std::vector<uint8_t> receivingSides(const Scene& scene, const ReceiverDeclaratio
     const Hash128 sceneKey = sceneHash(scene), declarationKey = receiverHash(d);
     std::lock_guard lock(d.seen->mutex);
     if (d.seen->sides.size() != n || d.seen->scene != sceneKey || d.seen->declaration != declarationKey) {
-      d.seen->sides = sampleCameraViews(scene, d).sides;
+      // Isolated: a thread waiting here must not take up another task that needs the lock.
+      tbb::this_task_arena::isolate([&] { d.seen->sides = sampleCameraViews(scene, d).sides; });
       d.seen->scene = sceneKey, d.seen->declaration = declarationKey;
     }
     return d.seen->sides;
@@ -229,6 +231,7 @@ void checkReceiverDeclaration(const ReceiverDeclaration& d) {
     if (d.cameraRays > kMaxCameraRays)
       throw InputError("receivers: at most " + std::to_string(kMaxCameraRays) + " rays per side of a cube face, not " +
                        std::to_string(d.cameraRays));
+    checkCameraBudget(d);
   }
   if (!(d.groundLayer >= 0 && std::isfinite(d.groundLayer)))
     throw InputError("receivers: the ground layer's height must be a finite number >= 0");
@@ -254,16 +257,25 @@ Hash128 receiverHash(const ReceiverDeclaration& d) {
   const Hash128 volume = d.volume.triangleCount() ? sceneHash(d.volume) : Hash128{};
   std::vector<double> words{double(d.kind), double(d.maxPcf), double(volume.lo >> 32), double(volume.lo & 0xFFFFFFFF),
                             double(volume.hi >> 32), double(volume.hi & 0xFFFFFFFF), d.viewDistance};
+  // Camera regions alone (faced) keep the words they always had. Any other camera place,
+  // or sampled visibility, tags the first word and counts every list first, so that no
+  // two declarations share their words.
+  const bool tagged =
+      !d.cameraPoints.empty() || !d.cameraPaths.empty() || d.cameraVisibility == CameraVisibility::Sampled;
+  if (tagged) {
+    words[0] += 1000;
+    words.insert(words.end(), {double(d.cameraRegions.size()), double(d.cameraPoints.size()),
+                               double(d.cameraPaths.size()), double(d.cameraVisibility), cameraSpacing(d),
+                               double(d.cameraRays ? d.cameraRays : kDefaultCameraRays)});
+  }
   for (const auto& [lo, hi] : d.cameraRegions)
     for (double v : {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z}) words.push_back(v);
-  // Only what is declared adds words: declarations without it keep their hashes.
-  for (const Vec3& p : d.cameraPoints) words.insert(words.end(), {-3.0, p.x, p.y, p.z});
+  for (const Vec3& p : d.cameraPoints) words.insert(words.end(), {p.x, p.y, p.z});
   for (const auto& path : d.cameraPaths) {
-    words.insert(words.end(), {-4.0, double(path.size())});
+    words.push_back(double(path.size()));
     for (const Vec3& p : path) words.insert(words.end(), {p.x, p.y, p.z});
   }
-  if (d.cameraVisibility == CameraVisibility::Sampled)
-    words.insert(words.end(), {-5.0, cameraSpacing(d), double(d.cameraRays ? d.cameraRays : kDefaultCameraRays)});
+  // Only a declared layer adds words: declarations without one keep their hashes.
   if (d.groundLayer > 0) words.insert(words.end(), {-1.0, d.groundLayer, d.groundSlopeDeg});
   if (d.groundLayerFrom > 0) words.insert(words.end(), {-2.0, d.groundLayerFrom});
   return contentHash(words.data(), words.size() * sizeof(double));

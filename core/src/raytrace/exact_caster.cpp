@@ -79,7 +79,7 @@ uint32_t ExactCaster::build(uint32_t begin, uint32_t end, std::vector<Vec3>& cen
   uint32_t plane = 0;
   double bestCost = std::numeric_limits<double>::infinity();
   for (int k = 0; k < 3 && depth < kMaxSahDepth; ++k) {
-    if (!(cHi[k] > cLo[k])) continue;
+    if (!(cHi[k] > cLo[k]) || !std::isfinite(kBins / (cHi[k] - cLo[k]))) continue;  // a subnormal extent too
     Bin bins[kBins];
     for (Bin& b : bins) {
       b.count = 0;
@@ -149,7 +149,7 @@ bool ExactCaster::intersect(uint32_t t, const Vec3& o, const Vec3& d, double tMa
   const double hitT = dot(tr.e2, q) * inv;
   if (!(hitT > 0 && hitT <= tMax)) return false;
   if (best.triangle != kNoHit && (hitT > best.t || (hitT == best.t && t > best.triangle))) return false;
-  best = {t, hitT};
+  best = {t, hitT, det > 0};
   return true;
 }
 

@@ -47,7 +47,8 @@ struct BakePlan {
   uint64_t walkableTriangles = 0;
   double walkableAreaShare = 0;  // of the scene's surface area
   // The surfaces that receive (receivingSides; not for everywhere): their sides (a triangle
-  // receiving on both counts twice) and those sides' area over the scene's surface area.
+  // receiving on both counts twice) and those sides' area over the scene's surface area
+  // (so above 1 when many triangles receive on both sides).
   uint64_t receivingSides = 0;
   double receivingAreaShare = 0;
   // Cameras: how the sides they see were found and, sampled, the positions and rays cast.

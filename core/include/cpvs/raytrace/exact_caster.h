@@ -15,15 +15,18 @@ namespace cpvs {
 /// A bounding volume hierarchy over a scene's triangles, built and walked the same way
 /// everywhere: nodes split by a binned surface area heuristic (a stable partition, ties to
 /// the lowest axis and plane), hits tested by Möller–Trumbore without fused multiply-adds,
-/// equal distances resolved to the lowest triangle index. The boxes only prune, widened
-/// for rounding, so a ray's hit depends only on the scene and the ray, never on the
-/// hierarchy, the thread, the CPU or the traversal order.
+/// equal distances resolved to the lowest triangle index. A ray's hit depends only on the
+/// scene and the ray, never on the thread, the CPU or the order of the walk. (The boxes,
+/// widened for their own rounding, only prune; a hit that the triangle test's rounding
+/// puts a hair outside its box, on a grazing ray, could in principle be missed, the same
+/// way everywhere.)
 class ExactCaster {
  public:
   static constexpr uint32_t kNoHit = std::numeric_limits<uint32_t>::max();
   struct Hit {
     uint32_t triangle = kNoHit;  // scene triangle index; kNoHit: none within tMax
     double t = 0;                // hit point = origin + t * direction
+    bool front = false;          // the ray meets the side the triangle's winding faces
   };
 
   explicit ExactCaster(const Scene& scene);

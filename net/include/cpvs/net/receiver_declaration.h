@@ -17,7 +17,7 @@ namespace cpvs::net {
 ReceiverDeclaration declarationOf(const ::cpvs::v1::Receivers& receivers,
                                   const std::function<Scene(const std::string& hash)>& loadMesh);
 
-/// Whether the file `cameras:FILE` names is a camera file (it ends in .json) rather than a
+/// Whether the file `cameras:FILE` names is a camera file (it ends in .json, any case) rather than a
 /// volume mesh.
 bool isCameraFile(const std::string& path);
 
