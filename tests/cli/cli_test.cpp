@@ -535,6 +535,11 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
       {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers surfaces --receiver-pcf 6", "must be odd"},
       {"bake city --sun-dir 0,-1,0 --receivers cameras --camera-region 0,0,0,1,1,1", "view distance"},
       {"bake city --sun-dir 0,-1,0 --receivers surfaces --view-distance 5", "need --receivers cameras"},
+      {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers cameras:/nonexistent/cams.json", "/nonexistent/cams.json"},
+      {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --receivers cameras --camera-region 0,0,0,1,1,1 --view-distance 5 "
+       "--camera-spacing 2", "camera_spacing and camera_rays are for CAMERA_VISIBILITY_SAMPLED only"},
+      {"bake city --sun-dir 0,-1,0 --receivers cameras --camera-region 0,0,0,1,1,1 --view-distance 5 --camera-visibility "
+       "sampled --camera-rays -3", "--camera-rays must be 0"},
       {"bake city --sun-dir 0,-1,0 --receivers surfaces --ground-layer 2", "needs --receivers volume or cameras"},
       {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 3:1", "0 <= FROM < TO"},
       {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer :2", "0 <= FROM < TO"},

@@ -279,6 +279,23 @@ TEST_F(FarmTest, JobFileInJsonFormWithFlagsOverridingIt) {
   EXPECT_NE(listed.out.find("evil\\x1B[2J\\x0Afake"), std::string::npos) << listed.out;
   EXPECT_EQ(listed.out.find('\x1b'), std::string::npos) << listed.out;
   EXPECT_EQ(listed.out.find("\nfake 0 done"), std::string::npos) << listed.out;
+
+  // A camera file with sampled visibility replaces the job file's camera fields, a flag
+  // adds a region, and the farm's file is the local bake's of the same declaration.
+  std::ofstream(path("cams.json")) << R"({"cameraRegions": [{"min": {"x": 0, "y": 1, "z": 0}, "max": {"x": 20, "y": 3, "z": 20}}],
+      "cameraPoints": [{"x": 30, "y": 2, "z": 5}], "viewDistance": 40,
+      "cameraVisibility": "CAMERA_VISIBILITY_SAMPLED", "cameraSpacing": 5, "cameraRays": 32})";
+  std::ofstream(path("cams-job.json")) << R"({"sun_direction": {"x": 0.3, "y": -1, "z": 0.2}, "resolution": "1024",
+      "options": {"tile_size": 128, "receivers": {"kind": "RECEIVERS_CAMERAS", "view_distance": 3,
+      "camera_regions": [{"min": {"x": -9, "y": 0, "z": -9}, "max": {"x": -8, "y": 1, "z": -8}}]}}})";
+  const std::string cameras = " --receivers cameras:" + path("cams.json") + " --camera-region 30,1,30,35,2,35";
+  Ran local = runCli("bake " + path("city.obj") + kSpec + cameras + " -q -o " + path("cams-local.cpvs"));
+  ASSERT_EQ(local.status, 0) << local.out;
+  Ran farm = runCli("submit --server " + address + " --token " + kClientToken + " " + path("city.obj") + " --job " +
+                    path("cams-job.json") + cameras + " --wait --json --out " + path("cams-farm.cpvs"));
+  ASSERT_EQ(farm.status, 0) << farm.out;
+  EXPECT_EQ(bytesOf(path("cams-farm.cpvs")), bytesOf(path("cams-local.cpvs")));
+  EXPECT_NE(bytesOf(path("cams-local.cpvs")), bytesOf(path("local.cpvs")));
 }
 
 /// Tiles done in the coordinator's database: acknowledged, or untouched by any triangle.
