@@ -221,11 +221,7 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::
         throw InputError("--receivers: only 'volume' and 'cameras' take a file ('" + options.receivers + "')");
       // A camera file sets every camera field; the camera flags then add to it or override.
       if (flags.receivers == ReceiverKind::Cameras && net::isCameraFile(mesh)) {
-        for (auto clear : {&pb::Receivers::clear_camera_regions, &pb::Receivers::clear_camera_points,
-                           &pb::Receivers::clear_camera_paths, &pb::Receivers::clear_view_distance,
-                           &pb::Receivers::clear_camera_visibility, &pb::Receivers::clear_camera_spacing,
-                           &pb::Receivers::clear_camera_rays})
-          (r.*clear)();
+        net::clearCameras(r);
         r.MergeFrom(net::readCameraFile(mesh));
         mesh.clear();
         cameraFile = true;

@@ -18,10 +18,8 @@ class AreaPicker {
  public:
   template <class Take>
   AreaPicker(const Scene& scene, Take&& take) : scene_(scene), cdf_(scene.triangleCount() + 1, 0.0) {
-    for (size_t t = 0; t < scene.triangleCount(); ++t) {
-      const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
-      cdf_[t + 1] = cdf_[t] + (take(uint32_t(t)) ? 0.5 * length(cross(b - a, c - a)) : 0.0);
-    }
+    for (size_t t = 0; t < scene.triangleCount(); ++t)
+      cdf_[t + 1] = cdf_[t] + (take(uint32_t(t)) ? triangleArea(scene, t) : 0.0);
   }
 
   bool empty() const { return !(cdf_.back() > 0); }

@@ -44,6 +44,16 @@ void setCameras(const pb::Receivers& r, ReceiverDeclaration& d) {
   d.cameraRays = r.camera_rays();
 }
 
+void clearCameras(pb::Receivers& r) {
+  r.clear_camera_regions();
+  r.clear_camera_points();
+  r.clear_camera_paths();
+  r.clear_view_distance();
+  r.clear_camera_visibility();
+  r.clear_camera_spacing();
+  r.clear_camera_rays();
+}
+
 bool isCameraFile(const std::string& path) {
   if (path.size() < 5) return false;
   std::string end = path.substr(path.size() - 5);
@@ -57,11 +67,7 @@ pb::Receivers readCameraFile(const std::string& path) {
   const auto status = google::protobuf::util::JsonStringToMessage(std::string(bytes.begin(), bytes.end()), &r);
   if (!status.ok()) throw InputError(path + ": not a camera file: " + std::string(status.message()));
   pb::Receivers rest = r;
-  for (auto clear : {&pb::Receivers::clear_camera_regions, &pb::Receivers::clear_camera_points,
-                     &pb::Receivers::clear_camera_paths, &pb::Receivers::clear_view_distance,
-                     &pb::Receivers::clear_camera_visibility, &pb::Receivers::clear_camera_spacing,
-                     &pb::Receivers::clear_camera_rays})
-    (rest.*clear)();
+  clearCameras(rest);
   if (rest.ByteSizeLong() != 0)
     throw InputError(path + ": a camera file holds only cameraRegions, cameraPoints, cameraPaths, viewDistance, "
                      "cameraVisibility, cameraSpacing and cameraRays");

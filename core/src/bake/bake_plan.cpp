@@ -83,38 +83,33 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
   p.parts = stats.parts;
   p.closedParts = stats.closedParts;
   p.closedTriangles = stats.closedTriangles;
-  double area = 0, closedArea = 0, walkableArea = 0;
+  // The surfaces that receive (everywhere: not counted).
+  const std::vector<uint8_t> sides = d.kind == ReceiverKind::Everywhere ? std::vector<uint8_t>(scene.triangleCount())
+                                                                         : receivingSides(scene, d);
+  double area = 0, closedArea = 0, walkableArea = 0, receivingArea = 0;
   for (size_t t = 0; t < scene.triangleCount(); ++t) {
-    const Vec3 a = scene.vertex(t, 0);
-    const double at = 0.5 * length(cross(scene.vertex(t, 1) - a, scene.vertex(t, 2) - a));
+    const double at = triangleArea(scene, t);
     area += at;
     if (scene.closed[t]) closedArea += at;
     if (walkable(scene, d, t)) walkableArea += at, ++p.walkableTriangles;
+    const int receiving = (sides[t] & 1) + (sides[t] >> 1 & 1);
+    receivingArea += receiving * at;
+    p.receivingSides += uint64_t(receiving);
   }
   p.closedAreaShare = area > 0 ? closedArea / area : 0;
   p.walkableAreaShare = area > 0 ? walkableArea / area : 0;
+  p.receivingAreaShare = area > 0 ? receivingArea / area : 0;
   if (d.groundLayer > 0) {
     p.groundLayerFrom = d.groundLayerFrom;
     p.groundLayer = d.groundLayer;
     p.groundSlopeDeg = d.groundSlopeDeg;
-  }
-  if (d.kind != ReceiverKind::Everywhere) {
-    const std::vector<uint8_t> sides = receivingSides(scene, d);
-    double receivingArea = 0;
-    for (size_t t = 0; t < sides.size(); ++t) {
-      const int count = (sides[t] & 1) + (sides[t] >> 1 & 1);
-      const Vec3 a = scene.vertex(t, 0);
-      receivingArea += count * 0.5 * length(cross(scene.vertex(t, 1) - a, scene.vertex(t, 2) - a));
-      p.receivingSides += uint64_t(count);
-    }
-    p.receivingAreaShare = area > 0 ? receivingArea / area : 0;
   }
   if (d.kind == ReceiverKind::Cameras) {
     p.cameras = true;
     p.cameraVisibility = d.cameraVisibility;
     if (d.cameraVisibility == CameraVisibility::Sampled) {
       p.cameraPositions = uint64_t(cameraPositionCount(d));
-      const uint64_t r = d.cameraRays ? d.cameraRays : kDefaultCameraRays;
+      const uint64_t r = cameraRaysPerSide(d);
       p.cameraRays = p.cameraPositions * 6 * r * r;
     }
   }

@@ -26,8 +26,6 @@ double stepsOver(double extent, double spacing) {
   return std::min(kMaxSteps, std::max(1.0, std::ceil(extent / spacing)));
 }
 
-uint32_t raysPerSide(const ReceiverDeclaration& d) { return d.cameraRays ? d.cameraRays : kDefaultCameraRays; }
-
 // Seeds of the two draws an independent sample makes, kept apart.
 constexpr uint64_t kPositionStream = 0x5ca1ab1e, kRayStream = 0xfacade;
 
@@ -36,6 +34,8 @@ constexpr uint64_t kPositionStream = 0x5ca1ab1e, kRayStream = 0xfacade;
 double cameraSpacing(const ReceiverDeclaration& d) {
   return d.cameraSpacing > 0 ? d.cameraSpacing : d.viewDistance * kDefaultCameraSpacingShare;
 }
+
+uint32_t cameraRaysPerSide(const ReceiverDeclaration& d) { return d.cameraRays ? d.cameraRays : kDefaultCameraRays; }
 
 double cameraPositionCount(const ReceiverDeclaration& d) {
   const double s = cameraSpacing(d);
@@ -51,14 +51,14 @@ double cameraPositionCount(const ReceiverDeclaration& d) {
 
 void checkCameraBudget(const ReceiverDeclaration& d) {
   if (d.kind != ReceiverKind::Cameras || d.cameraVisibility != CameraVisibility::Sampled) return;
-  const double count = cameraPositionCount(d), rays = 6.0 * raysPerSide(d) * raysPerSide(d);
+  const double count = cameraPositionCount(d), rays = 6.0 * cameraRaysPerSide(d) * cameraRaysPerSide(d);
   char text[320];
   if (count > double(kMaxCameraPositions) || count * rays > double(kMaxCameraSampleRays)) {
     std::snprintf(text, sizeof text,
                   "receivers: sampled cameras would cast from %.6g positions x %.6g rays, more than %.6g positions or "
                   "%.6g rays: raise the camera spacing (now %.6g) or lower the rays per face (now %u)",
                   count, rays, double(kMaxCameraPositions), double(kMaxCameraSampleRays), cameraSpacing(d),
-                  raysPerSide(d));
+                  cameraRaysPerSide(d));
     throw InputError(text);
   }
 }
@@ -111,7 +111,7 @@ CameraViews sampleCameraViews(const Scene& scene, const ReceiverDeclaration& d, 
   CameraViews v;
   const std::vector<Vec3> positions = cameraPositions(d, seed);
   const ExactCaster caster(scene);
-  const uint32_t R = raysPerSide(d);
+  const uint32_t R = cameraRaysPerSide(d);
   const size_t n = scene.triangleCount();
   v.sides.assign(n, 0);
   v.positions = positions.size();
@@ -141,9 +141,8 @@ CameraViews sampleCameraViews(const Scene& scene, const ReceiverDeclaration& d, 
           ++localRays;
           const ExactCaster::Hit hit = caster.firstHit(o, dir, tMax);
           if (hit.triangle == ExactCaster::kNoHit) continue;
-          uint8_t side = hit.front ? 1 : 2;
           if (scene.closed[hit.triangle] && !hit.front) continue;  // inside a solid: nothing receives there
-          if (!side) continue;
+          const uint8_t side = hit.front ? 1 : 2;
           ++localHits;
           if (declared && (side & ~(*declared)[hit.triangle])) ++localOutside;
           std::atomic_ref<uint8_t>(v.sides[hit.triangle]).fetch_or(side, std::memory_order_relaxed);
@@ -154,8 +153,7 @@ CameraViews sampleCameraViews(const Scene& scene, const ReceiverDeclaration& d, 
   v.rays = rays, v.hits = hits, v.hitsOutside = outside;
   if (declared)
     for (size_t t = 0; t < n; ++t) {
-      const Vec3 a = scene.vertex(t, 0);
-      const double area = 0.5 * length(cross(scene.vertex(t, 1) - a, scene.vertex(t, 2) - a));
+      const double area = triangleArea(scene, t);
       const uint8_t mine = (*declared)[t];
       v.areaDeclared += area * ((mine & 1) + (mine >> 1 & 1));
       const uint8_t extra = v.sides[t] & ~mine;

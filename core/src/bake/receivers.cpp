@@ -266,7 +266,7 @@ Hash128 receiverHash(const ReceiverDeclaration& d) {
     words[0] += 1000;
     words.insert(words.end(), {double(d.cameraRegions.size()), double(d.cameraPoints.size()),
                                double(d.cameraPaths.size()), double(d.cameraVisibility), cameraSpacing(d),
-                               double(d.cameraRays ? d.cameraRays : kDefaultCameraRays)});
+                               double(cameraRaysPerSide(d))});
   }
   for (const auto& [lo, hi] : d.cameraRegions)
     for (double v : {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z}) words.push_back(v);

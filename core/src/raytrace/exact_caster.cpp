@@ -158,9 +158,8 @@ ExactCaster::Hit ExactCaster::firstHit(const Vec3& o, const Vec3& d, double tMax
   if (nodes_.empty()) return best;
   double inv[3];
   for (int k = 0; k < 3; ++k) inv[k] = d[k] != 0 ? 1 / d[k] : 0;
-  // The parametric range of the ray inside a node's box; false when it misses it (or lies
-  // beyond the best hit so far).
-  auto enter = [&](const Node& n, double& tNear) {
+  // Whether the ray meets a node's box before the best hit so far (or tMax).
+  auto enter = [&](const Node& n) {
     double t0 = 0, t1 = (best.triangle != kNoHit ? best.t : tMax) * kFarWiden;
     for (int k = 0; k < 3; ++k) {
       if (d[k] == 0) {
@@ -173,13 +172,11 @@ ExactCaster::Hit ExactCaster::firstHit(const Vec3& o, const Vec3& d, double tMax
       t1 = std::min(t1, b * kFarWiden);
       if (t0 > t1) return false;
     }
-    tNear = t0;
     return true;
   };
   uint32_t stack[128];
   int top = 0;
-  double tNear;
-  if (!enter(nodes_[0], tNear)) return best;
+  if (!enter(nodes_[0])) return best;
   stack[top++] = 0;
   while (top) {
     const Node& n = nodes_[stack[--top]];
@@ -191,9 +188,8 @@ ExactCaster::Hit ExactCaster::firstHit(const Vec3& o, const Vec3& d, double tMax
     uint32_t nearChild = self + 1, farChild = n.first;
     if (d[int(n.axis)] < 0) std::swap(nearChild, farChild);
     // The far child goes down first onto the stack so that the near one is walked first.
-    double tFar, tNearChild;
-    if (enter(nodes_[farChild], tFar)) stack[top++] = farChild;
-    if (enter(nodes_[nearChild], tNearChild)) stack[top++] = nearChild;
+    if (enter(nodes_[farChild])) stack[top++] = farChild;
+    if (enter(nodes_[nearChild])) stack[top++] = nearChild;
   }
   return best;
 }

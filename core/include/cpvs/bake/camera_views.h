@@ -18,9 +18,15 @@ namespace cpvs {
 constexpr uint64_t kMaxCameraSampleRays = uint64_t(1) << 27;
 constexpr uint64_t kMaxCameraPositions = uint64_t(1) << 22;
 
+/// Sampled camera visibility's default spacing of positions, as a share of the view distance.
+constexpr double kDefaultCameraSpacingShare = 1.0 / 16;
+
 /// The spacing of sampled positions: the declared one, or the default share of the view
 /// distance.
 double cameraSpacing(const ReceiverDeclaration& declaration);
+
+/// Rays per side of a cube face: the declared number, or kDefaultCameraRays.
+uint32_t cameraRaysPerSide(const ReceiverDeclaration& declaration);
 
 /// How many positions cameraPositions gives, without making them.
 double cameraPositionCount(const ReceiverDeclaration& declaration);

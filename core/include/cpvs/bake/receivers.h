@@ -16,9 +16,6 @@
 
 namespace cpvs {
 
-/// Sampled camera visibility's default spacing of positions, as a share of the view distance.
-constexpr double kDefaultCameraSpacingShare = 1.0 / 16;
-
 /// Steepest walkable surface a ground layer covers by default, in degrees from level.
 constexpr double kDefaultGroundSlopeDeg = 45;
 
@@ -48,7 +45,7 @@ struct ReceiverDeclaration {
   std::vector<std::vector<Vec3>> cameraPaths;
   double viewDistance = 0;
   CameraVisibility cameraVisibility = CameraVisibility::Faced;
-  double cameraSpacing = 0;  // Sampled: positions this far apart; 0: kDefaultCameraSpacingShare of the view distance
+  double cameraSpacing = 0;  // Sampled: positions this far apart; 0: the default (camera_views.h cameraSpacing)
   uint32_t cameraRays = 0;   // Sampled: rays per side of a cube face; 0: kDefaultCameraRays
   // Sampled: the sides seen, cast once per scene and declaration and shared by copies
   // (receivingSides keys it by both hashes).

@@ -40,6 +40,12 @@ struct Scene {
   Vec3 vertex(size_t tri, int corner) const { return positions[indices[3 * tri + corner]]; }
 };
 
+/// The area of triangle `tri` of the scene.
+inline double triangleArea(const Scene& scene, size_t tri) {
+  const Vec3 a = scene.vertex(tri, 0);
+  return 0.5 * length(cross(scene.vertex(tri, 1) - a, scene.vertex(tri, 2) - a));
+}
+
 /// What the importer did, for logs and the bake summary.
 struct SceneStats {
   size_t triangles = 0;            // kept

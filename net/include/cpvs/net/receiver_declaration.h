@@ -27,6 +27,9 @@ bool isCameraFile(const std::string& path);
 /// unreadable, malformed or not a camera field.
 ::cpvs::v1::Receivers readCameraFile(const std::string& path);
 
+/// Clears every camera field of `receivers` (those a camera file holds).
+void clearCameras(::cpvs::v1::Receivers& receivers);
+
 /// Sets the camera fields of `declaration` from those of `receivers`.
 void setCameras(const ::cpvs::v1::Receivers& receivers, ReceiverDeclaration& declaration);
 
