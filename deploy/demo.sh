@@ -6,9 +6,9 @@ cd "$(dirname "$0")/.."
 bash deploy/setup.sh
 bash deploy/build.sh
 mkdir -p out
-./build/client/cpvs bake city --sun-elevation 35 --sun-azimuth 30 --resolution 4K --out out/city.cpvs
-./build/client/cpvs verify out/city.cpvs city --samples 200000
-./build/client/cpvs render out/city.cpvs city --reference --out out/city.png
+./build/bin/cpvs bake city --sun-elevation 35 --sun-azimuth 30 --resolution 4K --out out/city.cpvs
+./build/bin/cpvs verify out/city.cpvs city --samples 200000
+./build/bin/cpvs render out/city.cpvs city --reference --out out/city.png
 echo
 echo "Output:  $(pwd)/out/city.cpvs"
 echo "Picture: $(pwd)/out/city.png (exact shadows: out/city-reference.png, difference: out/city-diff.png)"

@@ -14,6 +14,13 @@ PACKAGES=(
   liberfa-dev libssl-dev openssl strace
 )
 
+# kubectl renders the Kubernetes manifests in the tests (`kubectl kustomize`, offline):
+# Debian's kubernetes-client, only when no kubectl is there (some machines ship another
+# kubectl package, and the two conflict on /usr/bin/kubectl).
+if ! command -v kubectl >/dev/null 2>&1; then
+  PACKAGES+=(kubernetes-client)
+fi
+
 missing=()
 for p in "${PACKAGES[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

@@ -42,6 +42,9 @@ class TileWorker {
     abandoning_ = true;
   }
   uint64_t tilesDone() const { return tilesDone_; }
+  /// Leases granted to this worker (a tile's completion is counted once its reply is
+  /// read, which may be after the job it finished is done).
+  uint64_t tilesLeased() const { return tilesStarted_; }
 
  private:
   struct CachedScene {

@@ -55,7 +55,7 @@ void addReceiverFlags(CLI::App* c, OptionFlags& o) {
                 "normals), surfaces-two-sided (both sides of open surfaces), volume[:MESH] (front sides plus any "
                 "point, any normal, inside a closed mesh file and the --receiver-box boxes), cameras[:FILE] (the "
                 "sides of surfaces that cameras see within --view-distance; FILE.json is a camera file: regions, "
-                "points and paths, see the README; any other FILE a closed mesh of receiver volume)")
+                "points and paths, see docs/command-line.md; any other FILE a closed mesh of receiver volume)")
       ->capture_default_str();
   c->add_option("--receiver-box", o.receiverBoxes,
                 "A box of the receiver volume, MINX,MINY,MINZ,MAXX,MAXY,MAXZ in scene units (repeatable; with "

@@ -130,6 +130,8 @@ std::string statusJson(const pb::JobStatus& s, const std::string& indent, bool w
     << in << "\"resolution\": " << s.resolution() << ",\n"
     << in << "\"tiles\": " << s.tiles_total() << ",\n"
     << in << "\"tiles_done\": " << s.tiles_done() << ",\n"
+    << in << "\"tiles_untouched\": " << s.tiles_untouched() << ",\n"
+    << in << "\"tiles_unread\": " << s.tiles_unread() << ",\n"
     << in << "\"bytes\": " << s.bytes() << ",\n"
     << in << "\"file_bytes\": " << s.file_bytes() << ",\n"
     << in << "\"peak_merge_bytes\": " << s.peak_merge_bytes() << ",\n"
@@ -162,6 +164,10 @@ void printDone(const pb::JobStatus& s) {
   const uint64_t R = s.resolution();
   std::printf("Job %s done: %llu^3 in %llu tile%s, %.2f s\n", loggable(s.job_id()).c_str(), static_cast<unsigned long long>(R),
               static_cast<unsigned long long>(s.tiles_total()), s.tiles_total() == 1 ? "" : "s", s.seconds_elapsed());
+  if (s.tiles_untouched() + s.tiles_unread() > 0)
+    std::printf("  %llu tiles all lit, never leased: %llu touched by no triangle, %llu read by no receiver\n",
+                static_cast<unsigned long long>(s.tiles_untouched() + s.tiles_unread()),
+                static_cast<unsigned long long>(s.tiles_untouched()), static_cast<unsigned long long>(s.tiles_unread()));
   auto stages = stagesOf(s);
   if (!stages.empty()) {
     std::printf("\n  %-10s %10s\n", "stage", "seconds");

@@ -4,6 +4,7 @@
 
 #include <bit>
 #include <algorithm>
+#include <iterator>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -63,6 +64,7 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   s.set_tiles_total(j.tilesTotal);
   s.set_tiles_done(j.tilesDone);
   s.set_tiles_untouched(j.tilesUntouched);
+  s.set_tiles_unread(j.tilesUnread);
   for (const auto& [stage, seconds] : j.stages) {
     auto* st = s.add_stages();
     st->set_stage(stage);
@@ -72,7 +74,7 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   double elapsed = double(end - j.createdMs) / 1000.0;
   s.set_seconds_elapsed(elapsed);
   double eta = -1;
-  const uint64_t baked = j.tilesDone - j.tilesUntouched;  // untouched tiles took no time
+  const uint64_t baked = j.tilesDone - j.tilesUntouched - j.tilesUnread;  // those took no time
   if (j.state == JobState::Running && baked > 0 && j.startedMs > 0) {
     double running = double(nowMs() - j.startedMs) / 1000.0;
     eta = running * double(j.tilesTotal - j.tilesDone) / double(baked);
@@ -144,15 +146,17 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   j.tilesTotal = plan.count();
   // Tiles no triangle can touch, or no declared receiver reads, are all lit: done now,
   // merged without a worker (BakeScene::touchesTile, without building a renderer).
-  std::vector<uint64_t> untouched;
+  std::vector<uint64_t> untouched, unread;
   {
     const RasterScene projected(scene, grid);
     const ReceiverSet reads(scene, grid, receivers);
     const uint64_t T = uint64_t(1) << plan.log2TileSize();
     for (uint64_t i = 0; i < plan.count(); ++i) {
       const TileCoord t = plan.tile(i);
-      if (!projected.touchesRectangle(t.x * T, t.y * T, T, T) || !reads.touchesRectangle(t.x * T, t.y * T, T, T))
+      if (!projected.touchesRectangle(t.x * T, t.y * T, T, T))
         untouched.push_back(i);
+      else if (!reads.touchesRectangle(t.x * T, t.y * T, T, T))
+        unread.push_back(i);
     }
     j.plan = planJson(planBake(scene, stats, options, receivers, projected, reads));
   }
@@ -165,12 +169,14 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
     if (auto existing = knownRequest(request, access)) return *existing;
     checkRoom(access);
     artifacts_.createTileFolder(j.id);
-    store_.createJob(j, untouched);
-    if (untouched.size() == j.tilesTotal) store_.setJobState(j.id, JobState::Merging, "", nowMs());
-    for (uint64_t t : untouched) merges_.mergeTile(j.id, t);
+    store_.createJob(j, untouched, unread);
+    if (untouched.size() + unread.size() == j.tilesTotal) store_.setJobState(j.id, JobState::Merging, "", nowMs());
+    std::vector<uint64_t> allLit;
+    std::merge(untouched.begin(), untouched.end(), unread.begin(), unread.end(), std::back_inserter(allLit));
+    for (uint64_t t : allLit) merges_.mergeTile(j.id, t);
   }
-  spdlog::info("job {} submitted: scene {}, {}^3, {} tiles ({} touched by no triangle)", j.id, j.sceneHash,
-               j.grid.resolution(), j.tilesTotal, untouched.size());
+  spdlog::info("job {} submitted: scene {}, {}^3, {} tiles ({} touched by no triangle, {} read by no receiver)", j.id,
+               j.sceneHash, j.grid.resolution(), j.tilesTotal, untouched.size(), unread.size());
   feed_.notify();
   return status(j.id);
 }

@@ -123,7 +123,8 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
   if (!m.merger) m.merger = std::make_unique<StreamingMerger>(j->options.compress);
   const auto start = std::chrono::steady_clock::now();
   Dag dag;
-  if (store_.tileState(jobId, tile) == TileState::Untouched) {
+  const std::optional<TileState> state = store_.tileState(jobId, tile);
+  if (state == TileState::Untouched || state == TileState::Unread) {
     const TileCoord at = TilePlan(j->grid.log2Resolution, j->options.log2TileSize).tile(tile);
     dag = bakeUntouchedTile(j->grid, at.x, at.y, j->options);
   } else try {

@@ -410,11 +410,13 @@ std::optional<JobRecord> FarmStore::job(const std::string& id) {
 }
 
 void FarmStore::fillJobCounts(JobRecord& j) {
-  Statement d(db_, "SELECT COUNT(*), COALESCE(SUM(state = 4), 0) FROM tiles WHERE job_id = ? AND state IN (2, 4)");
+  Statement d(db_, "SELECT COUNT(*), COALESCE(SUM(state = 4), 0), COALESCE(SUM(state = 5), 0) FROM tiles "
+                   "WHERE job_id = ? AND state IN (2, 4, 5)");
   d.text(1, j.id);
   d.step();
   j.tilesDone = uint64_t(d.i64(0));
   j.tilesUntouched = uint64_t(d.i64(1));
+  j.tilesUnread = uint64_t(d.i64(2));
   Statement st(db_, "SELECT stage, seconds FROM job_stages WHERE job_id = ?");
   st.text(1, j.id);
   while (st.step()) j.stages[st.str(0)] = st.f64(1);
@@ -432,7 +434,8 @@ std::optional<JobRecord> FarmStore::jobByRequest(const std::string& requestId) {
   return job(id);
 }
 
-void FarmStore::createJob(const JobRecord& j, const std::vector<uint64_t>& untouched) {
+void FarmStore::createJob(const JobRecord& j, const std::vector<uint64_t>& untouched,
+                          const std::vector<uint64_t>& unread) {
   std::lock_guard lock(mutex_);
   Transaction t(db_);
   std::string placeholders;
@@ -441,11 +444,17 @@ void FarmStore::createJob(const JobRecord& j, const std::vector<uint64_t>& untou
   bindJob(s, j);
   s.run();
   Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, ?, 0, NULL, 0, '', NULL)");  // prepared once
-  auto next = untouched.begin();
+  auto nextUntouched = untouched.begin(), nextUnread = unread.begin();
   for (uint64_t i = 0; i < j.tilesTotal; ++i) {
-    const bool lit = next != untouched.end() && *next == i;
-    next += lit;
-    tile.text(1, j.id).bind(2, int64_t(i)).bind(3, int64_t(lit ? TileState::Untouched : TileState::Queued));
+    TileState state = TileState::Queued;
+    if (nextUntouched != untouched.end() && *nextUntouched == i) {
+      state = TileState::Untouched;
+      ++nextUntouched;
+    } else if (nextUnread != unread.end() && *nextUnread == i) {
+      state = TileState::Unread;
+      ++nextUnread;
+    }
+    tile.text(1, j.id).bind(2, int64_t(i)).bind(3, int64_t(state));
     tile.run();
     tile.reset();
   }
@@ -684,7 +693,7 @@ std::vector<std::tuple<std::string, uint64_t, int>> FarmStore::expireLeases(int6
 
 std::vector<uint64_t> FarmStore::doneTiles(const std::string& jobId) {
   std::lock_guard lock(mutex_);
-  Statement s(db_, "SELECT idx FROM tiles WHERE job_id = ? AND state IN (2, 4) ORDER BY idx");
+  Statement s(db_, "SELECT idx FROM tiles WHERE job_id = ? AND state IN (2, 4, 5) ORDER BY idx");
   s.text(1, jobId);
   std::vector<uint64_t> out;
   while (s.step()) out.push_back(uint64_t(s.i64(0)));

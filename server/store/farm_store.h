@@ -22,15 +22,17 @@ struct sqlite3;
 namespace cpvs::server {
 
 /// Tile states as stored.
-/// Untouched: no triangle can touch the tile (BakeScene::touchesTile): done when the job is
-/// created, never leased, merged as the all-lit sub-DAG without a file.
+/// Untouched: no triangle can touch the tile (BakeScene::touchesTile); Unread: triangles
+/// may touch it, but no declared receiver reads it (ReceiverSet::touchesRectangle). Both
+/// are done when the job is created, never leased, merged as the all-lit sub-DAG without
+/// a file.
 /// The store cannot read or write now (disk full, an I/O error, busy): the same call may
 /// succeed later; the caller is told to try again (UNAVAILABLE), and no work is failed.
 struct StoreUnavailable : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-enum class TileState : int { Queued = 0, Leased = 1, Done = 2, Cancelled = 3, Untouched = 4 };
+enum class TileState : int { Queued = 0, Leased = 1, Done = 2, Cancelled = 3, Untouched = 4, Unread = 5 };
 
 /// Job states as stored: the values of cpvs.v1.JobState.
 enum class JobState : int { Queued = 1, Running = 2, Merging = 3, Done = 4, Failed = 5, Cancelled = 6 };
@@ -57,6 +59,7 @@ struct JobRecord {
   std::string error, artifactChecksum;
   uint64_t tilesTotal = 0, tilesDone = 0;  // the grid's and options' TilePlan; done from the tiles
   uint64_t tilesUntouched = 0;             // of tilesDone, those no triangle touches
+  uint64_t tilesUnread = 0;                // of tilesDone, those no declared receiver reads
   uint64_t bytes = 0, fileBytes = 0, peakMergeBytes = 0;
   std::map<std::string, double> stages;
 };
@@ -128,9 +131,10 @@ class FarmStore {
   std::optional<JobRecord> job(const std::string& id);
   std::optional<JobRecord> jobByRequest(const std::string& requestId);
   /// Inserts the job and its tiles, all queued.
-  /// The job and its tiles: Untouched for the indices in `untouched` (sorted), Queued for
-  /// the others.
-  void createJob(const JobRecord& j, const std::vector<uint64_t>& untouched = {});
+  /// The job and its tiles: Untouched for the indices in `untouched`, Unread for those in
+  /// `unread` (each sorted, no index in both), Queued for the others.
+  void createJob(const JobRecord& j, const std::vector<uint64_t>& untouched = {},
+                 const std::vector<uint64_t>& unread = {});
   std::vector<JobRecord> jobs(bool includeFinished);
   /// At most `limit` jobs after the position (createdMs, id), oldest first: a page of a
   /// listing that stays bounded however many jobs the store holds (R16); with `owner`,

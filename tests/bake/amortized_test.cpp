@@ -21,9 +21,12 @@ Dag amortized(const BakeScene& scene, const BakeOptions& options, uint64_t seed,
   AmortizedBake bake(scene, options);
   std::mt19937_64 rng(seed);
   const std::chrono::nanoseconds budgets[] = {0ns, 1ns, 1us, 50us, 1ms, 20ms};
-  uint64_t steps = 0;
+  uint64_t steps = 1;  // the step that returns done counts too
   while (!bake.step(seed == 0 ? 0ns : budgets[rng() % 6])) ++steps;
-  EXPECT_GT(steps + 1, 0u);
+  EXPECT_EQ(bake.stats().steps, steps);
+  // A step runs one unit, and more only while its budget lasts: with no budget, one each.
+  if (seed == 0) EXPECT_EQ(bake.stats().units, steps);
+  EXPECT_LE(steps, bake.stats().units);
   if (stats) *stats = bake.stats();
   return bake.takeResult();
 }

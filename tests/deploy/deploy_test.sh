@@ -13,7 +13,8 @@
 #     ends in a non-root stage with CMD and EXPOSE;
 #   - deploy/*.sh parse (bash -n); make-secrets.sh makes consistent tokens (and, with
 #     openssl, a certificate that verifies against its CA);
-#   - when kubectl is installed, `kubectl kustomize deploy/k8s` renders.
+#   - every kustomization renders with `kubectl kustomize` and its objects are checked
+#     (kinds, images, probes, resources); a missing kubectl fails the test.
 # Exits 0 when all pass, 1 (naming every failure) otherwise.
 set -euo pipefail
 
@@ -343,9 +344,11 @@ else:
         fail("Dockerfile: %d FROM stage(s); a build and a runtime stage are expected" % len(stages))
     if "deploy/setup.sh" not in text:
         fail("Dockerfile does not reference deploy/setup.sh")
-    for b in ("server/cpvs-server", "worker/cpvs-worker", "client/cpvs"):
+    if "cmake --install" not in text:
+        fail("Dockerfile does not install the build (cmake --install)")
+    for b in ("bin/cpvs-server", "bin/cpvs-worker", "bin/cpvs"):
         if b not in text:
-            fail("Dockerfile does not install %s" % b)
+            fail("Dockerfile does not check that it installed %s" % b)
     user = final.get("USER", "")
     if not user or user.split(":")[0] in ("root", "0"):
         fail("Dockerfile: the final stage does not switch to a non-root USER")
@@ -415,15 +418,94 @@ if [ -f "$DEPLOY/make-secrets.sh" ]; then
 fi
 
 # ---------------------------------------------------------------------------------------
-# Optional: kustomize renders (kubectl works offline for this).
-if command -v kubectl >/dev/null 2>&1; then
-  if out="$(timeout "$LIMIT" kubectl kustomize "$DEPLOY/k8s" 2>&1)"; then
-    ok "kubectl kustomize deploy/k8s renders $(grep -c '^kind:' <<<"$out") objects"
-  else
-    fail "kubectl kustomize deploy/k8s: $out"
-  fi
+# Every kustomization renders (`kubectl kustomize` works offline), and the rendered objects
+# are the farm: kinds, the kustomization's image on every container, probes on named
+# ports, resources, the HPA's target.
+if ! command -v kubectl >/dev/null 2>&1; then
+  fail "kubectl is not installed (deploy/setup.sh installs Debian's kubernetes-client when no kubectl is there)"
 else
-  echo "skip: kubectl not installed (kustomize render not checked)"
+  kustomizations="$(find "$DEPLOY" -name kustomization.yaml -not -path '*/secrets/*' | sort)"
+  [ -n "$kustomizations" ] || fail "no kustomization.yaml under deploy/"
+  for k in $kustomizations; do
+    dir="$(dirname "$k")"
+    rendered="$(mktemp)"
+    if ! timeout "$LIMIT" kubectl kustomize "$dir" >"$rendered" 2>&1; then
+      fail "kubectl kustomize ${dir#"$ROOT"/}: $(cat "$rendered")"
+    elif timeout "$LIMIT" "$PY" - "$k" "$rendered" <<'PY'
+import re, sys
+import yaml
+
+kust_path, rendered_path = sys.argv[1], sys.argv[2]
+kust = yaml.safe_load(open(kust_path, encoding="utf-8"))
+docs = [d for d in yaml.safe_load_all(open(rendered_path, encoding="utf-8")) if d]
+failures = []
+def fail(msg):
+    failures.append(msg)
+    print("FAIL: rendered %s: %s" % (kust_path, msg), file=sys.stderr)
+
+counts = {}
+for d in docs:
+    counts[d.get("kind")] = counts.get(d.get("kind"), 0) + 1
+want = {"Secret": 2, "Service": 2, "StatefulSet": 1, "Deployment": 1, "HorizontalPodAutoscaler": 1}
+for kind, n in want.items():
+    if counts.get(kind, 0) != n:
+        fail("%d %s object(s), %d expected" % (counts.get(kind, 0), kind, n))
+
+images = {}
+for i in kust.get("images") or []:
+    images[i["name"]] = "%s:%s" % (i.get("newName", i["name"]), i.get("newTag", "latest"))
+
+def quantity(q, cpu):
+    m = re.fullmatch(r"([0-9.]+)(m|Ki|Mi|Gi|Ti|k|M|G|T)?", str(q))
+    if not m:
+        return None
+    scale = {None: 1, "m": 1e-3, "Ki": 2**10, "Mi": 2**20, "Gi": 2**30, "Ti": 2**40,
+             "k": 1e3, "M": 1e6, "G": 1e9, "T": 1e12}[m.group(2)]
+    return float(m.group(1)) * scale
+
+workloads = {(d["kind"], d["metadata"]["name"]): d for d in docs if d.get("kind") in ("StatefulSet", "Deployment")}
+for (kind, name), w in sorted(workloads.items()):
+    for c in w["spec"]["template"]["spec"].get("containers") or []:
+        where = "%s %s container %s" % (kind, name, c.get("name"))
+        image = c.get("image", "")
+        if image not in images.values():
+            fail("%s runs image %r, not the kustomization's %s" % (where, image, ", ".join(images.values())))
+        res = c.get("resources") or {}
+        for key in ("cpu", "memory"):
+            req = quantity((res.get("requests") or {}).get(key), key == "cpu")
+            lim = quantity((res.get("limits") or {}).get(key), key == "cpu")
+            if req is None or lim is None:
+                fail("%s: resources.requests/limits.%s missing or unreadable" % (where, key))
+            elif req > lim:
+                fail("%s: requests.%s above limits.%s" % (where, key, key))
+        ports = {p.get("name"): p.get("containerPort") for p in c.get("ports") or []}
+        for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
+            p = c.get(probe)
+            if p is None:
+                if name == "cpvs-coordinator":
+                    fail("%s has no %s" % (where, probe))
+                continue
+            port = (p.get("tcpSocket") or p.get("grpc") or p.get("httpGet") or {}).get("port")
+            if isinstance(port, str) and port not in ports:
+                fail("%s: %s on port %s, which the container does not name" % (where, probe, port))
+            if port is None and "exec" not in p:
+                fail("%s: %s checks nothing" % (where, probe))
+for d in docs:
+    if d.get("kind") == "HorizontalPodAutoscaler":
+        t = d["spec"].get("scaleTargetRef") or {}
+        if (t.get("kind"), t.get("name")) not in workloads:
+            fail("HorizontalPodAutoscaler %s targets %s %s, not rendered" % (d["metadata"]["name"], t.get("kind"), t.get("name")))
+if failures:
+    sys.exit(1)
+print("ok:   kubectl kustomize %s renders %d objects (%s); images %s; probes and resources resolve" % (
+    kust_path, len(docs), ", ".join("%d %s" % (n, k) for k, n in sorted(counts.items())), ", ".join(sorted(images.values()))))
+PY
+    then :
+    else
+      fail "the objects kubectl kustomize ${dir#"$ROOT"/} renders (see above)"
+    fi
+    rm -f "$rendered"
+  done
 fi
 
 if [ "$failures" -gt 0 ]; then

@@ -401,7 +401,7 @@ TEST_F(FarmTest, KilledAtEachCrashPointTheJobCompletesWithTheLocalBytes) {
 // commits the acknowledgement to SQLite (the write-ahead log's sync); tile results are
 // deleted only after the artifact's folder was synced.
 TEST_F(FarmTest, EveryRenameIsSyncedBeforeAndItsFolderAfterAndBeforeItsAcknowledgement) {
-  if (!fs::exists("/usr/bin/strace")) GTEST_SKIP() << "no strace (deploy/setup.sh installs it)";
+  ASSERT_TRUE(fs::exists("/usr/bin/strace")) << "no strace: deploy/setup.sh installs it";
   const std::string trace = path("power.trace"), addressFile = path("power.address"), data = path("power.data");
   ChildProcess traced({"/usr/bin/strace", "-f", "-y", "-qq", "-e", "trace=fsync,fdatasync,rename,renameat,renameat2,unlink,unlinkat",
                        "-o", trace, CPVS_SERVER, "--listen", "127.0.0.1:0", "--data", data, "--address-file", addressFile,

@@ -18,7 +18,7 @@ if [ ! -f "$out/build.ninja" ]; then
 fi
 ninja -C "$out" -j "${CPVS_JOBS:-2}" >/dev/null
 mkdir -p "$out/corpus-cpvs" "$out/corpus-scene" "$out/artifacts"
-cli=build/client/cli/cpvs
+cli=build/bin/cpvs
 if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64.cpvs" ]; then
   "$cli" bake city:1 --sun-dir 0.3,-1,0.2 -r 64 --tile-size 64 -q -o "$out/corpus-cpvs/seed-city64.cpvs" >/dev/null
   "$cli" bake city:1 --sun-dir 0,-1,0 -r 32 --no-zstd -q -o "$out/corpus-cpvs/seed-city32-raw.cpvs" >/dev/null

@@ -21,11 +21,11 @@ if [ "${1:-}" = prepare ]; then
   ninja -C build -j2 bench_gpu_query gpu_frame_timing >/dev/null
   rm -rf "$out"
   mkdir -p "$out/lib" "$out/data"
-  build/tests/bench_gpu_query --scenes city --resolutions 16K --frame 1920x1080 --repeat 1 --save "$out/data"
-  cp build/tests/gpu_frame_timing "$out/"
+  build/bin/bench_gpu_query --scenes city --resolutions 16K --frame 1920x1080 --repeat 1 --save "$out/data"
+  cp build/bin/gpu_frame_timing "$out/"
   strip "$out/gpu_frame_timing"
   # Every library it links except the C library's own (any Linux has those).
-  ldd build/tests/gpu_frame_timing | awk '$3 ~ /^\// {print $3}' | grep -vE '/(libc|libm|libdl|libpthread|librt|ld-linux[^/]*)\.so' |
+  ldd build/bin/gpu_frame_timing | awk '$3 ~ /^\// {print $3}' | grep -vE '/(libc|libm|libdl|libpthread|librt|ld-linux[^/]*)\.so' |
     while read -r lib; do cp -L "$lib" "$out/lib/"; done
   echo "device-check: $out/ holds $(du -sh "$out" | cut -f1); carry it (and .gl when the machine lacks Vulkan loaders)"
   exit 0

@@ -66,7 +66,8 @@ Baked bake(const std::string& spec, const Vec3& sun, int log2R) {
 // points exactly on (and a hair either side of) leaf, tile and pointer-grid boundaries
 // with no normal, so that the voxel found is decided in the last bit; points outside the
 // grid in x and y, in front of and behind it, with random, zero and degenerate normals.
-void makeQueries(const Baked& b, uint64_t count, std::vector<Vec3>& points, std::vector<Vec3>& normals) {
+// Returns how many of them, first, are surface points.
+size_t makeQueries(const Baked& b, uint64_t count, std::vector<Vec3>& points, std::vector<Vec3>& normals) {
   const OrthoGrid& g = b.artifact->grid();
   const double R = double(g.resolution());
   std::mt19937_64 rng(uint64_t(g.log2Resolution) * 7919);
@@ -77,6 +78,7 @@ void makeQueries(const Baked& b, uint64_t count, std::vector<Vec3>& points, std:
     points.push_back(s.point);
     normals.push_back(s.normal);
   }
+  const size_t surfacePoints = points.size();
   const double cell = R / double(1 << packedGridLevels(g.log2Resolution));
   const double tile = std::min(R, 4096.0);
   const double steps[] = {8, tile, cell};
@@ -105,6 +107,7 @@ void makeQueries(const Baked& b, uint64_t count, std::vector<Vec3>& points, std:
                       : kind == 2 ? Vec3{1e-310, 0, 0}
                                   : Vec3{gauss(rng), gauss(rng), gauss(rng)});
   }
+  return surfacePoints;
 }
 
 uint64_t mismatches(const std::vector<uint32_t>& a, const std::vector<uint32_t>& b) {
@@ -115,14 +118,20 @@ uint64_t mismatches(const std::vector<uint32_t>& a, const std::vector<uint32_t>&
 
 void expectGpuMatchesCpu(const Baked& b, GpuShadows& gpu, uint64_t count) {
   std::vector<Vec3> points, normals;
-  makeQueries(b, count, points, normals);
+  const size_t surfacePoints = makeQueries(b, count, points, normals);
   ASSERT_GE(points.size(), count);
   for (int pcf : {1, 3, 5, 7, 9}) {
-    // Every point for binary and 9x9 lookups; a fifth of them for the widths between.
+    // Every point for binary and 9x9 lookups; for the widths between, every boundary,
+    // outside and bad-normal point and a fifth of the surface points.
     std::vector<Vec3> p = points, n = normals;
     if (pcf != 1 && pcf != 9) {
-      p.resize(points.size() / 5);
-      n.resize(points.size() / 5);
+      p.clear();
+      n.clear();
+      for (size_t i = 0; i < points.size(); ++i)
+        if (i >= surfacePoints || i % 5 == 0) {
+          p.push_back(points[i]);
+          n.push_back(normals[i]);
+        }
     }
     std::vector<uint32_t> onGpu, onCpu;
     gpu.litTexels(p, n, pcf, onGpu);
@@ -270,7 +279,7 @@ TEST(GpuLookups, TheApplicationsOwnDeviceAnswersAsTheCpu) {
     auto adopted = GpuDevice::adopt(e);
     GpuShadows gpu(*adopted, b.artifact);
     std::vector<uint32_t> onGpu, onCpu;
-    for (int pcf : {1, 9}) {
+    for (int pcf : {1, 3, 5, 7, 9}) {
       gpu.litTexels(points, normals, pcf, onGpu);
       cpuLitTexels(*b.artifact, points, normals, pcf, onCpu);
       EXPECT_EQ(mismatches(onGpu, onCpu), 0u) << "pcf " << pcf;

@@ -566,10 +566,15 @@ TEST(Hardening, R17_ABakedTileIsSentAgainNotBakedAgain) {
 }
 
 // Shows the worker a deadline five minutes later than the coordinator's (a worker clock
-// five minutes behind), with or without the lease's length, and counts renewals.
+// five minutes behind), with or without the lease's length, and counts renewals. With
+// `holdResult`, a finished tile's result is held back until `holdResult` renewals have
+// passed (a slow tile on any machine; the worker renews while its result is sent), at
+// most `maxHold`.
 class SkewedClock final : public ForwardingWorkers {
  public:
-  SkewedClock(const std::string& address, bool sendLength) : ForwardingWorkers(address), sendLength_(sendLength) {}
+  SkewedClock(const std::string& address, bool sendLength, int holdResult = 0,
+              std::chrono::milliseconds maxHold = std::chrono::seconds(20))
+      : ForwardingWorkers(address), sendLength_(sendLength), holdResult_(holdResult), maxHold_(maxHold) {}
   grpc::Status LeaseTile(grpc::ServerContext* ctx, const pb::LeaseRequest* req, pb::TileLease* out) override {
     grpc::Status s = ForwardingWorkers::LeaseTile(ctx, req, out);
     out->set_deadline_unix_ms(out->deadline_unix_ms() + 300000);
@@ -583,36 +588,51 @@ class SkewedClock final : public ForwardingWorkers {
     if (!sendLength_) out->clear_lease_ms();
     return s;
   }
+  grpc::Status CompleteTile(grpc::ServerContext*, grpc::ServerReader<pb::TileResultChunk>* reader,
+                            pb::CompleteReply* out) override {
+    std::vector<pb::TileResultChunk> chunks;
+    pb::TileResultChunk chunk;
+    while (reader->Read(&chunk)) chunks.push_back(chunk);
+    const int from = renewals.load();
+    const auto until = std::chrono::steady_clock::now() + maxHold_;
+    while (renewals.load() - from < holdResult_ && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    renewalsWhileHeld = renewals.load() - from;
+    return forwardResult(chunks, out);
+  }
   std::atomic<int> renewals{0};
+  std::atomic<int> renewalsWhileHeld{0};
 
  private:
   bool sendLength_;
+  int holdResult_;
+  std::chrono::milliseconds maxHold_;
 };
 
 // R11: the worker's renewal period came from the coordinator's wall-clock deadline minus
-// its own clock; five minutes of skew meant no renewal within a 0.3 s lease.
+// its own clock; five minutes of skew meant no renewal within a 0.3 s lease. The proxy
+// holds the tile's result for three renewals (at most 20 s, 66 lease periods): a worker
+// that renews from the skewed deadline would let the lease expire first.
 TEST(Hardening, R11_RenewalsFollowTheLeaseLengthWhateverTheClocks) {
   TempDir dir("cpvs_r11");
   server::CoordinatorConfig config;
   config.dataDir = dir / "data";
   config.leaseSeconds = 0.3;  // renewals every 0.1 s
   InProcessFarm farm(config);
-  pb::BakeSpec spec = farm.uploadAndSpec(dir / "city.obj", "city:3:2", "4096");  // one tile of a second or more
-  spec.mutable_options()->set_tile_size(4096);
-  farm.client.submit("r11", spec);
+  pb::BakeSpec spec = farm.uploadAndSpec(dir / "city.obj", "city:3:2", "256");
+  spec.mutable_options()->set_tile_size(256);  // one tile
+  const std::string jobId = farm.client.submit("r11", spec).job_id();
 
-  SkewedClock proxy(farm.server.address(), true);
-  double seconds = 0;
+  SkewedClock proxy(farm.server.address(), true, 3);
   {
     ServiceServer proxyServer(proxy);
-    const auto start = std::chrono::steady_clock::now();
     worker::TileWorker tileWorker(testing::workerConfig(proxyServer.connection(), dir / "cache", 1));
     tileWorker.run();
-    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
-  if (seconds < 0.4) GTEST_SKIP() << "the tile baked in " << seconds << " s, too fast to need renewals here";
-  EXPECT_GE(proxy.renewals.load(), 2);
-  EXPECT_EQ(farm.coordinator.jobs().list(true).jobs.at(0).tiles_done(), 1u);  // the lease held to the end
+  EXPECT_GE(proxy.renewalsWhileHeld.load(), 3);
+  const pb::JobStatus status = farm.client.watch(jobId);
+  EXPECT_EQ(status.tiles_done(), 1u);  // the lease held to the end
+  EXPECT_EQ(status.state(), pb::JOB_DONE) << status.error();
 }
 
 // R10: a worker that failed every tile at once took the lowest queued tile again each time

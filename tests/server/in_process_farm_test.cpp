@@ -163,28 +163,54 @@ TEST(InProcessFarm, UntouchedTilesAreNotLeasedAndBothRenderersGiveTheLocalBytes)
   std::thread workerThread([&] { tileWorker.run(); });
   const client::FarmClient::UploadResult up = farm.client.uploadScene(obj);
   const Scene scene = loadScene(obj);
-  for (Renderer renderer : {Renderer::Raster, Renderer::Embree}) {
-    pb::BakeSpec spec;
-    spec.set_scene_hash(up.sceneHash);
-    *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-    spec.set_resolution("256");
-    spec.mutable_options()->set_tile_size(32);
-    spec.mutable_options()->set_renderer(pb::Renderer(int(renderer)));
-    const pb::JobStatus done =
-        farm.client.watch(farm.client.submit(std::string("untouched-") + optionName(renderer), spec).job_id());
-    ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
-    EXPECT_EQ(done.tiles_total(), 64u);
-    EXPECT_GT(done.tiles_untouched(), 20u) << "the space between the boxes is empty";
-    EXPECT_LT(done.tiles_untouched(), 64u);
-    farm.client.download(done.job_id(), dir / "farm.cpvs");
+  // Both renderers for receivers everywhere; the rasterizer for surfaces receivers, and for
+  // cameras that see only the first box (the second one's tiles are touched, never read).
+  for (const ReceiverKind kind : {ReceiverKind::Everywhere, ReceiverKind::Surfaces, ReceiverKind::Cameras})
+    for (Renderer renderer : {Renderer::Raster, Renderer::Embree}) {
+      if (kind != ReceiverKind::Everywhere && renderer == Renderer::Embree) continue;
+      SCOPED_TRACE(std::string(optionName(renderer)) + ", receivers " + optionName(kind));
+      pb::BakeSpec spec;
+      spec.set_scene_hash(up.sceneHash);
+      *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
+      spec.set_resolution("256");
+      spec.mutable_options()->set_tile_size(32);
+      spec.mutable_options()->set_renderer(pb::Renderer(int(renderer)));
+      ReceiverDeclaration d;
+      d.kind = kind;
+      d.maxPcf = 9;
+      if (kind != ReceiverKind::Everywhere) {
+        spec.mutable_options()->mutable_receivers()->set_kind(pb::ReceiverKind(int(kind)));
+        spec.mutable_options()->mutable_receivers()->set_max_pcf(9);
+      }
+      if (kind == ReceiverKind::Cameras) {
+        pb::Receivers& r = *spec.mutable_options()->mutable_receivers();
+        pb::ReceiverBox& b = *r.add_camera_regions();
+        *b.mutable_min() = net::toProto(Vec3{-1, 0.5, -1});
+        *b.mutable_max() = net::toProto(Vec3{2, 1.5, 2});
+        r.set_view_distance(3);
+        d.cameraRegions = {{Vec3{-1, 0.5, -1}, Vec3{2, 1.5, 2}}};
+        d.viewDistance = 3;
+      }
+      const uint64_t leasedBefore = tileWorker.tilesLeased();
+      const pb::JobStatus done = farm.client.watch(
+          farm.client.submit(std::string("untouched-") + optionName(renderer) + "-" + optionName(kind), spec).job_id());
+      ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
+      EXPECT_EQ(done.tiles_total(), 64u);
+      EXPECT_EQ(done.tiles_done(), 64u);
+      EXPECT_GT(done.tiles_untouched(), 20u) << "the space between the boxes is empty";
+      EXPECT_LT(done.tiles_untouched() + done.tiles_unread(), 64u);
+      if (kind == ReceiverKind::Cameras) EXPECT_GT(done.tiles_unread(), 0u) << "the cameras never see the second box";
+      // The worker baked exactly the others: the status says how many were never leased.
+      EXPECT_EQ(tileWorker.tilesLeased() - leasedBefore, 64u - done.tiles_untouched() - done.tiles_unread());
+      farm.client.download(done.job_id(), dir / "farm.cpvs");
 
-    BakeOptions options;
-    options.log2TileSize = 5;
-    options.renderer = renderer;
-    const CpvsArtifact local =
-        testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.2, -1, 0.1}), 8), options);
-    EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true)) << optionName(renderer);
-  }
+      BakeOptions options;
+      options.log2TileSize = 5;
+      options.renderer = renderer;
+      const CpvsArtifact local =
+          testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.2, -1, 0.1}), 8), options, d);
+      EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true));
+    }
   tileWorker.stop();
   workerThread.join();
   farm.server.shutdown(1);
@@ -264,9 +290,12 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
       d.cameraSpacing = 1.5;
       d.cameraRays = 24;
     }
+    const uint64_t leasedBefore = tileWorker.tilesLeased();
     const pb::JobStatus done =
         farm.client.watch(farm.client.submit(std::string("receivers-") + optionName(kind), spec).job_id());
     ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
+    // Tiles no receiver reads are done at submit and never leased.
+    EXPECT_EQ(tileWorker.tilesLeased() - leasedBefore, done.tiles_total() - done.tiles_untouched() - done.tiles_unread());
     farm.client.download(done.job_id(), dir / "farm.cpvs");
 
     BakeOptions options;
