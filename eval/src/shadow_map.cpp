@@ -77,7 +77,7 @@ ShadowMap renderShadowMap(const RayScene& rays, const OrthoGrid& grid, uint32_t 
           const uint32_t x = px + l % kPacketW, y = pr * kPacketH + l / kPacketW;
           const TexelRay ray = texels.ray(std::min(x, side - 1), std::min(y, side - 1));
           packet.origin[l] = ray.origin;
-          packet.dir = ray.dir;
+          packet.dir[l] = ray.dir;
           packet.tNear[l] = 0.0f;
           packet.tFar[l] = float(ray.tMax);
           packet.active[l] = x < side && y < side;

@@ -25,7 +25,9 @@ Dag amortized(const BakeScene& scene, const BakeOptions& options, uint64_t seed,
   while (!bake.step(seed == 0 ? 0ns : budgets[rng() % 6])) ++steps;
   EXPECT_EQ(bake.stats().steps, steps);
   // A step runs one unit, and more only while its budget lasts: with no budget, one each.
-  if (seed == 0) EXPECT_EQ(bake.stats().units, steps);
+  if (seed == 0) {
+    EXPECT_EQ(bake.stats().units, steps);
+  }
   EXPECT_LE(steps, bake.stats().units);
   if (stats) *stats = bake.stats();
   return bake.takeResult();

@@ -135,7 +135,7 @@ void legacyRenderTexelSlices(const RayScene& rays, const OrthoGrid& grid, Closed
           const uint64_t gx = x0 + px + (l % kPacketW), gy = y0 + uint64_t(pr) * kPacketH + (l / kPacketW);
           const TexelRay ray = texels.ray(gx, gy);
           packet.origin[size_t(l)] = ray.origin;
-          packet.dir = ray.dir;
+          packet.dir[size_t(l)] = ray.dir;
           packet.tNear[size_t(l)] = 0.0f;
           packet.tFar[size_t(l)] = float(ray.tMax);
           packet.active[size_t(l)] = true;

@@ -18,13 +18,16 @@ done
 programs="$(cd "$prefix/bin" && ls | sort | tr '\n' ' ')"
 [ "$programs" = "cpvs cpvs-server cpvs-worker " ] || fail "bin/ holds '$programs', not the three programs alone"
 for p in cpvs cpvs-server cpvs-worker; do
-  "$prefix/bin/$p" --help | grep -q "Usage" || fail "the installed $p --help prints no usage"
+  help="$("$prefix/bin/$p" --help)"
+  grep -q "Usage" <<<"$help" || fail "the installed $p --help prints no usage"
 done
 
 timeout 60 "$prefix/bin/cpvs" bake city:4 --sun-elevation 30 --sun-azimuth 40 -r 1K -q -o "$work/city.cpvs" >/dev/null
 cc -std=c11 -Wall -Werror -I"$prefix/include" "$source/tests/runtime/c_client.c" -L"$prefix/lib" -lcpvs_runtime \
    -Wl,-rpath,"$prefix/lib" -o "$work/c_client"
-ldd "$work/c_client" | grep -q "$prefix/lib/libcpvs_runtime.so" || fail "the C client does not load the installed library"
+# Read whole before grep: grep -q stopping early would end ldd by SIGPIPE under pipefail.
+loads="$(ldd "$work/c_client")"
+grep -qF "$prefix/lib/libcpvs_runtime.so" <<<"$loads" || fail "the C client does not load the installed library: $loads"
 timeout 60 "$work/c_client" "$work/city.cpvs" 40 0.5 40 || fail "the C client built against the install failed"
 
 glslc --target-env=vulkan1.1 -I"$prefix/share/cpvs/shaders" "$source/tests/runtime/engine_lighting.frag" \

@@ -199,7 +199,9 @@ TEST(InProcessFarm, UntouchedTilesAreNotLeasedAndBothRenderersGiveTheLocalBytes)
       EXPECT_EQ(done.tiles_done(), 64u);
       EXPECT_GT(done.tiles_untouched(), 20u) << "the space between the boxes is empty";
       EXPECT_LT(done.tiles_untouched() + done.tiles_unread(), 64u);
-      if (kind == ReceiverKind::Cameras) EXPECT_GT(done.tiles_unread(), 0u) << "the cameras never see the second box";
+      if (kind == ReceiverKind::Cameras) {
+        EXPECT_GT(done.tiles_unread(), 0u) << "the cameras never see the second box";
+      }
       // The worker baked exactly the others: the status says how many were never leased.
       EXPECT_EQ(tileWorker.tilesLeased() - leasedBefore, 64u - done.tiles_untouched() - done.tiles_unread());
       farm.client.download(done.job_id(), dir / "farm.cpvs");

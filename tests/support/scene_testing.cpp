@@ -9,12 +9,15 @@ std::string sharedScenesDir() {
   return std::filesystem::is_directory(p) ? p.string() : std::string();
 }
 
-void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit, uint64_t x,
-                            uint64_t y, uint32_t& lo, uint32_t& hi, bool& ambiguous) {
-  const Vec3 from = grid.worldFromVoxel(Vec3{double(x) + 0.5, double(y) + 0.5, 0.0});
-  const Vec3 dir = grid.frame.dir;
-  const uint32_t R = uint32_t(grid.resolution());
-  const double slicesPerUnit = double(R) / grid.depthExtent;
+namespace {
+
+// One texel's ray (from `from` along `dir`, its parameter the depth `texels` slices)
+// against every triangle in double precision, classified by the renderer's rule.
+// `sliceFraction(t)` is where depth t lies within its slice, for the ambiguity test.
+template <class Texels, class SliceFraction>
+void bruteForceRay(const Scene& scene, const Vec3& from, const Vec3& dir, ClosedMode closed, ExitMode exit,
+                   const Texels& texels, double tieDistance, SliceFraction sliceFraction, uint32_t& lo, uint32_t& hi,
+                   bool& ambiguous) {
   std::vector<RayHit> hits;
   ambiguous = false;
   for (size_t t = 0; t < scene.triangleCount(); ++t) {
@@ -31,12 +34,12 @@ void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode close
     bool inside = u >= 0 && v >= 0 && w >= 0;
     if (std::min({u, v, w}) > -hair && std::min({u, v, w}) < hair && dist > 0) ambiguous = true;
     if (!inside || dist < 0) continue;
-    double frac = dist * slicesPerUnit - std::floor(dist * slicesPerUnit);
+    const double frac = sliceFraction(dist);
     if (frac < 1e-4 || frac > 1 - 1e-4) ambiguous = true;
     bool isClosed = closed == ClosedMode::On || (closed == ClosedMode::Auto && scene.closed[t] != 0);
     hits.push_back(RayHit{dist, uint32_t(t), dot(cross(e1, e2), dir) < 0, isClosed});
   }
-  hits.resize(size_t(orderCrossings(hits.data(), int(hits.size()), grid.depthExtent * 1e-6)));
+  hits.resize(size_t(orderCrossings(hits.data(), int(hits.size()), tieDistance)));
   if (exit == ExitMode::Approx) {
     // The approximate pass only ever sees the first hit and the first closed back face.
     std::vector<RayHit> kept;
@@ -48,7 +51,36 @@ void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode close
       }
     hits = kept;
   }
-  classifyTexel(hits.data(), int(hits.size()), exit == ExitMode::Exact, grid.texelMapping(grid.origin), lo, hi);
+  classifyTexel(hits.data(), int(hits.size()), exit == ExitMode::Exact, texels, lo, hi);
+}
+
+}  // namespace
+
+void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit, uint64_t x,
+                            uint64_t y, uint32_t& lo, uint32_t& hi, bool& ambiguous) {
+  const Vec3 from = grid.worldFromVoxel(Vec3{double(x) + 0.5, double(y) + 0.5, 0.0});
+  const double slicesPerUnit = double(grid.resolution()) / grid.depthExtent;
+  bruteForceRay(scene, from, grid.frame.dir, closed, exit, grid.texelMapping(grid.origin), grid.depthExtent * 1e-6,
+                [&](double t) { return t * slicesPerUnit - std::floor(t * slicesPerUnit); }, lo, hi, ambiguous);
+}
+
+void bruteForceSpotTexel(const Scene& scene, const PerspectiveGrid& grid, double tanCone, ClosedMode closed,
+                         ExitMode exit, uint64_t x, uint64_t y, uint32_t& lo, uint32_t& hi, bool& ambiguous) {
+  if (grid.coneMissesTexel(x, y, tanCone)) {
+    lo = 0, hi = uint32_t(grid.resolution()), ambiguous = false;
+    return;
+  }
+  // The texel's ray written out (NOTES §1.2.3): from the light, at unit speed along the axis.
+  const double R = double(grid.resolution()), t = grid.tanHalfFov();
+  const double a = ((double(x) + 0.5) * 2 / R - 1) * t, b = ((double(y) + 0.5) * 2 / R - 1) * t;
+  const Vec3 dir = grid.frame().dir + grid.frame().u * a + grid.frame().v * b;
+  const Vec3 from = grid.position();
+  bruteForceRay(scene, from, dir, closed, exit, grid.texelMapping(Vec3{}), grid.far() * 1e-6,
+                [&](double zv) {
+                  const double z = grid.voxelFromWorld(from + dir * zv).z;
+                  return z - std::floor(z);
+                },
+                lo, hi, ambiguous);
 }
 
 void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,

@@ -15,6 +15,7 @@
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/light/frame.h"
 #include "cpvs/light/ortho_grid.h"
+#include "cpvs/light/perspective_grid.h"
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/scene/source.h"
 
@@ -38,6 +39,11 @@ std::string sharedScenesDir();
 /// boundary: there float and double arithmetic may legitimately disagree.
 void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit, uint64_t x,
                             uint64_t y, uint32_t& lo, uint32_t& hi, bool& ambiguous);
+
+/// The same for a texel of a spot light's grid (its ray from the light, slices of view
+/// depth; a texel the cone misses is all undefined).
+void bruteForceSpotTexel(const Scene& scene, const PerspectiveGrid& grid, double tanCone, ClosedMode closed,
+                         ExitMode exit, uint64_t x, uint64_t y, uint32_t& lo, uint32_t& hi, bool& ambiguous);
 
 /// Brute-force depths of the whole grid; `ambiguous` marks texels to leave out.
 void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,

@@ -81,30 +81,22 @@ int exitCrossing(const RayHit* hits, int count, bool exact) {
   return -1;  // never left the interior (open geometry forced closed): keep the column defined
 }
 
-void classifyTexel(const RayHit* hits, int count, bool exact, const TexelMapping& slices, uint32_t& lo, uint32_t& hi) {
-  if (count == 0) {
-    lo = hi = slices.side();
-    return;
-  }
-  lo = hi = slices.slice(hits[0].t);
-  const int exit = exitCrossing(hits, count, exact);
-  if (exit >= 0) hi = std::max(lo, slices.slice(hits[exit].t));
-}
+namespace {
 
-void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
-                       uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
-                       TexelSlices& out) {
+// The texels [x0, x0 + width) x [y0, y0 + height) through `texels` (rays and slices);
+// crossings closer than dedupT are one crossing seen twice (Embree's robust mode reports
+// a ray through a shared edge on both triangles); `skip(gx, gy)` texels cast no ray and
+// are all undefined (a spot light's cone misses them).
+template <class Texels, class Skip>
+void renderTexels(const RayScene& rays, const Texels& texels, double dedupT, Skip skip, ClosedMode closed, ExitMode exit,
+                  uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& out) {
   CPVS_CHECK(width % 8 == 0 && height % 8 == 0);
-  const uint32_t R = static_cast<uint32_t>(grid.resolution());
+  const uint32_t R = texels.side();
   out.firstUndefined.assign(size_t(width) * height, R);
   out.firstShadowed.assign(size_t(width) * height, R);
-  // Crossings closer than this are one crossing seen twice (Embree's robust mode reports
-  // a ray through a shared edge on both triangles).
-  const double dedupT = grid.depthExtent * 1e-6;
   const bool exact = exit == ExitMode::Exact;
   // Without closed geometry only the first hit decides a texel: no need for all of them.
   const bool allHits = exact && rays.anyClosed(closed);
-  const TexelMapping texels = grid.texelMapping(rays.origin());
 
   const uint32_t rowsOfPackets = height / kPacketH;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, rowsOfPackets, 4), [&](const auto& range) {
@@ -119,10 +111,10 @@ void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
           const uint64_t gx = x0 + px + (l % kPacketW), gy = y0 + uint64_t(pr) * kPacketH + (l / kPacketW);
           const TexelRay ray = texels.ray(gx, gy);
           packet.origin[size_t(l)] = ray.origin;
-          packet.dir = ray.dir;
+          packet.dir[size_t(l)] = ray.dir;
           packet.tNear[size_t(l)] = 0.0f;
           packet.tFar[size_t(l)] = float(ray.tMax);
-          packet.active[size_t(l)] = true;
+          packet.active[size_t(l)] = !skip(gx, gy);
         }
         if (allHits) {
           rays.allCrossings(packet, closed, lanes);
@@ -153,11 +145,32 @@ void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
           }
           const uint32_t lx = px + (l % kPacketW), ly = pr * kPacketH + (l / kPacketW);
           const size_t at = size_t(ly) * width + lx;
+          if (!packet.active[size_t(l)]) {
+            out.firstUndefined[at] = 0;  // no light: every voxel is free
+            out.firstShadowed[at] = R;
+            continue;
+          }
           classifyTexel(sorted.data(), n, exact, texels, out.firstUndefined[at], out.firstShadowed[at]);
         }
       }
     }
   });
+}
+
+}  // namespace
+
+void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
+                       uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
+                       TexelSlices& out) {
+  renderTexels(rays, grid.texelMapping(rays.origin()), grid.depthExtent * 1e-6, [](uint64_t, uint64_t) { return false; },
+               closed, exit, x0, y0, width, height, out);
+}
+
+void renderTexelSlices(const RayScene& rays, const PerspectiveGrid& grid, double tanCone, ClosedMode closed,
+                       ExitMode exit, uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& out) {
+  renderTexels(rays, grid.texelMapping(rays.origin()), grid.far() * 1e-6,
+               [&](uint64_t gx, uint64_t gy) { return grid.coneMissesTexel(gx, gy, tanCone); }, closed, exit, x0, y0,
+               width, height, out);
 }
 
 }  // namespace cpvs

@@ -62,7 +62,7 @@ void collectFilter(const RTCFilterFunctionNArguments* args) {
 // Loads the packet into Embree's layout; valid[l] = -1 for active lanes.
 void loadPacket(const RayPacket& p, RTCRayHit8& rh, int (&valid)[8]) {
   for (int l = 0; l < kPacketLanes; ++l) {
-    setPacketRay(rh, l, p.origin[size_t(l)], p.dir, p.tFar[size_t(l)]);
+    setPacketRay(rh, l, p.origin[size_t(l)], p.dir[size_t(l)], p.tFar[size_t(l)]);
     rh.ray.tnear[l] = p.tNear[size_t(l)];
     valid[l] = p.active[size_t(l)] ? -1 : 0;
   }

@@ -2,12 +2,14 @@
 // ray through it, as voxel slices.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
 #include "cpvs/bake/options.h"
 #include "cpvs/light/grid.h"
 #include "cpvs/light/ortho_grid.h"
+#include "cpvs/light/perspective_grid.h"
 #include "cpvs/raytrace/ray_scene.h"
 
 namespace cpvs {
@@ -34,6 +36,13 @@ void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode c
                        uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
                        TexelSlices& out);
 
+/// The same for a spot light's grid: rays from the light through each texel centre (from
+/// the light, not from near: geometry nearer than near lands in slice 0 and shadows its
+/// column), slices of the view depth. Texels the cone of half-angle atan(tanCone) misses
+/// cast no ray and are all undefined (first = 0, shadowed = R): no light falls there.
+void renderTexelSlices(const RayScene& rays, const PerspectiveGrid& grid, double tanCone, ClosedMode closed,
+                       ExitMode exit, uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& out);
+
 /// Puts one ray's crossings in the order the face count reads them and returns how many
 /// remain: sorted by distance; within runs closer than `tieDistance`, enters first
 /// (coinciding surfaces of touching parts); same-kind duplicates within it dropped (a ray
@@ -55,7 +64,17 @@ int exitCrossing(const RayHit* hits, int count, bool exact);
 
 /// The texel classification of one ray's hits, sorted by distance: the shared rule of
 /// renderTexelSlices, exposed for tests. `t` values are depths along the texel's ray
-/// (LightGrid::texelRay), which the grid turns into slices.
-void classifyTexel(const RayHit* hits, int count, bool exact, const TexelMapping& slices, uint32_t& lo, uint32_t& hi);
+/// (LightGrid::texelRay), which the grid's texel mapping (TexelMapping, SpotTexelMapping)
+/// turns into slices.
+template <class Texels>
+void classifyTexel(const RayHit* hits, int count, bool exact, const Texels& slices, uint32_t& lo, uint32_t& hi) {
+  if (count == 0) {
+    lo = hi = slices.side();
+    return;
+  }
+  lo = hi = slices.slice(hits[0].t);
+  const int exit = exitCrossing(hits, count, exact);
+  if (exit >= 0) hi = std::max(lo, slices.slice(hits[exit].t));
+}
 
 }  // namespace cpvs

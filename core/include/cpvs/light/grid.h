@@ -17,8 +17,9 @@ struct TexelRay {
 
 /// A light's R x R x R voxel grid (R = 2^log2Resolution, or the side a baseline map
 /// chose). x, y index the texel, z the depth slice; voxel (i, j, k) spans [i, i+1) x
-/// [j, j+1) x [k, k+1) in continuous voxel coordinates. Depth is the distance along a
-/// texel's ray from its origin. Implementations: OrthoGrid (a directional light).
+/// [j, j+1) x [k, k+1) in continuous voxel coordinates. Depth is the parameter of a
+/// texel's ray from its origin: the distance for OrthoGrid (a directional light), the view
+/// depth for PerspectiveGrid (a spot light).
 class LightGrid {
  public:
   virtual ~LightGrid() = default;

@@ -65,16 +65,21 @@ inline double normalOffsetScale(double m, double voxels) {
 /// The lookup point of a query at p with normal n, in voxels (unfloored): p moved along
 /// n until its voxel lies `voxels` voxels further along n's largest voxel component. A
 /// zero, non-finite or vanishing normal gives no offset.
-inline Vec3 mappedLookup(const LookupMapping& m, const Vec3& p, const Vec3& n, double voxels) {
-  const Vec3 c = mappedVoxel(m, p);
-  if (n == Vec3{}) return c;
-  const Vec3 nv = mappedDirection(m, n);
+/// Voxel coordinates `c` moved along `nv`, a normal in voxels, so that nv's largest
+/// component moves `voxels` voxels (normalOffsetScale); `c` for a vanishing, huge or NaN nv.
+inline Vec3 offsetAlongNormal(const Vec3& c, const Vec3& nv, double voxels) {
   // The larger of two by one comparison (not fmax): a NaN takes the same branch everywhere.
   const double ax = std::fabs(nv.x), ay = std::fabs(nv.y), az = std::fabs(nv.z);
   const double axy = ax > ay ? ax : ay;
   const double s = normalOffsetScale(axy > az ? axy : az, voxels);
   if (s == 0) return c;
   return {c.x + nv.x * s, c.y + nv.y * s, c.z + nv.z * s};
+}
+
+inline Vec3 mappedLookup(const LookupMapping& m, const Vec3& p, const Vec3& n, double voxels) {
+  const Vec3 c = mappedVoxel(m, p);
+  if (n == Vec3{}) return c;
+  return offsetAlongNormal(c, mappedDirection(m, n), voxels);
 }
 
 static_assert(offsetReciprocal(0) == 65536 && offsetReciprocal(255) == 32833);

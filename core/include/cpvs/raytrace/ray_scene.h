@@ -31,13 +31,13 @@ struct RayHit {
 };
 static_assert(sizeof(RayHit) == 16);
 
-/// Rays traced together, one per lane, all along one direction: what coherent rays
-/// (a block of texels, a shadow map's rows) share. Origins are relative to
+/// Rays traced together, one per lane: coherent rays (a block of texels, a shadow map's
+/// rows) along one direction, or diverging a little from one point. Origins are relative to
 /// RayScene::origin(); a lane whose `active` is false is not traced.
 constexpr int kPacketLanes = 8;
 struct RayPacket {
   std::array<Vec3, kPacketLanes> origin;
-  Vec3 dir;
+  std::array<Vec3, kPacketLanes> dir;  // one for a directional light, diverging from a spot
   std::array<float, kPacketLanes> tNear{}, tFar{};
   std::array<bool, kPacketLanes> active{};
 };

@@ -1,0 +1,107 @@
+// A spot light's depth maps (NOTES §1.4 item 2): the Embree renderer against a brute-force
+// double-precision perspective caster, texel by texel, with geometry nearer than near
+// (its column is shadowed from slice 0), geometry beyond far, closed buildings (exact and
+// approximate exit), a lamp inside a level, and the cone's texels cast no ray.
+#include <gtest/gtest.h>
+
+#include "cpvs/bake/texel_slices.h"
+#include "cpvs/light/perspective_grid.h"
+#include "cpvs/raytrace/ray_scene.h"
+#include "cpvs/scene/source.h"
+#include "scene_testing.h"
+
+namespace cpvs {
+namespace {
+
+struct SpotCase {
+  const char* name;
+  const char* scene;  // a procedural scene, or a path under shared/scenes
+  bool shared;
+  Vec3 offset;        // the lamp, from the scene's bounding-box centre, in its extent
+  Vec3 dir;
+  double tanHalfFov, tanCone, near, far;  // near and far in the scene's extent
+  int log2R;
+};
+
+class SpotSlices : public ::testing::TestWithParam<SpotCase> {};
+
+TEST_P(SpotSlices, EmbreeEqualsTheBruteForceOnEveryClearTexel) {
+  const SpotCase& c = GetParam();
+  std::string spec = c.scene;
+  if (c.shared) {
+    CPVS_SHARED_SCENE_OR_SKIP(dir, "");
+    spec = dir + c.scene;
+  }
+  Scene scene = openScene(spec);
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const double size = length(hi - lo);
+  const Vec3 lamp = (lo + hi) * 0.5 + Vec3{c.offset.x * (hi.x - lo.x), c.offset.y * (hi.y - lo.y), c.offset.z * (hi.z - lo.z)};
+  if (std::string(c.name) == "city_flood") {
+    // A small card just in front of the lamp, nearer than near: its texels are shadowed
+    // from slice 0 on.
+    const LightFrame f = LightFrame::fromDirection(c.dir);
+    const Vec3 at = lamp + f.dir * (c.near * size * 0.5);
+    const double r = c.near * size * 0.2;
+    testing::appendQuad(scene, at - f.u * r - f.v * r, at + f.u * r - f.v * r, at + f.u * r + f.v * r, at - f.u * r + f.v * r);
+    finalizeScene(scene);
+  }
+  const PerspectiveGrid grid(lamp, LightFrame::fromDirection(c.dir), c.tanHalfFov, c.near * size, c.far * size, c.log2R);
+  const uint32_t R = uint32_t(grid.resolution());
+  const RayScene rays(scene, (lo + hi) * 0.5);
+  for (ExitMode exit : {ExitMode::Exact, ExitMode::Approx}) {
+    SCOPED_TRACE(std::string(c.name) + (exit == ExitMode::Exact ? " exact" : " approx"));
+    TexelSlices got;
+    renderTexelSlices(rays, grid, c.tanCone, ClosedMode::Auto, exit, 0, 0, R, R, got);
+    uint64_t ambiguous = 0, compared = 0, nearShadowed = 0, hit = 0, beyond = 0, interiors = 0, coneMissed = 0;
+    int failures = 0;
+    for (uint32_t y = 0; y < R; ++y)
+      for (uint32_t x = 0; x < R; ++x) {
+        uint32_t wantLo = 0, wantHi = 0;
+        bool amb = false;
+        testing::bruteForceSpotTexel(scene, grid, c.tanCone, ClosedMode::Auto, exit, x, y, wantLo, wantHi, amb);
+        const size_t at = size_t(y) * R + x;
+        if (amb) {
+          ++ambiguous;
+          continue;
+        }
+        ++compared;
+        const bool missed = grid.coneMissesTexel(x, y, c.tanCone);
+        coneMissed += missed;
+        nearShadowed += !missed && wantLo == 0;
+        hit += !missed && wantLo < R;
+        beyond += !missed && wantLo == R;
+        interiors += wantHi > wantLo && !missed;
+        if ((got.firstUndefined[at] != wantLo || got.firstShadowed[at] != wantHi) && failures++ < 10)
+          ADD_FAILURE() << "texel (" << x << ", " << y << "): " << got.firstUndefined[at] << ".." << got.firstShadowed[at]
+                        << ", the brute force " << wantLo << ".." << wantHi;
+      }
+    EXPECT_EQ(failures, 0);
+    EXPECT_LT(ambiguous, compared / 20) << "too many ambiguous texels for the comparison to mean much";
+    EXPECT_GT(hit, compared / 10) << "the lamp must light geometry";
+    if (c.tanCone < c.tanHalfFov * 1.414) {
+      EXPECT_GT(coneMissed, 0u);
+    }
+    if (std::string(c.name) == "city_flood") {
+      EXPECT_GT(nearShadowed, 0u) << "the card before near shadows its columns from slice 0";
+      EXPECT_GT(beyond, 0u) << "and the flood light sees past the city";
+      if (exit == ExitMode::Exact) {
+        EXPECT_GT(interiors, 0u) << "the buildings are closed";
+      }
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Lamps, SpotSlices,
+    ::testing::Values(
+        // A flood light over the procedural city, wide and looking down at an angle.
+        SpotCase{"city_flood", "city:3", false, {0.1, 0.45, -0.05}, {0.25, -1, 0.15}, 1.4, 1.2, 0.02, 1.5, 7},
+        // A narrow spot across the city, low: the far plane cuts into the buildings.
+        SpotCase{"city_street", "city:3:7", false, {-0.3, -0.3, 0.2}, {1, -0.15, -0.3}, 0.5, 0.45, 0.005, 0.6, 7},
+        // A lamp inside a Quake 3 level, looking along a corridor and down.
+        SpotCase{"quake_house", "openarena/oa_shouse.obj", true, {0.05, 0.1, 0}, {0.3, -0.4, 1}, 1.0, 1.0, 0.002, 1.2, 7}),
+    [](const ::testing::TestParamInfo<SpotCase>& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace cpvs
