@@ -4,7 +4,6 @@
 
 #include <bit>
 #include <algorithm>
-#include <iterator>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -145,20 +144,20 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   j.createdMs = nowMs();
   j.tilesTotal = plan.count();
   // Tiles no triangle can touch, or no declared receiver reads, are all lit: done now,
-  // merged without a worker (BakeScene::touchesTile, without building a renderer).
-  std::vector<uint64_t> untouched, unread;
+  // merged without a worker. The plan classified every tile (BakePlan::tileClasses, the
+  // local bake's test, without building a renderer).
+  BakePlan bakePlan;
   {
     const RasterScene projected(scene, grid);
     const ReceiverSet reads(scene, grid, receivers);
-    const uint64_t T = uint64_t(1) << plan.log2TileSize();
-    for (uint64_t i = 0; i < plan.count(); ++i) {
-      const TileCoord t = plan.tile(i);
-      if (!projected.touchesRectangle(t.x * T, t.y * T, T, T))
-        untouched.push_back(i);
-      else if (!reads.touchesRectangle(t.x * T, t.y * T, T, T))
-        unread.push_back(i);
-    }
-    j.plan = planJson(planBake(scene, stats, options, receivers, projected, reads));
+    bakePlan = planBake(scene, stats, options, receivers, projected, reads);
+    j.plan = planJson(bakePlan);
+  }
+  CPVS_CHECK(bakePlan.tileClasses.size() == j.tilesTotal);
+  std::vector<TileState> states(j.tilesTotal, TileState::Queued);
+  for (uint64_t i = 0; i < j.tilesTotal; ++i) {
+    if (bakePlan.tileClasses[i] == BakePlan::kUntouched) states[i] = TileState::Untouched;
+    if (bakePlan.tileClasses[i] == BakePlan::kUnread) states[i] = TileState::Unread;
   }
   {
     // Checked again and created under one lock: a retry that arrives while its first call
@@ -169,14 +168,14 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
     if (auto existing = knownRequest(request, access)) return *existing;
     checkRoom(access);
     artifacts_.createTileFolder(j.id);
-    store_.createJob(j, untouched, unread);
-    if (untouched.size() + unread.size() == j.tilesTotal) store_.setJobState(j.id, JobState::Merging, "", nowMs());
-    std::vector<uint64_t> allLit;
-    std::merge(untouched.begin(), untouched.end(), unread.begin(), unread.end(), std::back_inserter(allLit));
-    for (uint64_t t : allLit) merges_.mergeTile(j.id, t);
+    store_.createJob(j, states);
+    if (bakePlan.tilesUntouched + bakePlan.tilesUnread == j.tilesTotal)
+      store_.setJobState(j.id, JobState::Merging, "", nowMs());
+    for (uint64_t t = 0; t < j.tilesTotal; ++t)
+      if (states[t] != TileState::Queued) merges_.mergeTile(j.id, t);
   }
   spdlog::info("job {} submitted: scene {}, {}^3, {} tiles ({} touched by no triangle, {} read by no receiver)", j.id,
-               j.sceneHash, j.grid.resolution(), j.tilesTotal, untouched.size(), unread.size());
+               j.sceneHash, j.grid.resolution(), j.tilesTotal, bakePlan.tilesUntouched, bakePlan.tilesUnread);
   feed_.notify();
   return status(j.id);
 }

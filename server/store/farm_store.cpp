@@ -7,6 +7,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "cpvs/base/error.h"
+
 namespace cpvs::server {
 
 namespace {
@@ -434,8 +436,8 @@ std::optional<JobRecord> FarmStore::jobByRequest(const std::string& requestId) {
   return job(id);
 }
 
-void FarmStore::createJob(const JobRecord& j, const std::vector<uint64_t>& untouched,
-                          const std::vector<uint64_t>& unread) {
+void FarmStore::createJob(const JobRecord& j, const std::vector<TileState>& states) {
+  CPVS_CHECK(states.empty() || states.size() == j.tilesTotal);
   std::lock_guard lock(mutex_);
   Transaction t(db_);
   std::string placeholders;
@@ -444,16 +446,8 @@ void FarmStore::createJob(const JobRecord& j, const std::vector<uint64_t>& untou
   bindJob(s, j);
   s.run();
   Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, ?, 0, NULL, 0, '', NULL)");  // prepared once
-  auto nextUntouched = untouched.begin(), nextUnread = unread.begin();
   for (uint64_t i = 0; i < j.tilesTotal; ++i) {
-    TileState state = TileState::Queued;
-    if (nextUntouched != untouched.end() && *nextUntouched == i) {
-      state = TileState::Untouched;
-      ++nextUntouched;
-    } else if (nextUnread != unread.end() && *nextUnread == i) {
-      state = TileState::Unread;
-      ++nextUnread;
-    }
+    const TileState state = states.empty() ? TileState::Queued : states[i];
     tile.text(1, j.id).bind(2, int64_t(i)).bind(3, int64_t(state));
     tile.run();
     tile.reset();

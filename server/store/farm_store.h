@@ -131,10 +131,9 @@ class FarmStore {
   std::optional<JobRecord> job(const std::string& id);
   std::optional<JobRecord> jobByRequest(const std::string& requestId);
   /// Inserts the job and its tiles, all queued.
-  /// The job and its tiles: Untouched for the indices in `untouched`, Unread for those in
-  /// `unread` (each sorted, no index in both), Queued for the others.
-  void createJob(const JobRecord& j, const std::vector<uint64_t>& untouched = {},
-                 const std::vector<uint64_t>& unread = {});
+  /// The job and its tiles, each in its state of `states` (one per tile: Queued, Untouched
+  /// or Unread), or all Queued when `states` is empty.
+  void createJob(const JobRecord& j, const std::vector<TileState>& states = {});
   std::vector<JobRecord> jobs(bool includeFinished);
   /// At most `limit` jobs after the position (createdMs, id), oldest first: a page of a
   /// listing that stays bounded however many jobs the store holds (R16); with `owner`,

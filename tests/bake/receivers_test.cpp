@@ -289,17 +289,17 @@ TEST_P(SurfacesAsEverywhere, EverySurfaceLookupCountsTheSameLitTexels) {
   std::mt19937_64 rng(GetParam().log2R);
   const std::vector<Lookup> lookups = surfaceLookups(scene, d, rng, 3);
   ASSERT_GT(lookups.size(), scene.triangleCount());
-  // Whether a footprint reads a voxel inside closed geometry (free in either bake).
-  auto readsFree = [&](const VoxelCoord& v, int pcf) {
-    if (v.z < 0) return false;
+  // The voxels of the grid a footprint reads, each with whether it lies inside closed
+  // geometry (free in either bake); none in front of the grid.
+  auto forEachRead = [&](const VoxelCoord& v, int pcf, auto&& visit) {
+    if (v.z < 0) return;
     const int64_t z = std::min(v.z, int64_t(R) - 1);
     for (int64_t y = v.y - pcf / 2; y <= v.y + pcf / 2; ++y)
       for (int64_t x = v.x - pcf / 2; x <= v.x + pcf / 2; ++x) {
         if (x < 0 || y < 0 || x >= int64_t(R) || y >= int64_t(R)) continue;
         const size_t t = size_t(y) * R + size_t(x);
-        if (z >= int64_t(truth.firstUndefined[t]) && z < int64_t(truth.firstShadowed[t])) return true;
+        visit(VoxelCoord{x, y, z}, z >= int64_t(truth.firstUndefined[t]) && z < int64_t(truth.firstShadowed[t]));
       }
-    return false;
   };
   uint64_t compared = 0, partly = 0, differ = 0, lit = 0, shadowed = 0;
   int failures = 0;
@@ -308,7 +308,9 @@ TEST_P(SurfacesAsEverywhere, EverySurfaceLookupCountsTheSameLitTexels) {
       const uint32_t a = surfaces.litTexels(l.point, l.normal, pcf), b = everywhere.litTexels(l.point, l.normal, pcf);
       const VoxelCoord v = everywhere.voxelOf(l.point, l.normal, pcf);
       (b == 0 ? shadowed : lit) += 1;
-      if (!readsFree(v, pcf)) {
+      bool readsFree = false;
+      forEachRead(v, pcf, [&](const VoxelCoord&, bool free) { readsFree |= free; });
+      if (!readsFree) {
         ++compared;
         if (a != b && failures++ < 10)
           ADD_FAILURE() << GetParam().name << ": lookup at (" << l.point.x << ", " << l.point.y << ", " << l.point.z
@@ -318,18 +320,12 @@ TEST_P(SurfacesAsEverywhere, EverySurfaceLookupCountsTheSameLitTexels) {
       }
       ++partly;
       differ += a != b;
-      const int64_t z = std::min(v.z, int64_t(R) - 1);
-      for (int64_t y = v.y - pcf / 2; y <= v.y + pcf / 2; ++y)
-        for (int64_t x = v.x - pcf / 2; x <= v.x + pcf / 2; ++x) {
-          if (x < 0 || y < 0 || x >= int64_t(R) || y >= int64_t(R)) continue;
-          const size_t t = size_t(y) * R + size_t(x);
-          if (z >= int64_t(truth.firstUndefined[t]) && z < int64_t(truth.firstShadowed[t])) continue;
-          const VoxelCoord read{x, y, z};
-          if (surfaces.voxelShadowed(read) != everywhere.voxelShadowed(read) && failures++ < 10)
-            ADD_FAILURE() << GetParam().name << ": lookup at (" << l.point.x << ", " << l.point.y << ", " << l.point.z
-                          << ") pcf " << pcf << " reads voxel (" << x << ", " << y << ", " << z
-                          << ") differently in the two bakes";
-        }
+      forEachRead(v, pcf, [&](const VoxelCoord& read, bool free) {
+        if (!free && surfaces.voxelShadowed(read) != everywhere.voxelShadowed(read) && failures++ < 10)
+          ADD_FAILURE() << GetParam().name << ": lookup at (" << l.point.x << ", " << l.point.y << ", " << l.point.z
+                        << ") pcf " << pcf << " reads voxel (" << read.x << ", " << read.y << ", " << read.z
+                        << ") differently in the two bakes";
+      });
     }
   EXPECT_EQ(failures, 0);
   // Most footprints stay outside closed geometry (at 2K, 86 % on the peer's city, where

@@ -96,16 +96,12 @@ Vec3 PerspectiveGrid::voxelFromWorld(const Vec3& world) const {
 
 Vec3 PerspectiveGrid::worldFromVoxel(const Vec3& voxel) const {
   const double zv = depthOfVoxelZ(voxel.z);
-  const double perTexel = 2.0 / double(resolution());
-  const double xv = (voxel.x * perTexel - 1) * tanHalfFov_ * zv, yv = (voxel.y * perTexel - 1) * tanHalfFov_ * zv;
+  const double xv = planeCoordinate(voxel.x) * zv, yv = planeCoordinate(voxel.y) * zv;
   return position_ + frame_.u * xv + frame_.v * yv + frame_.dir * zv;
 }
 
 TexelRay PerspectiveGrid::texelRay(uint64_t x, uint64_t y, const Vec3& relativeTo) const {
-  // 2 / R is a power of two: the texel centre's image-plane coordinate is exact before the
-  // one multiplication by t, for any texel of any tile.
-  const double perTexel = 2.0 / double(resolution());
-  const double a = ((double(x) + 0.5) * perTexel - 1) * tanHalfFov_, b = ((double(y) + 0.5) * perTexel - 1) * tanHalfFov_;
+  const double a = planeCoordinate(double(x) + 0.5), b = planeCoordinate(double(y) + 0.5);
   // The far end lies a hair beyond the grid so that a surface on its last slice is hit.
   return {position_ - relativeTo, frame_.dir + frame_.u * a + frame_.v * b, far_ * 1.0001};
 }
@@ -151,11 +147,7 @@ Vec3 PerspectiveGrid::offsetVoxel(const Vec3& world, const Vec3& normal, double 
 
 bool PerspectiveGrid::coneMissesTexel(uint64_t x, uint64_t y, double tanCone) const {
   // The texel's square on the image plane at unit depth, and its point nearest the axis.
-  const double perTexel = 2.0 / double(resolution());
-  auto nearest = [&](uint64_t i) {
-    const double lo = (double(i) * perTexel - 1) * tanHalfFov_, hi = (double(i + 1) * perTexel - 1) * tanHalfFov_;
-    return std::clamp(0.0, lo, hi);
-  };
+  auto nearest = [&](uint64_t i) { return std::clamp(0.0, planeCoordinate(double(i)), planeCoordinate(double(i + 1))); };
   const double a = nearest(x), b = nearest(y);
   return a * a + b * b > tanCone * tanCone;
 }

@@ -98,6 +98,9 @@ class PerspectiveGrid final : public LightGrid {
   /// linearly beyond near and far), and its inverse.
   double voxelZ(double zv) const;
   double depthOfVoxelZ(double z) const;
+  /// The image-plane coordinate (at unit depth) of continuous texel coordinate x. 2 / R is
+  /// a power of two: exact before the one multiplication by t, for any texel of any tile.
+  double planeCoordinate(double x) const { return (x * (2.0 / double(resolution())) - 1) * tanHalfFov_; }
   /// What the Jacobian at a point needs: the point from the light, its view depth, the
   /// texels and the slices per world unit there.
   struct Local {
