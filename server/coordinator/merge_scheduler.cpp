@@ -126,7 +126,7 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
   const std::optional<TileState> state = store_.tileState(jobId, tile);
   if (state == TileState::Untouched || state == TileState::Unread) {
     const TileCoord at = TilePlan(j->grid.log2Resolution, j->options.log2TileSize).tile(tile);
-    dag = bakeUntouchedTile(j->grid, at.x, at.y, j->options);
+    dag = bakeUntouchedTile(j->grid.log2Resolution, at.x, at.y, j->options);
   } else try {
     const std::vector<uint8_t> bytes = artifacts_.readTile(jobId, tile);
     dag = decodeSubDag(bytes.data(), bytes.size(), "tile " + std::to_string(tile) + " of job " + jobId,

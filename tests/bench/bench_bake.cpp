@@ -213,7 +213,7 @@ LargeRow measureLarge(const BenchScene& bs, const LightFrame& frame, int log2R, 
   if (!untouched.empty()) {
     const auto litStart = std::chrono::steady_clock::now();
     const TileCoord t = plan.tile(untouched.front());
-    (void)bakeUntouchedTile(grid, t.x, t.y, options, &lit);
+    (void)bakeUntouchedTile(grid.log2Resolution, t.x, t.y, options, &lit);
     litSeconds = secondsSince(litStart);
   }
   const double scale = double(touched.size()) / double(sampleTiles);

@@ -17,7 +17,7 @@ namespace cpvs {
 namespace {
 
 // Insertion and compression of a tile's resolved masks.
-Dag buildTile(const ColumnMasks& masks, const OrthoGrid& grid, int log2T, uint64_t tileX, uint64_t tileY,
+Dag buildTile(const ColumnMasks& masks, int log2R, int log2T, uint64_t tileX, uint64_t tileY,
               const BakeOptions& options, StageTimes& st) {
   auto start = std::chrono::steady_clock::now();
   MinMaxPyramid pyramid;
@@ -26,7 +26,7 @@ Dag buildTile(const ColumnMasks& masks, const OrthoGrid& grid, int log2T, uint64
 
   start = std::chrono::steady_clock::now();
   Dag dag;
-  insertTile(masks, pyramid, grid.log2Resolution, log2T, tileX, tileY, options.cull, dag, &st.insert);
+  insertTile(masks, pyramid, log2R, log2T, tileX, tileY, options.cull, dag, &st.insert);
   st.add("insert", secondsSince(start));
 
   start = std::chrono::steady_clock::now();
@@ -42,35 +42,35 @@ Dag buildTile(const ColumnMasks& masks, const OrthoGrid& grid, int log2T, uint64
 
 Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
              StageTimes* times) {
-  const OrthoGrid& grid = scene.grid();
-  const int t = TilePlan(grid.log2Resolution, options.log2TileSize).log2TileSize();
+  const int log2R = scene.log2Resolution();
+  const int t = TilePlan(log2R, options.log2TileSize).log2TileSize();
   if (!scene.touchesTile(tileX, tileY, t)) {
     if (times) ++times->tilesSkipped;
-    return bakeUntouchedTile(grid, tileX, tileY, options, times);
+    return bakeUntouchedTile(log2R, tileX, tileY, options, times);
   }
   StageTimes local;
   StageTimes& st = times ? *times : local;
   const uint32_t T = uint32_t(1) << t;
   ColumnMasks masks;
   scene.columnMasks(options, tileX * T, tileY * T, T, T, masks, st);
-  return buildTile(masks, grid, t, tileX, tileY, options, st);
+  return buildTile(masks, log2R, t, tileX, tileY, options, st);
 }
 
-Dag bakeUntouchedTile(const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
+Dag bakeUntouchedTile(int log2R, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
                       StageTimes* times) {
   StageTimes local;
   StageTimes& st = times ? *times : local;
-  const int t = TilePlan(grid.log2Resolution, options.log2TileSize).log2TileSize();
+  const int t = TilePlan(log2R, options.log2TileSize).log2TileSize();
   const uint32_t T = uint32_t(1) << t;
   ColumnMasks masks;
-  litColumnMasks(T, T, uint32_t(grid.resolution()), masks);
-  return buildTile(masks, grid, t, tileX, tileY, options, st);
+  litColumnMasks(T, T, uint32_t(1) << log2R, masks);
+  return buildTile(masks, log2R, t, tileX, tileY, options, st);
 }
 
 Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* times, const ProgressFn& progress) {
   StageTimes local;
   StageTimes& st = times ? *times : local;
-  const TilePlan plan(scene.grid().log2Resolution, options.log2TileSize);
+  const TilePlan plan(scene.log2Resolution(), options.log2TileSize);
   const uint64_t total = plan.count();
   StreamingMerger merger(options.compress);
   if (progress && !progress("bake", 0, total)) throw Cancelled();

@@ -16,6 +16,11 @@ BakeScene::BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer rendere
   if (renderer == Renderer::Embree) rays_ = std::make_unique<RayScene>(scene, grid.origin, threads);
 }
 
+BakeScene::BakeScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone, Renderer renderer, int threads)
+    : renderer_(renderer), raster_(scene, grid, tanCone), receivers_(ReceiverSet::everywhere(grid.resolution())) {
+  if (renderer == Renderer::Embree) rays_ = std::make_unique<RayScene>(scene, grid.position(), threads);
+}
+
 BakeScene::~BakeScene() = default;
 
 bool BakeScene::touchesTile(uint64_t tileX, uint64_t tileY, int log2TileSize) const {
@@ -28,7 +33,7 @@ void BakeScene::columnMasks(const BakeOptions& options, uint64_t x0, uint64_t y0
   CPVS_CHECK(options.renderer == renderer_);
   CPVS_CHECK(options.receivers == receivers_.kind() &&
              (options.receivers == ReceiverKind::Everywhere || options.receiverPcf == receivers_.maxPcf()));
-  const uint32_t R = uint32_t(grid().resolution());
+  const uint32_t R = uint32_t(raster_.resolution());
   auto start = std::chrono::steady_clock::now();
   if (renderer_ == Renderer::Raster && receivers_.kind() == ReceiverKind::Everywhere) {
     rasterColumnMasks(raster_, options.closed, options.exit, options.undefinedRule, x0, y0, width, height, out);
@@ -40,6 +45,8 @@ void BakeScene::columnMasks(const BakeOptions& options, uint64_t x0, uint64_t y0
   thread_local TexelSlices depths;
   if (renderer_ == Renderer::Raster)
     rasterTexelSlices(raster_, options.closed, options.exit, x0, y0, width, height, depths);
+  else if (const PerspectiveGrid* spot = raster_.spot())
+    renderTexelSlices(*rays_, *spot, raster_.tanCone(), options.closed, options.exit, x0, y0, width, height, depths);
   else
     renderTexelSlices(*rays_, grid(), options.closed, options.exit, x0, y0, width, height, depths);
   times.add("render", secondsSince(start));

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <bit>
 #include <limits>
+#include <type_traits>
 
 #include "bake/raster_bin.h"
 #include "cpvs/bake/texel_slices.h"
@@ -64,7 +65,9 @@ HWY_INLINE uint64_t blockCoverage(const RasterTriangle& r, int subBits, int64_t 
 }
 
 // Depths of the triangle's plane at the block's 64 texel centres, clamped to its depth
-// range; returns the covered texels whose depth lies on the ray, [0, limit].
+// range; returns the covered texels whose depth lies on the ray, [0, limit]. For a spot
+// light the plane is of 1 / depth (division rounds as IEEE double on every target).
+template <bool kPerspective>
 HWY_INLINE uint64_t blockDepths(const RasterTriangle& r, int64_t bx, int64_t by, double limit, uint64_t mask,
                                 double* out) {
   const hn::ScalableTag<double> d;
@@ -79,6 +82,7 @@ HWY_INLINE uint64_t blockDepths(const RasterTriangle& r, int64_t bx, int64_t by,
     for (size_t i = 0; i < 8; i += n) {
       const size_t k = size_t(j) * 8 + i;
       auto t = hn::Add(hn::Add(at, hn::Mul(gx, hn::LoadU(d, column + i))), dy);
+      if constexpr (kPerspective) t = hn::Div(hn::Set(d, 1.0), t);
       t = hn::Min(hn::Max(t, tMin), tMax);
       hn::StoreU(t, d, out + k);
       uint8_t b[8] = {};
@@ -130,7 +134,8 @@ struct LaneOrder {
 
   // The full rule for `h` (reordered in place), remembered for the next texels when its
   // runs allow it.
-  void resolve(RayHit* h, int n, double tie, bool exact, const TexelMapping& texels, uint32_t& lo, uint32_t& hi) {
+  template <class Texels>
+  void resolve(RayHit* h, int n, double tie, bool exact, const Texels& texels, uint32_t& lo, uint32_t& hi) {
     count = 0;
     if (n > kMaxHitsPerRay) {  // too many crossings: keep the enter depth only
       std::swap(h[0], *std::min_element(h, h + n, [](const RayHit& a, const RayHit& c) { return a.t < c.t; }));
@@ -179,12 +184,24 @@ HWY_INLINE V slicesOf(D d, V t, const TexelMapping& texels) {
   return hn::IfThenElse(hn::Ge(k, cells), cells, k);
 }
 
+// The same for a spot light's slices, lane by lane through its one boundary table.
+template <class D, class V>
+HWY_INLINE V slicesOf(D d, V t, const SpotTexelMapping& texels) {
+  constexpr size_t kMaxLanes = 8;
+  const size_t n = std::min(hn::Lanes(d), kMaxLanes);
+  alignas(64) double depth[kMaxLanes] = {}, slice[kMaxLanes] = {};
+  hn::StoreU(t, d, depth);
+  for (size_t i = 0; i < n; ++i) slice[i] = double(texels.slice(depth[i]));
+  return hn::LoadU(d, slice);
+}
+
 // A block every one of whose `n` fragments covers all 64 texels (inside a few large
 // triangles: most blocks). Texel 0 is ordered by the full rule; every texel whose
 // crossings keep that order and those ties takes its deciding crossings, 64 texels at a
 // time; the others take the full rule.
+template <class Texels>
 HWY_INLINE void resolveUniformBlock(const RasterBinScratch& s, size_t n, const std::vector<RasterTriangle>& triangles,
-                                    ClosedMode closedMode, bool exact, double tie, const TexelMapping& texels,
+                                    ClosedMode closedMode, bool exact, double tie, const Texels& texels,
                                     std::vector<RayHit>& buffer, uint32_t* lo, uint32_t* hi) {
   if (buffer.size() < n) buffer.resize(n);
   auto laneHits = [&](int l) {
@@ -246,14 +263,17 @@ HWY_INLINE void resolveUniformBlock(const RasterBinScratch& s, size_t n, const s
   }
 }
 
-void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
+// The bin's blocks through `texels`, the grid's depth slices (TexelMapping for a
+// directional light, SpotTexelMapping for a spot light).
+template <class Texels>
+void rasterBlocks(const RasterBinJob& job, RasterBinScratch& s, const Texels& texels) {
+  constexpr bool kPerspective = std::is_same_v<Texels, SpotTexelMapping>;
   const RasterScene& scene = *job.scene;
   const auto& triangles = scene.triangles();
   const int subBits = scene.subBits();
   const int64_t one = int64_t(1) << subBits, half = one / 2;
-  const TexelMapping texels = scene.grid().texelMapping(scene.grid().origin);
   const uint32_t R = texels.side();
-  const double tie = scene.grid().depthExtent * 1e-6;
+  const double tie = scene.tieDistance();
   uint32_t counts[65];
   for (uint32_t b = 0; b < job.blocksX * job.blocksY; ++b) {
     const int64_t bx = job.x0 + 8 * int64_t(b % job.blocksX), by = job.y0 + 8 * int64_t(b / job.blocksX);
@@ -269,7 +289,7 @@ void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
         s.fragmentTriangle.resize(fragments + 16);
         s.fragmentDepth.resize(64 * (fragments + 16));
       }
-      mask = blockDepths(r, bx, by, scene.depthLimit(), mask, s.fragmentDepth.data() + 64 * fragments);
+      mask = blockDepths<kPerspective>(r, bx, by, scene.depthLimit(), mask, s.fragmentDepth.data() + 64 * fragments);
       if (mask == 0) continue;
       s.fragmentMask[fragments] = mask;
       s.fragmentTriangle[fragments] = job.triangles[c];
@@ -354,6 +374,13 @@ void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
       }
     }
   }
+}
+
+void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
+  if (const PerspectiveGrid* spot = job.scene->spot())
+    rasterBlocks(job, s, spot->texelMapping(spot->position()));
+  else
+    rasterBlocks(job, s, job.scene->grid().texelMapping(job.scene->grid().origin));
 }
 
 const char* TargetNameImpl() { return hwy::TargetName(HWY_TARGET); }

@@ -93,7 +93,29 @@ void buildCellIndex(RasterScene::CellIndex& index, int log2R, size_t count, Boun
 
 }  // namespace
 
-RasterScene::RasterScene(const Scene& scene, const OrthoGrid& grid) : grid_(grid) {
+// Every projected triangle of a scene, before the scene's sub-texel bits are known.
+struct RasterScene::Projection {
+  std::vector<Plane> planes;
+  std::vector<Piece> pieces;
+  std::vector<uint32_t> planeTriangle;
+  std::vector<uint8_t> planeFront;
+  double longest = 1;  // the longest piece edge along x or y, texels
+
+  // Adds a triangle's plane and its pieces: the fan of a convex polygon in texel space.
+  void add(const Plane& plane, uint32_t triangle, bool front, const std::vector<Projected>& poly) {
+    const uint32_t planeIndex = uint32_t(planes.size());
+    planes.push_back(plane);
+    planeTriangle.push_back(triangle);
+    planeFront.push_back(front ? 1 : 0);
+    for (size_t i = 1; i + 1 < poly.size(); ++i) pieces.push_back({{poly[0], poly[i], poly[i + 1]}, planeIndex});
+    for (size_t a = 0; a < poly.size(); ++a)
+      for (size_t b = a + 1; b < poly.size(); ++b)
+        longest = std::max({longest, std::abs(poly[a].x - poly[b].x), std::abs(poly[a].y - poly[b].y)});
+  }
+};
+
+RasterScene::RasterScene(const Scene& scene, const OrthoGrid& grid)
+    : grid_(grid), log2Resolution_(grid.log2Resolution), tieDistance_(grid.depthExtent * 1e-6) {
   const double R = double(grid.resolution());
   const double toTexel = R / grid.extent;
   depthLimit_ = grid.depthExtent * 1.0001;  // as TexelMapping's far end
@@ -101,11 +123,7 @@ RasterScene::RasterScene(const Scene& scene, const OrthoGrid& grid) : grid_(grid
   // (and so every edge) below 3 R texels.
   const double guardLo = -R, guardHi = 2 * R;
 
-  std::vector<Plane> planes;
-  std::vector<Piece> pieces;
-  std::vector<uint32_t> planeTriangle;
-  std::vector<uint8_t> planeFront;
-  double longest = 1;
+  Projection projection;
   for (size_t t = 0; t < scene.triangleCount(); ++t) {
     std::array<Vec3, 3> rel;
     std::array<Projected, 3> p;
@@ -131,37 +149,111 @@ RasterScene::RasterScene(const Scene& scene, const OrthoGrid& grid) : grid_(grid
     if (!std::isfinite(plane.gx) || !std::isfinite(plane.gy)) continue;
     // Front as a ray tracer decides it: the geometric normal against the ray.
     const bool front = dot(cross(rel[1] - rel[0], rel[2] - rel[0]), grid.frame.dir) < 0;
-    const uint32_t planeIndex = uint32_t(planes.size());
-    planes.push_back(plane);
-    planeTriangle.push_back(uint32_t(t));
-    planeFront.push_back(front ? 1 : 0);
-
     bool inGuard = true;
     for (const Projected& q : p) inGuard = inGuard && q.x >= guardLo && q.x <= guardHi && q.y >= guardLo && q.y <= guardHi;
-    if (inGuard) {
-      pieces.push_back({p, planeIndex});
-    } else {
-      const std::vector<Projected> poly = clipToBox(p, guardLo, guardHi);
-      for (size_t i = 1; i + 1 < poly.size(); ++i) pieces.push_back({{poly[0], poly[i], poly[i + 1]}, planeIndex});
-    }
-    for (size_t i = pieces.size(); i-- > 0 && pieces[i].plane == planeIndex;)
-      for (int a = 0; a < 3; ++a)
-        for (int b = a + 1; b < 3; ++b)
-          longest = std::max({longest, std::abs(pieces[i].v[size_t(a)].x - pieces[i].v[size_t(b)].x),
-                              std::abs(pieces[i].v[size_t(a)].y - pieces[i].v[size_t(b)].y)});
+    projection.add(plane, uint32_t(t), front,
+                   inGuard ? std::vector<Projected>(p.begin(), p.end()) : clipToBox(p, guardLo, guardHi));
   }
+  snap(scene, projection);
+}
 
+RasterScene::RasterScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone)
+    : spot_(grid), tanCone_(tanCone), log2Resolution_(grid.log2Resolution()), tieDistance_(grid.far() * 1e-6) {
+  if (!(tanCone > 0) || !std::isfinite(tanCone)) throw InputError("spot light: the cone must be wider than 0 degrees");
+  const double half = double(grid.resolution()) * 0.5, t = grid.tanHalfFov();
+  const double scale = half / t;  // texels per unit of the image plane at unit depth
+  depthLimit_ = grid.far() * 1.0001;  // as texelRay's tMax
+  const LightFrame& f = grid.frame();
+  // In the light's frame (a, b along u and v, z the view depth) a triangle is clipped
+  // against z >= zClip (nothing behind the light reaches the grid; what lies between
+  // this hair and the light is lost, as for a ray that starts there) and against the
+  // guard frustum |a|, |b| <= 3 t z, whose image is the guard box [-R, 2R]^2 of the
+  // directional light's rasterizer. Planes are linear in (a, b, z): the clip is exact up
+  // to rounding, and an edge's crossing is computed from its endpoints in a fixed order,
+  // so triangles sharing the edge get the same crossing.
+  const double zClip = grid.near() * 0x1p-20, guard = 3 * t;
+  struct Light {
+    double a, b, z;
+  };
+  const std::array<Light, 5> planes{Light{0, 0, 1}, Light{1, 0, guard}, Light{-1, 0, guard}, Light{0, 1, guard},
+                                    Light{0, -1, guard}};
+  auto side = [&](const Light& q, size_t k) {
+    return planes[k].a * q.a + planes[k].b * q.b + planes[k].z * q.z - (k == 0 ? zClip : 0.0);
+  };
+  auto before = [](const Light& p, const Light& q) {
+    return p.a < q.a || (p.a == q.a && (p.b < q.b || (p.b == q.b && p.z < q.z)));
+  };
+  auto crossing = [&](const Light& p, const Light& q, size_t k) {
+    const double fp = side(p, k), fq = side(q, k), s = fp / (fp - fq);
+    return Light{p.a + (q.a - p.a) * s, p.b + (q.b - p.b) * s, p.z + (q.z - p.z) * s};
+  };
+
+  Projection projection;
+  std::vector<Light> poly, clipped;
+  std::vector<Projected> image;
+  for (size_t i = 0; i < scene.triangleCount(); ++i) {
+    std::array<Vec3, 3> rel;
+    poly.clear();
+    for (int c = 0; c < 3; ++c) {
+      rel[size_t(c)] = scene.vertex(i, c) - grid.position();
+      poly.push_back({dot(rel[size_t(c)], f.u), dot(rel[size_t(c)], f.v), dot(rel[size_t(c)], f.dir)});
+    }
+    for (size_t k = 0; k < planes.size() && !poly.empty(); ++k) {
+      bool inside = true;
+      for (const Light& q : poly) inside = inside && side(q, k) >= 0;
+      if (inside) continue;
+      clipped.clear();
+      for (size_t j = 0; j < poly.size(); ++j) {
+        const Light p = poly[j], q = poly[(j + 1) % poly.size()];
+        const bool ip = side(p, k) >= 0, iq = side(q, k) >= 0;
+        if (ip) clipped.push_back(p);
+        if (ip != iq) clipped.push_back(before(p, q) ? crossing(p, q, k) : crossing(q, p, k));
+      }
+      poly.swap(clipped);
+    }
+    if (poly.size() < 3) continue;  // nothing of it in front of the light, near the grid
+    image.clear();
+    double zMin = poly[0].z, zMax = poly[0].z;
+    for (const Light& q : poly) {
+      image.push_back({q.a / q.z * scale + half, q.b / q.z * scale + half});
+      zMin = std::min(zMin, q.z);
+      zMax = std::max(zMax, q.z);
+    }
+    for (size_t j = 1; j + 1 < image.size(); ++j)
+      outlines_.push_back({{image[0].x, image[j].x, image[j + 1].x}, {image[0].y, image[j].y, image[j + 1].y}});
+    // The ray through texel-space (x, y) runs along dir + u A(x) + v B(y), A(x) = (x / half
+    // - 1) t, and meets the plane n . (p - v0) = 0 at depth (n . r0) / (n . ray): its
+    // inverse is affine in (x, y).
+    const Vec3 n = cross(rel[1] - rel[0], rel[2] - rel[0]);
+    const double nr = dot(n, rel[0]);
+    if (!(std::abs(nr) > 0) || !std::isfinite(nr)) continue;  // the plane holds the light: edge-on
+    const double nu = dot(n, f.u) / nr, nv = dot(n, f.v) / nr, nd = dot(n, f.dir) / nr;
+    const double ax = image[0].x, ay = image[0].y;
+    Plane plane{ax, ay, nd + (ax / half - 1) * t * nu + (ay / half - 1) * t * nv, t / half * nu, t / half * nv, zMin, zMax};
+    if (!std::isfinite(plane.at) || !std::isfinite(plane.gx) || !std::isfinite(plane.gy)) continue;
+    // Front as a ray tracer decides it: the geometric normal against the ray from the light.
+    projection.add(plane, uint32_t(i), nr < 0, image);
+  }
+  snap(scene, projection);
+}
+
+const OrthoGrid& RasterScene::grid() const {
+  CPVS_CHECK(!spot_);
+  return grid_;
+}
+
+void RasterScene::snap(const Scene& scene, const Projection& projection) {
   // The finest snapping whose edge functions still fit: edges up to 2^k texels (k
   // counts the snapping's own half unit).
-  const int k = int(std::ceil(std::log2(longest + 1)));
+  const int k = int(std::ceil(std::log2(projection.longest + 1)));
   subBits_ = std::min(kMaxSubBits, (kEdgeBudget - k) / 2);
   CPVS_CHECK(subBits_ >= 8);
   const double scale = std::ldexp(1.0, subBits_);
   const int64_t one = int64_t(1) << subBits_, half = one / 2;
-  const int64_t lastTexel = int64_t(grid.resolution()) - 1;
+  const int64_t lastTexel = int64_t(resolution()) - 1;
 
-  triangles_.reserve(pieces.size());
-  for (const Piece& piece : pieces) {
+  triangles_.reserve(projection.pieces.size());
+  for (const Piece& piece : projection.pieces) {
     RasterTriangle r{};
     for (int c = 0; c < 3; ++c) {
       r.fx[c] = std::llround(piece.v[size_t(c)].x * scale);
@@ -186,7 +278,7 @@ RasterScene::RasterScene(const Scene& scene, const OrthoGrid& grid) : grid_(grid
     r.yMin = std::max<int64_t>(0, floorDiv(minY - half + one - 1, one));
     r.yMax = std::min<int64_t>(lastTexel, floorDiv(maxY - half, one));
     if (r.xMin > r.xMax || r.yMin > r.yMax) continue;
-    const Plane& pl = planes[piece.plane];
+    const Plane& pl = projection.planes[piece.plane];
     r.ax = pl.ax;
     r.ay = pl.ay;
     r.at = pl.at;
@@ -194,19 +286,19 @@ RasterScene::RasterScene(const Scene& scene, const OrthoGrid& grid) : grid_(grid
     r.gy = pl.gy;
     r.tMin = pl.tMin;
     r.tMax = pl.tMax;
-    r.triangle = planeTriangle[piece.plane];
-    r.front = planeFront[piece.plane] != 0;
+    r.triangle = projection.planeTriangle[piece.plane];
+    r.front = projection.planeFront[piece.plane] != 0;
     r.closed = r.triangle < scene.closed.size() && scene.closed[r.triangle] != 0;
     triangles_.push_back(r);
   }
 
-  const uint64_t R64 = grid.resolution();
-  buildCellIndex(rasterCells_, grid.log2Resolution, triangles_.size(), [&](size_t i, int64_t (&b)[4]) {
+  const uint64_t R64 = resolution();
+  buildCellIndex(rasterCells_, log2Resolution_, triangles_.size(), [&](size_t i, int64_t (&b)[4]) {
     const RasterTriangle& r = triangles_[i];
     b[0] = r.xMin, b[1] = r.yMin, b[2] = r.xMax, b[3] = r.yMax;
   });
   // Outlines by their bounds padded by a texel, for the conservative test.
-  buildCellIndex(outlineCells_, grid.log2Resolution, outlines_.size(), [&](size_t i, int64_t (&b)[4]) {
+  buildCellIndex(outlineCells_, log2Resolution_, outlines_.size(), [&](size_t i, int64_t (&b)[4]) {
     const Outline& o = outlines_[i];
     const double x0 = std::floor(std::min({o.x[0], o.x[1], o.x[2]})) - 1, x1 = std::ceil(std::max({o.x[0], o.x[1], o.x[2]})) + 1;
     const double y0 = std::floor(std::min({o.y[0], o.y[1], o.y[2]})) - 1, y1 = std::ceil(std::max({o.y[0], o.y[1], o.y[2]})) + 1;
@@ -232,7 +324,7 @@ void RasterScene::CellIndex::forEach(uint64_t x0, uint64_t y0, uint64_t x1, uint
 void RasterScene::trianglesTouching(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height,
                                     std::vector<uint32_t>& out) const {
   out.clear();
-  const uint64_t R = grid_.resolution();
+  const uint64_t R = resolution();
   if (width == 0 || height == 0 || x0 >= R || y0 >= R) return;
   const uint64_t x1 = std::min(R, x0 + width) - 1, y1 = std::min(R, y0 + height) - 1;
   rasterCells_.forEach(x0, y0, x1, y1, [&](uint32_t i) {
@@ -260,9 +352,12 @@ bool RasterScene::covers(uint32_t i, uint64_t x, uint64_t y) const {
 }
 
 bool RasterScene::touchesRectangle(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height) const {
-  const uint64_t R = grid_.resolution();
+  const uint64_t R = resolution();
   if (width == 0 || height == 0 || x0 >= R || y0 >= R) return false;
   const uint64_t x1 = std::min(R, x0 + width) - 1, y1 = std::min(R, y0 + height) - 1;
+  // Outside a spot light's cone every voxel is undefined, which the undefined rules
+  // resolve to lit (no transition).
+  if (spot_ && spot_->coneMissesTexels(x0, y0, x1 - x0 + 1, y1 - y0 + 1, tanCone_)) return false;
   // The centres of the rectangle's texels, padded by one texel (a ray tracer's rounding).
   const double rx0 = double(x0) - 0.5, ry0 = double(y0) - 0.5, rx1 = double(x1) + 1.5, ry1 = double(y1) + 1.5;
   bool touched = false;

@@ -46,6 +46,27 @@ void binTile(const RasterScene& scene, uint64_t x0, uint64_t y0, uint32_t width,
   for (uint32_t t : touching) forBins(triangles[t], [&](size_t b) { bins.items[fill[b]++] = t; });
 }
 
+// A spot light's texels its cone misses get no light: every voxel of them is undefined
+// (lo = 0, hi = R). A block whose corner texels the cone all reaches has none: the part
+// of a texel nearest the axis is farthest from it at a corner of the block.
+void maskCone(const RasterScene& scene, const RasterBinJob& job) {
+  const PerspectiveGrid* spot = scene.spot();
+  if (!spot) return;
+  const uint32_t R = uint32_t(scene.resolution());
+  const double tanCone = scene.tanCone();
+  for (uint32_t k = 0; k < job.blocksX * job.blocksY; ++k) {
+    const uint64_t bx = uint64_t(job.x0) + 8 * (k % job.blocksX), by = uint64_t(job.y0) + 8 * (k / job.blocksX);
+    if (!spot->coneMissesTexel(bx, by, tanCone) && !spot->coneMissesTexel(bx + 7, by, tanCone) &&
+        !spot->coneMissesTexel(bx, by + 7, tanCone) && !spot->coneMissesTexel(bx + 7, by + 7, tanCone))
+      continue;
+    for (int t = 0; t < 64; ++t)
+      if (spot->coneMissesTexel(bx + uint64_t(t % 8), by + uint64_t(t / 8), tanCone)) {
+        job.lo[64 * size_t(k) + size_t(t)] = 0;
+        job.hi[64 * size_t(k) + size_t(t)] = R;
+      }
+  }
+}
+
 struct BinOutput {
   RasterBinScratch scratch;
   std::vector<uint32_t> lo, hi;
@@ -57,11 +78,11 @@ template <class Sink>
 void rasterTile(const RasterScene& scene, ClosedMode closed, ExitMode exit, uint64_t x0, uint64_t y0,
                 uint32_t width, uint32_t height, Sink&& sink) {
   CPVS_CHECK(width % 8 == 0 && height % 8 == 0 && x0 % 8 == 0 && y0 % 8 == 0);
-  CPVS_CHECK(x0 + width <= scene.grid().resolution() && y0 + height <= scene.grid().resolution());
+  CPVS_CHECK(x0 + width <= scene.resolution() && y0 + height <= scene.resolution());
   TileBins bins;
   binTile(scene, x0, y0, width, height, bins);
   tbb::enumerable_thread_specific<BinOutput> outputs;
-  const uint32_t R = uint32_t(scene.grid().resolution());
+  const uint32_t R = uint32_t(scene.resolution());
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, bins.binsX * bins.binsY), [&](const auto& range) {
     BinOutput& o = outputs.local();
     o.lo.resize(64 * kBinBlocks * kBinBlocks);
@@ -78,6 +99,7 @@ void rasterTile(const RasterScene& scene, ClosedMode closed, ExitMode exit, uint
       } else {
         rasterBin(job, o.scratch);
       }
+      maskCone(scene, job);
       sink(b, job);
     }
   });
@@ -104,7 +126,7 @@ void rasterTexelSlices(const RasterScene& scene, ClosedMode closed, ExitMode exi
 
 void rasterColumnMasks(const RasterScene& scene, ClosedMode closed, ExitMode exit, UndefinedRule rule,
                        uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, ColumnMasks& out) {
-  const uint32_t R = uint32_t(scene.grid().resolution());
+  const uint32_t R = uint32_t(scene.resolution());
   out.columnsX = width / 8;
   out.columnsY = height / 8;
   out.resolution = R;

@@ -429,6 +429,12 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
   for (uint32_t i = 0; i < spans_.size(); ++i) forCells(spans_[i], [&](size_t c) { cellItems_[fill[c]++] = i; });
 }
 
+ReceiverSet ReceiverSet::everywhere(uint64_t resolution) {
+  ReceiverSet set;
+  set.R_ = uint32_t(resolution);
+  return set;
+}
+
 bool ReceiverSet::touchesRectangle(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height) const {
   if (kind_ == ReceiverKind::Everywhere) return true;
   if (width == 0 || height == 0 || x0 >= R_ || y0 >= R_) return false;

@@ -145,10 +145,13 @@ Vec3 PerspectiveGrid::offsetVoxel(const Vec3& world, const Vec3& normal, double 
   return offsetAlongNormal(c, normalToVoxel(world, normal), voxels);
 }
 
-bool PerspectiveGrid::coneMissesTexel(uint64_t x, uint64_t y, double tanCone) const {
-  // The texel's square on the image plane at unit depth, and its point nearest the axis.
-  auto nearest = [&](uint64_t i) { return std::clamp(0.0, planeCoordinate(double(i)), planeCoordinate(double(i + 1))); };
-  const double a = nearest(x), b = nearest(y);
+bool PerspectiveGrid::coneMissesTexels(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height,
+                                        double tanCone) const {
+  // The texels' rectangle on the image plane at unit depth, and its point nearest the axis.
+  auto nearest = [&](uint64_t i, uint64_t n) {
+    return std::clamp(0.0, planeCoordinate(double(i)), planeCoordinate(double(i + n)));
+  };
+  const double a = nearest(x0, width), b = nearest(y0, height);
   return a * a + b * b > tanCone * tanCone;
 }
 

@@ -21,9 +21,9 @@ Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeO
              StageTimes* times = nullptr);
 
 /// The sub-DAG of a tile no triangle touches (BakeScene::touchesTile is false): all lit,
-/// the bytes bakeTile gives it, made without the scene. What the farm's coordinator merges
-/// for such tiles instead of leasing them.
-Dag bakeUntouchedTile(const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
+/// the bytes bakeTile gives it, made without the scene or the grid (of any light kind).
+/// What the farm's coordinator merges for such tiles instead of leasing them.
+Dag bakeUntouchedTile(int log2Resolution, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
                       StageTimes* times = nullptr);
 
 /// Bakes the whole grid: every tile (bakeTile), merged as they complete (StreamingMerger),

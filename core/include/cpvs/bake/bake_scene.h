@@ -24,11 +24,18 @@ class BakeScene {
  public:
   BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer renderer, int threads = 0,
             const ReceiverDeclaration& receivers = {});
+  /// A spot light's grid, cut off by its cone of half-angle atan(tanCone): texels outside
+  /// it are undefined. Every point receives (ReceiverKind::Everywhere).
+  BakeScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone, Renderer renderer, int threads = 0);
   ~BakeScene();
   BakeScene(const BakeScene&) = delete;
   BakeScene& operator=(const BakeScene&) = delete;
 
+  /// The directional light's grid (only for a scene made with one).
   const OrthoGrid& grid() const { return raster_.grid(); }
+  /// The spot light's grid, or null for a directional light.
+  const PerspectiveGrid* spot() const { return raster_.spot(); }
+  int log2Resolution() const { return raster_.log2Resolution(); }
   Renderer renderer() const { return renderer_; }
   const RasterScene& raster() const { return raster_; }
 

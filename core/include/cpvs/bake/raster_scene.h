@@ -4,10 +4,12 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "cpvs/bake/options.h"
 #include "cpvs/light/ortho_grid.h"
+#include "cpvs/light/perspective_grid.h"
 
 namespace cpvs {
 
@@ -24,6 +26,8 @@ struct RasterTriangle {
   double ax, ay, at;               // depth plane anchor: texel-space vertex and its depth
   double gx, gy;                   // depth per texel along x and y
   double tMin, tMax;               // the triangle's depth range (clamps the plane)
+  // For a spot light the plane is of 1 / depth (affine in texel space under a perspective
+  // projection): at, gx and gy are of 1 / zv, and the depth is 1 / plane.
   uint32_t triangle;               // index in the scene
   bool front;                      // the light sees the front side (Embree's rule)
   bool closed;                     // part of a closed solid (Scene::closed)
@@ -41,8 +45,23 @@ struct RasterTriangle {
 class RasterScene {
  public:
   RasterScene(const Scene& scene, const OrthoGrid& grid);
+  /// The same for a spot light, perspective-correct: triangles are clipped in the light's
+  /// frame (against the plane a hair in front of the light, nothing behind it reaching
+  /// the grid, and the guard frustum) before they are projected, the depth plane is of
+  /// 1 / zv, and a texel the cone of half-angle atan(tanCone) misses is all undefined (no
+  /// light falls there). Geometry between the light and near lands in slice 0.
+  RasterScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone);
 
-  const OrthoGrid& grid() const { return grid_; }
+  /// The directional light's grid (only for a scene made with one).
+  const OrthoGrid& grid() const;
+  /// The spot light's grid, or null for a directional light.
+  const PerspectiveGrid* spot() const { return spot_ ? &*spot_ : nullptr; }
+  double tanCone() const { return tanCone_; }
+  int log2Resolution() const { return log2Resolution_; }
+  uint64_t resolution() const { return uint64_t(1) << log2Resolution_; }
+  /// Crossings closer than this along a texel's ray are ties (orderCrossings): the same
+  /// distance the ray tracer uses for the grid.
+  double tieDistance() const { return tieDistance_; }
   int subBits() const { return subBits_; }
   const std::vector<RasterTriangle>& triangles() const { return triangles_; }
   /// Depth along a texel's ray beyond which nothing is hit (as for a ray tracer's tfar).
@@ -78,7 +97,15 @@ class RasterScene {
   struct Outline {
     double x[3], y[3];
   };
+  struct Projection;  // the projected triangles before snapping (raster_scene.cpp)
+  // Snaps the projection's pieces to the finest sub-texel bits that fit and indexes them.
+  void snap(const Scene& scene, const Projection& projection);
+
   OrthoGrid grid_;
+  std::optional<PerspectiveGrid> spot_;
+  double tanCone_ = 0;
+  int log2Resolution_ = 0;
+  double tieDistance_ = 0;
   int subBits_ = 0;
   double depthLimit_ = 0;
   std::vector<RasterTriangle> triangles_;

@@ -93,6 +93,8 @@ class ReceiverSet {
   /// InputError for an invalid declaration. Everywhere gives an empty set that frees
   /// nothing (freeIntervals leaves slices as they are).
   ReceiverSet(const Scene& scene, const OrthoGrid& grid, const ReceiverDeclaration& declaration);
+  /// Every point of an R^3 grid (of any light kind) receives: nothing is freed.
+  static ReceiverSet everywhere(uint64_t resolution);
 
   ReceiverKind kind() const { return kind_; }
   int maxPcf() const { return maxPcf_; }
@@ -141,9 +143,10 @@ class ReceiverSet {
     bool planar;
   };
  private:
+  ReceiverSet() = default;
   static bool columnRange(const Span& s, const Ring& r, const double* dirYTimesCy, int64_t& x0, int64_t& x1);
-  ReceiverKind kind_;
-  int maxPcf_;
+  ReceiverKind kind_ = ReceiverKind::Everywhere;
+  int maxPcf_ = kMaxPcfWidthOption;
   uint32_t R_ = 0;
   std::vector<Span> spans_;
   // Spans listed per cell of 2^log2Cell texels, by their column bounds.

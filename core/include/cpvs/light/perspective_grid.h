@@ -88,7 +88,9 @@ class PerspectiveGrid final : public LightGrid {
   Vec3 normalToVoxel(const Vec3& world, const Vec3& normal) const;
   /// Whether no point of texel (x, y) is within the cone of half-angle atan(tanCone)
   /// around the axis: no light falls on any of its voxels.
-  bool coneMissesTexel(uint64_t x, uint64_t y, double tanCone) const;
+  bool coneMissesTexel(uint64_t x, uint64_t y, double tanCone) const { return coneMissesTexels(x, y, 1, 1, tanCone); }
+  /// Whether it misses every texel of [x0, x0 + width) x [y0, y0 + height).
+  bool coneMissesTexels(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height, double tanCone) const;
   /// The texel rays and slices for an inner loop (rays relative to `relativeTo`); the grid
   /// must outlive it.
   SpotTexelMapping texelMapping(const Vec3& relativeTo) const { return SpotTexelMapping(*this, relativeTo); }
