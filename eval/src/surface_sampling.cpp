@@ -88,6 +88,45 @@ std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& ra
                       });
 }
 
+std::vector<SurfaceSample> sampleSpotSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
+                                              const PerspectiveGrid& grid, double tanCone, uint64_t count,
+                                              uint64_t seed) {
+  const Vec3 lamp = grid.position(), axis = grid.frame().dir;
+  const double cone = std::atan(tanCone);
+  // A triangle may reach into the cone when its bounding sphere does: the sphere holds the
+  // light, or its angle from the axis, less the angle the sphere subtends, is within it.
+  const AreaPicker picker(scene, [&](uint32_t t) {
+    const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+    const Vec3 centre = (a + b + c) / 3.0;
+    const double r = std::max({length(a - centre), length(b - centre), length(c - centre)});
+    const Vec3 q = centre - lamp;
+    const double d = length(q);
+    if (d <= r) return true;
+    const double angle = std::acos(std::clamp(dot(q, axis) / d, -1.0, 1.0));
+    return angle - std::asin(r / d) <= cone;
+  });
+  if (picker.empty()) return {};
+  std::vector<SurfaceSample> drawn(count);
+  std::vector<uint8_t> found(count, 0);
+  tbb::parallel_for(uint64_t(0), count, [&](uint64_t i) {
+    SplitMix64 rng = SplitMix64::forItem(seed, i);
+    for (int attempt = 0; attempt < kConeSampleAttempts; ++attempt) {
+      const auto [t, p] = picker.pick(rng);
+      if (!grid.insideCone(p, tanCone)) continue;
+      const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
+      Vec3 n = normalize(cross(b - a, c - a));
+      if (!rays.triangleClosed(uint32_t(t), closed) && dot(n, lamp - p) < 0) n = -n;
+      drawn[i] = SurfaceSample{p, n};
+      found[i] = 1;
+      return;
+    }
+  });
+  std::vector<SurfaceSample> out;
+  for (uint64_t i = 0; i < count; ++i)
+    if (found[i]) out.push_back(drawn[i]);
+  return out;
+}
+
 std::vector<SurfaceSample> sampleReceivers(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                            const Vec3& lightDir, const ReceiverDeclaration& d, uint64_t count,
                                            uint64_t seed) {

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cmath>
 #include <mutex>
+#include "cpvs/base/error.h"
 #include "cpvs/eval/surface_sampling.h"
 #include "cpvs/raytrace/visibility.h"
 
@@ -16,11 +17,21 @@ VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const S
   return verifySamples(query, closed, rays, sampleSurfaces(scene, rays, closed, query.grid().frame.dir, count, seed));
 }
 
+VerifyResult verifySpotArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
+                                uint64_t count, uint64_t seed) {
+  CPVS_CHECK(query.spot());
+  return verifySamples(query, closed, rays,
+                       sampleSpotSurfaces(scene, rays, closed, *query.spot(), query.tanCone(), count, seed));
+}
+
 VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const RayScene& rays,
                            const std::vector<SurfaceSample>& samples) {
-  const OrthoGrid& g = query.grid();
-  const double len = shadowRayLength(g);
-  const Vec3 toLight = -g.frame.dir;
+  const LightGrid& g = query.lightGrid();
+  const PerspectiveGrid* spot = query.spot();
+  auto toLight = [&](const Vec3& p) { return spot ? shadowRayTo(*spot, p) : shadowRayTo(query.grid(), p); };
+  auto exactlyLitAt = [&](const Vec3& p) {
+    return spot ? exactlyLit(rays, *spot, query.tanCone(), p) : exactlyLit(rays, query.grid(), p);
+  };
   // "Within one voxel" of a shadow boundary: the exact visibility is not the same at
   // every point of the 3x3x3 voxel block around the query point, sampled at its corners
   // and mid-points (offsets of -1, -1/2, 0, 1/2, 1 voxel along u, v and the light).
@@ -31,23 +42,25 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
       for (double c : steps)
         if (a != 0 || b != 0 || c != 0) neighbours.push_back(Vec3{a, b, c});
 
-  std::atomic<uint64_t> used{0}, inside{0}, near{0}, badNear{0}, badElse{0};
+  std::atomic<uint64_t> used{0}, inside{0}, lit{0}, near{0}, badNear{0}, badElse{0};
   std::mutex examplesMutex;
   VerifyResult result;
   tbb::parallel_for(size_t(0), samples.size(), [&](size_t i) {
     const SurfaceSample& s = samples[i];
     Vec3 q = query.offsetPoint(s.point, s.normal, 1);
-    if (rays.closedNesting(q, toLight, len, closed) > 0) {  // no query can come from there
+    const ShadowRay ray = toLight(q);
+    if (rays.closedNesting(q, ray.dir, ray.length, closed) > 0) {  // no query can come from there
       ++inside;
       return;
     }
     ++used;
-    bool exact = !rays.occluded(q, toLight, 0.0, len);
+    bool exact = exactlyLitAt(q);
+    lit += exact;
     bool cpvs = !query.voxelShadowed(query.voxelOf(s.point, s.normal, 1));
     const Vec3 qv = g.voxelFromWorld(q);
     bool isNear = false;
     for (const Vec3& o : neighbours)
-      if (exactlyLit(rays, g, g.worldFromVoxel(qv + o)) != exact) {
+      if (exactlyLitAt(g.worldFromVoxel(qv + o)) != exact) {
         isNear = true;
         break;
       }
@@ -55,13 +68,17 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
     // texel, at the query's depth and one slice either side, is within one voxel too.
     const Vec3 centre{std::floor(qv.x) + 0.5, std::floor(qv.y) + 0.5, qv.z};
     for (double dz = -1; dz <= 1 && !isNear; ++dz)
-      isNear = exactlyLit(rays, g, g.worldFromVoxel(centre + Vec3{0, 0, dz})) != exact;
+      isNear = exactlyLitAt(g.worldFromVoxel(centre + Vec3{0, 0, dz})) != exact;
     // Closed interiors hold undefined voxels that the bake may resolve either way; a
     // query within one voxel of one (a receiver in a concave corner beside a closed
     // wall) is as near a boundary as one beside a shadow edge. Tested for mismatches only.
     if (!isNear && cpvs != exact)
       for (size_t k = 0; k < neighbours.size() && !isNear; ++k)
-        isNear = rays.closedNesting(g.worldFromVoxel(qv + neighbours[k]), toLight, len, closed) > 0;
+      {
+        const Vec3 p = g.worldFromVoxel(qv + neighbours[k]);
+        const ShadowRay r = toLight(p);
+        isNear = rays.closedNesting(p, r.dir, r.length, closed) > 0;
+      }
     near += isNear;
     if (cpvs == exact) return;
     if (isNear) {
@@ -74,6 +91,7 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
   });
   result.samples = used;
   result.insideClosed = inside;
+  result.exactlyLit = lit;
   result.nearBoundary = near;
   result.mismatchNearBoundary = badNear;
   result.mismatchElsewhere = badElse;

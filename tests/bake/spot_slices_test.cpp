@@ -20,43 +20,22 @@
 namespace cpvs {
 namespace {
 
-struct SpotCase {
-  const char* name;
-  const char* scene;  // a procedural scene, or a path under shared/scenes
-  bool shared;
-  Vec3 offset;        // the lamp, from the scene's bounding-box centre, in its extent
-  Vec3 dir;
-  double tanHalfFov, tanCone, near, far;  // near and far in the scene's extent
-  int log2R;
-};
+using testing::LampCase;
 
-class SpotSlices : public ::testing::TestWithParam<SpotCase> {
+class SpotSlices : public ::testing::TestWithParam<LampCase> {
  protected:
   // The case's scene and lamp; false when the scene is a shared one that is not here.
   bool open() {
-    const SpotCase& c = GetParam();
-    std::string spec = c.scene;
-    if (c.shared) {
-      const std::string dir = testing::sharedScenesDir();
-      if (dir.empty()) return false;
-      spec = dir + "/" + c.scene;
-    }
-    scene_ = openScene(spec);
-    Vec3 lo, hi;
-    sceneBounds(scene_, lo, hi);
-    const double size = length(hi - lo);
-    const Vec3 lamp = (lo + hi) * 0.5 + Vec3{c.offset.x * (hi.x - lo.x), c.offset.y * (hi.y - lo.y), c.offset.z * (hi.z - lo.z)};
-    if (std::string(c.name) == "city_flood") {
+    if (!testing::openLamp(GetParam(), scene_, center_, grid_)) return false;
+    if (std::string(GetParam().name) == "city_flood") {
       // A small card just in front of the lamp, nearer than near: its texels are shadowed
       // from slice 0 on.
-      const LightFrame f = LightFrame::fromDirection(c.dir);
-      const Vec3 at = lamp + f.dir * (c.near * size * 0.5);
-      const double r = c.near * size * 0.2;
+      const LightFrame& f = grid_->frame();
+      const Vec3 at = grid_->position() + f.dir * (grid_->near() * 0.5);
+      const double r = grid_->near() * 0.2;
       testing::appendQuad(scene_, at - f.u * r - f.v * r, at + f.u * r - f.v * r, at + f.u * r + f.v * r, at - f.u * r + f.v * r);
       finalizeScene(scene_);
     }
-    center_ = (lo + hi) * 0.5;
-    grid_.emplace(lamp, LightFrame::fromDirection(c.dir), c.tanHalfFov, c.near * size, c.far * size, c.log2R);
     return true;
   }
   Scene scene_;
@@ -65,7 +44,7 @@ class SpotSlices : public ::testing::TestWithParam<SpotCase> {
 };
 
 TEST_P(SpotSlices, RenderersEqualTheBruteForceOnEveryClearTexel) {
-  const SpotCase& c = GetParam();
+  const LampCase& c = GetParam();
   if (!open()) GTEST_SKIP() << "shared/scenes is not beside the project";
   const Scene& scene = scene_;
   const PerspectiveGrid& grid = *grid_;
@@ -122,7 +101,7 @@ TEST_P(SpotSlices, RenderersEqualTheBruteForceOnEveryClearTexel) {
 }
 
 TEST_P(SpotSlices, RasterizedMasksTilesAndSkippedTilesAgree) {
-  const SpotCase& c = GetParam();
+  const LampCase& c = GetParam();
   if (!open()) GTEST_SKIP() << "shared/scenes is not beside the project";
   const uint32_t R = uint32_t(grid_->resolution());
   // The case's cone, and one half as wide whose corner tiles lie outside it.
@@ -168,12 +147,12 @@ INSTANTIATE_TEST_SUITE_P(
     Lamps, SpotSlices,
     ::testing::Values(
         // A flood light over the procedural city, wide and looking down at an angle.
-        SpotCase{"city_flood", "city:3", false, {0.1, 0.45, -0.05}, {0.25, -1, 0.15}, 1.4, 1.2, 0.02, 1.5, 7},
+        LampCase{"city_flood", "city:3", false, {0.1, 0.45, -0.05}, {0.25, -1, 0.15}, 1.4, 1.2, 0.02, 1.5, 7},
         // A narrow spot across the city, low: the far plane cuts into the buildings.
-        SpotCase{"city_street", "city:3:7", false, {-0.3, -0.3, 0.2}, {1, -0.15, -0.3}, 0.5, 0.45, 0.005, 0.6, 7},
+        LampCase{"city_street", "city:3:7", false, {-0.3, -0.3, 0.2}, {1, -0.15, -0.3}, 0.5, 0.45, 0.005, 0.6, 7},
         // A lamp inside a Quake 3 level, looking along a corridor and down.
-        SpotCase{"quake_house", "openarena/oa_shouse.obj", true, {0.05, 0.1, 0}, {0.3, -0.4, 1}, 1.0, 1.0, 0.002, 1.2, 7}),
-    [](const ::testing::TestParamInfo<SpotCase>& info) { return std::string(info.param.name); });
+        LampCase{"quake_house", "openarena/oa_shouse.obj", true, {0.05, 0.1, 0}, {0.3, -0.4, 1}, 1.0, 1.0, 0.002, 1.2, 7}),
+    [](const ::testing::TestParamInfo<LampCase>& info) { return std::string(info.param.name); });
 
 }  // namespace
 }  // namespace cpvs

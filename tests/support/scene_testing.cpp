@@ -83,6 +83,23 @@ void bruteForceSpotTexel(const Scene& scene, const PerspectiveGrid& grid, double
                 lo, hi, ambiguous);
 }
 
+bool openLamp(const LampCase& c, Scene& scene, Vec3& centre, std::optional<PerspectiveGrid>& grid) {
+  std::string spec = c.scene;
+  if (c.shared) {
+    const std::string dir = sharedScenesDir();
+    if (dir.empty()) return false;
+    spec = dir + "/" + c.scene;
+  }
+  scene = openScene(spec);
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const double size = length(hi - lo);
+  centre = (lo + hi) * 0.5;
+  const Vec3 lamp = centre + Vec3{c.offset.x * (hi.x - lo.x), c.offset.y * (hi.y - lo.y), c.offset.z * (hi.z - lo.z)};
+  grid.emplace(lamp, LightFrame::fromDirection(c.dir), c.tanHalfFov, c.near * size, c.far * size, c.log2R);
+  return true;
+}
+
 void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
                              TexelSlices& out, std::vector<uint8_t>& ambiguous) {
   const uint64_t R = grid.resolution();

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -44,6 +45,20 @@ void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode close
 /// depth; a texel the cone misses is all undefined).
 void bruteForceSpotTexel(const Scene& scene, const PerspectiveGrid& grid, double tanCone, ClosedMode closed,
                          ExitMode exit, uint64_t x, uint64_t y, uint32_t& lo, uint32_t& hi, bool& ambiguous);
+
+/// A spot lamp placed in a scene by its bounding box: the cases of the spot light's tests.
+struct LampCase {
+  const char* name;
+  const char* scene;  // a procedural scene, or a path under shared/scenes
+  bool shared;
+  Vec3 offset;  // the lamp, from the scene's bounding-box centre, in its extent
+  Vec3 dir;
+  double tanHalfFov, tanCone, near, far;  // near and far in the scene's diagonal
+  int log2R;
+};
+/// Opens the case's scene and makes its lamp's grid; false when the scene is a shared one
+/// and shared/scenes is not beside the project. `centre` is the scene's bounding-box centre.
+bool openLamp(const LampCase& lamp, Scene& scene, Vec3& centre, std::optional<PerspectiveGrid>& grid);
 
 /// Brute-force depths of the whole grid; `ambiguous` marks texels to leave out.
 void bruteForceDepths(const Scene& scene, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,

@@ -145,6 +145,12 @@ Vec3 PerspectiveGrid::offsetVoxel(const Vec3& world, const Vec3& normal, double 
   return offsetAlongNormal(c, normalToVoxel(world, normal), voxels);
 }
 
+bool PerspectiveGrid::insideCone(const Vec3& world, double tanCone) const {
+  const Vec3 q = world - position_;
+  const double zv = dot(q, frame_.dir), a = dot(q, frame_.u), b = dot(q, frame_.v);
+  return zv > 0 && a * a + b * b <= tanCone * tanCone * zv * zv;
+}
+
 bool PerspectiveGrid::coneMissesTexels(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height,
                                         double tanCone) const {
   // The texels' rectangle on the image plane at unit depth, and its point nearest the axis.

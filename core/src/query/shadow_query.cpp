@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <string>
 
 #include "cpvs/base/error.h"
@@ -22,30 +23,60 @@ ShadowQuery::ShadowQuery(OrthoGrid grid, PackedDag dag)
                      std::to_string(grid_.log2Resolution));
 }
 
+ShadowQuery::ShadowQuery(PerspectiveGrid grid, double tanCone, PackedDag dag)
+    : spot_(std::move(grid)), tanCone_(tanCone), dag_(std::move(dag)), R_(int64_t(spot_->resolution())) {
+  if (!(tanCone > 0) || !std::isfinite(tanCone)) throw InputError("spot light: the cone must be wider than 0 degrees");
+  if (dag_.log2Resolution() != spot_->log2Resolution())
+    throw InputError("a DAG of resolution 2^" + std::to_string(dag_.log2Resolution()) + " for a spot grid of 2^" +
+                     std::to_string(spot_->log2Resolution()));
+}
+
+const OrthoGrid& ShadowQuery::grid() const {
+  CPVS_CHECK(!spot_);
+  return grid_;
+}
+
+bool ShadowQuery::dark(int64_t x, int64_t y) const {
+  return x < 0 || y < 0 || x >= R_ || y >= R_ || spot_->coneMissesTexel(uint64_t(x), uint64_t(y), tanCone_);
+}
+
 bool ShadowQuery::voxelShadowed(const VoxelCoord& v) const {
-  if (v.x < 0 || v.y < 0 || v.x >= R_ || v.y >= R_ || v.z < 0) return false;
+  if (v.z < 0) return false;
+  if (spot_ && dark(v.x, v.y)) return true;
+  if (v.x < 0 || v.y < 0 || v.x >= R_ || v.y >= R_) return false;
   int64_t z = std::min(v.z, R_ - 1);
   return dag_.voxelShadowed(uint64_t(v.x), uint64_t(v.y), uint64_t(z));
 }
 
 VoxelCoord ShadowQuery::voxelOf(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
-  const Vec3 c = mappedLookup(mapping_, p, n, normalOffsetVoxels(pcf.width()));
+  const double offset = normalOffsetVoxels(pcf.width());
+  const Vec3 c = spot_ ? spot_->offsetVoxel(p, n, offset) : mappedLookup(mapping_, p, n, offset);
+  // Behind a spot light (no voxel coordinates): a voxel outside its frustum, where no
+  // light reaches, rather than one in front of the grid.
+  if (spot_ && std::isnan(c.z)) return {-1, -1, 0};
   return {floorToVoxel(c.x), floorToVoxel(c.y), floorToVoxel(c.z)};
 }
 
 Vec3 ShadowQuery::offsetPoint(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
-  return grid_.worldFromVoxel(mappedLookup(mapping_, p, n, normalOffsetVoxels(pcf.width())));
+  const double offset = normalOffsetVoxels(pcf.width());
+  if (spot_) return spot_->worldFromVoxel(spot_->offsetVoxel(p, n, offset));
+  return grid_.worldFromVoxel(mappedLookup(mapping_, p, n, offset));
 }
 
 uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
   const VoxelCoord v = voxelOf(p, n, pcf);
   const int64_t r = pcf.radius(), texels = pcf.texels();
-  // Outside the grid is lit (as in voxelShadowed); beyond its far end is its last slice.
+  // Texels as voxelShadowed answers them: in front of the grid lit, beyond its far end
+  // its last slice, outside it in x or y lit for the sun and dark for a spot light.
   if (v.z < 0) return uint32_t(texels);
   const uint64_t z = uint64_t(std::min(v.z, R_ - 1));
   const int64_t x0 = std::max<int64_t>(v.x - r, 0), x1 = std::min<int64_t>(v.x + r, R_ - 1);
   const int64_t y0 = std::max<int64_t>(v.y - r, 0), y1 = std::min<int64_t>(v.y + r, R_ - 1);
-  int64_t shadowed = 0;
+  if (x0 > x1 || y0 > y1) return spot_ ? 0 : uint32_t(texels);
+  int64_t shadowed = spot_ ? texels - (x1 - x0 + 1) * (y1 - y0 + 1) : 0;
+  // A spot light's footprint reaches past its cone only when a corner does (a texel's
+  // point nearest the axis is farthest from it at a corner of the rectangle).
+  const bool pastCone = spot_ && (dark(x0, y0) || dark(x1, y0) || dark(x0, y1) || dark(x1, y1));
   // One walk per 8x8 leaf slice the footprint touches, counting its footprint bits.
   for (int64_t by = y0 >> 3; by <= y1 >> 3; ++by) {
     const int64_t rowLo = std::max(y0, by * 8) - by * 8, rowHi = std::min(y1, by * 8 + 7) - by * 8;
@@ -54,7 +85,13 @@ uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) cons
       const uint64_t row = ((uint64_t{1} << (colHi - colLo + 1)) - 1) << colLo;
       uint64_t footprint = 0;
       for (int64_t ty = rowLo; ty <= rowHi; ++ty) footprint |= row << (ty * 8);
-      shadowed += std::popcount(dag_.leafSliceMask(uint64_t(bx) * 8, uint64_t(by) * 8, z) & footprint);
+      uint64_t mask = dag_.leafSliceMask(uint64_t(bx) * 8, uint64_t(by) * 8, z) & footprint;
+      if (pastCone)
+        for (uint64_t m = footprint; m; m &= m - 1) {
+          const int bit = std::countr_zero(m);
+          if (dark(bx * 8 + bit % 8, by * 8 + bit / 8)) mask |= uint64_t(1) << bit;
+        }
+      shadowed += std::popcount(mask);
     }
   }
   return uint32_t(texels - shadowed);

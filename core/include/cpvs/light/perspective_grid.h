@@ -89,6 +89,9 @@ class PerspectiveGrid final : public LightGrid {
   /// Whether no point of texel (x, y) is within the cone of half-angle atan(tanCone)
   /// around the axis: no light falls on any of its voxels.
   bool coneMissesTexel(uint64_t x, uint64_t y, double tanCone) const { return coneMissesTexels(x, y, 1, 1, tanCone); }
+  /// Whether the world point lies inside the cone (in front of the light, at most
+  /// atan(tanCone) from its axis).
+  bool insideCone(const Vec3& world, double tanCone) const;
   /// Whether it misses every texel of [x0, x0 + width) x [y0, y0 + height).
   bool coneMissesTexels(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height, double tanCone) const;
   /// The texel rays and slices for an inner loop (rays relative to `relativeTo`); the grid

@@ -2,11 +2,13 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "cpvs/base/vec3.h"
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/light/ortho_grid.h"
+#include "cpvs/light/perspective_grid.h"
 #include "cpvs/query/normal_offset.h"
 
 namespace cpvs {
@@ -21,26 +23,38 @@ class ShadowQuery {
  public:
   /// InputError when the DAG's resolution is not the grid's.
   ShadowQuery(OrthoGrid grid, PackedDag dag);
+  /// A spot light's, whose cone has half-angle atan(tanCone): no light reaches a point
+  /// outside it, outside the frustum or behind the light (they are shadowed), and the
+  /// cone's undefined texels are never read.
+  ShadowQuery(PerspectiveGrid grid, double tanCone, PackedDag dag);
 
-  const OrthoGrid& grid() const { return grid_; }
+  /// The directional light's grid (only for a query made with one).
+  const OrthoGrid& grid() const;
+  /// The spot light's grid, or null for a directional light.
+  const PerspectiveGrid* spot() const { return spot_ ? &*spot_ : nullptr; }
+  double tanCone() const { return tanCone_; }
+  /// The grid of either light.
+  const LightGrid& lightGrid() const { return spot_ ? static_cast<const LightGrid&>(*spot_) : grid_; }
   const PackedDag& dag() const { return dag_; }
 
-  /// True when the voxel is shadowed. Outside the grid in x or y, or in front of it, is
-  /// lit (nothing casts there); behind it answers as the last slice.
+  /// True when the voxel is shadowed. In front of the grid is lit (nothing casts there);
+  /// behind it answers as the last slice. Outside the grid in x or y is lit for a
+  /// directional light, shadowed for a spot light (as its texels the cone misses).
   bool voxelShadowed(const VoxelCoord& v) const;
 
   /// The voxel a query at world point p with normal n (need not be normalized; zero =
   /// no offset) and filter width pcf lands in: p offset by normalOffsetVoxels(pcf) along
-  /// the normal (LightGrid::offsetVoxel), then floored to integers.
+  /// the normal (LightGrid::offsetVoxel), then floored to integers. Behind a spot light:
+  /// (-1, -1, 0), a voxel outside its frustum.
   VoxelCoord voxelOf(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
   /// The world position of the offset query point (before flooring), for references.
   Vec3 offsetPoint(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
 
   /// Binary visibility: 1 = lit, 0 = shadowed.
   float visibility(const Vec3& p, const Vec3& n = {}) const { return filtered(p, n, kBinary); }
-  /// How many of the pcf x pcf texels around the lookup voxel (same slice) are lit:
-  /// texels outside the grid in x or y count as lit, a footprint in front of the grid is
-  /// lit, beyond its far end is its last slice. What a GPU lookup answers.
+  /// How many of the pcf x pcf texels around the lookup voxel (same slice) are lit, each
+  /// as voxelShadowed answers it (a footprint in front of the grid is all lit). What a GPU
+  /// lookup answers.
   uint32_t litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
   /// Fraction of the pcf x pcf texels around the lookup voxel (same slice) that are lit.
   float filtered(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
@@ -54,7 +68,12 @@ class ShadowQuery {
 
  private:
   static inline const PcfWidth kBinary{1};
+  // Whether no light reaches texel (x, y) of a spot light: outside the grid or the cone.
+  bool dark(int64_t x, int64_t y) const;
+
   OrthoGrid grid_;
+  std::optional<PerspectiveGrid> spot_;
+  double tanCone_ = 0;
   LookupMapping mapping_;  // grid_.lookupMapping(), once: the same constants every lookup uses
   PackedDag dag_;
   int64_t R_;

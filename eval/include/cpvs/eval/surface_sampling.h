@@ -7,6 +7,7 @@
 #include "cpvs/bake/options.h"
 #include "cpvs/bake/receivers.h"
 #include "cpvs/eval/camera.h"
+#include "cpvs/light/perspective_grid.h"
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/scene/scene.h"
 
@@ -22,6 +23,15 @@ struct SurfaceSample {
 /// side facing the light (`lightDir` points from the light into the scene).
 std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                           const Vec3& lightDir, uint64_t count, uint64_t seed);
+
+/// Up to `count` points sampled uniformly by area over the surfaces inside a spot light's
+/// cone (half-angle atan(tanCone)), deterministic for a seed: sample i is drawn up to
+/// kConeSampleAttempts times from the triangles that may reach into the cone, dropped
+/// when none lands inside it. Normals as sampleSurfaces, open geometry's facing the light.
+std::vector<SurfaceSample> sampleSpotSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
+                                              const PerspectiveGrid& grid, double tanCone, uint64_t count,
+                                              uint64_t seed);
+constexpr int kConeSampleAttempts = 64;
 
 /// `count` points where the declared receivers are, deterministic for a seed: for
 /// Everywhere, sampleSurfaces; for Surfaces, uniformly by area with the front side's

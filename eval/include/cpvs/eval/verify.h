@@ -14,6 +14,7 @@ namespace cpvs {
 struct VerifyResult {
   uint64_t samples = 0;              // points compared
   uint64_t insideClosed = 0;         // offset points inside closed geometry: never queried, skipped
+  uint64_t exactlyLit = 0;           // points the exact shadow ray finds lit
   uint64_t nearBoundary = 0;         // points whose exact visibility changes within one voxel
   uint64_t mismatchNearBoundary = 0;
   uint64_t mismatchElsewhere = 0;
@@ -32,6 +33,12 @@ struct VerifyResult {
 /// closed geometry (where no lookup can come from) are skipped.
 VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
                             uint64_t count, uint64_t seed);
+
+/// The same for a spot light's query, at surface points inside its cone
+/// (sampleSpotSurfaces): exact visibility is inside the cone and nothing on the segment to
+/// the light, "within one voxel" is in the spot grid's voxels.
+VerifyResult verifySpotArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
+                                uint64_t count, uint64_t seed);
 
 /// The same comparison at given points (sampleReceivers: where a bake's declared
 /// receivers are, the only points a bake for them answers exactly).
