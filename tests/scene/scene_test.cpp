@@ -23,6 +23,7 @@
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
+#include "error_testing.h"
 
 namespace cpvs {
 namespace {
@@ -75,20 +76,7 @@ class TempDir {
   fs::path path_;
 };
 
-/// Runs `f`, expects InputError, and returns its message.
-template <class F>
-std::string inputErrorOf(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << "expected InputError, got another exception: " << e.what();
-    return {};
-  }
-  ADD_FAILURE() << "expected InputError, nothing was thrown";
-  return {};
-}
+using testing::inputErrorOf;
 
 // --- closed-part classification -------------------------------------------------------
 

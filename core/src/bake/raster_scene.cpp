@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "cpvs/base/error.h"
+#include "cpvs/light/frustum_clip.h"
 #include "cpvs/scene/scene.h"
 
 namespace cpvs {
@@ -164,32 +165,14 @@ RasterScene::RasterScene(const Scene& scene, const PerspectiveGrid& grid, double
   const double scale = half / t;  // texels per unit of the image plane at unit depth
   depthLimit_ = grid.far() * 1.0001;  // as texelRay's tMax
   const LightFrame& f = grid.frame();
-  // In the light's frame (a, b along u and v, z the view depth) a triangle is clipped
-  // against z >= zClip (nothing behind the light reaches the grid; what lies between
-  // this hair and the light is lost, as for a ray that starts there) and against the
-  // guard frustum |a|, |b| <= 3 t z, whose image is the guard box [-R, 2R]^2 of the
-  // directional light's rasterizer. Planes are linear in (a, b, z): the clip is exact up
-  // to rounding, and an edge's crossing is computed from its endpoints in a fixed order,
-  // so triangles sharing the edge get the same crossing.
+  // In the light's frame a triangle is clipped against the plane a hair in front of the
+  // light (nothing behind it reaches the grid; what lies between the hair and the light
+  // is lost, as for a ray that starts there) and the guard frustum |a|, |b| <= 3 t z,
+  // whose image is the guard box [-R, 2R]^2 of the directional light's rasterizer.
   const double zClip = grid.near() * 0x1p-20, guard = 3 * t;
-  struct Light {
-    double a, b, z;
-  };
-  const std::array<Light, 5> planes{Light{0, 0, 1}, Light{1, 0, guard}, Light{-1, 0, guard}, Light{0, 1, guard},
-                                    Light{0, -1, guard}};
-  auto side = [&](const Light& q, size_t k) {
-    return planes[k].a * q.a + planes[k].b * q.b + planes[k].z * q.z - (k == 0 ? zClip : 0.0);
-  };
-  auto before = [](const Light& p, const Light& q) {
-    return p.a < q.a || (p.a == q.a && (p.b < q.b || (p.b == q.b && p.z < q.z)));
-  };
-  auto crossing = [&](const Light& p, const Light& q, size_t k) {
-    const double fp = side(p, k), fq = side(q, k), s = fp / (fp - fq);
-    return Light{p.a + (q.a - p.a) * s, p.b + (q.b - p.b) * s, p.z + (q.z - p.z) * s};
-  };
 
   Projection projection;
-  std::vector<Light> poly, clipped;
+  std::vector<LightPoint> poly, scratch;
   std::vector<Projected> image;
   for (size_t i = 0; i < scene.triangleCount(); ++i) {
     std::array<Vec3, 3> rel;
@@ -198,23 +181,11 @@ RasterScene::RasterScene(const Scene& scene, const PerspectiveGrid& grid, double
       rel[size_t(c)] = scene.vertex(i, c) - grid.position();
       poly.push_back({dot(rel[size_t(c)], f.u), dot(rel[size_t(c)], f.v), dot(rel[size_t(c)], f.dir)});
     }
-    for (size_t k = 0; k < planes.size() && !poly.empty(); ++k) {
-      bool inside = true;
-      for (const Light& q : poly) inside = inside && side(q, k) >= 0;
-      if (inside) continue;
-      clipped.clear();
-      for (size_t j = 0; j < poly.size(); ++j) {
-        const Light p = poly[j], q = poly[(j + 1) % poly.size()];
-        const bool ip = side(p, k) >= 0, iq = side(q, k) >= 0;
-        if (ip) clipped.push_back(p);
-        if (ip != iq) clipped.push_back(before(p, q) ? crossing(p, q, k) : crossing(q, p, k));
-      }
-      poly.swap(clipped);
-    }
+    clipToFrustum(poly, scratch, zClip, guard);
     if (poly.size() < 3) continue;  // nothing of it in front of the light, near the grid
     image.clear();
     double zMin = poly[0].z, zMax = poly[0].z;
-    for (const Light& q : poly) {
+    for (const LightPoint& q : poly) {
       image.push_back({q.a / q.z * scale + half, q.b / q.z * scale + half});
       zMin = std::min(zMin, q.z);
       zMax = std::max(zMax, q.z);

@@ -1,0 +1,57 @@
+// A local light as a lighting artist describes it (seed 000 §5): a spot light or a point
+// light, where it is, where it points, how far it reaches, and what its shading needs.
+// What the planner turns into perspective grids (light_plan.h).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "cpvs/base/vec3.h"
+
+namespace cpvs {
+
+enum class LightKind : uint8_t {
+  Spot = 0,   // one perspective grid around its cone
+  Point = 1,  // six 90-degree perspective grids, a cube's faces
+};
+const char* lightKindName(LightKind kind);
+
+/// The widest spot cone, half-angle in degrees (PerspectiveGrid's widest frustum).
+constexpr double kMaxConeDeg = 85;
+/// The most lights one bake takes.
+constexpr size_t kMaxLights = 4096;
+/// How far outside the scene's bounding box a light may be, in its diagonal.
+constexpr double kLightBoundsMargin = 0.1;
+
+struct Light {
+  LightKind kind = LightKind::Spot;
+  std::string name;
+  Vec3 position;
+  Vec3 direction{0, -1, 0};  // a spot light's axis (need not be unit length)
+  double coneDeg = 45;       // a spot light's half-angle, degrees in (0, kMaxConeDeg]
+  double range = 0;          // how far its light reaches (its grids' far); 0: the scene's far side
+  Vec3 colour{1, 1, 1};      // linear RGB, for shading only
+  double intensity = 1;      // for shading only
+  double near = 0;           // its grids' near; 0: planned from the closest geometry
+  int log2Resolution = 0;    // its grids' resolution; 0: planned from the footprint
+};
+
+/// InputError naming `source` ("light 3 (lamp)") and what is wrong: a position that is
+/// not finite or lies outside the scene's bounds [lo, hi] grown by kLightBoundsMargin of
+/// their diagonal, a spot direction that is zero, a cone outside (0, kMaxConeDeg], a
+/// negative or non-finite range, near or intensity, a near not below the range, a
+/// colour that is negative, or a resolution out of range.
+void checkLight(const Light& light, const Vec3& lo, const Vec3& hi, const std::string& source);
+/// InputError unless 1 <= count <= kMaxLights.
+void checkLightCount(size_t count);
+/// "light 3" or "light 3 (lamp)": how errors and listings name light `index`.
+std::string lightLabel(const Light& light, size_t index);
+
+/// A spot light from the command line: "X,Y,Z:DX,DY,DZ:CONE[:RANGE]" (position, axis, the
+/// half-angle in degrees, the reach); InputError naming the flag otherwise.
+Light parseSpotFlag(const std::string& text);
+/// A point light from the command line: "X,Y,Z[:RANGE]".
+Light parsePointFlag(const std::string& text);
+
+}  // namespace cpvs

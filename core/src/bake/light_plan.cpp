@@ -1,0 +1,90 @@
+#include "cpvs/bake/light_plan.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "cpvs/base/error.h"
+#include "cpvs/base/limits.h"
+#include "cpvs/light/frustum_clip.h"
+#include "cpvs/scene/scene.h"
+
+namespace cpvs {
+
+namespace {
+
+constexpr double kDegrees = 3.14159265358979323846 / 180;
+
+// A cube face's frustum has half-angle 45 degrees; its texels reach the corners at
+// sqrt(2) from the axis, so a cone wider than that cuts nothing.
+constexpr double kFaceTanCone = 2;
+
+const std::array<Vec3, 6> kCubeAxes{Vec3{1, 0, 0}, Vec3{-1, 0, 0}, Vec3{0, 1, 0},
+                                    Vec3{0, -1, 0}, Vec3{0, 0, 1},  Vec3{0, 0, -1}};
+
+// The view depth of the closest scene geometry inside the frustum of half-angle
+// atan(tanHalf) along `frame` from `position`, not nearer than zMin > 0; infinity for none.
+double closestDepth(const Scene& scene, const Vec3& position, const LightFrame& frame, double tanHalf, double zMin) {
+  double closest = std::numeric_limits<double>::infinity();
+  std::vector<LightPoint> poly, scratch;
+  for (size_t t = 0; t < scene.triangleCount(); ++t) {
+    poly.clear();
+    for (int c = 0; c < 3; ++c) {
+      const Vec3 q = scene.vertex(t, c) - position;
+      poly.push_back({dot(q, frame.u), dot(q, frame.v), dot(q, frame.dir)});
+    }
+    clipToFrustum(poly, scratch, zMin, tanHalf);
+    if (poly.size() < 3) continue;
+    for (const LightPoint& p : poly) closest = std::min(closest, p.z);
+  }
+  return closest;
+}
+
+}  // namespace
+
+int cubeFace(const Vec3& d) {
+  const double ax = std::abs(d.x), ay = std::abs(d.y), az = std::abs(d.z);
+  if (ax >= ay && ax >= az) return d.x >= 0 ? 0 : 1;
+  if (ay >= az) return d.y >= 0 ? 2 : 3;
+  return d.z >= 0 ? 4 : 5;
+}
+
+std::vector<LightGridPlan> planLightGrids(const Scene& scene, const Light& light, double footprint) {
+  if (scene.triangleCount() == 0) throw InputError("planning a light: the scene is empty");
+  if (light.log2Resolution == 0 && !(footprint > 0 && std::isfinite(footprint)))
+    throw InputError("planning a light: the texel footprint " + std::to_string(footprint) + " must be positive");
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  double far = light.range;
+  if (far == 0) {
+    for (int corner = 0; corner < 8; ++corner) {
+      const Vec3 c{corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z};
+      far = std::max(far, length(c - light.position));
+    }
+    far *= 1.0001;  // the farthest corner lies inside the grid
+  }
+  std::vector<std::pair<LightFrame, double>> views;  // frame and tan of the frustum's half-angle
+  if (light.kind == LightKind::Spot) {
+    views.push_back({LightFrame::fromDirection(light.direction), std::tan(light.coneDeg * kDegrees)});
+  } else {
+    for (const Vec3& axis : kCubeAxes) views.push_back({LightFrame::fromDirection(axis), 1.0});
+  }
+  std::vector<LightGridPlan> plans;
+  for (const auto& [frame, tanHalf] : views) {
+    // Geometry at the light itself (its fixture) counts too: near clamps it.
+    const double closest = closestDepth(scene, light.position, frame, tanHalf, far * 1e-12);
+    double near = light.near;
+    if (near == 0) near = std::clamp(closest, far / kMaxDepthRatio, far / 2);
+    int log2R = light.log2Resolution;
+    if (log2R == 0) {
+      const double texels = 2 * far * tanHalf / footprint;  // the frustum's width at far, in footprints
+      log2R = std::clamp(int(std::ceil(std::log2(std::max(texels, 1.0)))), kMinLog2Resolution, kMaxPlannedLog2Resolution);
+    }
+    const double tanCone = light.kind == LightKind::Spot ? tanHalf : kFaceTanCone;
+    plans.push_back({PerspectiveGrid(light.position, frame, tanHalf, near, far, log2R), tanCone, closest});
+  }
+  return plans;
+}
+
+}  // namespace cpvs

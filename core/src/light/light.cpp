@@ -1,0 +1,93 @@
+#include "cpvs/light/light.h"
+
+#include <cmath>
+
+#include "cpvs/base/error.h"
+#include "cpvs/base/limits.h"
+#include "cpvs/base/parse.h"
+
+namespace cpvs {
+
+const char* lightKindName(LightKind kind) { return kind == LightKind::Spot ? "spot" : "point"; }
+
+std::string lightLabel(const Light& light, size_t index) {
+  return "light " + std::to_string(index) + (light.name.empty() ? "" : " (" + light.name + ")");
+}
+
+void checkLightCount(size_t count) {
+  if (count == 0) throw InputError("no lights: a bake of local lights needs at least one");
+  if (count > kMaxLights)
+    throw InputError(std::to_string(count) + " lights: a bake takes at most " + std::to_string(kMaxLights));
+}
+
+void checkLight(const Light& l, const Vec3& lo, const Vec3& hi, const std::string& source) {
+  auto fail = [&](const std::string& what) { throw InputError(source + ": " + what); };
+  if (!isFinite(l.position)) fail("the position is not finite");
+  const double margin = kLightBoundsMargin * length(hi - lo);
+  const Vec3& p = l.position;
+  if (p.x < lo.x - margin || p.y < lo.y - margin || p.z < lo.z - margin || p.x > hi.x + margin ||
+      p.y > hi.y + margin || p.z > hi.z + margin)
+    fail("the position (" + std::to_string(p.x) + ", " + std::to_string(p.y) + ", " + std::to_string(p.z) +
+         ") is outside the scene's bounds (" + std::to_string(lo.x) + ", " + std::to_string(lo.y) + ", " +
+         std::to_string(lo.z) + ") to (" + std::to_string(hi.x) + ", " + std::to_string(hi.y) + ", " +
+         std::to_string(hi.z) + ")");
+  if (l.kind == LightKind::Spot) {
+    if (!isFinite(l.direction) || !(length(l.direction) > 0)) fail("the spot light's direction is zero or not finite");
+    if (!(l.coneDeg > 0) || !(l.coneDeg <= kMaxConeDeg))
+      fail("the cone's half-angle " + std::to_string(l.coneDeg) + " degrees is outside (0, " +
+           std::to_string(int(kMaxConeDeg)) + "]");
+  }
+  if (!std::isfinite(l.range) || l.range < 0) fail("the range must be 0 (to the scene's far side) or positive");
+  if (!std::isfinite(l.near) || l.near < 0) fail("near must be 0 (planned) or positive");
+  if (l.near > 0 && l.range > 0 && !(l.near < l.range))
+    fail("near " + std::to_string(l.near) + " must be less than the range " + std::to_string(l.range));
+  if (!isFinite(l.colour) || l.colour.x < 0 || l.colour.y < 0 || l.colour.z < 0) fail("the colour must be finite and not negative");
+  if (!std::isfinite(l.intensity) || l.intensity < 0) fail("the intensity must be finite and not negative");
+  if (l.log2Resolution != 0 && (l.log2Resolution < kMinLog2Resolution || l.log2Resolution > kMaxLog2Resolution))
+    fail("resolution 2^" + std::to_string(l.log2Resolution) + " is out of range");
+}
+
+namespace {
+
+// "A:B[:C...]" split at the colons.
+std::vector<std::string> fields(const std::string& text) {
+  std::vector<std::string> out(1);
+  for (char c : text) {
+    if (c == ':') out.emplace_back();
+    else out.back() += c;
+  }
+  return out;
+}
+
+double number(const std::string& text, const std::string& what) {
+  const std::vector<double> v = parseNumbers(text, what);
+  if (v.size() != 1) throw InputError(what + ": expected one number, got \"" + text + "\"");
+  return v[0];
+}
+
+}  // namespace
+
+Light parseSpotFlag(const std::string& text) {
+  const std::vector<std::string> f = fields(text);
+  if (f.size() < 3 || f.size() > 4)
+    throw InputError("--spot \"" + text + "\": expected X,Y,Z:DX,DY,DZ:CONE[:RANGE] (position, axis, half-angle in degrees, reach)");
+  Light l;
+  l.kind = LightKind::Spot;
+  l.position = parseVec3(f[0], "--spot position");
+  l.direction = parseVec3(f[1], "--spot direction");
+  l.coneDeg = number(f[2], "--spot cone");
+  if (f.size() == 4) l.range = number(f[3], "--spot range");
+  return l;
+}
+
+Light parsePointFlag(const std::string& text) {
+  const std::vector<std::string> f = fields(text);
+  if (f.empty() || f.size() > 2) throw InputError("--point \"" + text + "\": expected X,Y,Z[:RANGE] (position, reach)");
+  Light l;
+  l.kind = LightKind::Point;
+  l.position = parseVec3(f[0], "--point position");
+  if (f.size() == 2) l.range = number(f[1], "--point range");
+  return l;
+}
+
+}  // namespace cpvs
