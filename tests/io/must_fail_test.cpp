@@ -103,7 +103,7 @@ std::vector<Case> headerCases() {
       {"tile size", [](Bytes& b) { put<int32_t>(b, kTile, 2); }, "tile size 2^2 is out of range"},
       {"trailing bytes", [](Bytes& b) { b.insert(b.end() - 8, {0, 0, 0, 0}); }, "unexpected bytes after the payload"},
       {"magic", [](Bytes& b) { b[0] = 'X'; }, "not a .cpvs file"},
-      {"version", [](Bytes& b) { put<uint32_t>(b, 4, 9); }, "format version 9 is not supported (this build reads versions 1 to 3)"},
+      {"version", [](Bytes& b) { put<uint32_t>(b, 4, 9); }, "format version 9 is not supported (this build reads versions 1 to 4)"},
   };
 }
 

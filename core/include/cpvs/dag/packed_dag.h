@@ -4,25 +4,43 @@
 
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <vector>
 
 #include "cpvs/base/error.h"
 #include "cpvs/dag/child_codes.h"
 #include "cpvs/dag/dag.h"
+#include "cpvs/dag/node_pool.h"
 #include "cpvs/dag/packed_layout.h"
 
 namespace cpvs {
 
+/// The packed layout of a pool of complete DAGs (node_pool.h): one header per root at
+/// word 48 k, each root's pointer grid after the headers in root order, then the shared
+/// nodes (top level first) and leaves. Every header's offsets are into the whole array;
+/// its levels are the pool's below its root, its leaves the pool's. One root gives
+/// exactly the layout of a single DAG. InputError beyond 2^32 words (16 GiB).
+std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::vector<InternalLevel>& levels,
+                               const std::vector<NodePool::Root>& roots);
+/// The pool that packPool packed into `words` for `rootCount` roots, after checking every
+/// header, code, offset and grid entry: packing it again must give exactly `words`.
+/// InputError naming what is wrong otherwise.
+NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t rootCount);
+
 /// One array of 32-bit words: header, pointer grid, internal nodes (code word, then the
 /// word offsets of its kRef children), leaves as word pairs. A lookup reads one array,
 /// usually one cache line per level below the grid, where Dag's levels spread a node
-/// over three arrays (codes, childBegin, children).
+/// over three arrays (codes, childBegin, children). A light bundle's DAGs share one
+/// array (packPool), each with its own header.
 class PackedDag {
  public:
   PackedDag() : PackedDag(emptyDag()) {}
   /// Flattens a complete DAG (one root of the grid's size). InputError when it holds
   /// more than 2^32 words (16 GiB).
   explicit PackedDag(const Dag& dag);
+  /// DAG `root` of a packed pool (packPool's words, shared with the other roots' views),
+  /// which holds `nodeBytes` of it (reachableBytes).
+  PackedDag(std::shared_ptr<const std::vector<uint32_t>> pool, size_t root, uint64_t nodeBytes);
 
   /// Adopts the words of a packed section as they were read, after checking every field,
   /// code, offset and grid entry: the words must be exactly what packing the DAG they
@@ -35,7 +53,7 @@ class PackedDag {
   /// Bytes of the node data (8 per leaf, 4 per node word), as Dag::bytes() counts them.
   uint64_t bytes() const { return nodeBytes_; }
   /// Bytes of the whole array, header and pointer grid included: what a GPU holds.
-  uint64_t arrayBytes() const { return words_.size() * 4; }
+  uint64_t arrayBytes() const { return words_->size() * 4; }
 
   /// The 8x8 shadow mask (bit ty*8+tx set = shadowed) of the leaf slice holding voxel
   /// (x, y, z), each < 2^log2Resolution; all ones or zeros inside a homogeneous node. One
@@ -43,18 +61,18 @@ class PackedDag {
   /// footprint touches at most 4 slices instead of 81 walks (PCF 9x9 on the bunny, 1K-16K:
   /// 1.4-2.5 us per lookup with one walk per texel, 0.14-0.28 us with this).
   uint64_t leafSliceMask(uint64_t x, uint64_t y, uint64_t z) const {
-    const uint32_t* w = words_.data();
+    const uint32_t* w = w_;
     uint32_t at = w[header_.gridWord + gridCell(log2Resolution(), int(header_.gridLevels), x, y, z)];
     if (at >= kGridShadowed) return at == kGridShadowed ? ~uint64_t{0} : 0;
     for (int level = header_.cellLevel(); level >= 0; --level) {
-      CPVS_DCHECK(at < words_.size());
+      CPVS_DCHECK(at < words_->size());
       const uint32_t codes = w[at];
       const int c = childOfVoxel(level, x, y, z);
       const uint32_t code = childCode(codes, c);
       if (code != kRef) return code == kShadowed ? ~uint64_t{0} : 0;
       at = w[at + 1 + uint32_t(refRank(codes, c))];
     }
-    CPVS_DCHECK(at + 1 < words_.size());
+    CPVS_DCHECK(at + 1 < words_->size());
     return uint64_t(w[at]) | uint64_t(w[at + 1]) << 32;
   }
   /// Shadow value of one voxel: true = shadowed.
@@ -62,14 +80,18 @@ class PackedDag {
     return (leafSliceMask(x, y, z) >> leafBit(x, y)) & 1;
   }
 
-  const std::vector<uint32_t>& words() const { return words_; }
+  /// The whole array (a bundle's: every root's), as a GPU takes it.
+  const std::vector<uint32_t>& words() const { return *words_; }
+  /// The word where this DAG's header starts (0 but in a bundle).
+  uint32_t headerWord() const { return headerWord_; }
 
  private:
-  PackedDag(std::vector<uint32_t> words, uint64_t nodeBytes);
   static Dag emptyDag();
 
-  std::vector<uint32_t> words_;
-  PackedHeader header_{};  // a copy of words_[0..48), read without aliasing the array
+  std::shared_ptr<const std::vector<uint32_t>> words_;  // immutable: copies share it
+  const uint32_t* w_ = nullptr;                         // words_->data()
+  uint32_t headerWord_ = 0;
+  PackedHeader header_{};  // a copy of the header, read without aliasing the array
   uint64_t nodeBytes_ = 0;
 };
 

@@ -18,6 +18,8 @@ namespace cpvs {
 /// read (as baked for receivers everywhere).
 constexpr uint32_t kCpvsFormatVersion = 3;
 constexpr uint32_t kCpvsOldestFormatVersion = 1;
+/// Version 4 is a light bundle (bundle_file.h): many local lights, one node pool.
+constexpr uint32_t kBundleFormatVersion = 4;
 /// The largest plan a file may record.
 constexpr uint32_t kMaxPlanBytes = 1u << 20;
 
@@ -61,5 +63,9 @@ inline CpvsArtifact readCpvs(const std::string& path) {
   auto bytes = readFile(path);
   return decodeCpvs(bytes.data(), bytes.size(), path);
 }
+
+/// The format version of a .cpvs file's bytes (which reader takes it), after its magic;
+/// FormatError naming `source` for bytes that are not a .cpvs file.
+uint32_t cpvsFormatVersion(const uint8_t* data, size_t size, const std::string& source);
 
 }  // namespace cpvs

@@ -1,0 +1,80 @@
+#include "cpvs/bake/bake_lights.h"
+
+#include <cmath>
+
+#include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_scene.h"
+#include "cpvs/bake/light_plan.h"
+#include "cpvs/base/error.h"
+#include "cpvs/base/text.h"
+#include "cpvs/dag/node_pool.h"
+#include "cpvs/dag/packed_dag.h"
+#include "cpvs/scene/scene.h"
+
+namespace cpvs {
+
+std::string lightPlanJson(const LightBundle& b, const std::vector<double>& closest) {
+  std::string out = "{\"grids\": [";
+  for (size_t k = 0; k < b.grids.size(); ++k) {
+    const BundleGrid& g = b.grids[k];
+    const double c = k < closest.size() ? closest[k] : std::nan("");
+    out += std::string(k ? ", " : "") + "{\"light\": " + std::to_string(g.light) + ", \"near\": " +
+           jsonNumber(g.grid.near()) + ", \"far\": " + jsonNumber(g.grid.far()) + ", \"resolution\": " +
+           std::to_string(g.grid.resolution()) + ", \"closest\": " + (std::isfinite(c) ? jsonNumber(c) : "null") +
+           ", \"bytes\": " + std::to_string(g.bytes) + "}";
+  }
+  return out + "]}";
+}
+
+LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, double footprint,
+                       const BakeOptions& options, const Hash128& sceneHash, StageTimes* times,
+                       const ProgressFn& progress) {
+  if (options.receivers != ReceiverKind::Everywhere)
+    throw InputError("local lights are baked for receivers everywhere (--receivers " +
+                     std::string(optionName(options.receivers)) + " is for the sun)");
+  checkLightCount(lights.size());
+  if (scene.triangleCount() == 0) throw InputError("baking lights: the scene is empty");
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  for (size_t i = 0; i < lights.size(); ++i) {
+    checkLight(lights[i], lo, hi, lightLabel(lights[i], i));
+    if (lights[i].name.size() > kMaxLightNameBytes)
+      throw InputError(lightLabel(lights[i], i) + ": the name is longer than " + std::to_string(kMaxLightNameBytes) + " bytes");
+  }
+  LightBundle b;
+  b.options = options;
+  b.sceneHash = sceneHash;
+  std::vector<double> closest;
+  for (size_t i = 0; i < lights.size(); ++i) {
+    BundleLight bl{lights[i], uint32_t(b.grids.size()), 0};
+    for (LightGridPlan& p : planLightGrids(scene, lights[i], footprint)) {
+      b.grids.push_back({std::move(p.grid), p.tanCone, uint32_t(i), 0});
+      closest.push_back(p.closest);
+    }
+    bl.gridCount = uint32_t(b.grids.size()) - bl.firstGrid;
+    b.lights.push_back(std::move(bl));
+  }
+  StageTimes local;
+  StageTimes& st = times ? *times : local;
+  std::vector<Dag> dags;
+  dags.reserve(b.grids.size());
+  if (progress && !progress("lights", 0, b.grids.size())) throw Cancelled();
+  for (const BundleGrid& g : b.grids) {
+    const BakeScene prepared(scene, g.grid, g.tanCone, options.renderer);
+    dags.push_back(bakeGrid(prepared, options, &st));
+    if (progress && !progress("lights", dags.size(), b.grids.size())) throw Cancelled();
+  }
+  auto start = std::chrono::steady_clock::now();
+  std::vector<const Dag*> all;
+  for (const Dag& d : dags) all.push_back(&d);
+  const NodePool pool = shareNodes(all);
+  dags.clear();
+  for (size_t k = 0; k < b.grids.size(); ++k) b.grids[k].bytes = reachableBytes(pool, k);
+  b.poolBytes = pool.bytes();
+  b.pool = std::make_shared<const std::vector<uint32_t>>(packPool(pool.leaves, pool.levels, pool.roots));
+  b.plan = lightPlanJson(b, closest);
+  st.add("merge", secondsSince(start));
+  return b;
+}
+
+}  // namespace cpvs

@@ -1,0 +1,75 @@
+#include "io/bake_fields.h"
+
+#include "cpvs/base/text.h"
+#include "cpvs/io/cpvs_file.h"
+
+namespace cpvs {
+
+void putOptions(ByteWriter& w, const BakeOptions& o, const Hash128& sceneHash) {
+  w.put<uint8_t>(uint8_t(o.closed));
+  w.put<uint8_t>(uint8_t(o.exit));
+  w.put<uint8_t>(o.cull ? 1 : 0);
+  w.put<uint8_t>(uint8_t(o.compress));
+  w.put<uint8_t>(uint8_t(o.undefinedRule));
+  w.put<uint8_t>(uint8_t(o.hash));
+  w.put<uint8_t>(uint8_t(o.renderer));  // 0 (embree) in files written before the rasterizer
+  w.put<uint8_t>(0);
+  w.put<int32_t>(o.log2TileSize);
+  w.put(sceneHash.lo);
+  w.put(sceneHash.hi);
+}
+
+void getOptions(ByteReader& h, BakeOptions& o, Hash128& sceneHash) {
+  uint8_t opt[6];
+  for (auto& b : opt) b = h.get<uint8_t>("options");
+  if (!isOptionValue<ClosedMode>(opt[0]) || !isOptionValue<ExitMode>(opt[1]) || opt[2] > 1 ||
+      !isOptionValue<CompressMode>(opt[3]) || !isOptionValue<UndefinedRule>(opt[4]) || !isOptionValue<HashKind>(opt[5]))
+    h.fail("options hold an unknown value");
+  o.closed = ClosedMode(opt[0]);
+  o.exit = ExitMode(opt[1]);
+  o.cull = opt[2] != 0;
+  o.compress = CompressMode(opt[3]);
+  o.undefinedRule = UndefinedRule(opt[4]);
+  o.hash = HashKind(opt[5]);
+  const uint8_t renderer = h.get<uint8_t>("options");
+  if (!isOptionValue<Renderer>(renderer) || h.get<uint8_t>("options") != 0) h.fail("options hold an unknown value");
+  o.renderer = Renderer(renderer);
+  o.log2TileSize = h.get<int32_t>("options");
+  if (o.log2TileSize < kMinLog2TileSize || o.log2TileSize > kMaxLog2TileSize)
+    h.fail("tile size 2^" + std::to_string(o.log2TileSize) + " is out of range");
+  sceneHash.lo = h.get<uint64_t>("header");
+  sceneHash.hi = h.get<uint64_t>("header");
+}
+
+void putReceiversAndPlan(ByteWriter& w, const BakeOptions& o, const Hash128& receiverHash, const std::string& plan) {
+  w.put<uint8_t>(uint8_t(o.receivers));
+  w.put<uint8_t>(o.receivers == ReceiverKind::Everywhere ? 0 : o.receiverPcf);
+  for (int i = 0; i < 6; ++i) w.put<uint8_t>(0);
+  w.put(receiverHash.lo);
+  w.put(receiverHash.hi);
+  CPVS_CHECK(plan.size() <= kMaxPlanBytes);
+  w.put<uint32_t>(uint32_t(plan.size()));
+  for (char c : plan) w.put<uint8_t>(uint8_t(c));
+}
+
+void getReceiversAndPlan(ByteReader& h, BakeOptions& o, Hash128& receiverHash, std::string& plan) {
+  const uint8_t kind = h.get<uint8_t>("receivers"), pcf = h.get<uint8_t>("receivers");
+  bool reservedZero = true;
+  for (int i = 0; i < 6; ++i) reservedZero = h.get<uint8_t>("receivers") == 0 && reservedZero;
+  receiverHash.lo = h.get<uint64_t>("receivers");
+  receiverHash.hi = h.get<uint64_t>("receivers");
+  const bool everywhere = kind == uint8_t(ReceiverKind::Everywhere);
+  if (!isOptionValue<ReceiverKind>(kind) || !reservedZero) h.fail("the receiver declaration holds an unknown value");
+  if (everywhere ? (pcf != 0 || receiverHash != Hash128{})
+                 : (pcf % 2 == 0 || pcf > kMaxPcfWidthOption || receiverHash == Hash128{}))
+    h.fail("the receiver declaration is inconsistent (kind " + std::to_string(kind) + ", PCF " + std::to_string(pcf) + ")");
+  o.receivers = ReceiverKind(kind);
+  if (!everywhere) o.receiverPcf = pcf;
+  const uint32_t planBytes = h.get<uint32_t>("plan");
+  if (planBytes > kMaxPlanBytes || planBytes > h.remaining()) h.fail("the plan's size " + std::to_string(planBytes) + " is invalid");
+  plan.resize(planBytes);
+  for (char& c : plan) c = char(h.get<uint8_t>("plan"));
+  if (validUtf8Prefix(plan, planBytes) != plan) h.fail("the plan is not UTF-8 text");
+}
+
+}  // namespace cpvs

@@ -1,0 +1,170 @@
+#include "cpvs/io/bundle_file.h"
+
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "cpvs/base/error.h"
+#include "cpvs/base/text.h"
+#include "cpvs/io/cpvs_file.h"
+#include "io/bake_fields.h"
+#include "io/container.h"
+
+namespace cpvs {
+
+uint64_t LightBundle::lightBytes(size_t light) const {
+  const BundleLight& l = lights.at(light);
+  uint64_t b = 0;
+  for (uint32_t k = l.firstGrid; k < l.firstGrid + l.gridCount; ++k) b += grids[k].bytes;
+  return b;
+}
+
+std::vector<uint8_t> encodeBundle(const LightBundle& b, bool zstd) {
+  CPVS_CHECK(!b.lights.empty() && b.pool);
+  ByteWriter w;
+  beginContainer(w, kCpvsKind, zstd ? kContainerZstd : 0);
+  putOptions(w, b.options, b.sceneHash);
+  putReceiversAndPlan(w, b.options, Hash128{}, b.plan);
+  w.put<uint32_t>(uint32_t(b.lights.size()));
+  w.put<uint32_t>(uint32_t(b.grids.size()));
+  for (const BundleLight& bl : b.lights) {
+    const Light& l = bl.light;
+    w.put<uint8_t>(uint8_t(l.kind));
+    for (int i = 0; i < 7; ++i) w.put<uint8_t>(0);
+    w.putVec(l.position);
+    w.putVec(l.direction);
+    w.put(l.coneDeg);
+    w.put(l.range);
+    w.putVec(l.colour);
+    w.put(l.intensity);
+    w.put(l.near);
+    w.put<int32_t>(l.log2Resolution);
+    w.put<uint32_t>(bl.firstGrid);
+    w.put<uint32_t>(bl.gridCount);
+    CPVS_CHECK(l.name.size() <= kMaxLightNameBytes);
+    w.put<uint16_t>(uint16_t(l.name.size()));
+    w.raw(l.name.data(), l.name.size());
+  }
+  for (const BundleGrid& g : b.grids) {
+    w.putVec(g.grid.frame().dir);
+    w.putVec(g.grid.frame().u);
+    w.putVec(g.grid.frame().v);
+    w.put(g.grid.tanHalfFov());
+    w.put(g.tanCone);
+    w.put(g.grid.near());
+    w.put(g.grid.far());
+    w.put<int32_t>(g.grid.log2Resolution());
+    w.put<uint32_t>(g.light);
+    w.put<uint64_t>(g.bytes);
+  }
+  const std::vector<uint32_t>& words = *b.pool;
+  w.put<uint64_t>(words.size());
+  std::vector<uint8_t> bytes(words.size() * 4);
+  std::memcpy(bytes.data(), words.data(), bytes.size());
+  writeSection(w, bytes, zstd);
+  return sealContainer(std::move(w));
+}
+
+LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& source) {
+  uint32_t flags = 0, version = 0;
+  ByteReader h = openContainer(data, size, source, kCpvsKind, kContainerZstd, flags, version);
+  if (version != kBundleFormatVersion)
+    h.fail("a sun artifact (format " + std::to_string(version) + "), not a light bundle");
+  LightBundle b;
+  getOptions(h, b.options, b.sceneHash);
+  Hash128 receiverHash;
+  getReceiversAndPlan(h, b.options, receiverHash, b.plan);
+  if (b.options.receivers != ReceiverKind::Everywhere) h.fail("a light bundle's receivers must be everywhere");
+  const uint32_t lightCount = h.get<uint32_t>("light table"), gridCount = h.get<uint32_t>("light table");
+  if (lightCount == 0 || lightCount > kMaxLights)
+    h.fail("the light count " + std::to_string(lightCount) + " is outside [1, " + std::to_string(kMaxLights) + "]");
+  if (gridCount < lightCount || gridCount > 6 * uint64_t(lightCount))
+    h.fail("the grid count " + std::to_string(gridCount) + " does not fit " + std::to_string(lightCount) + " lights");
+  uint32_t nextGrid = 0;
+  for (uint32_t i = 0; i < lightCount; ++i) {
+    BundleLight bl;
+    Light& l = bl.light;
+    const std::string label = "light " + std::to_string(i);
+    const uint8_t kind = h.get<uint8_t>("light table");
+    bool reservedZero = true;
+    for (int k = 0; k < 7; ++k) reservedZero = h.get<uint8_t>("light table") == 0 && reservedZero;
+    if (kind > uint8_t(LightKind::Point) || !reservedZero) h.fail(label + " holds an unknown kind");
+    l.kind = LightKind(kind);
+    l.position = h.getVec("light table");
+    l.direction = h.getVec("light table");
+    l.coneDeg = h.get<double>("light table");
+    l.range = h.get<double>("light table");
+    l.colour = h.getVec("light table");
+    l.intensity = h.get<double>("light table");
+    l.near = h.get<double>("light table");
+    l.log2Resolution = h.get<int32_t>("light table");
+    bl.firstGrid = h.get<uint32_t>("light table");
+    bl.gridCount = h.get<uint32_t>("light table");
+    const uint16_t nameBytes = h.get<uint16_t>("light table");
+    if (nameBytes > kMaxLightNameBytes) h.fail(label + "'s name is longer than " + std::to_string(kMaxLightNameBytes) + " bytes");
+    l.name.resize(nameBytes);
+    h.copy(l.name.data(), nameBytes, "light table");
+    if (validUtf8Prefix(l.name, nameBytes) != l.name) h.fail(label + "'s name is not UTF-8 text");
+    try {
+      checkLight(l, l.position, l.position, label);  // the bounds are the scene's, not stored
+    } catch (const InputError& e) {
+      h.fail(e.what());
+    }
+    const uint32_t grids = l.kind == LightKind::Spot ? 1 : 6;
+    if (bl.firstGrid != nextGrid || bl.gridCount != grids)
+      h.fail(label + "'s grids " + std::to_string(bl.firstGrid) + " + " + std::to_string(bl.gridCount) +
+             " do not follow the ones before (a " + lightKindName(l.kind) + " light has " + std::to_string(grids) + ")");
+    nextGrid += grids;
+    b.lights.push_back(std::move(bl));
+  }
+  if (nextGrid != gridCount) h.fail("the lights have " + std::to_string(nextGrid) + " grids, the table " + std::to_string(gridCount));
+  for (uint32_t k = 0; k < gridCount; ++k) {
+    const std::string label = "grid " + std::to_string(k);
+    LightFrame frame;
+    frame.dir = h.getVec("grid table");
+    frame.u = h.getVec("grid table");
+    frame.v = h.getVec("grid table");
+    const double tanHalf = h.get<double>("grid table"), tanCone = h.get<double>("grid table");
+    const double near = h.get<double>("grid table"), far = h.get<double>("grid table");
+    const int32_t log2R = h.get<int32_t>("grid table");
+    const uint32_t light = h.get<uint32_t>("grid table");
+    const uint64_t bytes = h.get<uint64_t>("grid table");
+    if (light >= lightCount || k < b.lights[light].firstGrid || k >= b.lights[light].firstGrid + b.lights[light].gridCount)
+      h.fail(label + " names light " + std::to_string(light) + ", which does not hold it");
+    if (!(tanCone > 0) || !std::isfinite(tanCone)) h.fail(label + "'s cone is invalid");
+    try {
+      b.grids.push_back({PerspectiveGrid(b.lights[light].light.position, frame, tanHalf, near, far, log2R), tanCone, light, bytes});
+    } catch (const InputError& e) {
+      h.fail(label + ": " + e.what());
+    }
+  }
+
+  const bool zstd = (flags & kContainerZstd) != 0;
+  const uint64_t count = h.get<uint64_t>("node pool");
+  if (count < uint64_t(kPackedHeaderWords) * gridCount || count > UINT32_MAX)
+    h.fail("node pool word count " + std::to_string(count) + " is invalid");
+  std::vector<uint8_t> storage;
+  const uint8_t* bytes = readSection(h, zstd, count * 4, "node pool", storage);
+  std::vector<uint32_t> words(count);
+  std::memcpy(words.data(), bytes, count * 4);
+  if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");
+  NodePool pool;
+  try {
+    pool = parsePackedPool(words, gridCount);
+  } catch (const InputError& e) {
+    h.fail(e.what());
+  }
+  for (uint32_t k = 0; k < gridCount; ++k) {
+    if (pool.roots[k].log2Resolution != b.grids[k].grid.log2Resolution())
+      h.fail("grid " + std::to_string(k) + "'s DAG is of resolution 2^" + std::to_string(pool.roots[k].log2Resolution) +
+             ", the grid of 2^" + std::to_string(b.grids[k].grid.log2Resolution()));
+    if (reachableBytes(pool, k) != b.grids[k].bytes)
+      h.fail("grid " + std::to_string(k) + " records " + std::to_string(b.grids[k].bytes) + " bytes, its DAG holds " +
+             std::to_string(reachableBytes(pool, k)));
+  }
+  b.poolBytes = pool.bytes();
+  b.pool = std::make_shared<const std::vector<uint32_t>>(std::move(words));
+  return b;
+}
+
+}  // namespace cpvs

@@ -1,0 +1,234 @@
+// The light bundle (seed 000 §6.1, NOTES §1.4 items 9 and 10): DAGs of any resolutions
+// shared in one node pool answer every voxel as each DAG alone does; a bundle of spot and
+// point lights over the city round-trips through the file, stores less than separate
+// DAGs, gives the same bytes for any tile size, and bad bundles and bad lights are
+// refused with what is wrong before any work.
+#include <gtest/gtest.h>
+#include <xxhash.h>
+
+#include <cstring>
+#include <random>
+
+#include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_lights.h"
+#include "cpvs/bake/bake_scene.h"
+#include "cpvs/bake/light_plan.h"
+#include "cpvs/dag/node_pool.h"
+#include "cpvs/dag/packed_dag.h"
+#include "cpvs/io/bundle_file.h"
+#include "cpvs/io/cpvs_file.h"
+#include "cpvs/scene/source.h"
+#include "error_testing.h"
+#include "scene_testing.h"
+
+namespace cpvs {
+namespace {
+
+using testing::inputErrorOf;
+
+// Three sun bakes of the city, two resolutions, one of them twice.
+std::vector<Dag> sunDags() {
+  const Scene scene = openScene("city:3");
+  std::vector<Dag> dags;
+  dags.push_back(testing::bakeWith(scene, makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 6), {}));
+  dags.push_back(testing::bakeWith(scene, makeGrid(scene, LightFrame::fromDirection({-0.5, -1, 0.1}), 7), {}));
+  dags.push_back(dags[0]);
+  return dags;
+}
+
+TEST(NodePool, SharedNodesAnswerEveryVoxelAsEachDagAlone) {
+  const std::vector<Dag> dags = sunDags();
+  const NodePool pool = shareNodes({&dags[0], &dags[1], &dags[2]});
+  ASSERT_EQ(pool.roots.size(), 3u);
+  EXPECT_EQ(pool.levels.size(), dags[1].levels.size()) << "as many levels as the finest DAG";
+  auto words = std::make_shared<const std::vector<uint32_t>>(packPool(pool.leaves, pool.levels, pool.roots));
+  uint64_t separate = 0;
+  for (size_t k = 0; k < dags.size(); ++k) {
+    const Dag& d = dags[k];
+    EXPECT_EQ(reachableBytes(pool, k), d.bytes()) << "a compressed DAG has no duplicate to share with itself";
+    separate += d.bytes();
+    const PackedDag view(words, k, reachableBytes(pool, k));
+    EXPECT_EQ(view.log2Resolution(), d.log2Resolution);
+    const uint64_t R = uint64_t(1) << d.log2Resolution;
+    for (uint64_t z = 0; z < R; ++z)
+      for (uint64_t y = 0; y < R; ++y)
+        for (uint64_t x = 0; x < R; ++x)
+          ASSERT_EQ(view.voxelShadowed(x, y, z), dagVoxelShadowed(d, x, y, z)) << "DAG " << k << " at " << x << ", " << y << ", " << z;
+  }
+  // The repeated DAG costs nothing; the two different ones share some nodes too.
+  EXPECT_LT(pool.bytes(), dags[0].bytes() + dags[1].bytes());
+  EXPECT_LT(pool.bytes(), separate);
+  // Parsing the words gives the pool back.
+  const NodePool again = parsePackedPool(*words, 3);
+  EXPECT_EQ(packPool(again.leaves, again.levels, again.roots), *words);
+  // A pool of one DAG is that DAG's packed layout.
+  EXPECT_EQ(packPool(dags[1].leaves, dags[1].levels, {{7, dags[1].roots[0].ref}}), PackedDag(dags[1]).words());
+}
+
+TEST(NodePool, DamagedPoolsAreRefused) {
+  const std::vector<Dag> dags = sunDags();
+  const NodePool pool = shareNodes({&dags[0], &dags[1]});
+  const std::vector<uint32_t> good = packPool(pool.leaves, pool.levels, pool.roots);
+  auto refusal = [&](auto&& damage) {
+    std::vector<uint32_t> w = good;
+    damage(w);
+    return inputErrorOf([&] { parsePackedPool(w, 2); });
+  };
+  PackedHeader h1;
+  std::memcpy(&h1, good.data() + kPackedHeaderWords, sizeof h1);
+  EXPECT_NE(refusal([](auto& w) { w[kPackedHeaderWords + 5] += 2; }).find("disagree on the shared leaves"), std::string::npos);
+  EXPECT_NE(refusal([](auto& w) { w[kPackedHeaderWords + 4] += 1; }).find("level counts do not match"), std::string::npos);
+  EXPECT_NE(refusal([&](auto& w) { w[kPackedHeaderWords + 10 + 1] += 1; }).find("disagree on level 1"), std::string::npos);
+  EXPECT_NE(refusal([&](auto& w) { w[h1.gridWord] ^= 1; }).find("pointer grid or the padding"), std::string::npos);
+  EXPECT_EQ(refusal([](auto&) {}), "");
+  EXPECT_NE(inputErrorOf([&] { parsePackedPool(good, 3); }), "") << "three headers where there are two";
+}
+
+// Two spot lights and a point light over the city, planned from a footprint.
+std::vector<Light> cityLights(const Scene& scene) {
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const Vec3 c = (lo + hi) * 0.5, e = hi - lo;
+  std::vector<Light> lights(3);
+  lights[0].name = "flood";
+  lights[0].position = c + Vec3{0.1 * e.x, 0.45 * e.y, -0.05 * e.z};
+  lights[0].direction = {0.25, -1, 0.15};
+  lights[0].coneDeg = 50;
+  lights[1].name = "street";
+  lights[1].position = c + Vec3{-0.3 * e.x, -0.3 * e.y, 0.2 * e.z};
+  lights[1].direction = {1, -0.3, -0.3};
+  lights[1].coneDeg = 25;
+  lights[1].range = 0.5 * length(e);
+  lights[2].name = "bulb";
+  lights[2].kind = LightKind::Point;
+  lights[2].position = c + Vec3{0.05 * e.x, 0.3 * e.y, 0.02 * e.z};
+  lights[2].range = 0.4 * length(e);
+  lights[2].colour = {1, 0.8, 0.5};
+  return lights;
+}
+
+TEST(LightBundle, BakesRoundTripsAndSharesAcrossLights) {
+  const Scene scene = openScene("city:3");
+  const std::vector<Light> lights = cityLights(scene);
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const double footprint = length(hi - lo) / 64;
+  BakeOptions options;
+  options.log2TileSize = 5;
+  const LightBundle b = bakeLights(scene, lights, footprint, options, sceneHash(scene));
+  ASSERT_EQ(b.lights.size(), 3u);
+  ASSERT_EQ(b.grids.size(), 8u) << "two spots and a cube";
+  uint64_t separate = 0;
+  std::mt19937_64 rng(3);
+  for (size_t k = 0; k < b.grids.size(); ++k) {
+    const BundleGrid& g = b.grids[k];
+    const BakeScene prepared(scene, g.grid, g.tanCone, options.renderer);
+    const Dag alone = bakeGrid(prepared, options);
+    EXPECT_EQ(g.bytes, alone.bytes()) << "grid " << k;
+    separate += alone.bytes();
+    const PackedDag view = b.dag(k), single(alone);
+    const uint64_t R = g.grid.resolution();
+    for (int i = 0; i < 20000; ++i) {
+      const uint64_t x = rng() % R, y = rng() % R, z = rng() % R;
+      ASSERT_EQ(view.voxelShadowed(x, y, z), single.voxelShadowed(x, y, z)) << "grid " << k;
+    }
+  }
+  EXPECT_LT(b.poolBytes, separate) << "the pool shares nodes across lights";
+  EXPECT_EQ(b.lightBytes(2), b.grids[2].bytes + b.grids[3].bytes + b.grids[4].bytes + b.grids[5].bytes +
+                                 b.grids[6].bytes + b.grids[7].bytes);
+
+  for (bool zstd : {false, true}) {
+    const std::vector<uint8_t> bytes = encodeBundle(b, zstd);
+    const LightBundle back = decodeBundle(bytes.data(), bytes.size(), "bundle");
+    EXPECT_EQ(*back.pool, *b.pool);
+    EXPECT_EQ(back.poolBytes, b.poolBytes);
+    EXPECT_EQ(back.plan, b.plan);
+    EXPECT_EQ(back.options, b.options);
+    ASSERT_EQ(back.lights.size(), b.lights.size());
+    for (size_t i = 0; i < b.lights.size(); ++i) {
+      EXPECT_EQ(back.lights[i].light.name, b.lights[i].light.name);
+      EXPECT_EQ(back.lights[i].light.position, b.lights[i].light.position);
+      EXPECT_EQ(back.lights[i].light.colour, b.lights[i].light.colour);
+      EXPECT_EQ(back.lights[i].firstGrid, b.lights[i].firstGrid);
+    }
+    for (size_t k = 0; k < b.grids.size(); ++k) {
+      EXPECT_EQ(back.grids[k].grid.near(), b.grids[k].grid.near());
+      EXPECT_EQ(back.grids[k].grid.far(), b.grids[k].grid.far());
+      EXPECT_EQ(back.grids[k].grid.frame().u, b.grids[k].grid.frame().u);
+      EXPECT_EQ(back.grids[k].tanCone, b.grids[k].tanCone);
+    }
+    EXPECT_EQ(encodeBundle(back, zstd), bytes);
+  }
+  // Any tile size: the same pool and plan (the options record the tile size).
+  options.log2TileSize = 12;
+  const LightBundle whole = bakeLights(scene, lights, footprint, options, sceneHash(scene));
+  EXPECT_EQ(*whole.pool, *b.pool);
+  EXPECT_EQ(whole.plan, b.plan);
+}
+
+void resealChecksum(std::vector<uint8_t>& b) {
+  const uint64_t sum = XXH3_64bits(b.data(), b.size() - 8);
+  std::memcpy(b.data() + b.size() - 8, &sum, 8);
+}
+
+TEST(LightBundle, BadBundlesAndBadLightsAreRefused) {
+  const Scene scene = openScene("city:2");
+  std::vector<Light> lights = cityLights(scene);
+  lights.resize(1);
+  lights[0].log2Resolution = 5;
+  const LightBundle b = bakeLights(scene, lights, 0, BakeOptions{}, sceneHash(scene));
+  const std::vector<uint8_t> good = encodeBundle(b, false);
+  auto refusal = [&](auto&& damage) {
+    std::vector<uint8_t> bad = good;
+    damage(bad);
+    resealChecksum(bad);
+    try {
+      decodeBundle(bad.data(), bad.size(), "lamps.cpvs");
+    } catch (const FormatError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(refusal([](auto&) {}), "");
+  // The header: magic, version, flags (12 bytes), options and scene hash (28), receivers
+  // (24), the plan (4 + its bytes), then the counts.
+  const size_t counts = 12 + 28 + 24 + 4 + b.plan.size();
+  EXPECT_NE(refusal([&](auto& v) { v[counts] = 0; }).find("light count 0"), std::string::npos);
+  EXPECT_NE(refusal([&](auto& v) { v[counts + 4] = 7; }).find("grid count 7"), std::string::npos);
+  EXPECT_NE(refusal([&](auto& v) { v[counts + 8] = 9; }).find("unknown kind"), std::string::npos);
+  const size_t cone = counts + 8 + 8 + 48;
+  EXPECT_NE(refusal([&](auto& v) { std::memset(v.data() + cone, 0, 8); }).find("cone"), std::string::npos);
+  // A node's code word with a bit beyond the eight codes.
+  PackedHeader h;
+  std::memcpy(&h, b.pool->data(), sizeof h);
+  const size_t pool = good.size() - 8 - 4 * b.pool->size();
+  EXPECT_NE(refusal([&](auto& v) { v[pool + 4 * size_t(h.levelWord[h.internalLevels - 1]) + 2] |= 0x10; })
+                .find("invalid child code"),
+            std::string::npos);
+  // Single-light artifacts and bundles are told apart by name.
+  std::vector<uint8_t> sun = good;
+  sun[4] = 3;
+  resealChecksum(sun);
+  EXPECT_NE(inputErrorOf([&] { decodeBundle(sun.data(), sun.size(), "sun.cpvs"); }).find("a sun artifact"), std::string::npos);
+  EXPECT_NE(inputErrorOf([&] { decodeCpvs(good.data(), good.size(), "lamps.cpvs"); }).find("a light bundle"), std::string::npos);
+
+  // Lights are checked before any work.
+  std::vector<Light> many(100000, lights[0]);
+  EXPECT_NE(inputErrorOf([&] { bakeLights(scene, many, 1, BakeOptions{}, {}); }).find("at most 4096"), std::string::npos);
+  std::vector<Light> two = {lights[0], lights[0]};
+  two[1].coneDeg = 0;
+  EXPECT_NE(inputErrorOf([&] { bakeLights(scene, two, 1, BakeOptions{}, {}); }).find("light 1"), std::string::npos);
+  two[1] = lights[0];
+  two[1].position.y += 1e6;
+  EXPECT_NE(inputErrorOf([&] { bakeLights(scene, two, 1, BakeOptions{}, {}); }).find("outside the scene's bounds"),
+            std::string::npos);
+  two[1] = lights[0];
+  two[1].name = std::string(300, 'x');
+  EXPECT_NE(inputErrorOf([&] { bakeLights(scene, two, 1, BakeOptions{}, {}); }).find("longer than 256"), std::string::npos);
+  BakeOptions surfaces;
+  surfaces.receivers = ReceiverKind::Surfaces;
+  EXPECT_NE(inputErrorOf([&] { bakeLights(scene, lights, 1, surfaces, {}); }).find("receivers everywhere"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace cpvs
