@@ -1,5 +1,7 @@
 #include "io/bake_fields.h"
 
+#include <cstring>
+
 #include "cpvs/base/text.h"
 #include "cpvs/io/cpvs_file.h"
 
@@ -70,6 +72,23 @@ void getReceiversAndPlan(ByteReader& h, BakeOptions& o, Hash128& receiverHash, s
   plan.resize(planBytes);
   for (char& c : plan) c = char(h.get<uint8_t>("plan"));
   if (validUtf8Prefix(plan, planBytes) != plan) h.fail("the plan is not UTF-8 text");
+}
+
+void putWordSection(ByteWriter& w, const std::vector<uint32_t>& words, bool zstd) {
+  w.put<uint64_t>(words.size());
+  std::vector<uint8_t> bytes(words.size() * 4);
+  std::memcpy(bytes.data(), words.data(), bytes.size());
+  writeSection(w, bytes, zstd);
+}
+
+std::vector<uint32_t> getWordSection(ByteReader& h, bool zstd, uint64_t minWords, const char* what) {
+  const uint64_t count = h.get<uint64_t>(what);
+  if (count < minWords || count > UINT32_MAX) h.fail(std::string(what) + " word count " + std::to_string(count) + " is invalid");
+  std::vector<uint8_t> storage;
+  const uint8_t* bytes = readSection(h, zstd, count * 4, what, storage);
+  std::vector<uint32_t> words(count);
+  std::memcpy(words.data(), bytes, count * 4);
+  return words;
 }
 
 }  // namespace cpvs

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "cpvs/bake/options.h"
 #include "cpvs/base/hash.h"
@@ -23,5 +24,12 @@ void getOptions(ByteReader& h, BakeOptions& options, Hash128& sceneHash);
 /// The receiver declaration and the plan (version 3 on).
 void putReceiversAndPlan(ByteWriter& w, const BakeOptions& options, const Hash128& receiverHash, const std::string& plan);
 void getReceiversAndPlan(ByteReader& h, BakeOptions& options, Hash128& receiverHash, std::string& plan);
+
+/// A packed word array (packed_layout.h) as the last section: its word count, then its
+/// words, zstd-compressed when asked.
+void putWordSection(ByteWriter& w, const std::vector<uint32_t>& words, bool zstd);
+/// Reads one: "<what> word count N is invalid" unless minWords <= N < 2^32; the section
+/// must hold exactly those words.
+std::vector<uint32_t> getWordSection(ByteReader& h, bool zstd, uint64_t minWords, const char* what);
 
 }  // namespace cpvs

@@ -57,11 +57,7 @@ std::vector<uint8_t> encodeBundle(const LightBundle& b, bool zstd) {
     w.put<uint32_t>(g.light);
     w.put<uint64_t>(g.bytes);
   }
-  const std::vector<uint32_t>& words = *b.pool;
-  w.put<uint64_t>(words.size());
-  std::vector<uint8_t> bytes(words.size() * 4);
-  std::memcpy(bytes.data(), words.data(), bytes.size());
-  writeSection(w, bytes, zstd);
+  putWordSection(w, *b.pool, zstd);
   return sealContainer(std::move(w));
 }
 
@@ -140,13 +136,7 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
   }
 
   const bool zstd = (flags & kContainerZstd) != 0;
-  const uint64_t count = h.get<uint64_t>("node pool");
-  if (count < uint64_t(kPackedHeaderWords) * gridCount || count > UINT32_MAX)
-    h.fail("node pool word count " + std::to_string(count) + " is invalid");
-  std::vector<uint8_t> storage;
-  const uint8_t* bytes = readSection(h, zstd, count * 4, "node pool", storage);
-  std::vector<uint32_t> words(count);
-  std::memcpy(words.data(), bytes, count * 4);
+  std::vector<uint32_t> words = getWordSection(h, zstd, uint64_t(kPackedHeaderWords) * gridCount, "node pool");
   if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");
   NodePool pool;
   try {

@@ -33,12 +33,7 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   w.put<int32_t>(g.log2Resolution);
   putOptions(w, a.options, a.sceneHash);
   putReceiversAndPlan(w, a.options, a.receiverHash, a.plan);
-  const PackedDag packed(dag);
-  const std::vector<uint32_t>& words = packed.words();
-  w.put<uint64_t>(words.size());
-  std::vector<uint8_t> bytes(words.size() * 4);
-  std::memcpy(bytes.data(), words.data(), bytes.size());
-  writeSection(w, bytes, zstd);
+  putWordSection(w, PackedDag(dag).words(), zstd);
   return sealContainer(std::move(w));
 }
 
@@ -72,12 +67,7 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
 
   const bool zstd = (flags & kContainerZstd) != 0;
   if (version >= 2) {
-    const uint64_t count = h.get<uint64_t>("packed DAG");
-    if (count < kPackedHeaderWords || count > UINT32_MAX) h.fail("packed DAG word count " + std::to_string(count) + " is invalid");
-    std::vector<uint8_t> storage;
-    const uint8_t* bytes = readSection(h, zstd, count * 4, "packed DAG", storage);
-    std::vector<uint32_t> words(count);
-    std::memcpy(words.data(), bytes, count * 4);
+    std::vector<uint32_t> words = getWordSection(h, zstd, kPackedHeaderWords, "packed DAG");
     if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");
     if (words[1] != uint32_t(g.log2Resolution))
       h.fail("the packed DAG is of resolution 2^" + std::to_string(words[1]) + ", the grid of 2^" + std::to_string(g.log2Resolution));
