@@ -8,6 +8,9 @@
 #include <sstream>
 
 #include "bake_flags.h"
+#include "bundle_text.h"
+#include "cpvs/bake/bake_lights.h"
+#include "cpvs/net/convert.h"
 #include "cpvs/bake/camera_views.h"
 #include "cpvs/bake/bake_plan.h"
 #include "cli_util.h"
@@ -25,6 +28,9 @@ namespace {
 struct BakeArgs {
   std::string scene, out, resolution = "4K";
   SunFlags sun;
+  std::vector<std::string> spots, points;
+  std::string lightsFile;
+  double footprint = 0;
   OptionFlags options;
   int threads = 0;
   bool zstd = true, json = false, quiet = false;
@@ -106,10 +112,63 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
               a.out.substr(0, a.out.size() - (a.out.size() > 5 && a.out.ends_with(".cpvs") ? 5 : 0)).c_str());
 }
 
+// The texels of a 4K sun over the scene: the default widest texel of a local light at its far end.
+constexpr double kDefaultFootprintDivisor = 4096;
+
+// `--spot`, `--point`, `--lights`: a light bundle.
+int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point totalStart) {
+  if (!a.sun.dir.empty() || !std::isnan(a.sun.elevation) || !std::isnan(a.sun.azimuth))
+    throw InputError("--spot, --point and --lights bake local lights; the sun flags are for a sun bake");
+  const BakeOptions opt = optionsOf(a.options);
+  if (receiversOf(a.options).kind != ReceiverKind::Everywhere)
+    throw InputError("local lights are baked for receivers everywhere: --receivers is for the sun");
+  std::vector<Light> lights;
+  if (!a.lightsFile.empty()) lights = net::readLightsFile(a.lightsFile);
+  for (const std::string& s : a.spots) lights.push_back(parseSpotFlag(s));
+  for (const std::string& s : a.points) lights.push_back(parsePointFlag(s));
+  checkLightCount(lights.size());
+  if (a.footprint < 0 || !std::isfinite(a.footprint)) throw InputError("--footprint must be positive");
+
+  StageTimes st;
+  auto start = std::chrono::steady_clock::now();
+  SceneStats ss;
+  Scene scene = openScene(a.scene, &ss);
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const double footprint = a.footprint > 0 ? a.footprint : length(hi - lo) / kDefaultFootprintDivisor;
+  st.add("load", secondsSince(start));
+  if (!a.json && !a.quiet)
+    spdlog::info("{}: {} triangles ({} closed), {} light{}, texels at most {:.4g} wide at a light's far end", scene.name,
+                 ss.triangles, ss.closedTriangles, lights.size(), lights.size() == 1 ? "" : "s", footprint);
+  ProgressDisplay progress(!a.json && !a.quiet);
+  const LightBundle bundle = bakeLights(scene, lights, footprint, opt, sceneHash(scene), &st,
+                                        [&](const std::string& s, uint64_t d, uint64_t t) { return progress.update(s, d, t); });
+  progress.finish();
+  start = std::chrono::steady_clock::now();
+  const std::vector<uint8_t> bytes = encodeBundle(bundle, a.zstd);
+  writeFileAtomic(a.out, bytes);
+  st.add("write", secondsSince(start));
+  const double total = secondsSince(totalStart);
+  if (a.json) {
+    std::cout << "{\n  \"scene\": " << jsonString(scene.name) << ",\n  \"scene_hash\": " << jsonString(bundle.sceneHash.hex())
+              << ",\n  \"triangles\": " << ss.triangles << ",\n  \"footprint\": " << jsonNumber(footprint) << ",\n  "
+              << bundleJsonFields(bundle) << ",\n  \"file_bytes\": " << bytes.size()
+              << ",\n  \"seconds_total\": " << jsonNumber(total) << ",\n  \"out\": " << jsonString(a.out) << "\n}\n";
+    return 0;
+  }
+  std::printf("\nBaked %zu light%s of %s (%zu triangles) in %.2f s, renderer %s\n\n%s", bundle.lights.size(),
+              bundle.lights.size() == 1 ? "" : "s", scene.name.c_str(), ss.triangles, total,
+              optionName(opt.renderer), bundleTable(bundle).c_str());
+  std::printf("  file: %s\n\nWrote %s\n", humanBytes(bytes.size()).c_str(), a.out.c_str());
+  std::printf("Look at it: cpvs inspect %s\n", a.out.c_str());
+  return 0;
+}
+
 int runBake(const BakeArgs& a) {
   auto totalStart = std::chrono::steady_clock::now();
   std::unique_ptr<tbb::global_control> limit;
   if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
+  if (!a.spots.empty() || !a.points.empty() || !a.lightsFile.empty()) return runLightBake(a, totalStart);
 
   const BakeOptions opt = optionsOf(a.options);
   int log2R = parseResolution(a.resolution);
@@ -168,12 +227,26 @@ int runBake(const BakeArgs& a) {
 
 void addBakeCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<BakeArgs>();
-  CLI::App* c = app.add_subcommand("bake", "Bake the sun shadows of a scene into a .cpvs file, in this process");
+  CLI::App* c = app.add_subcommand(
+      "bake", "Bake the sun shadows of a scene into a .cpvs file, or its local lights (--spot, --point, --lights) "
+              "into a light bundle, in this process");
   c->add_option("scene", a->scene, "Scene file (glTF/GLB, OBJ, DAE, PLY, FBX, STL, ...), city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]] (generated)")->required();
   c->add_option("--out,-o", a->out, "Output .cpvs file")->required();
   addSunFlags(c, a->sun);
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R (voxels a side): 1024, 4K, 16K, ... 1M")
       ->capture_default_str();
+  c->add_option("--spot", a->spots,
+                "A spot light X,Y,Z:DX,DY,DZ:CONE[:RANGE] (position, axis, half-angle in degrees, reach; no range: "
+                "to the scene's far side); repeat for more. With local lights the file is a light bundle");
+  c->add_option("--point", a->points, "A point light X,Y,Z[:RANGE] (six 90-degree grids); repeat for more");
+  c->add_option("--lights", a->lightsFile,
+                "A lights file: JSON {\"lights\": [{\"kind\": \"LIGHT_SPOT\", \"name\": ..., \"position\": "
+                "{\"x\": ..}, \"direction\": .., \"coneDeg\": .., \"range\": .., \"colour\": .., \"intensity\": "
+                "..}]} (LIGHT_POINT for a point light; near and resolution when not planned)")
+      ->check(CLI::ExistingFile);
+  c->add_option("--footprint", a->footprint,
+                "Local lights: the widest a texel may be at a light's far end, in scene units (picks each grid's "
+                "resolution, up to 8K; default: the scene's diagonal / 4096)");
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
   c->add_option("--threads,-j", a->threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   c->add_flag("!--no-zstd", a->zstd, "Store the levels uncompressed");

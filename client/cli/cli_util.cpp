@@ -39,6 +39,9 @@ namespace {
 double now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
+// What a stage counts: a light bundle's bake counts grids, every other stage tiles.
+const char* unitOf(const std::string& stage) { return stage == "lights" ? "grids" : "tiles"; }
+
 }  // namespace
 
 ProgressDisplay::ProgressDisplay(bool enabled) : enabled_(enabled), tty_(::isatty(STDERR_FILENO)), start_(now()) {}
@@ -54,14 +57,14 @@ bool ProgressDisplay::update(const std::string& stage, uint64_t done, uint64_t t
   if (tty_) {
     const int width = 30;
     int filled = int(frac * width);
-    std::fprintf(stderr, "\r%-8s [%s%s] %3d%%  %llu/%llu tiles  %.1fs elapsed  ETA %.1fs ", stage.c_str(),
+    std::fprintf(stderr, "\r%-8s [%s%s] %3d%%  %llu/%llu %s  %.1fs elapsed  ETA %.1fs ", stage.c_str(),
                  std::string(filled, '#').c_str(), std::string(width - filled, ' ').c_str(), percent,
-                 static_cast<unsigned long long>(done), static_cast<unsigned long long>(total), t,
+                 static_cast<unsigned long long>(done), static_cast<unsigned long long>(total), unitOf(stage), t,
                  done > 0 ? eta : 0.0);
     std::fflush(stderr);
     drawn_ = true;
   } else if (done == total || percent / 10 != lastPercent_ / 10 || t - lastLog_ >= 5) {
-    spdlog::info("{}: {}/{} tiles ({}%), {:.1f}s elapsed, ETA {:.1f}s", stage, done, total, percent, t, eta);
+    spdlog::info("{}: {}/{} {} ({}%), {:.1f}s elapsed, ETA {:.1f}s", stage, done, total, unitOf(stage), percent, t, eta);
     lastLog_ = t;
     lastPercent_ = percent;
   }

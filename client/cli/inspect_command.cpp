@@ -5,8 +5,10 @@
 #include <sstream>
 
 #include "bake_flags.h"
+#include "bundle_text.h"
 #include "cli_util.h"
 #include "commands.h"
+#include "cpvs/io/bundle_file.h"
 #include "cpvs/io/cpvs_file.h"
 
 namespace cpvs::cli {
@@ -20,8 +22,36 @@ struct InspectArgs {
 
 std::string levelLabel(int l) { return l < 0 ? "leaf 8x8x1" : std::to_string(1u << (l + 3)) + "^3"; }
 
+std::string optionsText(const BakeOptions& o) {
+  return "closed=" + std::string(optionName(o.closed)) + " exit=" + optionName(o.exit) + " cull=" + (o.cull ? "on" : "off") +
+         " compress=" + optionName(o.compress) + " undefined=" + optionName(o.undefinedRule) + " renderer=" +
+         optionName(o.renderer) + " tile=" + std::to_string(1u << o.log2TileSize);
+}
+
+int inspectBundle(const InspectArgs& a, const std::vector<uint8_t>& bytes) {
+  const LightBundle b = decodeBundle(bytes.data(), bytes.size(), a.file);
+  if (a.json) {
+    std::cout << "{\n  \"file\": " << jsonString(a.file) << ",\n  \"format_version\": " << kBundleFormatVersion
+              << ",\n  \"file_bytes\": " << bytes.size() << ",\n  \"scene_hash\": " << jsonString(b.sceneHash.hex())
+              << ",\n  \"options\": {\"closed\": " << jsonString(optionName(b.options.closed))
+              << ", \"exit\": " << jsonString(optionName(b.options.exit)) << ", \"cull\": " << (b.options.cull ? "true" : "false")
+              << ", \"compress\": " << jsonString(optionName(b.options.compress))
+              << ", \"undefined\": " << jsonString(optionName(b.options.undefinedRule))
+              << ", \"renderer\": " << jsonString(optionName(b.options.renderer))
+              << ", \"tile_size\": " << (1u << b.options.log2TileSize) << "},\n  \"plan\": " << b.plan << ",\n  "
+              << bundleJsonFields(b) << "\n}\n";
+    return 0;
+  }
+  std::printf("%s: CPVS format %u (a light bundle), %s on disk\n", a.file.c_str(), kBundleFormatVersion,
+              humanBytes(bytes.size()).c_str());
+  std::printf("  scene hash   %s\n  options      %s\n\n%s", b.sceneHash.hex().c_str(), optionsText(b.options).c_str(),
+              bundleTable(b).c_str());
+  return 0;
+}
+
 int runInspect(const InspectArgs& a) {
   auto bytes = readFile(a.file);
+  if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return inspectBundle(a, bytes);
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   const Dag& dag = art.dag;
   const OrthoGrid& g = art.grid;
@@ -61,10 +91,7 @@ int runInspect(const InspectArgs& a) {
   std::printf("  grid origin  (%.6g, %.6g, %.6g), extent %.6g, depth %.6g\n", g.origin.x, g.origin.y, g.origin.z,
               g.extent, g.depthExtent);
   std::printf("  scene hash   %s\n", art.sceneHash.hex().c_str());
-  std::printf("  options      closed=%s exit=%s cull=%s compress=%s undefined=%s renderer=%s tile=%u\n",
-              optionName(o.closed), optionName(o.exit), o.cull ? "on" : "off", optionName(o.compress),
-              optionName(o.undefinedRule), optionName(o.renderer),
-              1u << o.log2TileSize);
+  std::printf("  options      %s\n", optionsText(o).c_str());
   std::printf("  receivers    %s\n", receiversText(o, art.receiverHash).c_str());
   std::printf("  plan         %s\n", art.plan.empty() ? "none recorded (a file before format 3)" : loggable(art.plan, 4000).c_str());
   std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
@@ -84,7 +111,9 @@ int runInspect(const InspectArgs& a) {
 
 void addInspectCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<InspectArgs>();
-  CLI::App* c = app.add_subcommand("inspect", "Show the header, options, and nodes and bytes per level of a .cpvs file");
+  CLI::App* c = app.add_subcommand(
+      "inspect", "Show the header, options, and nodes and bytes per level of a .cpvs file (a light bundle: its lights "
+                 "with their bytes)");
   c->add_option("file", a->file, ".cpvs file")->required();
   c->add_flag("--json", a->json, "Print as JSON");
   c->callback([a, &status] { status = runInspect(*a); });

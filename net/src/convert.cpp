@@ -6,6 +6,9 @@
 
 #include <cmath>
 
+#include "cpvs/base/file.h"
+#include "cpvs/base/parse.h"
+
 namespace cpvs::net {
 
 pb::Vec3 toProto(const Vec3& v) {
@@ -17,6 +20,61 @@ pb::Vec3 toProto(const Vec3& v) {
 }
 
 Vec3 fromProto(const pb::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+static_assert(int(LightKind::Spot) == pb::LIGHT_SPOT && int(LightKind::Point) == pb::LIGHT_POINT);
+
+pb::Light toProto(const Light& l) {
+  pb::Light p;
+  p.set_kind(pb::LightKind(l.kind));
+  p.set_name(l.name);
+  *p.mutable_position() = toProto(l.position);
+  if (l.kind == LightKind::Spot) {
+    *p.mutable_direction() = toProto(l.direction);
+    p.set_cone_deg(l.coneDeg);
+  }
+  p.set_range(l.range);
+  *p.mutable_colour() = toProto(l.colour);
+  p.set_intensity(l.intensity);
+  p.set_near(l.near);
+  if (l.log2Resolution != 0) p.set_resolution(std::to_string(uint64_t(1) << l.log2Resolution));
+  return p;
+}
+
+Light fromProto(const pb::Light& p) {
+  Light l;
+  if (p.kind() != pb::LIGHT_SPOT && p.kind() != pb::LIGHT_POINT)
+    throw InputError("light kind " + std::to_string(int(p.kind())) + " is unknown");
+  l.kind = LightKind(p.kind());
+  l.name = p.name();
+  l.position = fromProto(p.position());
+  if (p.has_direction()) l.direction = fromProto(p.direction());
+  if (l.kind == LightKind::Spot) l.coneDeg = p.cone_deg();
+  l.range = p.range();
+  if (p.has_colour()) l.colour = fromProto(p.colour());
+  if (p.has_intensity()) l.intensity = p.intensity();
+  l.near = p.near();
+  if (!p.resolution().empty()) l.log2Resolution = parseResolution(p.resolution());
+  return l;
+}
+
+std::vector<Light> readLightsFile(const std::string& path) {
+  const std::vector<uint8_t> bytes = readFile(path);
+  pb::LightList list;
+  const auto status = google::protobuf::util::JsonStringToMessage(std::string(bytes.begin(), bytes.end()), &list);
+  if (!status.ok()) throw InputError(path + ": not a lights file: " + std::string(status.message()));
+  try {
+    checkLightCount(size_t(list.lights_size()));
+    std::vector<Light> lights;
+    for (int i = 0; i < list.lights_size(); ++i) {
+      if (list.lights(i).kind() == pb::LIGHT_SPOT && !list.lights(i).has_direction())
+        throw InputError("light " + std::to_string(i) + ": a spot light needs a direction");
+      lights.push_back(fromProto(list.lights(i)));
+    }
+    return lights;
+  } catch (const InputError& e) {
+    throw InputError(path + ": " + e.what());
+  }
+}
 
 // The proto's enum values are the core's: conversions are casts.
 static_assert(int(ClosedMode::Auto) == pb::CLOSED_AUTO && int(ClosedMode::On) == pb::CLOSED_ON &&

@@ -1,7 +1,6 @@
 #include "cpvs/bake/light_plan.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 
@@ -19,9 +18,6 @@ constexpr double kDegrees = 3.14159265358979323846 / 180;
 // A cube face's frustum has half-angle 45 degrees; its texels reach the corners at
 // sqrt(2) from the axis, so a cone wider than that cuts nothing.
 constexpr double kFaceTanCone = 2;
-
-const std::array<Vec3, 6> kCubeAxes{Vec3{1, 0, 0}, Vec3{-1, 0, 0}, Vec3{0, 1, 0},
-                                    Vec3{0, -1, 0}, Vec3{0, 0, 1},  Vec3{0, 0, -1}};
 
 // The view depth of the closest scene geometry inside the frustum of half-angle
 // atan(tanHalf) along `frame` from `position`, not nearer than zMin > 0; infinity for none.
@@ -43,13 +39,6 @@ double closestDepth(const Scene& scene, const Vec3& position, const LightFrame& 
 
 }  // namespace
 
-int cubeFace(const Vec3& d) {
-  const double ax = std::abs(d.x), ay = std::abs(d.y), az = std::abs(d.z);
-  if (ax >= ay && ax >= az) return d.x >= 0 ? 0 : 1;
-  if (ay >= az) return d.y >= 0 ? 2 : 3;
-  return d.z >= 0 ? 4 : 5;
-}
-
 std::vector<LightGridPlan> planLightGrids(const Scene& scene, const Light& light, double footprint) {
   if (scene.triangleCount() == 0) throw InputError("planning a light: the scene is empty");
   if (light.log2Resolution == 0 && !(footprint > 0 && std::isfinite(footprint)))
@@ -68,7 +57,7 @@ std::vector<LightGridPlan> planLightGrids(const Scene& scene, const Light& light
   if (light.kind == LightKind::Spot) {
     views.push_back({LightFrame::fromDirection(light.direction), std::tan(light.coneDeg * kDegrees)});
   } else {
-    for (const Vec3& axis : kCubeAxes) views.push_back({LightFrame::fromDirection(axis), 1.0});
+    for (int face = 0; face < 6; ++face) views.push_back({LightFrame::fromDirection(cubeFaceAxis(face)), 1.0});
   }
   std::vector<LightGridPlan> plans;
   for (const auto& [frame, tanHalf] : views) {

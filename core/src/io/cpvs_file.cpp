@@ -37,6 +37,12 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   return sealContainer(std::move(w));
 }
 
+uint32_t cpvsFormatVersion(const uint8_t* data, size_t size, const std::string& source) {
+  ByteReader r(data, size, source);
+  if (std::memcmp(r.take(4, "magic number"), kCpvsKind.magic, 4) != 0) r.fail("not a .cpvs file (bad magic number)");
+  return r.get<uint32_t>("header");
+}
+
 CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& source) {
   uint32_t flags = 0, version = 0;
   ByteReader h = openContainer(data, size, source, kCpvsKind, kContainerZstd, flags, version);

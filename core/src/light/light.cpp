@@ -10,6 +10,19 @@ namespace cpvs {
 
 const char* lightKindName(LightKind kind) { return kind == LightKind::Spot ? "spot" : "point"; }
 
+Vec3 cubeFaceAxis(int face) {
+  Vec3 a{};
+  (face / 2 == 0 ? a.x : face / 2 == 1 ? a.y : a.z) = face % 2 == 0 ? 1 : -1;
+  return a;
+}
+
+int cubeFace(const Vec3& d) {
+  const double ax = std::abs(d.x), ay = std::abs(d.y), az = std::abs(d.z);
+  if (ax >= ay && ax >= az) return d.x >= 0 ? 0 : 1;
+  if (ay >= az) return d.y >= 0 ? 2 : 3;
+  return d.z >= 0 ? 4 : 5;
+}
+
 std::string lightLabel(const Light& light, size_t index) {
   return "light " + std::to_string(index) + (light.name.empty() ? "" : " (" + light.name + ")");
 }

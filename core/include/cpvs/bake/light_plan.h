@@ -26,8 +26,7 @@ struct LightGridPlan {
 };
 
 /// A spot light's grid looks along its axis with the frustum around its cone; a point
-/// light's six look along +x, -x, +y, -y, +z and -z with 90-degree frusta (a point's face
-/// is its largest axis; on an edge of the cube either face answers). For each grid: far
+/// light's six look along its cube's faces (cubeFaceAxis) with 90-degree frusta. For each grid: far
 /// is the light's range, or the farthest corner of the scene's bounding box from it; near
 /// is the light's own, or the view depth of the closest geometry inside the grid's
 /// frustum, clamped to [far / kMaxDepthRatio, far / 2]; the resolution is the light's own,
@@ -36,9 +35,5 @@ struct LightGridPlan {
 /// accepted the light; InputError for an empty scene or a footprint that is not positive
 /// when the resolution is planned.
 std::vector<LightGridPlan> planLightGrids(const Scene& scene, const Light& light, double footprint);
-
-/// The grid of a point light's cube that a world point falls in (its largest axis from
-/// the light), in planLightGrids' order.
-int cubeFace(const Vec3& fromLight);
 
 }  // namespace cpvs

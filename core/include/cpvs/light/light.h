@@ -37,6 +37,13 @@ struct Light {
   int log2Resolution = 0;    // its grids' resolution; 0: planned from the footprint
 };
 
+/// A point light's cube: face f looks along cubeFaceAxis(f), in the order +x, -x, +y, -y,
+/// +z, -z.
+Vec3 cubeFaceAxis(int face);
+/// The face a direction from the light falls in: its largest axis (a tie goes to the
+/// first of them; on an edge of the cube both faces answer).
+int cubeFace(const Vec3& fromLight);
+
 /// InputError naming `source` ("light 3 (lamp)") and what is wrong: a position that is
 /// not finite or lies outside the scene's bounds [lo, hi] grown by kLightBoundsMargin of
 /// their diagonal, a spot direction that is zero, a cone outside (0, kMaxConeDeg], a

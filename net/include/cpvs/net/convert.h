@@ -3,9 +3,11 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "cpvs/bake/options.h"
 #include "cpvs/light/frame.h"
+#include "cpvs/light/light.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
@@ -18,6 +20,14 @@ namespace pb = ::cpvs::v1;
 
 pb::Vec3 toProto(const Vec3& v);
 Vec3 fromProto(const pb::Vec3& v);
+
+/// A light of the contract and back (resolution "" for a planned one); the core's checks
+/// (checkLight) are the caller's. InputError for a resolution that does not parse.
+pb::Light toProto(const Light& l);
+Light fromProto(const pb::Light& l);
+/// A lights file (the JSON form of LightList): InputError naming the file for anything
+/// unreadable, malformed or not a light field, or a light count outside [1, kMaxLights].
+std::vector<Light> readLightsFile(const std::string& path);
 
 /// InputError for a hash other than XXH3 (the farm has no other).
 pb::BakeOptions toProto(const BakeOptions& o);

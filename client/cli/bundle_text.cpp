@@ -1,0 +1,78 @@
+#include "bundle_text.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <sstream>
+
+#include "cli_util.h"
+
+namespace cpvs::cli {
+
+uint64_t bundleShadowMapBytes(const LightBundle& b) {
+  uint64_t bytes = 0;
+  for (const BundleGrid& g : b.grids) bytes += 2 * g.grid.resolution() * g.grid.resolution();
+  return bytes;
+}
+
+std::string bundleTable(const LightBundle& b) {
+  std::ostringstream o;
+  char line[512];
+  std::snprintf(line, sizeof line, "  %-5s %-18s %-5s %-32s %7s %10s %10s %12s\n", "light", "name", "kind", "position",
+                "grids", "resolution", "near..far", "bytes");
+  o << line;
+  uint64_t separate = 0;
+  for (size_t i = 0; i < b.lights.size(); ++i) {
+    const BundleLight& bl = b.lights[i];
+    const BundleGrid& g = b.grids[bl.firstGrid];
+    const uint64_t bytes = b.lightBytes(i);
+    separate += bytes;
+    char pos[96], range[64];
+    std::snprintf(pos, sizeof pos, "(%.4g, %.4g, %.4g)", bl.light.position.x, bl.light.position.y, bl.light.position.z);
+    std::snprintf(range, sizeof range, "%.3g..%.3g", g.grid.near(), g.grid.far());
+    std::snprintf(line, sizeof line, "  %-5zu %-18s %-5s %-32s %7u %10llu %10s %12s\n", i,
+                  loggable(bl.light.name, 18).c_str(), lightKindName(bl.light.kind), pos, bl.gridCount,
+                  static_cast<unsigned long long>(g.grid.resolution()), range, humanBytes(bytes).c_str());
+    o << line;
+  }
+  const uint64_t maps = bundleShadowMapBytes(b);
+  std::snprintf(line, sizeof line,
+                "\n  %zu lights, %zu grids: the shared pool holds %s, separate DAGs %s (%.2fx); 16-bit shadow maps "
+                "of the same grids %s (%.1fx the pool)\n",
+                b.lights.size(), b.grids.size(), humanBytes(b.poolBytes).c_str(), humanBytes(separate).c_str(),
+                double(separate) / double(std::max<uint64_t>(1, b.poolBytes)), humanBytes(maps).c_str(),
+                double(maps) / double(std::max<uint64_t>(1, b.poolBytes)));
+  o << line;
+  return o.str();
+}
+
+std::string bundleJsonFields(const LightBundle& b) {
+  std::ostringstream o;
+  uint64_t separate = 0;
+  o << "\"lights\": [";
+  for (size_t i = 0; i < b.lights.size(); ++i) {
+    const BundleLight& bl = b.lights[i];
+    const Light& l = bl.light;
+    separate += b.lightBytes(i);
+    o << (i ? ",\n    " : "\n    ") << "{\"index\": " << i << ", \"name\": " << jsonString(l.name)
+      << ", \"kind\": " << jsonString(lightKindName(l.kind)) << ", \"position\": [" << jsonNumber(l.position.x) << ", "
+      << jsonNumber(l.position.y) << ", " << jsonNumber(l.position.z) << "]";
+    if (l.kind == LightKind::Spot)
+      o << ", \"direction\": [" << jsonNumber(l.direction.x) << ", " << jsonNumber(l.direction.y) << ", "
+        << jsonNumber(l.direction.z) << "], \"cone_deg\": " << jsonNumber(l.coneDeg);
+    o << ", \"range\": " << jsonNumber(l.range) << ", \"colour\": [" << jsonNumber(l.colour.x) << ", "
+      << jsonNumber(l.colour.y) << ", " << jsonNumber(l.colour.z) << "], \"intensity\": " << jsonNumber(l.intensity)
+      << ", \"grids\": [";
+    for (uint32_t k = bl.firstGrid; k < bl.firstGrid + bl.gridCount; ++k) {
+      const BundleGrid& g = b.grids[k];
+      o << (k > bl.firstGrid ? ", " : "") << "{\"resolution\": " << g.grid.resolution() << ", \"near\": "
+        << jsonNumber(g.grid.near()) << ", \"far\": " << jsonNumber(g.grid.far()) << ", \"tan_half_fov\": "
+        << jsonNumber(g.grid.tanHalfFov()) << ", \"bytes\": " << g.bytes << "}";
+    }
+    o << "], \"bytes\": " << b.lightBytes(i) << "}";
+  }
+  o << "\n  ],\n  \"grids\": " << b.grids.size() << ",\n  \"pool_bytes\": " << b.poolBytes
+    << ",\n  \"separate_bytes\": " << separate << ",\n  \"shadow_map_bytes\": " << bundleShadowMapBytes(b);
+  return o.str();
+}
+
+}  // namespace cpvs::cli

@@ -1,0 +1,36 @@
+// CPU shadow queries of every light of a light bundle: a light's visibility at a point
+// is its spot grid's, or for a point light that of the cube face the point falls in.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "cpvs/io/bundle_file.h"
+#include "cpvs/query/shadow_query.h"
+
+namespace cpvs {
+
+class BundleQuery {
+ public:
+  /// One ShadowQuery per grid, each a view of the bundle's shared pool.
+  explicit BundleQuery(const LightBundle& bundle);
+
+  size_t lightCount() const { return lights_.size(); }
+  const BundleLight& light(size_t i) const { return lights_.at(i); }
+  size_t gridCount() const { return grids_.size(); }
+  const ShadowQuery& grid(size_t k) const { return grids_.at(k); }
+  /// The grid of light i that answers at world point p (a point light's cube face).
+  size_t gridAt(size_t light, const Vec3& p) const;
+
+  /// Fraction of the pcf x pcf texels around the lookup voxel of light i's grid at p
+  /// that are lit (ShadowQuery::filtered): 0 outside its cone and behind it.
+  float filtered(size_t light, const Vec3& p, const Vec3& n, PcfWidth pcf) const {
+    return grids_[gridAt(light, p)].filtered(p, n, pcf);
+  }
+
+ private:
+  std::vector<BundleLight> lights_;
+  std::vector<ShadowQuery> grids_;
+};
+
+}  // namespace cpvs
