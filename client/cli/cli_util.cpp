@@ -81,11 +81,15 @@ void ProgressDisplay::finish() {
 namespace cpvs::cli {
 
 Scene openMatchingScene(const std::string& spec, const CpvsArtifact& artifact) {
+  return openMatchingScene(spec, artifact.sceneHash);
+}
+
+Scene openMatchingScene(const std::string& spec, const Hash128& baked) {
   Scene scene = openScene(spec);
   Hash128 h = sceneHash(scene);
-  if (!(h == artifact.sceneHash))
+  if (!(h == baked))
     throw InputError("scene '" + spec + "' (hash " + h.hex() + ") is not the scene this file was baked from (hash " +
-                     artifact.sceneHash.hex() + ")");
+                     baked.hex() + ")");
   return scene;
 }
 

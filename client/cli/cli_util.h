@@ -54,5 +54,7 @@ namespace cpvs::cli {
 /// the same geometry: verifying or rendering against another scene would compare
 /// shadows of different worlds. InputError otherwise.
 Scene openMatchingScene(const std::string& spec, const CpvsArtifact& artifact);
+/// The same for any file that recorded the scene's hash (a light bundle).
+Scene openMatchingScene(const std::string& spec, const Hash128& sceneHash);
 
 }  // namespace cpvs::cli

@@ -1,5 +1,6 @@
 // `cpvs query`: sun visibility at world points, one from the command line or many from CSV.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -9,6 +10,8 @@
 #include "commands.h"
 #include "cpvs/base/error.h"
 #include "cpvs/bake/bake_plan.h"
+#include "cpvs/io/bundle_file.h"
+#include "cpvs/query/bundle_query.h"
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/runtime/runtime.h"
 
@@ -17,7 +20,7 @@ namespace cpvs::cli {
 namespace {
 
 struct QueryArgs {
-  std::string file, point, normal, pointsCsv;
+  std::string file, point, normal, pointsCsv, light = "all";
   int pcf = 1;
   bool gpu = false;
 };
@@ -94,11 +97,57 @@ class ReceiverNotice {
   std::vector<uint8_t> coverage_;
 };
 
+// The lights --light names in a bundle of `count`: "all", or one index.
+std::vector<size_t> lightsOf(const std::string& text, size_t count) {
+  if (text == "all") {
+    std::vector<size_t> all(count);
+    for (size_t i = 0; i < count; ++i) all[i] = i;
+    return all;
+  }
+  const std::vector<double> v = parseNumbers(text, "--light");
+  if (v.size() != 1 || v[0] < 0 || v[0] != std::floor(v[0]) || v[0] >= double(count))
+    throw InputError("--light " + text + ": give all or a light index from 0 to " + std::to_string(count - 1));
+  return {size_t(v[0])};
+}
+
+// A light bundle: each light's visibility (0 outside its cone), a line per light for one
+// point, a column per light for many.
+int queryBundle(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
+  if (a.gpu) throw InputError("--gpu: a light bundle is looked up on the CPU (the GPU takes sun artifacts)");
+  const BundleQuery q(decodeBundle(bytes.data(), bytes.size(), a.file));
+  const std::vector<size_t> lights = lightsOf(a.light, q.lightCount());
+  if (!a.point.empty()) {
+    const Vec3 p = parseVec3(a.point, "--point");
+    const Vec3 n = a.normal.empty() ? Vec3{} : parseVec3(a.normal, "--normal");
+    for (size_t i : lights) {
+      const float vis = q.filtered(i, p, n, a.pcf);
+      std::printf("light %zu%s  %s  visibility %.4g\n", i,
+                  q.light(i).light.name.empty() ? "" : (" (" + loggable(q.light(i).light.name, 40) + ")").c_str(),
+                  vis == 1.0f ? "lit" : (vis == 0.0f ? "shadowed" : "partly lit"), vis);
+    }
+    return 0;
+  }
+  std::vector<Vec3> points, normals;
+  readPointsCsv(a.pointsCsv, points, normals);
+  std::printf("x,y,z");
+  for (size_t i : lights) std::printf(",light%zu", i);
+  std::printf("\n");
+  for (size_t k = 0; k < points.size(); ++k) {
+    std::printf("%.9g,%.9g,%.9g", points[k].x, points[k].y, points[k].z);
+    for (size_t i : lights) std::printf(",%.6g", q.filtered(i, points[k], normals.empty() ? Vec3{} : normals[k], a.pcf));
+    std::printf("\n");
+  }
+  return 0;
+}
+
 int runQuery(const QueryArgs& a) {
   if (a.point.empty() == a.pointsCsv.empty()) throw InputError("give exactly one of --point X,Y,Z and --points FILE.csv");
   if (!a.pointsCsv.empty() && !a.normal.empty())
     throw InputError("--normal goes with --point; in --points files put the normal in columns 4-6");
-  CpvsArtifact art = readCpvs(a.file);
+  const std::vector<uint8_t> bytes = readFile(a.file);
+  if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return queryBundle(a, bytes);
+  if (a.light != "all") throw InputError("--light picks a light of a light bundle; " + a.file + " has the sun only");
+  CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   const ReceiverNotice notice(art, a.file, a.pcf);
   auto artifact = std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, std::move(art.packed)));
   const ShadowQuery& q = artifact->cpu();
@@ -157,11 +206,14 @@ int runQuery(const QueryArgs& a) {
 void addQueryCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<QueryArgs>();
   CLI::App* c = app.add_subcommand(
-      "query", "Sun visibility at world points: 1 lit, 0 shadowed, a fraction with --pcf (CSV out for --points)");
+      "query", "Visibility of the sun (or of each light of a light bundle) at world points: 1 lit, 0 shadowed, a "
+               "fraction with --pcf (CSV out for --points)");
   c->add_option("file", a->file, ".cpvs file")->required();
   c->add_option("--point,-p", a->point, "World point X,Y,Z");
   c->add_option("--normal,-n", a->normal, "Surface normal at the point (applies the normal offset)");
   c->add_option("--points", a->pointsCsv, "CSV file of x,y,z or x,y,z,nx,ny,nz rows");
+  c->add_option("--light", a->light, "A light bundle's light: its index, or all (a line or a column each)")
+      ->capture_default_str();
   c->add_option("--pcf", a->pcf, "Filter width in texels: 1, 3, 5, 7 or 9")
       ->check(CLI::IsMember({1, 3, 5, 7, 9}))->capture_default_str();
   c->add_flag("--gpu", a->gpu,

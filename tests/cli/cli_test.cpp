@@ -568,6 +568,95 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
   EXPECT_FALSE(fs::exists(path("x.cpvs"))) << "a failed bake leaves no output";
 }
 
+// Local lights: a bundle from a lights file and flags, inspected, queried per light and
+// verified per light; bad lights and mixed-up files get clear errors.
+TEST_F(Cli, LightBundlesBakeInspectQueryAndVerify) {
+  std::ofstream(path("lights.json")) << R"({"lights": [
+    {"kind": "LIGHT_SPOT", "name": "flood", "position": {"x": 30, "y": 55, "z": 30}, "direction": {"x": 0.2, "y": -1, "z": 0.1},
+     "coneDeg": 40, "colour": {"x": 1, "y": 0.9, "z": 0.7}},
+    {"kind": "LIGHT_POINT", "name": "bulb", "position": {"x": 40, "y": 56, "z": 36}, "range": 70, "resolution": "256"}]})";
+  CliRun r = cpvs("bake city:3 --lights " + path("lights.json") + " --spot 60,54,20:-0.3,-1,0.2:30:80 --footprint 0.4 --json -o " +
+                  path("lamps.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json b = parse(r);
+  ASSERT_EQ(b["lights"].size(), 3u);
+  EXPECT_EQ(b["grids"], 8);
+  EXPECT_EQ(b["lights"][0]["name"], "flood");
+  EXPECT_EQ(b["lights"][1]["kind"], "point");
+  EXPECT_EQ(b["lights"][1]["grids"].size(), 6u);
+  EXPECT_EQ(b["lights"][1]["grids"][0]["resolution"], 256);
+  EXPECT_EQ(b["lights"][2]["range"], 80);
+  EXPECT_LE(b["pool_bytes"].get<uint64_t>(), b["separate_bytes"].get<uint64_t>());
+  EXPECT_GT(b["shadow_map_bytes"].get<uint64_t>(), b["pool_bytes"].get<uint64_t>());
+
+  r = cpvs("inspect --json " + path("lamps.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json i = parse(r);
+  EXPECT_EQ(i["format_version"], 4);
+  EXPECT_EQ(i["pool_bytes"], b["pool_bytes"]);
+  EXPECT_EQ(i["lights"][2]["bytes"], b["lights"][2]["bytes"]);
+  r = cpvs("inspect " + path("lamps.cpvs"));
+  EXPECT_NE(r.out.find("a light bundle"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bulb"), std::string::npos) << r.out;
+
+  r = cpvs("query " + path("lamps.cpvs") + " --point 31,0.01,30 --normal 0,1,0");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("light 0 (flood)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("light 2"), std::string::npos) << r.out;
+  r = cpvs("query " + path("lamps.cpvs") + " --point 31,0.01,30 --light 1 --pcf 5");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(r.out.find("light 0"), std::string::npos) << r.out;
+  std::ofstream(path("lamp_points.csv")) << "31,0.01,30,0,1,0\n-50,-50,-50,0,1,0\n";
+  r = cpvs("query " + path("lamps.cpvs") + " --points " + path("lamp_points.csv"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("x,y,z,light0,light1,light2"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("-50,-50,-50,0,0,0"), std::string::npos) << "no light reaches outside the cones: " << r.out;
+
+  r = cpvs("verify --json " + path("lamps.cpvs") + " city:3 --samples 6000");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json v = parse(r);
+  ASSERT_EQ(v["lights"].size(), 3u);
+  EXPECT_EQ(v["mismatch_elsewhere_count"], 0);
+  for (const json& l : v["lights"]) {
+    EXPECT_GT(l["samples"].get<uint64_t>(), 500u) << l;
+    EXPECT_GT(l["lit"].get<uint64_t>(), 50u) << "each light lights some of the city: " << l;
+  }
+
+  // Bad lights and mixed-up files.
+  std::ofstream(path("bad_lights.json")) << R"({"lights": [{"kind": "LIGHT_SPOT", "position": {"x": 1}, "shape": "round"}]})";
+  std::string many = R"({"lights": [)";
+  for (int k = 0; k < 5000; ++k) many += std::string(k ? "," : "") + R"({"kind": "LIGHT_POINT", "position": {"x": 30, "y": 30, "z": 30}})";
+  std::ofstream(path("many_lights.json")) << many << "]}";
+  const std::vector<BadCase> cases{
+      {"bake city:3 --lights BAD", "not a lights file"},
+      {"bake city:3 --lights MANY", "at most 4096"},
+      {"bake city:3 --spot 30,50,30:0,-1,0:0", "cone"},
+      {"bake city:3 --spot 30,50,30:0,-1,0", "X,Y,Z:DX,DY,DZ:CONE"},
+      {"bake city:3 --spot 3000,50,30:0,-1,0:30", "outside the scene's bounds"},
+      {"bake city:3 --point 30,50,30 --sun-dir 0,-1,0", "the sun flags are for a sun bake"},
+      {"bake city:3 --point 30,50,30 --receivers surfaces", "receivers everywhere"},
+      {"query LAMPS --point 1,2,3 --light 9", "give all or a light index"},
+      {"query LAMPS --point 1,2,3 --gpu", "on the CPU"},
+      {"query SUN --point 1,2,3 --light 0", "has the sun only"},
+      {"verify LAMPS city:4", "not the scene"},
+  };
+  for (const BadCase& c : cases) {
+    std::string args = c.args;
+    auto put = [&](const std::string& key, const std::string& file) {
+      if (const size_t at = args.find(key); at != std::string::npos) args.replace(at, key.size(), path(file));
+    };
+    put("BAD", "bad_lights.json");
+    put("MANY", "many_lights.json");
+    put("LAMPS", "lamps.cpvs");
+    put("SUN", "c.cpvs");
+    if (args.starts_with("bake")) args += " -o " + path("y.cpvs");
+    r = cpvs(args);
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(c.message), std::string::npos) << args << "\n" << r.out;
+  }
+  EXPECT_FALSE(fs::exists(path("y.cpvs"))) << "a refused bake leaves no output";
+}
+
 TEST_F(Cli, HelpExplainsEveryCommand) {
   CliRun r = cpvs("--help");
   EXPECT_EQ(r.status, 0);

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "cpvs/query/bundle_query.h"
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/eval/surface_sampling.h"
@@ -39,6 +40,12 @@ VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const S
 /// the light, "within one voxel" is in the spot grid's voxels.
 VerifyResult verifySpotArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
                                 uint64_t count, uint64_t seed);
+
+/// The same for grid k of a light bundle: a spot light's as verifySpotArtifact; a point
+/// light's cube face at surface points inside the cone its square holds (less a margin of
+/// a few degrees, so that every offset point stays in the face).
+VerifyResult verifyBundleGrid(const BundleQuery& query, size_t grid, ClosedMode closed, const Scene& scene,
+                              const RayScene& rays, uint64_t count, uint64_t seed);
 
 /// The same comparison at given points (sampleReceivers: where a bake's declared
 /// receivers are, the only points a bake for them answers exactly).
