@@ -103,7 +103,10 @@ TEST_P(SpotBake, FilteredLookupsCountTheirFootprintsTexels) {
   }
   EXPECT_GT(outside, 100u);
   EXPECT_GT(partial, 10u);
-  // Behind the light.
+  // Beyond far (the light's range) and behind the light.
+  const Vec3 beyond = g.position() + g.frame().dir * (g.far() * 1.01);
+  EXPECT_EQ(query.litTexels(beyond, {}, 9), 0u);
+  EXPECT_TRUE(query.voxelShadowed(query.voxelOf(beyond, {}, 1)));
   const Vec3 behind = g.position() - g.frame().dir * g.near();
   EXPECT_EQ(query.visibility(behind, {}), 0.0f);
   EXPECT_EQ(query.litTexels(behind, g.frame().dir, 9), 0u);

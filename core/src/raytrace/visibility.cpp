@@ -9,7 +9,7 @@ bool exactlyLit(const RayScene& rays, const OrthoGrid& grid, const Vec3& point) 
 }
 
 bool exactlyLit(const RayScene& rays, const PerspectiveGrid& grid, double tanCone, const Vec3& point) {
-  if (!grid.insideCone(point, tanCone)) return false;
+  if (!grid.insideCone(point, tanCone) || !(grid.depthOf(point) < grid.far())) return false;
   const ShadowRay ray = shadowRayTo(grid, point);
   return !rays.occluded(point, ray.dir, 0.0, ray.length);
 }

@@ -24,8 +24,8 @@ class ShadowQuery {
   /// InputError when the DAG's resolution is not the grid's.
   ShadowQuery(OrthoGrid grid, PackedDag dag);
   /// A spot light's, whose cone has half-angle atan(tanCone): no light reaches a point
-  /// outside it, outside the frustum or behind the light (they are shadowed), and the
-  /// cone's undefined texels are never read.
+  /// outside it, outside the frustum, beyond far (the light's range) or behind the light
+  /// (they are shadowed), and the cone's undefined texels are never read.
   ShadowQuery(PerspectiveGrid grid, double tanCone, PackedDag dag);
 
   /// The directional light's grid (only for a query made with one).
@@ -37,9 +37,9 @@ class ShadowQuery {
   const LightGrid& lightGrid() const { return spot_ ? static_cast<const LightGrid&>(*spot_) : grid_; }
   const PackedDag& dag() const { return dag_; }
 
-  /// True when the voxel is shadowed. In front of the grid is lit (nothing casts there);
-  /// behind it answers as the last slice. Outside the grid in x or y is lit for a
-  /// directional light, shadowed for a spot light (as its texels the cone misses).
+  /// True when the voxel is shadowed. In front of the grid is lit (nothing casts there).
+  /// Behind it answers as the last slice for a directional light; outside it in x or y is
+  /// lit. For a spot light both are shadowed (as its texels the cone misses).
   bool voxelShadowed(const VoxelCoord& v) const;
 
   /// The voxel a query at world point p with normal n (need not be normalized; zero =

@@ -16,7 +16,8 @@ bool exactlyLit(const RayScene& rays, const OrthoGrid& grid, const Vec3& point);
 double shadowRayLength(const OrthoGrid& grid);
 
 /// Exact visibility of a spot light from a world point: inside its cone (half-angle
-/// atan(tanCone)) and nothing on the segment to the light.
+/// atan(tanCone)), nearer than its far end (its range) and nothing on the segment to the
+/// light.
 bool exactlyLit(const RayScene& rays, const PerspectiveGrid& grid, double tanCone, const Vec3& point);
 
 /// The segment from a point towards a light: unit direction and length.
