@@ -30,6 +30,7 @@ struct BakeArgs {
   SunFlags sun;
   std::vector<std::string> spots, points;
   std::string lightsFile;
+  bool sceneLights = false;
   double footprint = 0;
   OptionFlags options;
   int threads = 0;
@@ -118,7 +119,7 @@ constexpr double kDefaultFootprintDivisor = 4096;
 // `--spot`, `--point`, `--lights`: a light bundle.
 int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point totalStart) {
   if (!a.sun.dir.empty() || !std::isnan(a.sun.elevation) || !std::isnan(a.sun.azimuth))
-    throw InputError("--spot, --point and --lights bake local lights; the sun flags are for a sun bake");
+    throw InputError("--spot, --point, --lights and --scene-lights bake local lights; the sun flags are for a sun bake");
   const BakeOptions opt = optionsOf(a.options);
   if (receiversOf(a.options).kind != ReceiverKind::Everywhere)
     throw InputError("local lights are baked for receivers everywhere: --receivers is for the sun");
@@ -126,13 +127,18 @@ int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point 
   if (!a.lightsFile.empty()) lights = net::readLightsFile(a.lightsFile);
   for (const std::string& s : a.spots) lights.push_back(parseSpotFlag(s));
   for (const std::string& s : a.points) lights.push_back(parsePointFlag(s));
-  checkLightCount(lights.size());
   if (a.footprint < 0 || !std::isfinite(a.footprint)) throw InputError("--footprint must be positive");
 
   StageTimes st;
   auto start = std::chrono::steady_clock::now();
   SceneStats ss;
   Scene scene = openScene(a.scene, &ss);
+  if (a.sceneLights) {
+    std::vector<Light> own = sceneLights(scene);
+    if (own.empty()) throw InputError("--scene-lights: " + a.scene + " holds no point or spot light (cpvs plan lists its lights)");
+    lights.insert(lights.begin(), own.begin(), own.end());
+  }
+  checkLightCount(lights.size());
   Vec3 lo, hi;
   sceneBounds(scene, lo, hi);
   const double footprint = a.footprint > 0 ? a.footprint : length(hi - lo) / kDefaultFootprintDivisor;
@@ -168,7 +174,7 @@ int runBake(const BakeArgs& a) {
   auto totalStart = std::chrono::steady_clock::now();
   std::unique_ptr<tbb::global_control> limit;
   if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
-  if (!a.spots.empty() || !a.points.empty() || !a.lightsFile.empty()) return runLightBake(a, totalStart);
+  if (!a.spots.empty() || !a.points.empty() || !a.lightsFile.empty() || a.sceneLights) return runLightBake(a, totalStart);
 
   const BakeOptions opt = optionsOf(a.options);
   int log2R = parseResolution(a.resolution);
@@ -244,6 +250,9 @@ void addBakeCommand(CLI::App& app, int& status) {
                 "{\"x\": ..}, \"direction\": .., \"coneDeg\": .., \"range\": .., \"colour\": .., \"intensity\": "
                 "..}]} (LIGHT_POINT for a point light; near and resolution when not planned)")
       ->check(CLI::ExistingFile);
+  c->add_flag("--scene-lights", a->sceneLights,
+              "Bake the scene's own point and spot lights (glTF KHR_lights_punctual, COLLADA, FBX, ...; the "
+              "procedural city's street lamps) before those of --lights, --spot and --point");
   c->add_option("--footprint", a->footprint,
                 "Local lights: the widest a texel may be at a light's far end, in scene units (picks each grid's "
                 "resolution, up to 8K; default: the scene's diagonal / 4096)");

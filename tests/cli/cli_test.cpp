@@ -265,7 +265,7 @@ TEST_F(Cli, PlanSaysWhatABakeComputesAndTheBakeRecordsIt) {
   EXPECT_EQ(plan["lights"][0]["baked"], true);
   EXPECT_EQ(plan["lights"][1]["type"], "point");
   EXPECT_EQ(plan["lights"][1]["baked"], false);
-  EXPECT_NE(plan["lights"][1]["reason"].get<std::string>().find("skipped: local lights"), std::string::npos);
+  EXPECT_NE(plan["lights"][1]["reason"].get<std::string>().find("--scene-lights"), std::string::npos);
   EXPECT_EQ(plan["lights"][2]["type"], "spot");
   EXPECT_EQ(plan["closed_parts"], 0);
   EXPECT_EQ(plan["passes"][1]["name"], "exit");
@@ -275,6 +275,11 @@ TEST_F(Cli, PlanSaysWhatABakeComputesAndTheBakeRecordsIt) {
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_NE(parse(r)["lights"][0]["reason"].get<std::string>().find("--sun-dir 0,-1,0"), std::string::npos) << r.out;
 
+  // Its lamp and torch stand far outside the one triangle: a bundle of them is refused.
+  r = cpvs("bake " + path("lights.gltf") + " --scene-lights -o " + path("lights_bundle.cpvs"));
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("light 0 (lampNode): the position (1.000000, 2.000000, 3.000000) is outside the scene's bounds"),
+            std::string::npos) << r.out;
   r = cpvs("bake " + path("lights.gltf") + " --sun-dir 0,-1,0 -r 1K -q -o " + path("lights.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;
   r = cpvs("inspect --json " + path("lights.cpvs"));
@@ -621,6 +626,23 @@ TEST_F(Cli, LightBundlesBakeInspectQueryAndVerify) {
     EXPECT_GT(l["samples"].get<uint64_t>(), 500u) << l;
     EXPECT_GT(l["lit"].get<uint64_t>(), 50u) << "each light lights some of the city: " << l;
   }
+
+  // The scene's own lights: the city's street lamps; COLLADA's (assimp-testmodels), whose
+  // spot cone assimp reads as 135 degrees, baked as a point light.
+  r = cpvs("bake city:3 --scene-lights --footprint 0.2 --json -o " + path("street.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json street = parse(r);
+  ASSERT_GE(street["lights"].size(), 3u);
+  EXPECT_EQ(street["lights"][0]["name"], "lamp 0");
+  EXPECT_EQ(street["lights"][0]["cone_deg"], 60);
+  r = cpvs("bake /usr/share/assimp/models/Collada/lights.dae --scene-lights --footprint 0.1 --json -o " + path("dae.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json dae = parse(r);
+  ASSERT_EQ(dae["lights"].size(), 3u) << "a point, a spot and an area light COLLADA calls a point";
+  EXPECT_EQ(dae["lights"][1]["name"], "Spot");
+  EXPECT_EQ(dae["lights"][1]["kind"], "point");
+  r = cpvs("verify " + path("dae.cpvs") + " /usr/share/assimp/models/Collada/lights.dae --samples 3000");
+  EXPECT_EQ(r.status, 0) << r.out;
 
   // Bad lights and mixed-up files.
   std::ofstream(path("bad_lights.json")) << R"({"lights": [{"kind": "LIGHT_SPOT", "position": {"x": 1}, "shape": "round"}]})";

@@ -639,6 +639,31 @@ TEST(ProceduralCity, Deterministic) {
   EXPECT_NE(sceneHash(a), sceneHash(c));
 }
 
+// The street lamps (seed 000 Fig. 1's scene): about 165 for 12 blocks, each over a street
+// and outside every building, looking down, the same for a seed; the geometry does not
+// depend on them.
+TEST(ProceduralCity, StreetLampsStandOnTheStreets) {
+  const Scene city = makeProceduralCity(12, 1);
+  ASSERT_GE(city.lights.size(), 140u);
+  ASSERT_LE(city.lights.size(), 190u);
+  const double pitch = 26, block = 20;
+  for (const SceneLight& l : city.lights) {
+    EXPECT_EQ(l.type, SceneLight::Type::Spot);
+    EXPECT_EQ(l.position.y, kLampHeight);
+    // In a street: one coordinate falls between two blocks.
+    const double fx = std::fmod(l.position.x, pitch), fz = std::fmod(l.position.z, pitch);
+    EXPECT_TRUE((fx > block && fx < pitch) || (fz > block && fz < pitch)) << l.name;
+    EXPECT_LT(l.direction.y, -0.9) << "lamps look down";
+    EXPECT_NEAR(length(l.direction), 1, 1e-12);
+    EXPECT_EQ(l.outerConeDeg, kLampConeDeg);
+    EXPECT_EQ(l.range, kLampRange);
+  }
+  const Scene again = makeProceduralCity(12, 1), other = makeProceduralCity(12, 2);
+  ASSERT_EQ(again.lights.size(), city.lights.size());
+  for (size_t i = 0; i < city.lights.size(); ++i) EXPECT_EQ(again.lights[i].position, city.lights[i].position);
+  EXPECT_NE(other.lights.size() == city.lights.size() && other.lights[0].position == city.lights[0].position, true);
+}
+
 TEST(ProceduralCity, RejectsBadSize) {
   EXPECT_THROW(makeProceduralCity(0, 1), InputError);
   EXPECT_THROW(makeProceduralCity(-3, 1), InputError);

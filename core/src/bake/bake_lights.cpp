@@ -1,5 +1,6 @@
 #include "cpvs/bake/bake_lights.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "cpvs/bake/bake.h"
@@ -24,6 +25,33 @@ std::string lightPlanJson(const LightBundle& b, const std::vector<double>& close
            ", \"bytes\": " + std::to_string(g.bytes) + "}";
   }
   return out + "]}";
+}
+
+std::vector<Light> sceneLights(const Scene& scene) {
+  std::vector<Light> out;
+  for (const SceneLight& s : scene.lights) {
+    if (s.type != SceneLight::Type::Spot && s.type != SceneLight::Type::Point) continue;
+    Light l;
+    // A cone wider than one grid holds (COLLADA's, as assimp reads it, often is) is
+    // baked as a point light's cube; its axis and cone stay for shading.
+    const bool spot = s.type == SceneLight::Type::Spot && s.outerConeDeg <= kMaxConeDeg;
+    l.kind = spot ? LightKind::Spot : LightKind::Point;
+    l.name = validUtf8Prefix(s.name, kMaxLightNameBytes);
+    l.position = s.position;
+    if (s.type == SceneLight::Type::Spot) {
+      l.direction = s.direction;
+      l.coneDeg = s.outerConeDeg;
+    }
+    l.range = s.range;
+    if (isFinite(s.color) && (s.color.x > 0 || s.color.y > 0 || s.color.z > 0)) {
+      // Shading takes the colour and the intensity apart: the brightest channel is the intensity.
+      const double peak = std::max({s.color.x, s.color.y, s.color.z});
+      l.colour = s.color / peak;
+      l.intensity = peak;
+    }
+    out.push_back(std::move(l));
+  }
+  return out;
 }
 
 LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, double footprint,

@@ -163,8 +163,10 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
       }
       case SceneLight::Type::Point:
       case SceneLight::Type::Spot:
+        pl.reason = "not in a sun bake: bake the scene's point and spot lights into a light bundle with --scene-lights";
+        break;
       case SceneLight::Type::Area:
-        pl.reason = "skipped: local lights are not baked yet (a bake holds one directional light)";
+        pl.reason = "skipped: area lights are not baked (no soft shadows yet)";
         break;
       case SceneLight::Type::Ambient:
         pl.reason = "skipped: an ambient light casts no shadow";

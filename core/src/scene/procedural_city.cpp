@@ -166,6 +166,30 @@ Scene makeProceduralCity(int blocks, uint32_t seed) {
     for (const Box& b : block.boxes) appendBox(scene, b);
   for (const Box& b : bridges) appendBox(scene, b);
 
+  // Street lamps, from their own draws (the geometry's do not change): one candidate per
+  // block side on each street, on alternating sidewalks, five in eight kept.
+  SplitMix64 lampRng(0x1A3B'5EEDull ^ (uint64_t{seed} << 32 | seed));
+  for (int street = 0; street + 1 < blocks; ++street) {
+    const double centre = street * kPitch + kBlockSize + kStreetWidth / 2.0;
+    for (int along = 0; along < blocks; ++along)
+      for (int axis = 0; axis < 2; ++axis) {
+        if (!lampRng.chance(62)) continue;
+        const double side = (along + axis) % 2 == 0 ? -1 : 1;  // which sidewalk
+        const double a = along * kPitch + kBlockSize / 2.0, c = centre + side * (kStreetWidth / 2.0 - 0.5);
+        SceneLight lamp;
+        lamp.type = SceneLight::Type::Spot;
+        lamp.name = "lamp " + std::to_string(scene.lights.size());
+        lamp.position = axis == 0 ? Vec3{a, kLampHeight, c} : Vec3{c, kLampHeight, a};
+        const Vec3 across = axis == 0 ? Vec3{0, 0, -side} : Vec3{-side, 0, 0};  // towards the street's centre
+        lamp.direction = normalize(Vec3{0, -1, 0} + across * 0.25);
+        lamp.color = {1, 0.85, 0.6};
+        lamp.outerConeDeg = kLampConeDeg;
+        lamp.innerConeDeg = kLampConeDeg * 0.75;
+        lamp.range = kLampRange;
+        scene.lights.push_back(lamp);
+      }
+  }
+
   finalizeScene(scene);
   return scene;
 }

@@ -25,6 +25,13 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
                        const BakeOptions& options, const Hash128& sceneHash, StageTimes* times = nullptr,
                        const ProgressFn& progress = nullptr);
 
+/// The scene file's point and spot lights (a spot light's cone is its outer one; the
+/// procedural city's are its street lamps), in the file's order; the others cast no
+/// shadow a bundle holds (directional: a sun bake; area, ambient: none). A spot light
+/// whose cone is wider than kMaxConeDeg is baked as a point light (its axis and cone
+/// kept for shading).
+std::vector<Light> sceneLights(const Scene& scene);
+
 /// What the planner chose, one JSON object per grid (the bundle's plan).
 std::string lightPlanJson(const LightBundle& bundle, const std::vector<double>& closest);
 

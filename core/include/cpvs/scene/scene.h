@@ -19,6 +19,7 @@ struct SceneLight {
   Vec3 position, direction;  // direction: where it shines (unit; zero when it has none)
   Vec3 color;
   double innerConeDeg = 0, outerConeDeg = 0;  // spot lights
+  double range = 0;                           // how far it reaches; 0: not given
 };
 
 /// "directional", "point", "spot", "area", "ambient", "unknown".
