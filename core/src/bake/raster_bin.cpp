@@ -11,6 +11,7 @@
 #define HWY_TARGET_INCLUDE "bake/raster_bin.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
+#include <hwy/contrib/math/math-inl.h>
 
 #include <algorithm>
 #include <bit>
@@ -184,9 +185,52 @@ HWY_INLINE V slicesOf(D d, V t, const TexelMapping& texels) {
   return hn::IfThenElse(hn::Ge(k, cells), cells, k);
 }
 
-// The same for a spot light's slices, lane by lane through its one boundary table.
+// A spot light's slices as PerspectiveGrid::sliceOfDepth gives them, faster: eq. (1)
+// through Highway's logarithm estimates the slice (to within one or two), and the grid's
+// boundary table decides, so every target and the grid agree exactly. std::log per
+// texel was most of a spot bake (8K grids of the city's lamps: 2.2 s each, 89 % render).
+class SpotSlices {
+ public:
+  explicit SpotSlices(const PerspectiveGrid& g)
+      : b_(g.sliceBoundaries()), near_(g.near()), far_(g.far()), perLog_(g.slicesPerLog()), side_(uint32_t(g.side())) {}
+  uint32_t side() const { return side_; }
+  uint32_t slice(double t) const {
+    if (!(t >= near_)) return 0;  // and NaN
+    if (t >= far_) return side_;
+    const hn::CappedTag<double, 1> d1;
+    const double e = std::floor(hn::GetLane(hn::Log(d1, hn::Set(d1, t / near_))) * perLog_);
+    return settle(t, e);
+  }
+  // The slice from an estimate: the table's k with B[k] <= t < B[k + 1].
+  uint32_t settle(double t, double estimate) const {
+    uint32_t k = estimate >= 0 ? uint32_t(std::min(estimate, double(side_ - 1))) : 0;
+    while (k > 0 && t < b_[k]) --k;
+    while (k + 1 < side_ && t >= b_[k + 1]) ++k;
+    return k;
+  }
+  const double* boundaries() const { return b_; }
+  double near() const { return near_; }
+  double perLog() const { return perLog_; }
+
+ private:
+  const double* b_;
+  double near_, far_, perLog_;
+  uint32_t side_;
+};
+
+// The slices of a vector of depths: lanes whose estimate the table confirms at once,
+// the others (near, far, a boundary) one by one.
 template <class D, class V>
-HWY_INLINE V slicesOf(D d, V t, const SpotTexelMapping& texels) {
+HWY_INLINE V slicesOf(D d, V t, const SpotSlices& texels) {
+  const hn::RebindToSigned<D> di;
+  const auto top = hn::Set(d, double(texels.side() - 1));
+  auto e = hn::Floor(hn::Mul(hn::Log(d, hn::Div(t, hn::Set(d, texels.near()))), hn::Set(d, texels.perLog())));
+  e = hn::IfThenElse(hn::Ge(e, hn::Zero(d)), e, hn::Zero(d));  // and NaN
+  e = hn::Min(e, top);
+  const auto k = hn::ConvertTo(di, e);
+  const auto lo = hn::GatherIndex(d, texels.boundaries(), k);
+  const auto hi = hn::GatherIndex(d, texels.boundaries(), hn::Add(k, hn::Set(di, 1)));
+  if (hn::AllTrue(d, hn::And(hn::Le(lo, t), hn::Lt(t, hi)))) return e;
   constexpr size_t kMaxLanes = 8;
   const size_t n = std::min(hn::Lanes(d), kMaxLanes);
   alignas(64) double depth[kMaxLanes] = {}, slice[kMaxLanes] = {};
@@ -264,10 +308,10 @@ HWY_INLINE void resolveUniformBlock(const RasterBinScratch& s, size_t n, const s
 }
 
 // The bin's blocks through `texels`, the grid's depth slices (TexelMapping for a
-// directional light, SpotTexelMapping for a spot light).
+// directional light, SpotSlices for a spot light).
 template <class Texels>
 void rasterBlocks(const RasterBinJob& job, RasterBinScratch& s, const Texels& texels) {
-  constexpr bool kPerspective = std::is_same_v<Texels, SpotTexelMapping>;
+  constexpr bool kPerspective = std::is_same_v<Texels, SpotSlices>;
   const RasterScene& scene = *job.scene;
   const auto& triangles = scene.triangles();
   const int subBits = scene.subBits();
@@ -277,6 +321,14 @@ void rasterBlocks(const RasterBinJob& job, RasterBinScratch& s, const Texels& te
   uint32_t counts[65];
   for (uint32_t b = 0; b < job.blocksX * job.blocksY; ++b) {
     const int64_t bx = job.x0 + 8 * int64_t(b % job.blocksX), by = job.y0 + 8 * int64_t(b / job.blocksX);
+    if constexpr (kPerspective) {
+      // A block the spot light's cone misses gets no light: all undefined, not rendered.
+      if (scene.spot()->coneMissesTexels(uint64_t(bx), uint64_t(by), 8, 8, scene.tanCone())) {
+        std::fill(job.lo + 64 * size_t(b), job.lo + 64 * size_t(b) + 64, 0u);
+        std::fill(job.hi + 64 * size_t(b), job.hi + 64 * size_t(b) + 64, R);
+        continue;
+      }
+    }
     // Fragments: the triangles that cover some texel of the block, with their depths.
     size_t fragments = 0;
     for (size_t c = 0; c < job.triangleCount; ++c) {
@@ -378,7 +430,7 @@ void rasterBlocks(const RasterBinJob& job, RasterBinScratch& s, const Texels& te
 
 void RasterBinImpl(const RasterBinJob& job, RasterBinScratch& s) {
   if (const PerspectiveGrid* spot = job.scene->spot())
-    rasterBlocks(job, s, spot->texelMapping(spot->position()));
+    rasterBlocks(job, s, SpotSlices(*spot));
   else
     rasterBlocks(job, s, job.scene->grid().texelMapping(job.scene->grid().origin));
 }

@@ -62,6 +62,11 @@ class PerspectiveGrid final : public LightGrid {
   uint64_t resolution() const { return uint64_t(1) << log2Resolution_; }
   /// The view depth where slice k begins, k in [0, R] (B[R] = far).
   double sliceBoundary(uint64_t k) const { return (*boundaries_)[k]; }
+  /// The whole table B[0..R], for a vectorized sliceOfDepth that estimates k by eq. (1)
+  /// and lets the table decide.
+  const double* sliceBoundaries() const { return boundaries_->data(); }
+  /// R / ln(far / near): eq. (1)'s slices per unit of ln(zv / near).
+  double slicesPerLog() const { return double(resolution()) / logRatio_; }
 
   uint64_t side() const override { return resolution(); }
   Vec3 voxelFromWorld(const Vec3& world) const override;
