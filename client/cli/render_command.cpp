@@ -11,7 +11,11 @@
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/base/error.h"
+#include "cpvs/base/progress.h"
+#include "cpvs/eval/light_render.h"
 #include "cpvs/eval/render.h"
+#include "cpvs/io/bundle_file.h"
+#include "cpvs/query/light_tiles.h"
 #include "cpvs/runtime/runtime.h"
 
 namespace cpvs::cli {
@@ -62,6 +66,49 @@ void writeBoth(const std::string& base, const Image& img) {
   writePng(base + ".png", img);
 }
 
+// A light bundle: the scene at night under all its lights, each pixel shaded with the
+// lights its 16x16 tile's list holds; NAME-tiles shows how many that is.
+int renderBundle(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, int h, const std::string& base) {
+  if (a.gpu) throw InputError("--gpu: a light bundle is rendered on the CPU (the GPU takes sun artifacts)");
+  if (a.reference) throw InputError("--reference compares a sun artifact with exact shadows; verify checks a light bundle");
+  const LightBundle bundle = decodeBundle(bytes.data(), bytes.size(), a.file);
+  Scene scene = openMatchingScene(a.scene, bundle.sceneHash);
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const RayScene rays(scene, (lo + hi) * 0.5);
+  const BundleQuery q(bundle);
+  const Camera cam = a.camera.empty() ? defaultCamera(scene, Vec3{0.35, -1, 0.25}, double(w) / h) : Camera::parse(a.camera);
+  const CameraHits hits = traceCamera(scene, rays, cam, w, h);
+  std::vector<Vec3> points;
+  std::vector<uint8_t> hit;
+  hitPoints(hits, points, hit);
+  auto start = std::chrono::steady_clock::now();
+  const LightTiles tiles = cullLights(q, points, hit, w, h);
+  const double cull = secondsSince(start);
+  start = std::chrono::steady_clock::now();
+  writeBoth(base, shadeLightTiles(hits, q, tiles, a.pcf));
+  const double shade = secondsSince(start);
+  // Lights per tile, black (none) to white (the longest list).
+  Image heat(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t t = tiles.tile(x, y);
+      const float v = tiles.longest ? float(tiles.begin[t + 1] - tiles.begin[t]) / float(tiles.longest) : 0.0f;
+      heat.at(x, y) = {v, v * v, 0.25f * v};
+    }
+  writePng(base + "-tiles.png", heat);
+  const size_t tileCount = tiles.begin.size() - 1;
+  std::printf("Wrote %s.png and %s.exr (%zu lights, PCF %d, on the CPU) and %s-tiles.png (lights per tile)\n",
+              base.c_str(), base.c_str(), q.lightCount(), a.pcf, base.c_str());
+  std::printf("  %zu tiles of 16x16: %.1f lights per tile on average, at most %u; %llu over a list of %u; culling %.3f s, "
+              "shading %.3f s\n",
+              tileCount, double(tiles.lights.size()) / double(std::max<size_t>(1, tileCount)), tiles.longest,
+              static_cast<unsigned long long>(tiles.overflowing), tiles.capacity, cull, shade);
+  std::printf("Camera: %.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", cam.eye.x, cam.eye.y, cam.eye.z, cam.target.x,
+              cam.target.y, cam.target.z, cam.fovDeg);
+  return 0;
+}
+
 int runRender(const RenderArgs& a) {
   int w = 0, h = 0;
   parseSize(a.size, w, h);
@@ -72,7 +119,9 @@ int runRender(const RenderArgs& a) {
     throw InputError("--out '" + a.out + "': name an image .png or .exr (both are written)");
   std::string base = (out.parent_path() / out.stem()).string();
 
-  CpvsArtifact art = readCpvs(a.file);
+  const std::vector<uint8_t> bytes = readFile(a.file);
+  if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return renderBundle(a, bytes, w, h, base);
+  CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   Scene scene = openMatchingScene(a.scene, art);
   RayScene rays(scene, art.grid.origin);
   const Vec3 L = art.grid.frame.dir;
@@ -175,7 +224,8 @@ void addContactSheetCommand(CLI::App& app, int& status) {
 
 void addRenderCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<RenderArgs>();
-  CLI::App* c = app.add_subcommand("render", "Render the scene lit by the sun with the baked shadows (PNG and EXR)");
+  CLI::App* c = app.add_subcommand(
+      "render", "Render the scene lit by the sun with the baked shadows, or at night by a light bundle's lights (PNG and EXR)");
   c->add_option("file", a->file, ".cpvs file")->required();
   c->add_option("scene", a->scene, "The scene it was baked from (file, city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]])")->required();
   c->add_option("--out,-o", a->out, "Output image; NAME.png and NAME.exr are both written")->required();

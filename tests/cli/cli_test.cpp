@@ -627,6 +627,17 @@ TEST_F(Cli, LightBundlesBakeInspectQueryAndVerify) {
     EXPECT_GT(l["lit"].get<uint64_t>(), 50u) << "each light lights some of the city: " << l;
   }
 
+  r = cpvs("render " + path("lamps.cpvs") + " city:3 --size 160x100 --pcf 5 --out " + path("night.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("3 lights"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("lights per tile"), std::string::npos) << r.out;
+  for (const char* f : {"night.png", "night.exr", "night-tiles.png"}) EXPECT_TRUE(fs::exists(path(f))) << f;
+  const Image night = readPng(path("night.png"));
+  EXPECT_EQ(night.width, 160);
+  float brightest = 0;
+  for (const Rgb& p : night.pixels) brightest = std::max(brightest, p.r);
+  EXPECT_GT(brightest, 0.2f) << "the lights light the city";
+
   // The scene's own lights: the city's street lamps; COLLADA's (assimp-testmodels), whose
   // spot cone assimp reads as 135 degrees, baked as a point light.
   r = cpvs("bake city:3 --scene-lights --footprint 0.2 --json -o " + path("street.cpvs"));
@@ -661,6 +672,8 @@ TEST_F(Cli, LightBundlesBakeInspectQueryAndVerify) {
       {"query LAMPS --point 1,2,3 --gpu", "on the CPU"},
       {"query SUN --point 1,2,3 --light 0", "has the sun only"},
       {"verify LAMPS city:4", "not the scene"},
+      {"render LAMPS city:3 --gpu --out N.png", "rendered on the CPU"},
+      {"render LAMPS city:3 --reference --out N.png", "verify checks a light bundle"},
   };
   for (const BadCase& c : cases) {
     std::string args = c.args;

@@ -14,9 +14,14 @@
 #include "cpvs/bake/bake_scene.h"
 #include "cpvs/bake/light_plan.h"
 #include "cpvs/dag/node_pool.h"
+#include "cpvs/eval/camera.h"
+#include "cpvs/eval/light_render.h"
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/query/bundle_query.h"
+#include "cpvs/query/light_tiles.h"
+#include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/scene/source.h"
 #include "error_testing.h"
 #include "scene_testing.h"
@@ -164,6 +169,49 @@ TEST(LightBundle, BakesRoundTripsAndSharesAcrossLights) {
   const LightBundle whole = bakeLights(scene, lights, footprint, options, sceneHash(scene));
   EXPECT_EQ(*whole.pool, *b.pool);
   EXPECT_EQ(whole.plan, b.plan);
+}
+
+// Tiled culling over a picture of the city's street lamps: the culled picture equals
+// shading every light at every pixel bit for bit, every lookup beyond a light's reach
+// answers 0 (what makes the culling conservative), and lists over the capacity are
+// counted, never cut.
+TEST(LightTiles, CulledShadingEqualsEveryLightBitForBit) {
+  const Scene scene = openScene("city:6");
+  std::vector<Light> lamps = sceneLights(scene);
+  ASSERT_GE(lamps.size(), 20u);
+  const LightBundle b = bakeLights(scene, lamps, 0.3, BakeOptions{}, sceneHash(scene));
+  const BundleQuery q(b);
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const RayScene rays(scene, (lo + hi) * 0.5);
+  const CameraHits hits = traceCamera(scene, rays, Camera::parse("75,40,-30,75,0,75,60"), 160, 100);
+  std::vector<Vec3> points;
+  std::vector<uint8_t> hit;
+  hitPoints(hits, points, hit);
+  const LightTiles tiles = cullLights(q, points, hit, 160, 100, 16, 4);
+  EXPECT_LT(tiles.lights.size(), size_t(tiles.tilesX) * size_t(tiles.tilesY) * lamps.size() / 2) << "culling culls";
+  EXPECT_GT(tiles.overflowing, 0u) << "some tile sees more than 4 lamps";
+  uint64_t over = 0;
+  for (size_t t = 0; t + 1 < tiles.begin.size(); ++t) over += tiles.begin[t + 1] - tiles.begin[t] > 4;
+  EXPECT_EQ(over, tiles.overflowing);
+  for (int pcf : {1, 9}) {
+    const Image culled = shadeLightTiles(hits, q, tiles, pcf), all = shadeAllLights(hits, q, pcf);
+    ASSERT_EQ(culled.pixels.size(), all.pixels.size());
+    size_t lit = 0;
+    for (size_t i = 0; i < all.pixels.size(); ++i) {
+      ASSERT_EQ(std::memcmp(&culled.pixels[i], &all.pixels[i], sizeof(Rgb)), 0) << "pixel " << i << " pcf " << pcf;
+      lit += all.pixels[i].r > 0.05f;
+    }
+    EXPECT_GT(lit, 100u) << "the lamps light the streets";
+  }
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> normal;
+  for (size_t i = 0; i < q.lightCount(); ++i)
+    for (int k = 0; k < 300; ++k) {
+      const Vec3 d = normalize(Vec3{normal(rng), normal(rng), normal(rng)});
+      const Vec3 p = q.light(i).light.position + d * (q.reach(i) * (1 + 0.5 * std::abs(normal(rng))));
+      for (int pcf : {1, 9}) ASSERT_EQ(q.filtered(i, p, d * -1.0, pcf), 0.0f) << "light " << i << " beyond its reach";
+    }
 }
 
 void resealChecksum(std::vector<uint8_t>& b) {

@@ -151,14 +151,5 @@ bool PerspectiveGrid::insideCone(const Vec3& world, double tanCone) const {
   return zv > 0 && a * a + b * b <= tanCone * tanCone * zv * zv;
 }
 
-bool PerspectiveGrid::coneMissesTexels(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height,
-                                        double tanCone) const {
-  // The texels' rectangle on the image plane at unit depth, and its point nearest the axis.
-  auto nearest = [&](uint64_t i, uint64_t n) {
-    return std::clamp(0.0, planeCoordinate(double(i)), planeCoordinate(double(i + n)));
-  };
-  const double a = nearest(x0, width), b = nearest(y0, height);
-  return a * a + b * b > tanCone * tanCone;
-}
 
 }  // namespace cpvs

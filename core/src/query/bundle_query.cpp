@@ -1,5 +1,8 @@
 #include "cpvs/query/bundle_query.h"
 
+#include <algorithm>
+#include <cmath>
+
 
 namespace cpvs {
 
@@ -7,7 +10,25 @@ BundleQuery::BundleQuery(const LightBundle& bundle) : lights_(bundle.lights) {
   grids_.reserve(bundle.grids.size());
   for (size_t k = 0; k < bundle.grids.size(); ++k)
     grids_.emplace_back(bundle.grids[k].grid, bundle.grids[k].tanCone, bundle.dag(k));
+  for (const BundleLight& l : lights_) {
+    double r = 0;
+    for (uint32_t k = l.firstGrid; k < l.firstGrid + l.gridCount; ++k) {
+      const PerspectiveGrid& g = bundle.grids[k].grid;
+      const double far = g.far(), t = g.tanHalfFov(), R = double(g.resolution());
+      // The widest lit texel's farthest point from the axis (a texel the cone touches is
+      // lit as a whole: the cone, widened by a texel's diagonal; at most the frustum's
+      // corner) at far, and a voxel there: its width and its depth, along a ray up to
+      // `stretch` longer than its view depth.
+      const double wide = std::min(bundle.grids[k].tanCone + 2 * std::sqrt(2.0) * t / R, std::sqrt(2.0) * t);
+      const double stretch = std::sqrt(1 + wide * wide), corner = far * stretch;
+      const double voxel = (2 * far * t / R + (far - g.sliceBoundary(g.resolution() - 1))) * stretch;
+      r = std::max(r, corner + 2 * normalOffsetVoxels(kMaxPcfWidth) * voxel);
+    }
+    reach_.push_back(r);
+  }
 }
+
+double BundleQuery::reach(size_t light) const { return reach_.at(light); }
 
 size_t BundleQuery::gridAt(size_t i, const Vec3& p) const {
   const BundleLight& l = lights_.at(i);

@@ -41,8 +41,8 @@ bool ShadowQuery::dark(int64_t x, int64_t y) const {
 }
 
 bool ShadowQuery::voxelShadowed(const VoxelCoord& v) const {
-  if (v.z < 0) return false;
   if (spot_ && (v.z >= R_ || dark(v.x, v.y))) return true;
+  if (v.z < 0) return false;
   if (v.x < 0 || v.y < 0 || v.x >= R_ || v.y >= R_) return false;
   int64_t z = std::min(v.z, R_ - 1);
   return dag_.voxelShadowed(uint64_t(v.x), uint64_t(v.y), uint64_t(z));
@@ -69,8 +69,15 @@ uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) cons
   // Texels as voxelShadowed answers them: in front of the grid lit, beyond its far end
   // its last slice for the sun and dark for a spot light (its range ends there), outside
   // it in x or y lit for the sun and dark for a spot light.
-  if (v.z < 0) return uint32_t(texels);
   if (spot_ && v.z >= R_) return 0;
+  if (v.z < 0) {
+    if (!spot_) return uint32_t(texels);
+    // In front of a spot grid: lit where its frustum and cone reach.
+    uint32_t lit = 0;
+    for (int64_t y = v.y - r; y <= v.y + r; ++y)
+      for (int64_t x = v.x - r; x <= v.x + r; ++x) lit += !dark(x, y);
+    return lit;
+  }
   const uint64_t z = uint64_t(std::min(v.z, R_ - 1));
   const int64_t x0 = std::max<int64_t>(v.x - r, 0), x1 = std::min<int64_t>(v.x + r, R_ - 1);
   const int64_t y0 = std::max<int64_t>(v.y - r, 0), y1 = std::min<int64_t>(v.y + r, R_ - 1);

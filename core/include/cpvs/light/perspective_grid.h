@@ -127,6 +127,18 @@ class PerspectiveGrid final : public LightGrid {
   std::shared_ptr<const std::vector<double>> boundaries_;  // B[0..R], shared by copies
 };
 
+inline bool PerspectiveGrid::coneMissesTexels(uint64_t x0, uint64_t y0, uint64_t width, uint64_t height,
+                                               double tanCone) const {
+  // The texels' rectangle on the image plane at unit depth, and its point nearest the
+  // axis (inline: the rasterizer asks per 8x8 block).
+  auto nearest = [&](uint64_t i, uint64_t n) {
+    const double lo = planeCoordinate(double(i)), hi = planeCoordinate(double(i + n));
+    return lo > 0 ? lo : hi < 0 ? hi : 0.0;
+  };
+  const double a = nearest(x0, width), b = nearest(y0, height);
+  return a * a + b * b > tanCone * tanCone;
+}
+
 inline TexelRay SpotTexelMapping::ray(uint64_t x, uint64_t y) const { return grid_->texelRay(x, y, relativeTo_); }
 inline uint32_t SpotTexelMapping::slice(double zv) const { return grid_->sliceOfDepth(zv); }
 inline uint32_t SpotTexelMapping::side() const { return uint32_t(grid_->side()); }

@@ -21,6 +21,10 @@ class BundleQuery {
   const ShadowQuery& grid(size_t k) const { return grids_.at(k); }
   /// The grid of light i that answers at world point p (a point light's cube face).
   size_t gridAt(size_t light, const Vec3& p) const;
+  /// How far from light i a point may be and still get light: its grids' frusta cut at
+  /// far (their corners), plus the widest normal offset a lookup applies there. Every
+  /// lookup of a point beyond it answers 0.
+  double reach(size_t light) const;
 
   /// Fraction of the pcf x pcf texels around the lookup voxel of light i's grid at p
   /// that are lit (ShadowQuery::filtered): 0 outside its cone and behind it.
@@ -31,6 +35,7 @@ class BundleQuery {
  private:
   std::vector<BundleLight> lights_;
   std::vector<ShadowQuery> grids_;
+  std::vector<double> reach_;
 };
 
 }  // namespace cpvs

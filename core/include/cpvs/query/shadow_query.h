@@ -39,7 +39,8 @@ class ShadowQuery {
 
   /// True when the voxel is shadowed. In front of the grid is lit (nothing casts there).
   /// Behind it answers as the last slice for a directional light; outside it in x or y is
-  /// lit. For a spot light both are shadowed (as its texels the cone misses).
+  /// lit. For a spot light both are shadowed, as its texels the cone misses, before and
+  /// beyond its depth range alike.
   bool voxelShadowed(const VoxelCoord& v) const;
 
   /// The voxel a query at world point p with normal n (need not be normalized; zero =
