@@ -1,5 +1,5 @@
-// libFuzzer target: the .cpvs artifact reader (both versions: the level section and the
-// packed section) and the sub-DAG reader on arbitrary bytes.
+// libFuzzer target: the .cpvs artifact reader (the level section, the packed section and
+// the light bundle's node pool) and the sub-DAG reader on arbitrary bytes.
 // Both check a checksum first, which random bytes never pass; so every input is also
 // tried with its last 8 bytes replaced by the right checksum, which lets the fuzzer
 // reach the structural validation behind it. Whatever decodes is then walked.
@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cpvs/base/error.h"
+#include "cpvs/io/bundle_file.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/io/sub_dag_file.h"
@@ -33,6 +34,17 @@ void tryDecode(const uint8_t* data, size_t size) {
     cpvs::CpvsArtifact a = cpvs::decodeCpvs(data, size, "fuzz");
     walk(a.dag, a.packed);
     (void)cpvs::encodeCpvs(a, false);
+  } catch (const cpvs::InputError&) {
+  }
+  try {
+    // A bundle: every grid's view of the pool walked at a few voxels, and written again.
+    const cpvs::LightBundle b = cpvs::decodeBundle(data, size, "fuzz");
+    for (size_t k = 0; k < b.grids.size(); ++k) {
+      const cpvs::PackedDag view = b.dag(k);
+      const uint64_t R = uint64_t(1) << view.log2Resolution();
+      for (uint64_t v = 0; v < R; v += R / 4 + 1) (void)view.voxelShadowed(v, R - 1 - v, v);
+    }
+    (void)cpvs::encodeBundle(b, false);
   } catch (const cpvs::InputError&) {
   }
   try {

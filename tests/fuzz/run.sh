@@ -24,6 +24,11 @@ if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64.cpvs" ]; then
   "$cli" bake city:1 --sun-dir 0,-1,0 -r 32 --no-zstd -q -o "$out/corpus-cpvs/seed-city32-raw.cpvs" >/dev/null
   "$cli" bake city:1 --sun-dir 0.1,-1,0.5 -r 8 --no-zstd -q -o "$out/corpus-cpvs/seed-city8-raw.cpvs" >/dev/null
 fi
+if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-lamps-raw.cpvs" ]; then
+  # A light bundle: a spot light and a point light's cube, small grids.
+  "$cli" bake city:1 --spot 10,15,10:0.2,-1,0.1:40 --point 12,6,8:20 --footprint 2 --no-zstd -q \
+    -o "$out/corpus-cpvs/seed-lamps-raw.cpvs" >/dev/null
+fi
 cp -n tests/io/data/city-256-v1.cpvs "$out/corpus-cpvs/seed-city256-v1.cpvs"
 for target in fuzz_cpvs_reader fuzz_scene_input; do
   corpus="$out/corpus-${target#fuzz_}"
