@@ -38,7 +38,7 @@ int inspectBundle(const InspectArgs& a, const std::vector<uint8_t>& bytes) {
               << ", \"compress\": " << jsonString(optionName(b.options.compress))
               << ", \"undefined\": " << jsonString(optionName(b.options.undefinedRule))
               << ", \"renderer\": " << jsonString(optionName(b.options.renderer))
-              << ", \"tile_size\": " << (1u << b.options.log2TileSize) << "},\n  \"plan\": " << b.plan << ",\n  "
+              << ", \"tile_size\": " << (1u << b.options.log2TileSize) << "},\n  \"plan\": " << (b.plan.empty() ? std::string("null") : b.plan) << ",\n  "
               << bundleJsonFields(b) << "\n}\n";
     return 0;
   }

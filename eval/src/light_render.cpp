@@ -40,7 +40,9 @@ Rgb lightRadiance(const BundleQuery& query, size_t i, const Vec3& p, const Vec3&
   // Fall-off: inverse-square-like near the light, windowed to 0 at its reach.
   const double s = d / query.reach(i), window = std::pow(std::clamp(1 - s * s * s * s, 0.0, 1.0), 2);
   double a = window / (1 + 16 * s * s);
-  if (l.kind == LightKind::Spot || l.coneDeg > 0) {
+  // A spot light's cone; a point light has none unless it is a spot wider than one grid
+  // holds, baked as a cube (sceneLights).
+  if (l.kind == LightKind::Spot || l.coneDeg > kMaxConeDeg) {
     const double outer = std::cos(l.coneDeg * kDegrees), inner = std::cos(0.75 * l.coneDeg * kDegrees);
     const double c = dot(normalize(l.direction), toLight / -d);
     const double x = std::clamp((c - outer) / std::max(inner - outer, 1e-9), 0.0, 1.0);

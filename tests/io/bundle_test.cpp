@@ -214,6 +214,36 @@ TEST(LightTiles, CulledShadingEqualsEveryLightBitForBit) {
     }
 }
 
+// A bulb between a floor and a ceiling: every floor and ceiling point is lit, filtered
+// or not, across the seams of its cube's faces (each face's guard band holds the widest
+// footprint), and it lights in every direction (a point light has no cone).
+TEST(LightBundle, APointLightLightsEveryDirectionAcrossItsFaces) {
+  Scene scene;
+  testing::appendQuad(scene, {-50, 0, -50}, {-50, 0, 50}, {50, 0, 50}, {50, 0, -50});
+  testing::appendQuad(scene, {-50, 10, -50}, {50, 10, -50}, {50, 10, 50}, {-50, 10, 50});
+  finalizeScene(scene);
+  Light bulb;
+  bulb.kind = LightKind::Point;
+  bulb.position = {0.3, 5, -0.2};
+  bulb.range = 40;
+  bulb.log2Resolution = 6;
+  const LightBundle b = bakeLights(scene, {bulb}, 0, BakeOptions{}, sceneHash(scene));
+  ASSERT_EQ(b.grids.size(), 6u);
+  EXPECT_GT(b.grids[0].grid.tanHalfFov(), 1.0) << "a face's square widened by its guard band";
+  const BundleQuery q(b);
+  uint64_t points = 0;
+  for (double x = -14; x <= 14; x += 0.37)
+    for (double z = -14; z <= 14; z += 0.41)
+      for (const auto& [y, n] : {std::pair{0.0, Vec3{0, 1, 0}}, std::pair{10.0, Vec3{0, -1, 0}}}) {
+        const Vec3 p{x, y, z};
+        for (int pcf : {1, 9}) ASSERT_EQ(q.filtered(0, p, n, pcf), 1.0f) << p.x << ", " << p.y << ", " << p.z << " pcf " << pcf;
+        const Rgb r = lightRadiance(q, 0, p, n, 9);
+        ASSERT_GT(r.r, 0.0f) << p.x << ", " << p.y << ", " << p.z;
+        ++points;
+      }
+  EXPECT_GT(points, 10000u);
+}
+
 void resealChecksum(std::vector<uint8_t>& b) {
   const uint64_t sum = XXH3_64bits(b.data(), b.size() - 8);
   std::memcpy(b.data() + b.size() - 8, &sum, 8);
@@ -273,6 +303,14 @@ TEST(LightBundle, BadBundlesAndBadLightsAreRefused) {
   two[1] = lights[0];
   two[1].name = std::string(300, 'x');
   EXPECT_NE(inputErrorOf([&] { bakeLights(scene, two, 1, BakeOptions{}, {}); }).find("longer than 256"), std::string::npos);
+  // Thousands of point lights' grids: the plan stays within what a file records.
+  LightBundle big;
+  const PerspectiveGrid tiny({0, 0, 0}, LightFrame::fromDirection({1, 0, 0}), 1, 0.1, 10, 3);
+  for (int k = 0; k < 4096 * 6; ++k) big.grids.push_back({tiny, 2, uint32_t(k / 6), 64});
+  const std::string plan = lightPlanJson(big, {});
+  EXPECT_LE(plan.size(), kMaxPlanBytes);
+  EXPECT_NE(plan.find("omitted"), std::string::npos);
+
   BakeOptions surfaces;
   surfaces.receivers = ReceiverKind::Surfaces;
   EXPECT_NE(inputErrorOf([&] { bakeLights(scene, lights, 1, surfaces, {}); }).find("receivers everywhere"), std::string::npos);

@@ -133,6 +133,9 @@ TEST(LightPlan, NearIsTheClosestGeometryInTheFrustum) {
   lamp.range = 20;
   EXPECT_EQ(planLightGrids(scene, lamp, 0.05).front().grid.near(), 20 / kMaxDepthRatio);
   EXPECT_NE(inputErrorOf([&] { planLightGrids(scene, Light{}, 0); }).find("footprint"), std::string::npos);
+  // The widest cone a light may have plans (tan 85° rounds a hair above the grid's limit).
+  lamp.coneDeg = kMaxConeDeg;
+  EXPECT_NEAR(planLightGrids(scene, lamp, 0.05).front().grid.tanHalfFov(), std::tan(85 * M_PI / 180), 1e-12);
 }
 
 TEST(LightPlan, APointLightsCubeFacesCoverEveryDirectionOnce) {

@@ -10,6 +10,7 @@
 #include "cpvs/base/text.h"
 #include "cpvs/dag/node_pool.h"
 #include "cpvs/dag/packed_dag.h"
+#include "cpvs/io/cpvs_file.h"
 #include "cpvs/scene/scene.h"
 
 namespace cpvs {
@@ -24,7 +25,12 @@ std::string lightPlanJson(const LightBundle& b, const std::vector<double>& close
            std::to_string(g.grid.resolution()) + ", \"closest\": " + (std::isfinite(c) ? jsonNumber(c) : "null") +
            ", \"bytes\": " + std::to_string(g.bytes) + "}";
   }
-  return out + "]}";
+  out += "]}";
+  // A bundle of thousands of point lights would pass the largest plan a file records.
+  if (out.size() > kMaxPlanBytes)
+    return "{\"grids\": " + std::to_string(b.grids.size()) + ", \"per_grid\": \"omitted: more than " +
+           std::to_string(kMaxPlanBytes) + " bytes\"}";
+  return out;
 }
 
 std::vector<Light> sceneLights(const Scene& scene) {
@@ -82,6 +88,12 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
     bl.gridCount = uint32_t(b.grids.size()) - bl.firstGrid;
     b.lights.push_back(std::move(bl));
   }
+  uint64_t slices = 0;
+  for (const BundleGrid& g : b.grids) slices += g.grid.resolution() + 1;
+  if (slices > kMaxBundleSlices)
+    throw InputError(std::to_string(b.grids.size()) + " grids of these resolutions hold " + std::to_string(slices) +
+                     " slice boundaries; a bundle holds at most " + std::to_string(kMaxBundleSlices) +
+                     " (lower --footprint's resolutions or bake fewer lights)");
   StageTimes local;
   StageTimes& st = times ? *times : local;
   std::vector<Dag> dags;

@@ -7,6 +7,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/base/limits.h"
 #include "cpvs/light/frustum_clip.h"
+#include "cpvs/query/normal_offset.h"
 #include "cpvs/scene/scene.h"
 
 namespace cpvs {
@@ -15,9 +16,12 @@ namespace {
 
 constexpr double kDegrees = 3.14159265358979323846 / 180;
 
-// A cube face's frustum has half-angle 45 degrees; its texels reach the corners at
-// sqrt(2) from the axis, so a cone wider than that cuts nothing.
-constexpr double kFaceTanCone = 2;
+// A cube face's guard band, in texels beyond its 90-degree square: the widest filter's
+// radius, the widest normal offset and one texel, so that a lookup of a point its face
+// answers (cubeFace) never reads past the face's grid, whose texels there are dark.
+constexpr double kFaceGuardTexels = kMaxPcfWidth / 2 + normalOffsetVoxels(kMaxPcfWidth) + 1;
+// The smallest face grid whose guard band fits (a guard of g texels needs R > 2 g).
+constexpr int kMinFaceLog2Resolution = 5;
 
 // The view depth of the closest scene geometry inside the frustum of half-angle
 // atan(tanHalf) along `frame` from `position`, not nearer than zMin > 0; infinity for none.
@@ -70,8 +74,15 @@ std::vector<LightGridPlan> planLightGrids(const Scene& scene, const Light& light
       const double texels = 2 * far * tanHalf / footprint;  // the frustum's width at far, in footprints
       log2R = std::clamp(int(std::ceil(std::log2(std::max(texels, 1.0)))), kMinLog2Resolution, kMaxPlannedLog2Resolution);
     }
-    const double tanCone = light.kind == LightKind::Spot ? tanHalf : kFaceTanCone;
-    plans.push_back({PerspectiveGrid(light.position, frame, tanHalf, near, far, log2R), tanCone, closest});
+    if (light.kind == LightKind::Spot) {
+      plans.push_back({PerspectiveGrid(light.position, frame, tanHalf, near, far, log2R), tanHalf, closest});
+      continue;
+    }
+    // A face: its square widened by the guard band, t = 1 + g (2 t / R); its cone (twice
+    // the frustum's corner) cuts no texel.
+    log2R = std::max(log2R, kMinFaceLog2Resolution);
+    const double t = 1 / (1 - 2 * kFaceGuardTexels / double(uint64_t(1) << log2R));
+    plans.push_back({PerspectiveGrid(light.position, frame, t, near, far, log2R), 2 * t, closest});
   }
   return plans;
 }

@@ -137,6 +137,8 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t N) {
     invalid("the header counts " + std::to_string(h0.wordCount) + " words, the section holds " + std::to_string(words.size()));
   if (uint64_t(h0.leafWord) + 2 * uint64_t(h0.leafCount) != h0.wordCount || (h0.leafWord & 1))
     invalid("the leaves do not end the array");
+  // The headers' pointer grids must lie in the array: packing again is then bounded by it.
+  if (at > h0.leafWord) invalid("the pointer grids run past the nodes");
   for (const PackedHeader& hk : h) {
     if (hk.leafWord != h0.leafWord || hk.leafCount != h0.leafCount || hk.wordCount != h0.wordCount)
       invalid("the headers disagree on the shared leaves");

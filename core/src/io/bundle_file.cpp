@@ -5,6 +5,7 @@
 #include <string>
 
 #include "cpvs/base/error.h"
+#include "cpvs/base/limits.h"
 #include "cpvs/base/text.h"
 #include "cpvs/io/cpvs_file.h"
 #include "io/bake_fields.h"
@@ -114,6 +115,7 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
     b.lights.push_back(std::move(bl));
   }
   if (nextGrid != gridCount) h.fail("the lights have " + std::to_string(nextGrid) + " grids, the table " + std::to_string(gridCount));
+  uint64_t slices = 0;
   for (uint32_t k = 0; k < gridCount; ++k) {
     const std::string label = "grid " + std::to_string(k);
     LightFrame frame;
@@ -128,6 +130,9 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
     if (light >= lightCount || k < b.lights[light].firstGrid || k >= b.lights[light].firstGrid + b.lights[light].gridCount)
       h.fail(label + " names light " + std::to_string(light) + ", which does not hold it");
     if (!(tanCone > 0) || !std::isfinite(tanCone)) h.fail(label + "'s cone is invalid");
+    if (log2R >= kMinLog2Resolution && log2R <= kMaxLog2Resolution) slices += (uint64_t(1) << log2R) + 1;
+    if (slices > kMaxBundleSlices)
+      h.fail("the grids hold more than " + std::to_string(kMaxBundleSlices) + " slice boundaries together");
     try {
       b.grids.push_back({PerspectiveGrid(b.lights[light].light.position, frame, tanHalf, near, far, log2R), tanCone, light, bytes});
     } catch (const InputError& e) {

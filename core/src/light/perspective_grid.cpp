@@ -30,7 +30,8 @@ PerspectiveGrid::PerspectiveGrid(const Vec3& position, const LightFrame& frame, 
       std::abs(dot(frame.dir, frame.v)) > kUnitDirectionTolerance ||
       std::abs(dot(frame.u, frame.v)) > kUnitDirectionTolerance)
     fail("the light frame is not orthonormal");
-  if (!(tanHalfFov > 0) || !(tanHalfFov <= kMaxTanHalfFov))
+  // (tan of 85° in double may round a hair above the constant.)
+  if (!(tanHalfFov > 0) || !(tanHalfFov <= kMaxTanHalfFov * (1 + 1e-12)))
     fail("the field of view must be wider than 0 and at most 170 degrees (tan of its half " + std::to_string(tanHalfFov) +
          ")");
   if (!(near > 0) || !std::isfinite(far) || !(near < far))

@@ -53,7 +53,7 @@ VoxelCoord ShadowQuery::voxelOf(const Vec3& p, const Vec3& n, PcfWidth pcf) cons
   const Vec3 c = spot_ ? spot_->offsetVoxel(p, n, offset) : mappedLookup(mapping_, p, n, offset);
   // Behind a spot light (no voxel coordinates): a voxel outside its frustum, where no
   // light reaches, rather than one in front of the grid.
-  if (spot_ && std::isnan(c.z)) return {-1, -1, 0};
+  if (spot_ && std::isnan(c.z)) return {-1, -1, R_};
   return {floorToVoxel(c.x), floorToVoxel(c.y), floorToVoxel(c.z)};
 }
 

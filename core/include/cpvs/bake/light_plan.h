@@ -26,7 +26,9 @@ struct LightGridPlan {
 };
 
 /// A spot light's grid looks along its axis with the frustum around its cone; a point
-/// light's six look along its cube's faces (cubeFaceAxis) with 90-degree frusta. For each grid: far
+/// light's six look along its cube's faces (cubeFaceAxis) with 90-degree frusta widened
+/// by a guard band (the widest filter and normal offset, so that the face cubeFace picks
+/// answers a lookup whole; at least 2^5 texels a side). For each grid: far
 /// is the light's range, or the farthest corner of the scene's bounding box from it; near
 /// is the light's own, or the view depth of the closest geometry inside the grid's
 /// frustum, clamped to [far / kMaxDepthRatio, far / 2]; the resolution is the light's own,

@@ -18,6 +18,9 @@ namespace cpvs {
 
 /// The longest light name a bundle stores, in bytes of UTF-8.
 constexpr size_t kMaxLightNameBytes = 256;
+/// The most slice boundaries (R + 1 per grid) a bundle's grids hold together: each grid
+/// keeps its table in memory (8 bytes a boundary, 1 GiB in all).
+constexpr uint64_t kMaxBundleSlices = uint64_t(1) << 27;
 
 /// One grid of a bundle: a spot light's, or one face of a point light's cube.
 struct BundleGrid {
@@ -57,7 +60,7 @@ struct LightBundle {
 /// zero bytes), position, direction, cone, range, colour, intensity, near, resolution,
 /// first grid, grid count and name (a 16-bit byte count and UTF-8); per grid its frame
 /// (dir, u, v), tan of its half-angle, tan of its cone, near, far, resolution, light
-/// index (and 4 zero bytes) and bytes; the pool's word count and its words, optionally
+/// index and bytes; the pool's word count and its words, optionally
 /// zstd-compressed; an XXH3-64 checksum of everything before it.
 std::vector<uint8_t> encodeBundle(const LightBundle& bundle, bool zstd);
 

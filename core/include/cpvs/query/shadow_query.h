@@ -46,7 +46,7 @@ class ShadowQuery {
   /// The voxel a query at world point p with normal n (need not be normalized; zero =
   /// no offset) and filter width pcf lands in: p offset by normalOffsetVoxels(pcf) along
   /// the normal (LightGrid::offsetVoxel), then floored to integers. Behind a spot light:
-  /// (-1, -1, 0), a voxel outside its frustum.
+  /// (-1, -1, R), a voxel outside its frustum and beyond its far end, dark with any filter.
   VoxelCoord voxelOf(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
   /// The world position of the offset query point (before flooring), for references.
   Vec3 offsetPoint(const Vec3& p, const Vec3& n, PcfWidth pcf) const;
