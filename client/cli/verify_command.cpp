@@ -73,16 +73,8 @@ int verifyBundle(const VerifyArgs& a, const std::vector<uint8_t>& bytes) {
     const BundleLight& l = q.light(i);
     VerifyResult total;
     for (uint32_t k = l.firstGrid; k < l.firstGrid + l.gridCount; ++k) {
-      const VerifyResult r = verifyBundleGrid(q, k, bundle.options.closed, scene, rays,
-                                              std::max<uint64_t>(1, perLight / l.gridCount), a.seed + k);
-      total.samples += r.samples;
-      total.insideClosed += r.insideClosed;
-      total.exactlyLit += r.exactlyLit;
-      total.nearBoundary += r.nearBoundary;
-      total.mismatchNearBoundary += r.mismatchNearBoundary;
-      total.mismatchElsewhere += r.mismatchElsewhere;
-      for (const SurfaceSample& e : r.elsewhereExamples)
-        if (total.elsewhereExamples.size() < 16) total.elsewhereExamples.push_back(e);
+      total += verifyBundleGrid(q, k, bundle.options.closed, scene, rays, std::max<uint64_t>(1, perLight / l.gridCount),
+                                a.seed + k);
     }
     elsewhere += total.mismatchElsewhere;
     results.push_back(std::move(total));
@@ -112,11 +104,11 @@ int verifyBundle(const VerifyArgs& a, const std::vector<uint8_t>& bytes) {
         std::printf("    mismatch at (%.9g, %.9g, %.9g) normal (%.4f, %.4f, %.4f)\n", e.point.x, e.point.y, e.point.z,
                     e.normal.x, e.normal.y, e.normal.z);
     }
-    uint64_t points = 0, near = 0, nearBad = 0;
-    for (const VerifyResult& r : results) points += r.samples, near += r.nearBoundary, nearBad += r.mismatchNearBoundary;
-    std::printf("  %-5s %-18s %-5s %9llu %9s %14llu %12llu %10llu\n", "all", "", "", static_cast<unsigned long long>(points), "",
-                static_cast<unsigned long long>(near), static_cast<unsigned long long>(nearBad),
-                static_cast<unsigned long long>(elsewhere));
+    VerifyResult all;
+    for (const VerifyResult& r : results) all += r;
+    std::printf("  %-5s %-18s %-5s %9llu %9s %14llu %12llu %10llu\n", "all", "", "", static_cast<unsigned long long>(all.samples),
+                "", static_cast<unsigned long long>(all.nearBoundary),
+                static_cast<unsigned long long>(all.mismatchNearBoundary), static_cast<unsigned long long>(elsewhere));
     std::printf("\n  (near boundary: the exact answer changes within one voxel of the point; mismatches there are "
                 "the grid's quantization, elsewhere they are wrong answers)\n");
   }

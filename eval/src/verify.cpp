@@ -30,11 +30,8 @@ constexpr double kFaceSampleTanCone = 0.9490;
 VerifyResult verifyBundleGrid(const BundleQuery& query, size_t grid, ClosedMode closed, const Scene& scene,
                               const RayScene& rays, uint64_t count, uint64_t seed) {
   const ShadowQuery& q = query.grid(grid);
-  // The grid's light: a spot light's cone cuts its texels; a cube face's cone is wider
-  // than its square.
-  size_t light = 0;
-  while (!(grid >= query.light(light).firstGrid && grid < query.light(light).firstGrid + query.light(light).gridCount)) ++light;
-  if (query.light(light).light.kind == LightKind::Spot) return verifySpotArtifact(q, closed, scene, rays, count, seed);
+  // A spot light's cone cuts its texels; a cube face's cone is wider than its square.
+  if (query.light(query.lightOfGrid(grid)).light.kind == LightKind::Spot) return verifySpotArtifact(q, closed, scene, rays, count, seed);
   return verifySamples(q, closed, rays, sampleSpotSurfaces(scene, rays, closed, *q.spot(), kFaceSampleTanCone, count, seed));
 }
 

@@ -59,6 +59,11 @@ void maskCone(const RasterScene& scene, const RasterBinJob& job) {
     if (!spot->coneMissesTexel(bx, by, tanCone) && !spot->coneMissesTexel(bx + 7, by, tanCone) &&
         !spot->coneMissesTexel(bx, by + 7, tanCone) && !spot->coneMissesTexel(bx + 7, by + 7, tanCone))
       continue;
+    if (spot->coneMissesTexels(bx, by, 8, 8, tanCone)) {  // the whole block (rasterBin filled those it ran)
+      std::fill_n(job.lo + 64 * size_t(k), 64, 0u);
+      std::fill_n(job.hi + 64 * size_t(k), 64, R);
+      continue;
+    }
     for (int t = 0; t < 64; ++t)
       if (spot->coneMissesTexel(bx + uint64_t(t % 8), by + uint64_t(t / 8), tanCone)) {
         job.lo[64 * size_t(k) + size_t(t)] = 0;

@@ -8,8 +8,10 @@ namespace cpvs {
 
 BundleQuery::BundleQuery(const LightBundle& bundle) : lights_(bundle.lights) {
   grids_.reserve(bundle.grids.size());
-  for (size_t k = 0; k < bundle.grids.size(); ++k)
+  for (size_t k = 0; k < bundle.grids.size(); ++k) {
     grids_.emplace_back(bundle.grids[k].grid, bundle.grids[k].tanCone, bundle.dag(k));
+    gridLight_.push_back(bundle.grids[k].light);
+  }
   for (const BundleLight& l : lights_) {
     double r = 0;
     for (uint32_t k = l.firstGrid; k < l.firstGrid + l.gridCount; ++k) {

@@ -19,6 +19,8 @@ class BundleQuery {
   const BundleLight& light(size_t i) const { return lights_.at(i); }
   size_t gridCount() const { return grids_.size(); }
   const ShadowQuery& grid(size_t k) const { return grids_.at(k); }
+  /// The light grid k belongs to.
+  size_t lightOfGrid(size_t k) const { return gridLight_.at(k); }
   /// The grid of light i that answers at world point p (a point light's cube face).
   size_t gridAt(size_t light, const Vec3& p) const;
   /// How far from light i a point may be and still get light: its grids' frusta cut at
@@ -36,6 +38,7 @@ class BundleQuery {
   std::vector<BundleLight> lights_;
   std::vector<ShadowQuery> grids_;
   std::vector<double> reach_;
+  std::vector<uint32_t> gridLight_;
 };
 
 }  // namespace cpvs

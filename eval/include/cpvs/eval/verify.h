@@ -21,6 +21,19 @@ struct VerifyResult {
   uint64_t mismatchElsewhere = 0;
   std::vector<SurfaceSample> elsewhereExamples;  // up to 16, for diagnosis
 
+  /// Adds another comparison's counts (and examples, up to 16).
+  VerifyResult& operator+=(const VerifyResult& o) {
+    samples += o.samples;
+    insideClosed += o.insideClosed;
+    exactlyLit += o.exactlyLit;
+    nearBoundary += o.nearBoundary;
+    mismatchNearBoundary += o.mismatchNearBoundary;
+    mismatchElsewhere += o.mismatchElsewhere;
+    for (const SurfaceSample& e : o.elsewhereExamples)
+      if (elsewhereExamples.size() < 16) elsewhereExamples.push_back(e);
+    return *this;
+  }
+
   double fractionNearBoundary() const { return samples ? double(mismatchNearBoundary) / double(samples) : 0; }
   double fractionElsewhere() const { return samples ? double(mismatchElsewhere) / double(samples) : 0; }
 };
