@@ -111,18 +111,43 @@ std::vector<uint8_t> bomb(bool cpvs) {
   return b;
 }
 
+// Under AddressSanitizer an address-space limit cannot stand in for "allocated nothing
+// big": the sanitizer's shadow is mapped before the limit is set, so its allocator's next
+// mapping fails whatever the decoder asks for. There the allocator's own hook records the
+// largest single allocation instead, and the child reports it.
+#if defined(__SANITIZE_ADDRESS__)
+extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*)(const volatile void*, size_t),
+                                                         void (*)(const volatile void*));
+size_t largestAllocation = 0;
+void recordAllocation(const volatile void*, size_t size) {
+  if (size > largestAllocation) largestAllocation = size;
+}
+void ignoreFree(const volatile void*) {}
+void limitAllocations() {
+  // The runtime installs nothing unless both hooks are given.
+  if (!__sanitizer_install_malloc_and_free_hooks(recordAllocation, ignoreFree)) _exit(6);
+}
+bool allocatedTooMuch() { return largestAllocation > (size_t(256) << 20); }
+#else
+void limitAllocations() {
+  rlimit limit{512u << 20, 512u << 20};
+  setrlimit(RLIMIT_AS, &limit);
+}
+bool allocatedTooMuch() { return false; }  // the limit turned it into std::bad_alloc
+#endif
+
 TEST(SubDagFile, DecompressionBombsAreRefusedBeforeAllocating) {
   for (bool cpvs : {false, true}) {
     const std::vector<uint8_t> bytes = bomb(cpvs);
     const pid_t child = fork();
     ASSERT_GE(child, 0);
     if (child == 0) {
-      rlimit limit{512u << 20, 512u << 20};
-      setrlimit(RLIMIT_AS, &limit);
+      limitAllocations();
       try {
         if (cpvs) decodeCpvs(bytes.data(), bytes.size(), "bomb.cpvs");
         else decodeSubDag(bytes.data(), bytes.size(), "bomb", true, HashKind::Xxh3);
       } catch (const InputError& e) {
+        if (allocatedTooMuch()) _exit(4);
         _exit(std::string(e.what()).find("times its size, refused") != std::string::npos ? 0 : 3);
       } catch (const std::bad_alloc&) {
         _exit(4);
@@ -133,7 +158,7 @@ TEST(SubDagFile, DecompressionBombsAreRefusedBeforeAllocating) {
     ASSERT_EQ(waitpid(child, &status, 0), child);
     ASSERT_TRUE(WIFEXITED(status)) << (cpvs ? ".cpvs" : "sub-DAG") << ": killed by signal " << WTERMSIG(status);
     EXPECT_EQ(WEXITSTATUS(status), 0) << (cpvs ? ".cpvs" : "sub-DAG")
-                                      << ": 3 another InputError, 4 bad_alloc, 5 accepted";
+                                      << ": 3 another InputError, 4 allocated more than it may, 5 accepted, 6 no allocation hook";
   }
 }
 
