@@ -20,6 +20,13 @@ struct CpvsShadows_T {
   std::unique_ptr<ShadowLookups> lookups;
 };
 
+struct CpvsLights_T {
+  std::shared_ptr<const LightArtifact> artifact;
+  std::unique_ptr<GpuLights> gpu;  // null: the CPU answers
+  bool fallback = false;
+  std::vector<uint8_t> lights, grids, boundaries;  // cpvsGetLightBuffer's bytes
+};
+
 namespace {
 
 thread_local std::string lastError;
@@ -140,6 +147,85 @@ CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* poi
     std::vector<uint32_t> out;
     shadows->lookups->litTexels(p, n, pcf, out);  // with CPVS_FALLBACK_CPU, the CPU after a loss
     if (count) std::memcpy(litTexels, out.data(), count * 4);
+  });
+}
+
+CpvsStatus cpvsOpenLights(const char* path, CpvsDevice device, uint32_t flags, CpvsLights* lights) {
+  return guarded([&] {
+    require(lights != nullptr, "cpvsOpenLights: lights is null");
+    *lights = nullptr;
+    require(path != nullptr, "cpvsOpenLights: path is null");
+    require((flags & ~CPVS_FALLBACK_CPU) == 0, "cpvsOpenLights: unknown flags");
+    auto l = std::make_unique<CpvsLights_T>();
+    l->artifact = LightArtifact::open(path);
+    l->fallback = (flags & CPVS_FALLBACK_CPU) != 0;
+    const LightBundle& b = l->artifact->bundle();
+    l->lights = lightTableBytes(b), l->grids = spotGridTableBytes(b, 0), l->boundaries = sliceBoundaryBytes(b);
+    if (device) try {
+        l->gpu = std::make_unique<GpuLights>(*device->device, l->artifact);
+      } catch (const RuntimeError&) {
+        if (!l->fallback) throw;
+      }
+    *lights = l.release();
+  });
+}
+
+void cpvsReleaseLights(CpvsLights lights) { delete lights; }
+
+int cpvsLightsOnDevice(CpvsLights lights) { return lights && lights->gpu ? 1 : 0; }
+
+size_t cpvsGetLightCount(CpvsLights lights) { return lights ? lights->artifact->lightCount() : 0; }
+
+CpvsStatus cpvsGetLightInfo(CpvsLights lights, size_t light, CpvsLightInfo* info) {
+  return guarded([&] {
+    require(lights != nullptr && info != nullptr, "cpvsGetLightInfo: lights or info is null");
+    require(light < lights->artifact->lightCount(), "cpvsGetLightInfo: no such light");
+    const LightBundle& b = lights->artifact->bundle();
+    const BundleLight& bl = b.lights[light];
+    const Light& l = bl.light;
+    const bool point = l.kind == LightKind::Point;
+    const Vec3 d = point ? Vec3{} : normalize(l.direction);
+    *info = CpvsLightInfo{point ? 1u : 0u, bl.gridCount, {l.position.x, l.position.y, l.position.z}, {d.x, d.y, d.z},
+                          point ? 0.0 : l.coneDeg, b.grids[bl.firstGrid].grid.far(), {l.colour.x, l.colour.y, l.colour.z},
+                          l.intensity, l.name.c_str()};
+  });
+}
+
+CpvsStatus cpvsQueryLights(CpvsLights lights, size_t count, const uint32_t* lightOfQuery, size_t lightCount,
+                           const double* points, const double* normals, int pcf, uint32_t* litTexels) {
+  return guarded([&] {
+    require(lights != nullptr, "cpvsQueryLights: lights is null");
+    require(count == 0 || (points && litTexels && lightOfQuery), "cpvsQueryLights: lightOfQuery, points or litTexels is null");
+    require(lightCount == count || lightCount == 1, "cpvsQueryLights: lightCount must be count or 1");
+    std::vector<Vec3> p(count), n(normals ? count : 0);
+    for (size_t i = 0; i < count; ++i) p[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
+    for (size_t i = 0; i < n.size(); ++i) n[i] = {normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+    const std::vector<uint32_t> which(lightOfQuery, lightOfQuery + (count ? lightCount : 0));
+    std::vector<uint32_t> out;
+    if (count == 0) return;
+    if (lights->gpu) try {
+        lights->gpu->litTexels(which, p, n, pcf, out);
+      } catch (const RuntimeError& e) {
+        // With CPVS_FALLBACK_CPU a lost device leaves the lights on the CPU.
+        if (!lights->fallback || e.status() != Status::DeviceLost) throw;
+        lights->gpu.reset();
+      }
+    if (!lights->gpu) cpuLightLitTexels(*lights->artifact, which, p, n, pcf, out);
+    std::memcpy(litTexels, out.data(), count * 4);
+  });
+}
+
+CpvsStatus cpvsGetLightBuffer(CpvsLights lights, CpvsLightBuffer which, const void** data, size_t* bytes) {
+  return guarded([&] {
+    require(lights != nullptr && data != nullptr && bytes != nullptr, "cpvsGetLightBuffer: an argument is null");
+    const std::vector<uint32_t>& words = *lights->artifact->bundle().pool;
+    switch (which) {
+      case CPVS_LIGHT_BUFFER_WORDS: *data = words.data(), *bytes = words.size() * 4; return;
+      case CPVS_LIGHT_BUFFER_LIGHTS: *data = lights->lights.data(), *bytes = lights->lights.size(); return;
+      case CPVS_LIGHT_BUFFER_GRIDS: *data = lights->grids.data(), *bytes = lights->grids.size(); return;
+      case CPVS_LIGHT_BUFFER_BOUNDARIES: *data = lights->boundaries.data(), *bytes = lights->boundaries.size(); return;
+    }
+    require(false, "cpvsGetLightBuffer: no such buffer");
   });
 }
 

@@ -1,5 +1,6 @@
-// The query shader's SPIR-V, compiled at build time by glslc from cpvs_query.comp and
-// embedded. Private to runtime.
+// The query shaders' SPIR-V, compiled at build time by glslc from cpvs_query.comp (an
+// artifact's lookups) and cpvs_light_query.comp (a light bundle's) and embedded. Private
+// to runtime.
 #pragma once
 
 #include <cstddef>
@@ -16,5 +17,8 @@ struct SpirvCode {
 SpirvCode queryShaderOneBuffer();
 /// Split across up to 8 bindings.
 SpirvCode queryShaderEightBuffers();
+/// A light bundle's lookups, its pool in one binding or split across up to 8.
+SpirvCode lightQueryShaderOneBuffer();
+SpirvCode lightQueryShaderEightBuffers();
 
 }  // namespace cpvs::runtime

@@ -1,4 +1,5 @@
-// Opening artifacts, the CPU path, and the front that picks a device or the CPU.
+// Opening artifacts and light bundles, the CPU path, and the front that picks a device or
+// the CPU.
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
 
@@ -11,6 +12,23 @@
 
 namespace cpvs::runtime {
 
+namespace {
+
+// An artifact's bytes through `decode`: FileError when the file cannot be read,
+// CorruptArtifact when decode refuses them.
+template <class Decode>
+auto openWith(const std::string& path, Decode&& decode) {
+  std::vector<uint8_t> bytes;
+  try {
+    bytes = readFile(path);
+  } catch (const InputError& e) {
+    throw RuntimeError(Status::FileError, e.what());
+  }
+  return decode(bytes, path);
+}
+
+}  // namespace
+
 std::shared_ptr<const ShadowArtifact> ShadowArtifact::fromBytes(const std::vector<uint8_t>& bytes, const std::string& source) {
   try {
     CpvsArtifact a = decodeCpvs(bytes.data(), bytes.size(), source);
@@ -20,15 +38,17 @@ std::shared_ptr<const ShadowArtifact> ShadowArtifact::fromBytes(const std::vecto
   }
 }
 
-std::shared_ptr<const ShadowArtifact> ShadowArtifact::open(const std::string& path) {
-  std::vector<uint8_t> bytes;
+std::shared_ptr<const ShadowArtifact> ShadowArtifact::open(const std::string& path) { return openWith(path, fromBytes); }
+
+std::shared_ptr<const LightArtifact> LightArtifact::fromBytes(const std::vector<uint8_t>& bytes, const std::string& source) {
   try {
-    bytes = readFile(path);
+    return std::make_shared<const LightArtifact>(decodeBundle(bytes.data(), bytes.size(), source));
   } catch (const InputError& e) {
-    throw RuntimeError(Status::FileError, e.what());
+    throw RuntimeError(Status::CorruptArtifact, e.what());
   }
-  return fromBytes(bytes, path);
 }
+
+std::shared_ptr<const LightArtifact> LightArtifact::open(const std::string& path) { return openWith(path, fromBytes); }
 
 void cpuLitTexels(const ShadowArtifact& artifact, const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
                   int pcf, std::vector<uint32_t>& out) {

@@ -14,6 +14,7 @@
 #include <random>
 
 #include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_lights.h"
 #include "cpvs/eval/surface_sampling.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/raytrace/ray_scene.h"
@@ -364,6 +365,178 @@ TEST(GpuLookups, CorruptAndMissingArtifactsAreClearErrors) {
   EXPECT_EQ(cpvsOpenShadows((::testing::TempDir() + "absent.cpvs").c_str(), nullptr, 0, &shadows), CPVS_ERROR_FILE);
   EXPECT_EQ(cpvsOpenShadows(nullptr, nullptr, 0, &shadows), CPVS_ERROR_INVALID_ARGUMENT);
   EXPECT_STREQ(cpvsGetStatusName(CPVS_ERROR_CORRUPT_ARTIFACT), "corrupt-artifact");
+}
+
+// A light bundle on the device: two spot lights (one with its range short of the scene)
+// and a point light's cube over a small city, answered as BundleQuery answers, bit for
+// bit, for every filter width: surface points in each cone with their normals; points
+// spread over each grid's voxels and beyond its sides, in front of near, beyond far and
+// behind the light, many exactly on a texel edge or a slice boundary (or a hair off
+// one), with zero, NaN, tiny and random normals.
+TEST(GpuLightLookups, ABundleAnswersAsTheCpu) {
+  const Scene scene = openScene("city:3");
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const Vec3 c = (lo + hi) * 0.5, e = hi - lo;
+  std::vector<Light> lights(3);
+  lights[0].name = "wide";
+  lights[0].position = c + Vec3{-0.15 * e.x, 0.4 * e.y, 0.1 * e.z};
+  lights[0].direction = {0.2, -1, -0.35};
+  lights[0].coneDeg = 55;
+  lights[0].log2Resolution = 8;
+  lights[1].name = "short";
+  lights[1].position = c + Vec3{0.35 * e.x, -0.2 * e.y, -0.25 * e.z};
+  lights[1].direction = {-1, -0.4, 0.5};
+  lights[1].coneDeg = 20;
+  lights[1].range = 0.45 * length(e);
+  lights[1].log2Resolution = 7;
+  lights[2].name = "bulb";
+  lights[2].kind = LightKind::Point;
+  lights[2].position = c + Vec3{-0.05 * e.x, 0.25 * e.y, -0.1 * e.z};
+  lights[2].range = 0.5 * length(e);
+  lights[2].log2Resolution = 7;
+  const auto artifact = std::make_shared<const LightArtifact>(bakeLights(scene, lights, 0, BakeOptions{}, sceneHash(scene)));
+  const LightBundle& bundle = artifact->bundle();
+  ASSERT_EQ(bundle.grids.size(), 8u);
+
+  std::vector<uint32_t> which;
+  std::vector<Vec3> points, normals;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> gauss;
+  const RayScene rays(scene, c);
+  for (size_t k = 0; k < bundle.grids.size(); ++k) {
+    const BundleGrid& g = bundle.grids[k];
+    for (const SurfaceSample& s : sampleSpotSurfaces(scene, rays, ClosedMode::Auto, g.grid, g.tanCone, 600, k + 1)) {
+      which.push_back(g.light);
+      points.push_back(s.point);
+      normals.push_back(s.normal);
+    }
+    const double R = double(g.grid.resolution());
+    const double hairs[] = {0, 1e-9, -1e-9};
+    for (int i = 0; i < 900; ++i) {
+      Vec3 v{(unit(rng) * 1.4 - 0.2) * R, (unit(rng) * 1.4 - 0.2) * R, (unit(rng) * 1.6 - 0.3) * R};
+      double* axis[] = {&v.x, &v.y, &v.z};
+      for (double* a : axis)
+        if (rng() % 2) *a = std::floor(*a) + hairs[rng() % 3];
+      Vec3 p = g.grid.worldFromVoxel(v);
+      if (i % 10 == 0) p = g.grid.position() * 2 - p;  // behind the light
+      which.push_back(g.light);
+      points.push_back(p);
+      const uint64_t kind = rng() % 6;
+      normals.push_back(kind == 0   ? Vec3{}
+                        : kind == 1 ? Vec3{std::nan(""), 0, 1}
+                        : kind == 2 ? Vec3{1e-310, 0, 0}
+                                    : Vec3{gauss(rng), gauss(rng), gauss(rng)});
+    }
+  }
+  GpuLights gpu(device(), artifact);
+  for (int pcf : {1, 3, 9}) {
+    std::vector<uint32_t> onGpu, onCpu;
+    gpu.litTexels(which, points, normals, pcf, onGpu);
+    EXPECT_GT(gpu.lastDeviceNanoseconds(), 0) << "the device ran the lookups";
+    cpuLightLitTexels(*artifact, which, points, normals, pcf, onCpu);
+    ASSERT_EQ(onGpu.size(), points.size());
+    uint64_t differ = 0, lit = 0, dark = 0, partly = 0;
+    for (size_t i = 0; i < points.size(); ++i) {
+      if (onGpu[i] != onCpu[i] && ++differ <= 5)
+        ADD_FAILURE() << "pcf " << pcf << ", light " << which[i] << " at " << points[i].x << ", " << points[i].y << ", "
+                      << points[i].z << ": GPU " << onGpu[i] << ", CPU " << onCpu[i];
+      (onCpu[i] == 0 ? dark : onCpu[i] == uint32_t(pcf * pcf) ? lit : partly) += 1;
+    }
+    EXPECT_EQ(differ, 0u) << "pcf " << pcf << ", " << points.size() << " queries";
+    EXPECT_GT(lit, points.size() / 20) << "pcf " << pcf << ": the queries must see light";
+    EXPECT_GT(dark, points.size() / 20) << "pcf " << pcf << ": and shadow";
+    if (pcf > 1) EXPECT_GT(partly, points.size() / 100) << "pcf " << pcf << ": and penumbrae";
+  }
+  // The pool split across bindings: the same answers.
+  {
+    DeviceOptions options = validated();
+    options.maxBindingBytes = std::bit_floor(bundle.pool->size() * 4 / 4);  // 4 to 8 bindings
+    auto small = GpuDevice::create(options);
+    GpuLights split(*small, artifact);
+    EXPECT_GE(split.wordBindings(), 4);
+    EXPECT_LE(split.wordBindings(), 8);
+    std::vector<uint32_t> onSplit, onOne;
+    split.litTexels(which, points, normals, 9, onSplit);
+    gpu.litTexels(which, points, normals, 9, onOne);
+    EXPECT_EQ(onSplit, onOne);
+    expectNoValidationMessages(*small);
+  }
+  // One light for every point, and refusals.
+  std::vector<uint32_t> one, each;
+  gpu.litTexels({2}, points, normals, 9, one);
+  cpuLightLitTexels(*artifact, std::vector<uint32_t>(points.size(), 2), points, normals, 9, each);
+  EXPECT_EQ(one, each);
+  auto statusOf = [&](auto&& call) {
+    try {
+      call();
+    } catch (const RuntimeError& e) {
+      return e.status();
+    }
+    return Status::Ok;
+  };
+  EXPECT_EQ(statusOf([&] { gpu.litTexels({3}, points, normals, 1, one); }), Status::InvalidArgument);
+  EXPECT_EQ(statusOf([&] { gpu.litTexels({0, 1}, points, normals, 1, one); }), Status::InvalidArgument);
+  EXPECT_EQ(statusOf([&] { gpu.litTexels(which, points, normals, 4, one); }), Status::InvalidArgument);
+  const Baked b = bake("city:3", {0.3, -1, 0.2}, 7);
+  EXPECT_EQ(statusOf([&] { LightArtifact::open(b.file); }), Status::CorruptArtifact) << "a sun artifact is no bundle";
+  EXPECT_EQ(statusOf([&] { LightArtifact::open(::testing::TempDir() + "absent-bundle.cpvs"); }), Status::FileError);
+  expectNoValidationMessages(device());
+
+  // Through the C API, on a device and on the CPU: the same answers, the light table, the
+  // buffers an engine binds, and clear errors.
+  const std::string file = ::testing::TempDir() + "gpu-lights.cpvs";
+  writeBundle(file, bundle, true);
+  CpvsDeviceDesc desc{nullptr, 1, 0};
+  CpvsDevice cDevice = nullptr;
+  ASSERT_EQ(cpvsNewDevice(&desc, &cDevice), CPVS_OK) << cpvsGetLastError();
+  CpvsLights onDevice = nullptr, onCpu = nullptr;
+  ASSERT_EQ(cpvsOpenLights(file.c_str(), cDevice, 0, &onDevice), CPVS_OK) << cpvsGetLastError();
+  ASSERT_EQ(cpvsOpenLights(file.c_str(), nullptr, 0, &onCpu), CPVS_OK) << cpvsGetLastError();
+  EXPECT_EQ(cpvsLightsOnDevice(onDevice), 1);
+  EXPECT_EQ(cpvsLightsOnDevice(onCpu), 0);
+  ASSERT_EQ(cpvsGetLightCount(onDevice), 3u);
+  CpvsLightInfo info{};
+  ASSERT_EQ(cpvsGetLightInfo(onDevice, 2, &info), CPVS_OK);
+  EXPECT_EQ(info.kind, 1u);
+  EXPECT_EQ(info.gridCount, 6u);
+  EXPECT_STREQ(info.name, "bulb");
+  EXPECT_EQ(info.position[1], lights[2].position.y);
+  EXPECT_EQ(cpvsGetLightInfo(onDevice, 3, &info), CPVS_ERROR_INVALID_ARGUMENT);
+  std::vector<double> flat, flatNormals;
+  for (size_t i = 0; i < points.size(); ++i)
+    for (const Vec3* v : {&points[i], &normals[i]}) (v == &points[i] ? flat : flatNormals).insert((v == &points[i] ? flat : flatNormals).end(), {v->x, v->y, v->z});
+  std::vector<uint32_t> fromDevice(points.size()), fromCpu(points.size()), reference;
+  ASSERT_EQ(cpvsQueryLights(onDevice, points.size(), which.data(), which.size(), flat.data(), flatNormals.data(), 9,
+                            fromDevice.data()), CPVS_OK) << cpvsGetLastError();
+  ASSERT_EQ(cpvsQueryLights(onCpu, points.size(), which.data(), which.size(), flat.data(), flatNormals.data(), 9,
+                            fromCpu.data()), CPVS_OK) << cpvsGetLastError();
+  cpuLightLitTexels(*artifact, which, points, normals, 9, reference);
+  EXPECT_EQ(fromDevice, reference);
+  EXPECT_EQ(fromCpu, reference);
+  const uint32_t tooFar = 3;
+  EXPECT_EQ(cpvsQueryLights(onDevice, 1, &tooFar, 1, flat.data(), nullptr, 1, fromDevice.data()), CPVS_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(cpvsGetLastError()).find("light 3 of a bundle of 3"), std::string::npos) << cpvsGetLastError();
+  EXPECT_EQ(cpvsQueryLights(onDevice, 3, which.data(), 2, flat.data(), nullptr, 1, fromDevice.data()), CPVS_ERROR_INVALID_ARGUMENT);
+  const void* data = nullptr;
+  size_t bytes = 0;
+  ASSERT_EQ(cpvsGetLightBuffer(onDevice, CPVS_LIGHT_BUFFER_WORDS, &data, &bytes), CPVS_OK);
+  EXPECT_EQ(bytes, bundle.pool->size() * 4);
+  EXPECT_EQ(std::memcmp(data, bundle.pool->data(), bytes), 0) << "the pool as the file holds it";
+  ASSERT_EQ(cpvsGetLightBuffer(onDevice, CPVS_LIGHT_BUFFER_LIGHTS, &data, &bytes), CPVS_OK);
+  EXPECT_EQ(bytes, 3u * 64);
+  ASSERT_EQ(cpvsGetLightBuffer(onDevice, CPVS_LIGHT_BUFFER_GRIDS, &data, &bytes), CPVS_OK);
+  EXPECT_EQ(bytes, 8 + 8u * 152);
+  ASSERT_EQ(cpvsGetLightBuffer(onDevice, CPVS_LIGHT_BUFFER_BOUNDARIES, &data, &bytes), CPVS_OK);
+  EXPECT_EQ(bytes, (257u + 129u * 7) * 8);
+  CpvsLights refused = nullptr;
+  EXPECT_EQ(cpvsOpenLights(b.file.c_str(), cDevice, 0, &refused), CPVS_ERROR_CORRUPT_ARTIFACT);
+  EXPECT_EQ(refused, nullptr);
+  EXPECT_EQ(cpvsGetValidationMessageCount(cDevice), 0u);
+  cpvsReleaseLights(onDevice);
+  cpvsReleaseLights(onCpu);
+  cpvsReleaseDevice(cDevice);
 }
 
 // The C API end to end: a validated device, an artifact on it, answers as the CPU's;

@@ -33,6 +33,11 @@ class BundleQuery {
   float filtered(size_t light, const Vec3& p, const Vec3& n, PcfWidth pcf) const {
     return grids_[gridAt(light, p)].filtered(p, n, pcf);
   }
+  /// How many of those texels are lit (ShadowQuery::litTexels): what a GPU lookup
+  /// (cpvsLightLitTexels) answers.
+  uint32_t litTexels(size_t light, const Vec3& p, const Vec3& n, PcfWidth pcf) const {
+    return grids_[gridAt(light, p)].litTexels(p, n, pcf);
+  }
 
  private:
   std::vector<BundleLight> lights_;

@@ -2,7 +2,7 @@
  * interfaces are C. Every function returns a CpvsStatus (or a value that cannot fail);
  * on failure cpvsGetLastError() describes it (per thread, valid until the thread's next
  * call). Handles are not thread-safe: one thread at a time per handle. A CpvsDevice must
- * outlive the CpvsShadows made on it. */
+ * outlive the CpvsShadows and CpvsLights made on it. */
 #ifndef CPVS_RUNTIME_H
 #define CPVS_RUNTIME_H
 
@@ -28,6 +28,7 @@ typedef enum CpvsStatus {
 
 typedef struct CpvsDevice_T* CpvsDevice;
 typedef struct CpvsShadows_T* CpvsShadows;
+typedef struct CpvsLights_T* CpvsLights;
 
 /* How cpvsNewDevice picks a device; a null pointer means all defaults. */
 typedef struct CpvsDeviceDesc {
@@ -70,6 +71,51 @@ int cpvsShadowsOnDevice(CpvsShadows shadows);
  * pcf x pcf texels are lit (for pcf 1: 1 lit, 0 shadowed), as the CPU reference answers. */
 CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* points, const double* normals, int pcf,
                             uint32_t* litTexels);
+
+/* --- local lights: a light bundle (.cpvs format 4, `cpvs bake --spot/--point/--lights`) */
+
+/* Opens a light bundle and uploads it to `device` (NULL: lookups on the CPU); flags as
+ * cpvsOpenShadows. A CpvsDevice must outlive the CpvsLights made on it. */
+CpvsStatus cpvsOpenLights(const char* path, CpvsDevice device, uint32_t flags, CpvsLights* lights);
+void cpvsReleaseLights(CpvsLights lights);
+/* 1 when lookups run on the device, 0 on the CPU. */
+int cpvsLightsOnDevice(CpvsLights lights);
+/* How many lights the bundle holds; 0 for NULL. */
+size_t cpvsGetLightCount(CpvsLights lights);
+
+/* A light as the bundle records it, for shading. */
+typedef struct CpvsLightInfo {
+  uint32_t kind;         /* 0 spot, 1 point (six grids, a cube) */
+  uint32_t gridCount;
+  double position[3];
+  double direction[3];   /* a spot light's axis, unit length; zero for a point light */
+  double coneDeg;        /* a spot light's half-angle */
+  double range;          /* no light beyond this distance along its axis (its grids' far) */
+  double colour[3];      /* linear RGB */
+  double intensity;
+  const char* name;      /* valid while the CpvsLights lives */
+} CpvsLightInfo;
+CpvsStatus cpvsGetLightInfo(CpvsLights lights, size_t light, CpvsLightInfo* info);
+
+/* count queries, query i of light lightOfQuery[i] (lightCount 1: lightOfQuery[0] for
+ * all; otherwise lightCount must be count): points, normals and pcf as cpvsQueryShadows.
+ * litTexels[i] receives the lit texels of that light's footprint (0 outside its cone,
+ * beyond its range, behind it), as the CPU reference answers. */
+CpvsStatus cpvsQueryLights(CpvsLights lights, size_t count, const uint32_t* lightOfQuery, size_t lightCount,
+                           const double* points, const double* normals, int pcf, uint32_t* litTexels);
+
+/* The buffers an engine's own shader binds for cpvs_shadow.glsl with CPVS_LIGHTS, as
+ * bytes to upload: the shared pool's words (CpvsLightWords), CpvsLights, CpvsSpotGrids
+ * and CpvsSliceBoundaries. CpvsSpotGrids begins with the log2 of the words per pool
+ * buffer, 0 here: an engine that splits the pool across buffers (CPVS_LIGHT_WORD_BUFFERS
+ * > 1) writes its own there. Valid while the CpvsLights lives. */
+typedef enum CpvsLightBuffer {
+  CPVS_LIGHT_BUFFER_WORDS = 0,
+  CPVS_LIGHT_BUFFER_LIGHTS = 1,
+  CPVS_LIGHT_BUFFER_GRIDS = 2,
+  CPVS_LIGHT_BUFFER_BOUNDARIES = 3
+} CpvsLightBuffer;
+CpvsStatus cpvsGetLightBuffer(CpvsLights lights, CpvsLightBuffer which, const void** data, size_t* bytes);
 
 /* The message of this thread's last failure ("" when none). */
 const char* cpvsGetLastError(void);

@@ -14,7 +14,9 @@
 
 #include "cpvs/base/vec3.h"
 #include "cpvs/dag/packed_dag.h"
+#include "cpvs/io/bundle_file.h"
 #include "cpvs/light/ortho_grid.h"
+#include "cpvs/query/bundle_query.h"
 #include "cpvs/query/shadow_query.h"
 
 // Vulkan handles as the application has them, without including vulkan.h here.
@@ -68,6 +70,33 @@ class ShadowArtifact {
  private:
   ShadowQuery query_;
 };
+
+/// A light bundle opened for lookups: its lights, their grids, the one pool of words they
+/// share (as the file holds it) and the CPU reference over them. Immutable.
+class LightArtifact {
+ public:
+  /// Reads and validates a light bundle (.cpvs format 4). FileError when it cannot be
+  /// read, CorruptArtifact when it is not a valid bundle (a single-light artifact is not).
+  static std::shared_ptr<const LightArtifact> open(const std::string& path);
+  static std::shared_ptr<const LightArtifact> fromBytes(const std::vector<uint8_t>& bytes, const std::string& source);
+
+  const LightBundle& bundle() const { return bundle_; }
+  size_t lightCount() const { return bundle_.lights.size(); }
+  const BundleQuery& cpu() const { return query_; }
+
+  explicit LightArtifact(LightBundle bundle) : bundle_(std::move(bundle)), query_(bundle_) {}
+
+ private:
+  LightBundle bundle_;
+  BundleQuery query_;
+};
+
+/// Lit texel counts, on the CPU, of light lights[i] at each (point, normal), as
+/// BundleQuery answers them, over all cores. One light per point (or one for all);
+/// InvalidArgument for a light index out of range.
+void cpuLightLitTexels(const LightArtifact& artifact, const std::vector<uint32_t>& lights,
+                       const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
+                       std::vector<uint32_t>& out);
 
 /// Fetches the artifact of a finished farm job into `cacheDir`, where it is kept under
 /// its content hash (XXH3-128, 32 hex digits, ".cpvs"), and returns its path. A job
@@ -161,6 +190,39 @@ class GpuShadows {
  private:
   std::unique_ptr<Impl> impl_;
 };
+
+/// A light bundle uploaded to a device: the shared pool in one device buffer as the
+/// file holds it (bound whole or split across up to 8 bindings), the light table, the
+/// grid table and every grid's slice boundaries in three more (cpvs_shadow.glsl with
+/// CPVS_LIGHTS reads exactly these; lightTable() and friends give an engine the bytes).
+class GpuLights {
+ public:
+  GpuLights(GpuDevice& device, std::shared_ptr<const LightArtifact> artifact);
+  ~GpuLights();
+  GpuLights(const GpuLights&) = delete;
+  GpuLights& operator=(const GpuLights&) = delete;
+
+  /// Lit texel counts of light lights[i]'s pcf x pcf footprint at each (point, normal),
+  /// as cpuLightLitTexels answers them. DeviceLost when the device stops answering.
+  void litTexels(const std::vector<uint32_t>& lights, const std::vector<Vec3>& points,
+                 const std::vector<Vec3>& normals, int pcf, std::vector<uint32_t>& out);
+  double lastDeviceNanoseconds() const;
+  int wordBindings() const;
+  const LightArtifact& artifact() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+/// The buffers cpvs_shadow.glsl's CPVS_LIGHTS section binds besides the pool, as bytes:
+/// CpvsLights (64 bytes a light), CpvsSpotGrids (8 bytes of header: log2BufferWords, the
+/// log2 of the words per pool buffer where the pool is split, and the grid count; then
+/// 152 bytes a grid) and CpvsSliceBoundaries (doubles).
+std::vector<uint8_t> lightTableBytes(const LightBundle& bundle);
+std::vector<uint8_t> spotGridTableBytes(const LightBundle& bundle, uint32_t log2BufferWords);
+std::vector<uint8_t> sliceBoundaryBytes(const LightBundle& bundle);
 
 /// Where lookups run.
 enum class Backend { Auto, Gpu, Cpu };

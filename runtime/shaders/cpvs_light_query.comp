@@ -1,0 +1,33 @@
+// The runtime library's batch query of a light bundle: one invocation per query point,
+// the lookup of cpvs_shadow.glsl's cpvsLightLitTexels. Queries are 6 doubles (point,
+// normal; a zero normal: no offset) and the light's index; the answer is the lit texel
+// count of the pcf x pcf footprint of that light's grid.
+#version 450
+#extension GL_GOOGLE_include_directive : require
+
+#define CPVS_SET 0
+#define CPVS_BINDING 0
+#define CPVS_LIGHTS
+#define CPVS_LIGHT_BINDING 12  // and the pool from 15
+#include "cpvs_shadow.glsl"
+
+layout(local_size_x = 64) in;
+
+layout(set = 0, binding = 9, std430) readonly buffer Queries { double queries[]; };
+layout(set = 0, binding = 10, std430) writeonly buffer Answers { uint answers[]; };
+layout(set = 0, binding = 11, std430) readonly buffer QueryLights { uint queryLights[]; };
+
+layout(push_constant) uniform Batch {
+  uint count;    // queries in this dispatch
+  uint pcf;      // odd filter width
+  uint groupsX;  // workgroups per row of the 2-D dispatch (maxComputeWorkGroupCount)
+};
+
+void main() {
+  const uint i = (gl_WorkGroupID.y * groupsX + gl_WorkGroupID.x) * 64u + gl_LocalInvocationID.x;
+  if (i >= count) return;
+  const uint q = 6u * i;
+  const dvec3 p = dvec3(queries[q], queries[q + 1u], queries[q + 2u]);
+  const dvec3 n = dvec3(queries[q + 3u], queries[q + 4u], queries[q + 5u]);
+  answers[i] = cpvsLightLitTexels(queryLights[i], p, n, pcf);
+}

@@ -1,0 +1,167 @@
+// A light bundle's lookups: the CPU path, and its upload to a device as the tables
+// cpvs_shadow.glsl's CPVS_LIGHTS section reads.
+#include <tbb/parallel_for.h>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <optional>
+
+#include "cpvs/base/error.h"
+#include "cpvs/query/normal_offset.h"
+#include "cpvs/runtime/runtime.h"
+#include "gpu_device_impl.h"
+#include "query_kernel.h"
+
+namespace cpvs::runtime {
+
+namespace {
+
+// The shader's CpvsLight and CpvsSpotGrid (std430: floats and uints at 4, doubles at 8).
+struct GpuLight {
+  uint32_t kind, firstGrid, gridCount, reserved;
+  float position[3], range;
+  float direction[3], cosCone;
+  float colour[3], intensity;
+};
+static_assert(sizeof(GpuLight) == 64, "cpvs_shadow.glsl's CpvsLight is 64 bytes");
+
+struct GpuSpotGrid {
+  double position[3], u[3], v[3], dir[3];
+  double tanHalfFov, tanCone, near, far, logRatio;
+  uint32_t headerWord, firstBoundary, log2Resolution, light;
+};
+static_assert(sizeof(GpuSpotGrid) == 152, "cpvs_shadow.glsl's CpvsSpotGrid is 152 bytes");
+
+// Bindings of cpvs_light_query.comp's tables (CPVS_LIGHT_BINDING 12), then its pool.
+constexpr uint32_t kLightTableBinding = 12, kLightWordBinding = 15;
+
+template <class T>
+std::vector<uint8_t> bytesOf(const std::vector<T>& rows) {
+  std::vector<uint8_t> b(rows.size() * sizeof(T));
+  if (!rows.empty()) std::memcpy(b.data(), rows.data(), b.size());
+  return b;
+}
+
+void put(float* out, const Vec3& v) { out[0] = float(v.x), out[1] = float(v.y), out[2] = float(v.z); }
+void put(double* out, const Vec3& v) { out[0] = v.x, out[1] = v.y, out[2] = v.z; }
+
+void checkQueries(const LightArtifact& artifact, const std::vector<uint32_t>& lights, const std::vector<Vec3>& points,
+                  const std::vector<Vec3>& normals, int pcf) {
+  checkQueryShape(points.size(), normals.size(), pcf);
+  if (lights.size() != points.size() && lights.size() != 1)
+    throw RuntimeError(Status::InvalidArgument,
+                       std::to_string(lights.size()) + " lights for " + std::to_string(points.size()) + " points (one each, or one for all)");
+  for (uint32_t l : lights)
+    if (l >= artifact.lightCount())
+      throw RuntimeError(Status::InvalidArgument, "light " + std::to_string(l) + " of a bundle of " +
+                                                      std::to_string(artifact.lightCount()) + " lights");
+}
+
+}  // namespace
+
+void cpuLightLitTexels(const LightArtifact& artifact, const std::vector<uint32_t>& lights,
+                       const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
+                       std::vector<uint32_t>& out) {
+  checkQueries(artifact, lights, points, normals, pcf);
+  const PcfWidth width(pcf);
+  out.resize(points.size());
+  const BundleQuery& q = artifact.cpu();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 1024), [&](const auto& range) {
+    for (size_t i = range.begin(); i != range.end(); ++i) {
+      const uint32_t light = lights.size() == 1 ? lights[0] : lights[i];
+      out[i] = q.litTexels(light, points[i], normals.empty() ? Vec3{} : normals[i], width);
+    }
+  });
+}
+
+std::vector<uint8_t> lightTableBytes(const LightBundle& bundle) {
+  std::vector<GpuLight> rows;
+  for (const BundleLight& b : bundle.lights) {
+    const Light& l = b.light;
+    GpuLight r{};
+    r.kind = l.kind == LightKind::Point ? 1 : 0;
+    r.firstGrid = b.firstGrid, r.gridCount = b.gridCount;
+    put(r.position, l.position);
+    r.range = float(bundle.grids.at(b.firstGrid).grid.far());
+    put(r.direction, l.kind == LightKind::Point ? Vec3{} : normalize(l.direction));
+    r.cosCone = l.kind == LightKind::Point ? -1.0f : float(std::cos(l.coneDeg * M_PI / 180));
+    put(r.colour, l.colour);
+    r.intensity = float(l.intensity);
+    rows.push_back(r);
+  }
+  return bytesOf(rows);
+}
+
+std::vector<uint8_t> spotGridTableBytes(const LightBundle& bundle, uint32_t log2BufferWords) {
+  std::vector<GpuSpotGrid> rows;
+  uint64_t boundary = 0;
+  for (size_t k = 0; k < bundle.grids.size(); ++k) {
+    const BundleGrid& b = bundle.grids[k];
+    const PerspectiveGrid& g = b.grid;
+    GpuSpotGrid r{};
+    put(r.position, g.position());
+    put(r.u, g.frame().u), put(r.v, g.frame().v), put(r.dir, g.frame().dir);
+    r.tanHalfFov = g.tanHalfFov(), r.tanCone = b.tanCone, r.near = g.near(), r.far = g.far();
+    r.logRatio = double(g.resolution()) / g.slicesPerLog();
+    r.headerWord = bundle.dag(k).headerWord();
+    r.firstBoundary = uint32_t(boundary);
+    r.log2Resolution = uint32_t(g.log2Resolution());
+    r.light = b.light;
+    rows.push_back(r);
+    boundary += g.resolution() + 1;
+  }
+  // The header: log2 of the words per pool buffer, the grid count (8 bytes, so the rows
+  // keep their doubles' alignment).
+  std::vector<uint8_t> b(8);
+  const uint32_t header[2] = {log2BufferWords, uint32_t(rows.size())};
+  std::memcpy(b.data(), header, 8);
+  const std::vector<uint8_t> body = bytesOf(rows);
+  b.insert(b.end(), body.begin(), body.end());
+  return b;
+}
+
+std::vector<uint8_t> sliceBoundaryBytes(const LightBundle& bundle) {
+  std::vector<double> all;
+  for (const BundleGrid& b : bundle.grids)
+    all.insert(all.end(), b.grid.sliceBoundaries(), b.grid.sliceBoundaries() + b.grid.resolution() + 1);
+  return bytesOf(all);
+}
+
+struct GpuLights::Impl {
+  std::shared_ptr<const LightArtifact> artifact;
+  QueryKernel kernel;
+  Impl(GpuDevice::Impl& g, std::shared_ptr<const LightArtifact> a)
+      : artifact(std::move(a)),
+        kernel(g, *artifact->bundle().pool, LookupMapping{},
+               {{kLightTableBinding, lightTableBytes(artifact->bundle())},
+                {kLightTableBinding + 1,
+                 spotGridTableBytes(artifact->bundle(), uint32_t(std::countr_zero(g.bindingLimit / 4)))},
+                {kLightTableBinding + 2, sliceBoundaryBytes(artifact->bundle())}},
+               {lightQueryShaderOneBuffer(), lightQueryShaderEightBuffers(), true, kLightWordBinding}, "the light bundle") {}
+};
+
+GpuLights::GpuLights(GpuDevice& device, std::shared_ptr<const LightArtifact> artifact) {
+  if (!artifact) throw RuntimeError(Status::InvalidArgument, "no light bundle to upload");
+  device.impl().checkNotLost();
+  impl_ = std::make_unique<Impl>(device.impl(), std::move(artifact));
+}
+
+GpuLights::~GpuLights() = default;
+
+double GpuLights::lastDeviceNanoseconds() const { return impl_->kernel.lastDeviceNanoseconds(); }
+int GpuLights::wordBindings() const { return impl_->kernel.wordBindings(); }
+const LightArtifact& GpuLights::artifact() const { return *impl_->artifact; }
+
+void GpuLights::litTexels(const std::vector<uint32_t>& lights, const std::vector<Vec3>& points,
+                          const std::vector<Vec3>& normals, int pcf, std::vector<uint32_t>& out) {
+  checkQueries(*impl_->artifact, lights, points, normals, pcf);
+  if (lights.size() == 1 && points.size() != 1) {
+    const std::vector<uint32_t> each(points.size(), lights[0]);
+    impl_->kernel.run(points, normals, each, pcf, out);
+    return;
+  }
+  impl_->kernel.run(points, normals, lights, pcf, out);
+}
+
+}  // namespace cpvs::runtime
