@@ -28,10 +28,7 @@ namespace {
 struct BakeArgs {
   std::string scene, out, resolution = "4K";
   SunFlags sun;
-  std::vector<std::string> spots, points;
-  std::string lightsFile;
-  bool sceneLights = false;
-  double footprint = 0;
+  LightFlags lights;
   OptionFlags options;
   int threads = 0;
   bool zstd = true, json = false, quiet = false;
@@ -113,35 +110,20 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
               a.out.substr(0, a.out.size() - (a.out.size() > 5 && a.out.ends_with(".cpvs") ? 5 : 0)).c_str());
 }
 
-// The texels of a 4K sun over the scene: the default widest texel of a local light at its far end.
-constexpr double kDefaultFootprintDivisor = 4096;
-
 // `--spot`, `--point`, `--lights`: a light bundle.
 int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point totalStart) {
-  if (!a.sun.dir.empty() || !std::isnan(a.sun.elevation) || !std::isnan(a.sun.azimuth))
-    throw InputError("--spot, --point, --lights and --scene-lights bake local lights; the sun flags are for a sun bake");
+  checkNoSunWithLights(a.sun);
   const BakeOptions opt = optionsOf(a.options);
   if (receiversOf(a.options).kind != ReceiverKind::Everywhere)
     throw InputError("local lights are baked for receivers everywhere: --receivers is for the sun");
-  std::vector<Light> lights;
-  if (!a.lightsFile.empty()) lights = net::readLightsFile(a.lightsFile);
-  for (const std::string& s : a.spots) lights.push_back(parseSpotFlag(s));
-  for (const std::string& s : a.points) lights.push_back(parsePointFlag(s));
-  if (a.footprint < 0 || !std::isfinite(a.footprint)) throw InputError("--footprint must be positive");
-
+  std::vector<Light> given = flagLights(a.lights);
   StageTimes st;
   auto start = std::chrono::steady_clock::now();
   SceneStats ss;
   Scene scene = openScene(a.scene, &ss);
-  if (a.sceneLights) {
-    std::vector<Light> own = sceneLights(scene);
-    if (own.empty()) throw InputError("--scene-lights: " + a.scene + " holds no point or spot light (cpvs plan lists its lights)");
-    lights.insert(lights.begin(), own.begin(), own.end());
-  }
+  const std::vector<Light> lights = withSceneLights(a.lights, std::move(given), scene, a.scene);
   checkLightCount(lights.size());
-  Vec3 lo, hi;
-  sceneBounds(scene, lo, hi);
-  const double footprint = a.footprint > 0 ? a.footprint : length(hi - lo) / kDefaultFootprintDivisor;
+  const double footprint = footprintOf(a.lights, scene);
   st.add("load", secondsSince(start));
   if (!a.json && !a.quiet)
     spdlog::info("{}: {} triangles ({} closed), {} light{}, texels at most {:.4g} wide at a light's far end", scene.name,
@@ -174,7 +156,7 @@ int runBake(const BakeArgs& a) {
   auto totalStart = std::chrono::steady_clock::now();
   std::unique_ptr<tbb::global_control> limit;
   if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
-  if (!a.spots.empty() || !a.points.empty() || !a.lightsFile.empty() || a.sceneLights) return runLightBake(a, totalStart);
+  if (a.lights.given()) return runLightBake(a, totalStart);
 
   const BakeOptions opt = optionsOf(a.options);
   int log2R = parseResolution(a.resolution);
@@ -241,21 +223,7 @@ void addBakeCommand(CLI::App& app, int& status) {
   addSunFlags(c, a->sun);
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R (voxels a side): 1024, 4K, 16K, ... 1M")
       ->capture_default_str();
-  c->add_option("--spot", a->spots,
-                "A spot light X,Y,Z:DX,DY,DZ:CONE[:RANGE] (position, axis, half-angle in degrees, reach; no range: "
-                "to the scene's far side); repeat for more. With local lights the file is a light bundle");
-  c->add_option("--point", a->points, "A point light X,Y,Z[:RANGE] (six 90-degree grids); repeat for more");
-  c->add_option("--lights", a->lightsFile,
-                "A lights file: JSON {\"lights\": [{\"kind\": \"LIGHT_SPOT\", \"name\": ..., \"position\": "
-                "{\"x\": ..}, \"direction\": .., \"coneDeg\": .., \"range\": .., \"colour\": .., \"intensity\": "
-                "..}]} (LIGHT_POINT for a point light; near and resolution when not planned)")
-      ->check(CLI::ExistingFile);
-  c->add_flag("--scene-lights", a->sceneLights,
-              "Bake the scene's own point and spot lights (glTF KHR_lights_punctual, COLLADA, FBX, ...; the "
-              "procedural city's street lamps) before those of --lights, --spot and --point");
-  c->add_option("--footprint", a->footprint,
-                "Local lights: the widest a texel may be at a light's far end, in scene units (picks each grid's "
-                "resolution, up to 8K; default: the scene's diagonal / 4096)");
+  addLightFlags(c, a->lights);
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
   c->add_option("--threads,-j", a->threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   c->add_flag("!--no-zstd", a->zstd, "Store the levels uncompressed");

@@ -5,7 +5,9 @@
 #include <vector>
 
 #include "cpvs/base/error.h"
+#include "cpvs/bake/bake_lights.h"
 #include "cpvs/base/parse.h"
+#include "cpvs/net/convert.h"
 #include "cpvs/net/receiver_declaration.h"
 #include "cpvs/scene/boxes.h"
 #include "cpvs/query/normal_offset.h"
@@ -27,6 +29,55 @@ void addSunFlags(CLI::App* c, SunFlags& sun) {
   c->add_option("--sun-dir", sun.dir, "Light direction X,Y,Z, from the sun into the scene (any side)");
   c->add_option("--sun-elevation", sun.elevation, "Sun elevation above the horizon in degrees (0..90, Y up)");
   c->add_option("--sun-azimuth", sun.azimuth, "Sun azimuth in degrees (0 = towards +Z, 90 = towards +X)");
+}
+
+void addLightFlags(CLI::App* c, LightFlags& lights) {
+  c->add_option("--spot", lights.spots,
+                "A spot light X,Y,Z:DX,DY,DZ:CONE[:RANGE] (position, axis, half-angle in degrees, reach; no range: "
+                "to the scene's far side); repeat for more. With local lights the file is a light bundle");
+  c->add_option("--point", lights.points, "A point light X,Y,Z[:RANGE] (six 90-degree grids); repeat for more");
+  c->add_option("--lights", lights.lightsFile,
+                "A lights file: JSON {\"lights\": [{\"kind\": \"LIGHT_SPOT\", \"name\": ..., \"position\": "
+                "{\"x\": ..}, \"direction\": .., \"coneDeg\": .., \"range\": .., \"colour\": .., \"intensity\": "
+                "..}]} (LIGHT_POINT for a point light; near and resolution when not planned)")
+      ->check(CLI::ExistingFile);
+  c->add_flag("--scene-lights", lights.sceneLights,
+              "The scene's own point and spot lights (glTF KHR_lights_punctual, COLLADA, FBX, ...; the "
+              "procedural city's street lamps), before those of --lights, --spot and --point");
+  c->add_option("--footprint", lights.footprint,
+                "Local lights: the widest a texel may be at a light's far end, in scene units (picks each grid's "
+                "resolution, up to 8K; default: the scene's diagonal / 4096)");
+}
+
+std::vector<Light> flagLights(const LightFlags& flags) {
+  if (flags.footprint < 0 || !std::isfinite(flags.footprint)) throw InputError("--footprint must be positive");
+  std::vector<Light> lights;
+  if (!flags.lightsFile.empty()) lights = net::readLightsFile(flags.lightsFile);
+  for (const std::string& s : flags.spots) lights.push_back(parseSpotFlag(s));
+  for (const std::string& s : flags.points) lights.push_back(parsePointFlag(s));
+  return lights;
+}
+
+std::vector<Light> withSceneLights(const LightFlags& flags, std::vector<Light> given, const Scene& scene,
+                                   const std::string& sceneSpec) {
+  if (!flags.sceneLights) return given;
+  std::vector<Light> lights = sceneLights(scene);
+  if (lights.empty())
+    throw InputError("--scene-lights: " + sceneSpec + " holds no point or spot light (cpvs plan lists its lights)");
+  lights.insert(lights.end(), given.begin(), given.end());
+  return lights;
+}
+
+double footprintOf(const LightFlags& flags, const Scene& scene) {
+  if (flags.footprint > 0) return flags.footprint;
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  return length(hi - lo) / 4096;
+}
+
+void checkNoSunWithLights(const SunFlags& sun) {
+  if (!sun.dir.empty() || !std::isnan(sun.elevation) || !std::isnan(sun.azimuth))
+    throw InputError("--spot, --point, --lights and --scene-lights are local lights; the sun flags are for a sun bake");
 }
 
 void addOptionFlags(CLI::App* c, OptionFlags& o, const std::string& tileHelp) {

@@ -13,6 +13,8 @@
 #include "cpvs/bake/receivers.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/light/frame.h"
+#include "cpvs/light/light.h"
+#include "cpvs/scene/scene.h"
 
 namespace cpvs::cli {
 
@@ -22,6 +24,28 @@ struct SunFlags {
   double elevation = NAN, azimuth = NAN;
 };
 void addSunFlags(CLI::App* c, SunFlags& sun);
+
+/// --spot, --point, --lights, --scene-lights, --footprint: local lights, baked into a
+/// light bundle (`bake`) or planned (`plan`).
+struct LightFlags {
+  std::vector<std::string> spots, points;
+  std::string lightsFile;
+  bool sceneLights = false;
+  double footprint = 0;
+  bool given() const { return !spots.empty() || !points.empty() || !lightsFile.empty() || sceneLights; }
+};
+void addLightFlags(CLI::App* c, LightFlags& lights);
+/// The lights of the lights file, --spot and --point, in that order, read before the
+/// scene is opened; InputError naming the flag for a malformed one, or a bad --footprint.
+std::vector<Light> flagLights(const LightFlags& flags);
+/// Those lights after the scene's own (--scene-lights; InputError naming `sceneSpec`
+/// when it has none).
+std::vector<Light> withSceneLights(const LightFlags& flags, std::vector<Light> given, const Scene& scene,
+                                   const std::string& sceneSpec);
+/// --footprint, or the scene's diagonal / 4096 (the texels of a 4K sun over it).
+double footprintOf(const LightFlags& flags, const Scene& scene);
+/// InputError when local lights are asked for with a sun flag.
+void checkNoSunWithLights(const SunFlags& sun);
 
 /// --closed, --exit, --cull, --compress, --undefined, --renderer, --tile-size.
 struct OptionFlags {

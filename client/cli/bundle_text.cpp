@@ -1,6 +1,7 @@
 #include "bundle_text.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
@@ -41,6 +42,43 @@ std::string bundleTable(const LightBundle& b) {
                 b.lights.size(), b.grids.size(), humanBytes(b.poolBytes).c_str(), humanBytes(separate).c_str(),
                 double(separate) / double(std::max<uint64_t>(1, b.poolBytes)), humanBytes(maps).c_str(),
                 double(maps) / double(std::max<uint64_t>(1, b.poolBytes)));
+  o << line;
+  return o.str();
+}
+
+std::string lightPlanTable(const LightBundle& b, const std::vector<double>& closest, double footprint) {
+  std::ostringstream o;
+  char line[512];
+  std::snprintf(line, sizeof line, "%zu local light%s, %zu grid%s; each grid's resolution keeps its texels at most %.4g wide "
+                "at its far end (--footprint)\n\n", b.lights.size(), b.lights.size() == 1 ? "" : "s", b.grids.size(),
+                b.grids.size() == 1 ? "" : "s", footprint);
+  o << line;
+  std::snprintf(line, sizeof line, "  %-5s %-18s %-5s %-32s %5s %10s %18s %10s %10s\n", "light", "name", "kind", "position",
+                "grids", "resolution", "near..far", "closest", "texel@far");
+  o << line;
+  for (size_t i = 0; i < b.lights.size(); ++i) {
+    const BundleLight& bl = b.lights[i];
+    uint64_t R = 0;
+    double near = INFINITY, far = 0, nearest = INFINITY, texel = 0;
+    for (uint32_t k = bl.firstGrid; k < bl.firstGrid + bl.gridCount; ++k) {
+      const PerspectiveGrid& g = b.grids[k].grid;
+      R = std::max(R, g.resolution());
+      near = std::min(near, g.near()), far = std::max(far, g.far());
+      if (k < closest.size()) nearest = std::min(nearest, closest[k]);
+      texel = std::max(texel, 2 * g.far() * g.tanHalfFov() / double(g.resolution()));
+    }
+    char pos[96], range[64], seen[32];
+    std::snprintf(pos, sizeof pos, "(%.4g, %.4g, %.4g)", bl.light.position.x, bl.light.position.y, bl.light.position.z);
+    std::snprintf(range, sizeof range, "%.3g..%.3g", near, far);
+    if (std::isfinite(nearest)) std::snprintf(seen, sizeof seen, "%.3g", nearest);
+    else std::snprintf(seen, sizeof seen, "nothing");
+    std::snprintf(line, sizeof line, "  %-5zu %-18s %-5s %-32s %5u %10llu %18s %10s %10.3g\n", i,
+                  loggable(bl.light.name, 18).c_str(), lightKindName(bl.light.kind), pos, bl.gridCount,
+                  static_cast<unsigned long long>(R), range, seen, texel);
+    o << line;
+  }
+  std::snprintf(line, sizeof line, "\n  16-bit shadow maps of these grids would hold %s; the bake shares one node pool\n",
+                humanBytes(bundleShadowMapBytes(b)).c_str());
   o << line;
   return o.str();
 }

@@ -4,6 +4,8 @@
 #include <memory>
 
 #include "bake_flags.h"
+#include "bundle_text.h"
+#include "cpvs/bake/bake_lights.h"
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/bake/bake_plan.h"
@@ -18,6 +20,7 @@ namespace {
 struct PlanArgs {
   std::string scene, resolution = "4K";
   SunFlags sun;
+  LightFlags lights;
   OptionFlags options;
   std::string coveragePng;
   bool json = false;
@@ -48,7 +51,27 @@ void writeCoveragePng(const std::string& path, const Scene& scene, const OrthoGr
   writePng(path, image);
 }
 
+// Local lights: each light's grids as the bake would plan them, one line per light.
+int runLightPlan(const PlanArgs& a) {
+  checkNoSunWithLights(a.sun);
+  if (!a.coveragePng.empty()) throw InputError("--coverage-png draws a sun's grid; local lights have no coverage picture yet");
+  const BakeOptions options = optionsOf(a.options);
+  std::vector<Light> given = flagLights(a.lights);
+  const Scene scene = openScene(a.scene);
+  const std::vector<Light> lights = withSceneLights(a.lights, std::move(given), scene, a.scene);
+  const double footprint = footprintOf(a.lights, scene);
+  std::vector<double> closest;
+  const LightBundle planned = planLights(scene, lights, footprint, options, closest);
+  if (a.json)
+    std::cout << "{\"footprint\": " << jsonNumber(footprint) << ", \"lights\": " << planned.lights.size()
+              << ", \"plan\": " << lightPlanJson(planned, closest) << "}\n";
+  else
+    std::cout << lightPlanTable(planned, closest, footprint);
+  return 0;
+}
+
 int runPlan(const PlanArgs& a) {
+  if (a.lights.given()) return runLightPlan(a);
   const BakeOptions options = optionsOf(a.options);
   const ReceiverDeclaration receivers = receiversOf(a.options);
   const int log2R = parseResolution(a.resolution);
@@ -73,9 +96,11 @@ void addPlanCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<PlanArgs>();
   CLI::App* c = app.add_subcommand(
       "plan", "Say what a bake will compute and why: closed parts, what the receivers leave free, the lights the scene "
-              "file holds (and which are baked), the passes that run. Every bake records this plan in its file");
+              "file holds (and which are baked), the passes that run; with local lights (--spot, --point, --lights, "
+              "--scene-lights) each light's grids: near, far, resolution. Every bake records this plan in its file");
   c->add_option("scene", a->scene, "Scene file, city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]]")->required();
   addSunFlags(c, a->sun);
+  addLightFlags(c, a->lights);
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R, as for bake")->capture_default_str();
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
   c->add_flag("--json", a->json, "Print the plan as JSON (what the artifact records)");

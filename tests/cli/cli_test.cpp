@@ -594,6 +594,30 @@ TEST_F(Cli, LightBundlesBakeInspectQueryAndVerify) {
   EXPECT_LE(b["pool_bytes"].get<uint64_t>(), b["separate_bytes"].get<uint64_t>());
   EXPECT_GT(b["shadow_map_bytes"].get<uint64_t>(), b["pool_bytes"].get<uint64_t>());
 
+  // `plan` with the same flags: the grids the bake planned, one line per light, no bake.
+  r = cpvs("plan city:3 --lights " + path("lights.json") + " --spot 60,54,20:-0.3,-1,0.2:30:80 --footprint 0.4 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json p = parse(r);
+  EXPECT_EQ(p["lights"], 3);
+  ASSERT_EQ(p["plan"]["grids"].size(), 8u);
+  for (size_t k = 0; k < 8; ++k) {
+    const json& g = p["plan"]["grids"][k];
+    const json& baked = b["lights"][k == 0 ? 0 : k < 7 ? 1 : 2]["grids"][k == 0 || k == 7 ? 0 : k - 1];
+    EXPECT_EQ(g["resolution"], baked["resolution"]) << "grid " << k;
+    EXPECT_EQ(g["near"], baked["near"]) << "grid " << k;
+    EXPECT_EQ(g["far"], baked["far"]) << "grid " << k;
+  }
+  r = cpvs("plan city:3 --lights " + path("lights.json") + " --spot 60,54,20:-0.3,-1,0.2:30:80 --footprint 0.4");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("3 local lights, 8 grids"), std::string::npos) << r.out;
+  for (const char* row : {"\n  0     flood", "\n  1     bulb               point", "\n  2                        spot"})
+    EXPECT_NE(r.out.find(row), std::string::npos) << row << " in " << r.out;
+  r = cpvs("plan city:3 --spot 60,54,20:-0.3,-1,0 --json");
+  EXPECT_EQ(r.status, 2) << "a malformed light: " << r.out;
+  EXPECT_NE(r.out.find("--spot"), std::string::npos) << r.out;
+  r = cpvs("plan city:3 --point 60,54,20 --sun-elevation 30 --sun-azimuth 10");
+  EXPECT_EQ(r.status, 2) << r.out;
+
   r = cpvs("inspect --json " + path("lamps.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;
   const json i = parse(r);

@@ -60,9 +60,8 @@ std::vector<Light> sceneLights(const Scene& scene) {
   return out;
 }
 
-LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, double footprint,
-                       const BakeOptions& options, const Hash128& sceneHash, StageTimes* times,
-                       const ProgressFn& progress) {
+LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, double footprint, const BakeOptions& options,
+                       std::vector<double>& closest) {
   if (options.receivers != ReceiverKind::Everywhere)
     throw InputError("local lights are baked for receivers everywhere (--receivers " +
                      std::string(optionName(options.receivers)) + " is for the sun)");
@@ -77,8 +76,7 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
   }
   LightBundle b;
   b.options = options;
-  b.sceneHash = sceneHash;
-  std::vector<double> closest;
+  closest.clear();
   for (size_t i = 0; i < lights.size(); ++i) {
     BundleLight bl{lights[i], uint32_t(b.grids.size()), 0};
     for (LightGridPlan& p : planLightGrids(scene, lights[i], footprint)) {
@@ -94,6 +92,15 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
     throw InputError(std::to_string(b.grids.size()) + " grids of these resolutions hold " + std::to_string(slices) +
                      " slice boundaries; a bundle holds at most " + std::to_string(kMaxBundleSlices) +
                      " (lower --footprint's resolutions or bake fewer lights)");
+  return b;
+}
+
+LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, double footprint,
+                       const BakeOptions& options, const Hash128& sceneHash, StageTimes* times,
+                       const ProgressFn& progress) {
+  std::vector<double> closest;
+  LightBundle b = planLights(scene, lights, footprint, options, closest);
+  b.sceneHash = sceneHash;
   StageTimes local;
   StageTimes& st = times ? *times : local;
   std::vector<Dag> dags;

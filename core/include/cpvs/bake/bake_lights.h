@@ -14,6 +14,13 @@ namespace cpvs {
 
 struct Scene;
 
+/// What bakeLights bakes, without baking: the same checks (receivers, the lights, the
+/// slice budget), each light's grids planned, every grid's bytes 0 and no pool.
+/// `closest` receives each grid's closest geometry (LightGridPlan::closest). What
+/// `cpvs plan` prints for local lights.
+LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, double footprint, const BakeOptions& options,
+                       std::vector<double>& closest);
+
 /// Checks every light against the scene (checkLightCount, checkLight) and plans its grids
 /// (planLightGrids with `footprint`) before any bake starts, then bakes each grid as
 /// bakeGrid does (options.renderer, tiles of options.log2TileSize) and shares their
