@@ -10,6 +10,7 @@
 #include "bake_flags.h"
 #include "bundle_text.h"
 #include "cpvs/bake/bake_lights.h"
+#include "cpvs/dag/packed_layout.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/bake/camera_views.h"
 #include "cpvs/bake/bake_plan.h"
@@ -29,6 +30,7 @@ struct BakeArgs {
   std::string scene, out, resolution = "4K";
   SunFlags sun;
   LightFlags lights;
+  int pointerGrid = kMaxGridLevels;
   OptionFlags options;
   int threads = 0;
   bool zstd = true, json = false, quiet = false;
@@ -116,6 +118,8 @@ int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point 
   const BakeOptions opt = optionsOf(a.options);
   if (receiversOf(a.options).kind != ReceiverKind::Everywhere)
     throw InputError("local lights are baked for receivers everywhere: --receivers is for the sun");
+  if (a.pointerGrid < 0 || a.pointerGrid > kMaxGridLevels)
+    throw InputError("--pointer-grid " + std::to_string(a.pointerGrid) + ": levels 0 to " + std::to_string(kMaxGridLevels));
   std::vector<Light> given = flagLights(a.lights);
   StageTimes st;
   auto start = std::chrono::steady_clock::now();
@@ -129,9 +133,10 @@ int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point 
     spdlog::info("{}: {} triangles ({} closed), {} light{}, texels at most {:.4g} wide at a light's far end", scene.name,
                  ss.triangles, ss.closedTriangles, lights.size(), lights.size() == 1 ? "" : "s", footprint);
   ProgressDisplay progress(!a.json && !a.quiet);
-  const LightBundle bundle = bakeLights(scene, lights, footprint, opt, sceneHash(scene), &st,
-                                        [&](const std::string& s, uint64_t d, uint64_t t) { return progress.update(s, d, t); });
+  LightBundle bundle = bakeLights(scene, lights, footprint, opt, sceneHash(scene), &st,
+                                  [&](const std::string& s, uint64_t d, uint64_t t) { return progress.update(s, d, t); });
   progress.finish();
+  if (a.pointerGrid != kMaxGridLevels) bundle = withPointerGrids(bundle, a.pointerGrid);
   start = std::chrono::steady_clock::now();
   const std::vector<uint8_t> bytes = encodeBundle(bundle, a.zstd);
   writeFileAtomic(a.out, bytes);
@@ -157,6 +162,7 @@ int runBake(const BakeArgs& a) {
   std::unique_ptr<tbb::global_control> limit;
   if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
   if (a.lights.given()) return runLightBake(a, totalStart);
+  if (a.pointerGrid != kMaxGridLevels) throw InputError("--pointer-grid is for light bundles (--spot, --point, --lights)");
 
   const BakeOptions opt = optionsOf(a.options);
   int log2R = parseResolution(a.resolution);
@@ -224,6 +230,10 @@ void addBakeCommand(CLI::App& app, int& status) {
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R (voxels a side): 1024, 4K, 16K, ... 1M")
       ->capture_default_str();
   addLightFlags(c, a->lights);
+  c->add_option("--pointer-grid", a->pointerGrid,
+                "Local lights: levels each grid's pointer grid answers in one read (seed 000 6.3), 0 (none) to 5 "
+                "(32^3 cells, at most what the resolution allows); the same answers, another size and speed")
+      ->capture_default_str();
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
   c->add_option("--threads,-j", a->threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   c->add_flag("!--no-zstd", a->zstd, "Store the levels uncompressed");

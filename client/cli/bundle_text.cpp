@@ -104,7 +104,8 @@ std::string bundleJsonFields(const LightBundle& b) {
       const BundleGrid& g = b.grids[k];
       o << (k > bl.firstGrid ? ", " : "") << "{\"resolution\": " << g.grid.resolution() << ", \"near\": "
         << jsonNumber(g.grid.near()) << ", \"far\": " << jsonNumber(g.grid.far()) << ", \"tan_half_fov\": "
-        << jsonNumber(g.grid.tanHalfFov()) << ", \"bytes\": " << g.bytes << "}";
+        << jsonNumber(g.grid.tanHalfFov()) << ", \"pointer_grid_levels\": " << b.dag(k).header().gridLevels
+        << ", \"bytes\": " << g.bytes << "}";
     }
     o << "], \"bytes\": " << b.lightBytes(i) << "}";
   }

@@ -157,6 +157,28 @@ void benchFrame(const Args& a, const Scene& scene, const LightBundle& bundle) {
     std::printf("| %s | %.1f ms | %s | %s | %s | %s |\n", pcf == 9 ? "9x9 PCF" : "binary", cpu * 1e3, deviceTime.c_str(),
                 deviceWall.c_str(), speedup.c_str(), same.c_str());
   }
+  // The pointer grid's depth (seed 000 §6.3): the same answers from a walk that starts
+  // lower or at the root; what it costs in words and what it saves in time.
+  std::printf("\n| pointer grid (levels) | pool words | 9x9 PCF CPU wall | device time | answers |\n|---|---:|---:|---:|---|\n");
+  std::vector<uint32_t> reference;
+  for (int levels : {5, 3, 0}) {
+    const auto layout = std::make_shared<const runtime::LightArtifact>(withPointerGrids(bundle, levels));
+    std::vector<uint32_t> onCpu, onGpu;
+    t = std::chrono::steady_clock::now();
+    runtime::cpuLightLitTexels(*layout, lights, points, normals, 9, onCpu);
+    const double cpu = secondsSince(t);
+    if (reference.empty()) reference = onCpu;
+    std::string deviceTime = "-";
+    bool same = onCpu == reference;
+    if (device) {
+      runtime::GpuLights g(*device, layout);
+      g.litTexels(lights, points, normals, 9, onGpu);
+      deviceTime = format("%.2f ms", g.lastDeviceNanoseconds() / 1e6);
+      same = same && onGpu == reference;
+    }
+    std::printf("| %d | %zu | %.1f ms | %s | %s |\n", levels, layout->bundle().pool->size(), cpu * 1e3, deviceTime.c_str(),
+                same ? "identical" : "DIFFER");
+  }
   std::printf("\ntarget (issue): <= 2 ms a 1080p frame for all lights with 9x9 PCF on a data-center GPU; this device: %s\n",
               device ? device->name().c_str() : "none");
 }

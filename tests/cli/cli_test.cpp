@@ -617,6 +617,15 @@ TEST_F(Cli, LightBundlesBakeInspectQueryAndVerify) {
   EXPECT_NE(r.out.find("--spot"), std::string::npos) << r.out;
   r = cpvs("plan city:3 --point 60,54,20 --sun-elevation 30 --sun-azimuth 10");
   EXPECT_EQ(r.status, 2) << r.out;
+  // A shallower pointer grid: recorded per grid, the same answers.
+  r = cpvs("bake city:3 --lights " + path("lights.json") + " --spot 60,54,20:-0.3,-1,0.2:30:80 --footprint 0.4 "
+           "--pointer-grid 1 --json -o " + path("lamps-flat.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(parse(r)["lights"][1]["grids"][3]["pointer_grid_levels"], 1);
+  EXPECT_EQ(b["lights"][1]["grids"][3]["pointer_grid_levels"], 5);
+  EXPECT_EQ(cpvs("query " + path("lamps-flat.cpvs") + " --point 31,0.01,30 --normal 0,1,0 --pcf 9").out,
+            cpvs("query " + path("lamps.cpvs") + " --point 31,0.01,30 --normal 0,1,0 --pcf 9").out);
+  EXPECT_EQ(cpvs("bake city:3 --sun-elevation 30 --sun-azimuth 10 --pointer-grid 2 -o " + path("sun-flat.cpvs")).status, 2);
 
   r = cpvs("inspect --json " + path("lamps.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;

@@ -164,6 +164,39 @@ TEST(LightBundle, BakesRoundTripsAndSharesAcrossLights) {
     }
     EXPECT_EQ(encodeBundle(back, zstd), bytes);
   }
+  // The pointer grid at any depth, down to none: another layout of the same nodes (the
+  // file round-trips it), the same answer at every voxel and for every lookup.
+  const BundleQuery deepest(b);
+  for (int levels : {0, 1, 3, 5}) {
+    const LightBundle shallow = withPointerGrids(b, levels);
+    EXPECT_EQ(shallow.poolBytes, b.poolBytes);
+    if (levels < 5) EXPECT_LT(shallow.pool->size(), b.pool->size()) << levels << " levels: a smaller grid";
+    else EXPECT_EQ(*shallow.pool, *b.pool) << "bundles are baked with the deepest grid";
+    const std::vector<uint8_t> bytes = encodeBundle(shallow, true);
+    const LightBundle back = decodeBundle(bytes.data(), bytes.size(), "shallow");
+    EXPECT_EQ(*back.pool, *shallow.pool);
+    for (size_t k = 0; k < b.grids.size(); ++k) {
+      EXPECT_EQ(back.dag(k).header().gridLevels, uint32_t(std::min(levels, packedGridLevels(b.grids[k].grid.log2Resolution()))));
+      const PackedDag view = back.dag(k), deep = b.dag(k);
+      const uint64_t R = b.grids[k].grid.resolution();
+      for (int i = 0; i < 5000; ++i) {
+        const uint64_t x = rng() % R, y = rng() % R, z = rng() % R;
+        ASSERT_EQ(view.leafSliceMask(x, y, z), deep.leafSliceMask(x, y, z)) << levels << " levels, grid " << k;
+      }
+    }
+    const BundleQuery q(back);
+    std::uniform_real_distribution<double> unit(0, 1);
+    Vec3 lo, hi;
+    sceneBounds(scene, lo, hi);
+    for (int i = 0; i < 3000; ++i) {
+      const Vec3 p{lo.x + unit(rng) * (hi.x - lo.x), lo.y + unit(rng) * (hi.y - lo.y), lo.z + unit(rng) * (hi.z - lo.z)};
+      const Vec3 n{unit(rng) - 0.5, unit(rng) - 0.5, unit(rng) - 0.5};
+      for (size_t l = 0; l < b.lights.size(); ++l)
+        for (int pcf : {1, 9}) ASSERT_EQ(q.litTexels(l, p, n, pcf), deepest.litTexels(l, p, n, pcf)) << levels << " levels";
+    }
+  }
+  EXPECT_NE(inputErrorOf([&] { withPointerGrids(b, 6); }), "");
+
   // Any tile size: the same pool and plan (the options record the tile size).
   options.log2TileSize = 12;
   const LightBundle whole = bakeLights(scene, lights, footprint, options, sceneHash(scene));

@@ -449,6 +449,15 @@ TEST(GpuLightLookups, ABundleAnswersAsTheCpu) {
     EXPECT_GT(dark, points.size() / 20) << "pcf " << pcf << ": and shadow";
     if (pcf > 1) EXPECT_GT(partly, points.size() / 100) << "pcf " << pcf << ": and penumbrae";
   }
+  // Shallower pointer grids, down to none (walks from the root): the same answers.
+  for (int levels : {0, 2}) {
+    const auto shallow = std::make_shared<const LightArtifact>(withPointerGrids(bundle, levels));
+    GpuLights other(device(), shallow);
+    std::vector<uint32_t> onOther, onCpu;
+    other.litTexels(which, points, normals, 9, onOther);
+    cpuLightLitTexels(*artifact, which, points, normals, 9, onCpu);
+    EXPECT_EQ(onOther, onCpu) << levels << " pointer-grid levels";
+  }
   // The pool split across bindings: the same answers.
   {
     DeviceOptions options = validated();

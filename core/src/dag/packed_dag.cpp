@@ -44,7 +44,9 @@ std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::v
     h[k].layoutVersion = kPackedLayoutVersion;
     h[k].log2Resolution = uint32_t(log2R);
     h[k].internalLevels = uint32_t(Lk);
-    h[k].gridLevels = uint32_t(packedGridLevels(log2R));
+    const int G = roots[k].gridLevels < 0 ? packedGridLevels(log2R) : roots[k].gridLevels;
+    CPVS_CHECK(G <= packedGridLevels(log2R));
+    h[k].gridLevels = uint32_t(G);
     h[k].gridWord = uint32_t(total);
     total += uint64_t(1) << (3 * h[k].gridLevels);
     fits();
@@ -126,9 +128,10 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t N) {
       invalid("layout version " + std::to_string(h[k].layoutVersion) + " is not supported" + which);
     if (h[k].log2Resolution < uint32_t(kMinLog2Resolution) || h[k].log2Resolution > uint32_t(kMaxLog2Resolution))
       invalid("resolution 2^" + std::to_string(h[k].log2Resolution) + " is out of range" + which);
-    const int log2R = int(h[k].log2Resolution), Lk = Dag::internalLevels(log2R), G = packedGridLevels(log2R);
-    if (h[k].internalLevels != uint32_t(Lk) || h[k].gridLevels != uint32_t(G) || h[k].gridWord != at)
+    const int log2R = int(h[k].log2Resolution), Lk = Dag::internalLevels(log2R);
+    if (h[k].internalLevels != uint32_t(Lk) || h[k].gridLevels > uint32_t(packedGridLevels(log2R)) || h[k].gridWord != at)
       invalid("the level counts do not match the resolution" + which);
+    const int G = int(h[k].gridLevels);
     at += uint64_t(1) << (3 * G);
     L = std::max(L, Lk);
   }
@@ -198,7 +201,7 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t N) {
   for (const PackedHeader& hk : h) {
     NodeRef root{hk.rootCode, 0};
     if (root.code == kRef) root.index = indexIn(int(hk.internalLevels) - 1, hk.rootWord);
-    pool.roots.push_back({int(hk.log2Resolution), root});
+    pool.roots.push_back({int(hk.log2Resolution), root, int(hk.gridLevels)});
   }
 
   // The grids, the padding and every field not parsed above: packing the pool again must
@@ -228,6 +231,10 @@ PackedDag::PackedDag(const Dag& dag) {
 PackedDag PackedDag::fromWords(std::vector<uint32_t> words, Dag& dag) {
   NodePool pool = parsePackedPool(words, 1);
   const int log2R = pool.roots.front().log2Resolution;
+  // A single DAG is packed with the deepest grid (PackedDag(const Dag&) gives these words).
+  if (pool.roots.front().gridLevels != packedGridLevels(log2R))
+    invalid("its pointer grid has " + std::to_string(pool.roots.front().gridLevels) + " levels, a single DAG's has " +
+            std::to_string(packedGridLevels(log2R)));
   dag.reset(log2R, log2R);
   dag.leaves = std::move(pool.leaves);
   dag.levels = std::move(pool.levels);

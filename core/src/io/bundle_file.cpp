@@ -1,5 +1,6 @@
 #include "cpvs/io/bundle_file.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -17,6 +18,16 @@ uint64_t LightBundle::lightBytes(size_t light) const {
   const BundleLight& l = lights.at(light);
   uint64_t b = 0;
   for (uint32_t k = l.firstGrid; k < l.firstGrid + l.gridCount; ++k) b += grids[k].bytes;
+  return b;
+}
+
+LightBundle withPointerGrids(const LightBundle& bundle, int levels) {
+  if (levels < 0 || levels > kMaxGridLevels)
+    throw InputError("pointer grid levels " + std::to_string(levels) + " outside [0, " + std::to_string(kMaxGridLevels) + "]");
+  NodePool pool = parsePackedPool(*bundle.pool, bundle.grids.size());
+  for (NodePool::Root& r : pool.roots) r.gridLevels = std::min(levels, packedGridLevels(r.log2Resolution));
+  LightBundle b = bundle;
+  b.pool = std::make_shared<const std::vector<uint32_t>>(packPool(pool.leaves, pool.levels, pool.roots));
   return b;
 }
 

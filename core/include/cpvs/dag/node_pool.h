@@ -15,6 +15,9 @@ struct NodePool {
   struct Root {
     int log2Resolution = 0;  // the DAG's grid; its root node lies in level log2Resolution - 3
     NodeRef ref;
+    /// Levels its packed pointer grid answers in one read (seed 000 §6.3), 0 (none: a
+    /// walk starts at the root) to packedGridLevels(log2Resolution); -1: that most.
+    int gridLevels = -1;
   };
   std::vector<uint64_t> leaves;
   std::vector<InternalLevel> levels;  // as many as the finest DAG has

@@ -19,7 +19,8 @@ namespace cpvs {
 /// word 48 k, each root's pointer grid after the headers in root order, then the shared
 /// nodes (top level first) and leaves. Every header's offsets are into the whole array;
 /// its levels are the pool's below its root, its leaves the pool's. One root gives
-/// exactly the layout of a single DAG. InputError beyond 2^32 words (16 GiB).
+/// exactly the layout of a single DAG. Each root's pointer grid has its gridLevels levels
+/// (the most by default). InputError beyond 2^32 words (16 GiB).
 std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::vector<InternalLevel>& levels,
                                const std::vector<NodePool::Root>& roots);
 /// The pool that packPool packed into `words` for `rootCount` roots, after checking every

@@ -54,6 +54,12 @@ struct LightBundle {
   uint64_t lightBytes(size_t light) const;
 };
 
+/// The same bundle with every grid's pointer grid (seed 000 §6.3) `levels` deep, or as
+/// deep as its resolution allows (packedGridLevels) when that is less; 0: none, every
+/// walk starts at the root. The same nodes and answers in another layout: bundles are
+/// baked with the deepest. InputError for levels outside [0, kMaxGridLevels].
+LightBundle withPointerGrids(const LightBundle& bundle, int levels);
+
 /// Serializes a bundle. Layout (little-endian, in the .cpvs container: magic "CPVS",
 /// version 4, flags): the options and scene hash as in version 3, the receiver
 /// declaration and the plan; the light count and grid count; per light its kind (and 7
