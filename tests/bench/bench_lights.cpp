@@ -12,14 +12,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "bench_common.h"
+#include "frame_timing.h"
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/eval/camera.h"
-#include "cpvs/eval/light_render.h"
 #include "cpvs/query/light_tiles.h"
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/runtime/runtime.h"
@@ -43,7 +44,8 @@ constexpr const char* kUsage =
     "  --threads N         worker threads (default all cores)\n"
     "  --width W, --height H  the many-light frame's size (default 1920 x 1080; --width 0: no frame)\n"
     "  --camera EX,EY,EZ,TX,TY,TZ[,FOV]  its camera (default: cpvs render's view of the scene)\n"
-    "  --device NAME       a Vulkan device whose name holds NAME (default: the best; CPU figures only when none)\n";
+    "  --device NAME       a Vulkan device whose name holds NAME (default: the best; CPU figures only when none)\n"
+    "  --save DIR          also write the bundle (DIR/lamps-R.lights) and the frame (.frame), for gpu_frame_timing\n";
 
 struct Args {
   std::string scene = "city";
@@ -52,7 +54,7 @@ struct Args {
   Renderer renderer = Renderer::Raster;
   int threads = 0;
   int width = 1920, height = 1080;
-  std::string camera, device;
+  std::string camera, device, save;
   bool help = false;
 };
 
@@ -75,6 +77,7 @@ Args parseArgs(int argc, char** argv) {
     else if (o == "--height") a.height = parsePositive(v, o);
     else if (o == "--camera") a.camera = v;
     else if (o == "--device") a.device = v;
+    else if (o == "--save") a.save = v;
     else throw InputError("unknown option " + o + " (see --help)");
   }
   return a;
@@ -98,32 +101,35 @@ void benchFrame(const Args& a, const Scene& scene, const LightBundle& bundle) {
   const Camera cam = a.camera.empty() ? defaultCamera(scene, Vec3{0.35, -1, 0.25}, double(a.width) / a.height)
                                       : Camera::parse(a.camera);
   const CameraHits hits = traceCamera(scene, rays, cam, a.width, a.height);
-  std::vector<Vec3> seen;
-  std::vector<uint8_t> hit;
-  hitPoints(hits, seen, hit);
-  auto t = std::chrono::steady_clock::now();
-  const LightTiles tiles = cullLights(query, seen, hit, a.width, a.height, 16, 64);
-  const double cullSeconds = secondsSince(t);
-  std::vector<uint32_t> lights;
-  std::vector<Vec3> points, normals;
-  uint64_t pixels = 0;
-  for (int y = 0; y < a.height; ++y)
-    for (int x = 0; x < a.width; ++x) {
-      const size_t i = size_t(y) * size_t(a.width) + size_t(x);
-      if (!hit[i]) continue;
-      ++pixels;
-      const size_t tile = tiles.tile(x, y);
-      for (uint32_t k = tiles.begin[tile]; k < tiles.begin[tile + 1]; ++k) {
-        lights.push_back(tiles.lights[k]);
-        points.push_back(hits.pixels[i].point);
-        normals.push_back(hits.pixels[i].normal);
-      }
+  // The pixels that see the scene; with --save, as gpu_frame_timing reads them back
+  // (points and normals rounded as the file holds them), so both programs time the same.
+  ManyLightFrame frame{a.width, a.height, {}, {}};
+  for (size_t i = 0; i < hits.pixels.size(); ++i)
+    if (hits.pixels[i].hit) {
+      frame.pixels.push_back(uint32_t(i));
+      frame.seen.points.push_back(hits.pixels[i].point);
+      frame.seen.normals.push_back(hits.pixels[i].normal);
     }
-  std::printf("\n## One frame of many-light lookups\n\n%d x %d, %llu pixels see the scene; culling over 16 x 16 tiles: "
-              "%.4f s on the CPU, %.2f lights per seen pixel, at most %u in a tile, %llu tiles over 64 (counted, never "
-              "cut); %zu lookups a frame\n\n",
+  if (!a.save.empty()) {
+    const std::string base = a.save + "/lamps-" + resolutionLabel(a.log2R);
+    std::filesystem::create_directories(a.save);
+    writeFileAtomic(base + ".lights", encodeBundle(bundle, true));
+    writeManyLightFrame(base + ".frame", frame);
+    frame = readManyLightFrame(base + ".frame");
+    std::printf("\nsaved %s.lights and %s.frame (gpu_frame_timing)\n", base.c_str(), base.c_str());
+  }
+  auto t = std::chrono::steady_clock::now();
+  const ManyLightQueries q = manyLightQueries(query, frame);
+  const double cullSeconds = secondsSince(t);
+  const std::vector<uint32_t>& lights = q.lights;
+  const std::vector<Vec3>& points = q.frame.points;
+  const std::vector<Vec3>& normals = q.frame.normals;
+  const uint64_t pixels = frame.pixels.size();
+  std::printf("\n## One frame of many-light lookups\n\n%d x %d, %llu pixels see the scene; culling over 16 x 16 tiles and "
+              "listing the lookups: %.4f s on the CPU, %.2f lights per seen pixel, at most %u in a tile, %llu tiles over 64 "
+              "(counted, never cut); %zu lookups a frame\n\n",
               a.width, a.height, (unsigned long long)pixels, cullSeconds, pixels ? double(points.size()) / double(pixels) : 0.0,
-              tiles.longest, (unsigned long long)tiles.overflowing, points.size());
+              q.tiles.longest, (unsigned long long)q.tiles.overflowing, points.size());
   std::unique_ptr<runtime::GpuDevice> device;
   std::unique_ptr<runtime::GpuLights> gpu;
   try {
@@ -140,6 +146,7 @@ void benchFrame(const Args& a, const Scene& scene, const LightBundle& bundle) {
               "|---|---:|---:|---:|---:|---|\n", int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
   for (int pcf : {9, 1}) {
     std::vector<uint32_t> onCpu, onGpu;
+    runtime::cpuLightLitTexels(*artifact, lights, points, normals, pcf, onCpu);  // warm
     t = std::chrono::steady_clock::now();
     runtime::cpuLightLitTexels(*artifact, lights, points, normals, pcf, onCpu);
     const double cpu = secondsSince(t);
@@ -164,6 +171,7 @@ void benchFrame(const Args& a, const Scene& scene, const LightBundle& bundle) {
   for (int levels : {5, 3, 0}) {
     const auto layout = std::make_shared<const runtime::LightArtifact>(withPointerGrids(bundle, levels));
     std::vector<uint32_t> onCpu, onGpu;
+    runtime::cpuLightLitTexels(*layout, lights, points, normals, 9, onCpu);  // warm
     t = std::chrono::steady_clock::now();
     runtime::cpuLightLitTexels(*layout, lights, points, normals, 9, onCpu);
     const double cpu = secondsSince(t);
@@ -172,6 +180,7 @@ void benchFrame(const Args& a, const Scene& scene, const LightBundle& bundle) {
     bool same = onCpu == reference;
     if (device) {
       runtime::GpuLights g(*device, layout);
+      g.litTexels(lights, points, normals, 9, onGpu);  // warm
       g.litTexels(lights, points, normals, 9, onGpu);
       deviceTime = format("%.2f ms", g.lastDeviceNanoseconds() / 1e6);
       same = same && onGpu == reference;

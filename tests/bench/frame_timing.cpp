@@ -14,6 +14,7 @@ namespace cpvs::bench {
 namespace {
 
 constexpr char kMagic[8] = {'C', 'P', 'V', 'S', 'F', 'R', 'M', '1'};
+constexpr char kPixelsMagic[8] = {'C', 'P', 'V', 'S', 'F', 'P', 'X', '1'};
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -68,6 +69,58 @@ Frame readFrame(const std::string& path) {
     f.normals[i] = {q[0] / 127.0, q[1] / 127.0, q[2] / 127.0};
   }
   return f;
+}
+
+void writeManyLightFrame(const std::string& path, const ManyLightFrame& f) {
+  writeFrame(path, f.seen);
+  std::ofstream out(path, std::ios::binary | std::ios::app);
+  const uint32_t size[2] = {uint32_t(f.width), uint32_t(f.height)};
+  out.write(kPixelsMagic, 8);
+  out.write(reinterpret_cast<const char*>(size), 8);
+  out.write(reinterpret_cast<const char*>(f.pixels.data()), std::streamsize(f.pixels.size() * 4));
+  if (!out) throw InputError("cannot write " + path);
+}
+
+ManyLightFrame readManyLightFrame(const std::string& path) {
+  ManyLightFrame f;
+  f.seen = readFrame(path);
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(std::streamoff(16 + 15 * f.seen.points.size()));
+  char magic[8];
+  uint32_t size[2] = {0, 0};
+  if (!in.read(magic, 8) || std::memcmp(magic, kPixelsMagic, 8) != 0 || !in.read(reinterpret_cast<char*>(size), 8) ||
+      size[0] == 0 || size[1] == 0 || size[0] > 16384 || size[1] > 16384)
+    throw InputError(path + ": not a many-light frame (no image size)");
+  f.width = int(size[0]), f.height = int(size[1]);
+  f.pixels.resize(f.seen.points.size());
+  if (!in.read(reinterpret_cast<char*>(f.pixels.data()), std::streamsize(f.pixels.size() * 4)))
+    throw InputError(path + ": truncated pixel indices");
+  for (uint32_t i : f.pixels)
+    if (uint64_t(i) >= uint64_t(f.width) * uint64_t(f.height)) throw InputError(path + ": a pixel index outside the image");
+  return f;
+}
+
+ManyLightQueries manyLightQueries(const BundleQuery& query, const ManyLightFrame& f) {
+  const size_t n = size_t(f.width) * size_t(f.height);
+  std::vector<Vec3> points(n), normals(n);
+  std::vector<uint8_t> hit(n, 0);
+  for (size_t k = 0; k < f.pixels.size(); ++k) {
+    points[f.pixels[k]] = f.seen.points[k], normals[f.pixels[k]] = f.seen.normals[k];
+    hit[f.pixels[k]] = 1;
+  }
+  ManyLightQueries q;
+  q.tiles = cullLights(query, points, hit, f.width, f.height, 16, 64);
+  const LightTiles& tiles = q.tiles;
+  for (size_t i = 0; i < n; ++i) {
+    if (!hit[i]) continue;
+    const size_t tile = tiles.tile(int(i % size_t(f.width)), int(i / size_t(f.width)));
+    for (uint32_t k = tiles.begin[tile]; k < tiles.begin[tile + 1]; ++k) {
+      q.lights.push_back(tiles.lights[k]);
+      q.frame.points.push_back(points[i]);
+      q.frame.normals.push_back(normals[i]);
+    }
+  }
+  return q;
 }
 
 std::unique_ptr<runtime::GpuDevice> openTimingDevice(const runtime::DeviceOptions& options) {
@@ -131,6 +184,49 @@ void printTimingFooter() {
   std::printf("\ndevice/CPU: CPU time over device time (above 1: the device is faster). Device ms: GPU timestamps around\n"
               "the dispatches; wall ms adds the copies of queries and answers and the submission. The CPU runs the\n"
               "same lookups (ShadowQuery::litTexels) on every core; `answers` compares the two, point by point.\n");
+}
+
+void printLightTimingHeader() {
+  std::printf("| bundle | lights | grids | pool | device array | lookups | filter | device ms/frame | wall ms | CPU ms/frame | device/CPU | answers |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+}
+
+void printLightTimingRows(const std::string& name, const std::shared_ptr<const runtime::LightArtifact>& artifact,
+                          const ManyLightQueries& f, runtime::GpuDevice* device, int repeat) {
+  std::unique_ptr<runtime::GpuLights> gpu;
+  if (device) gpu = std::make_unique<runtime::GpuLights>(*device, artifact);
+  const runtime::LightArtifact& a = *artifact;
+  auto mib = [](uint64_t b) { return fixed("%.2f MiB", double(b) / (1 << 20)); };
+  for (int pcf : {1, 9}) {
+    std::vector<uint32_t> onCpu, onGpu;
+    runtime::cpuLightLitTexels(a, f.lights, f.frame.points, f.frame.normals, pcf, onCpu);  // warm-up, and the reference
+    std::vector<double> cpuMs, devMs, wallMs;
+    for (int r = 0; r < repeat; ++r) {
+      const auto t = std::chrono::steady_clock::now();
+      runtime::cpuLightLitTexels(a, f.lights, f.frame.points, f.frame.normals, pcf, onCpu);
+      cpuMs.push_back(millisecondsSince(t));
+    }
+    std::string answers = "CPU only";
+    if (gpu) {
+      gpu->litTexels(f.lights, f.frame.points, f.frame.normals, pcf, onGpu);  // warm-up
+      uint64_t differ = 0;
+      for (size_t i = 0; i < onCpu.size(); ++i) differ += onGpu[i] != onCpu[i];
+      answers = differ == 0 ? "identical" : std::to_string(differ) + " differ";
+      for (int r = 0; r < repeat; ++r) {
+        const auto t = std::chrono::steady_clock::now();
+        gpu->litTexels(f.lights, f.frame.points, f.frame.normals, pcf, onGpu);
+        wallMs.push_back(millisecondsSince(t));
+        devMs.push_back(gpu->lastDeviceNanoseconds() * 1e-6);
+      }
+    }
+    const double cpu = median(cpuMs), dev = median(devMs);
+    std::printf("| %s | %zu | %zu | %s | %s | %zu | %s | %s | %s | %s | %s | %s |\n", name.c_str(), a.lightCount(),
+                a.bundle().grids.size(), mib(a.bundle().poolBytes).c_str(), mib(a.bundle().pool->size() * 4).c_str(),
+                f.lights.size(), pcf == 1 ? "binary" : "9x9 PCF", gpu ? fixed("%.3f", dev).c_str() : "-",
+                gpu ? fixed("%.1f", median(wallMs)).c_str() : "-", fixed("%.1f", cpu).c_str(),
+                gpu ? fixed("%.2fx", cpu / dev).c_str() : "-", answers.c_str());
+    std::fflush(stdout);
+  }
 }
 
 }  // namespace cpvs::bench

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "cpvs/base/vec3.h"
+#include "cpvs/query/light_tiles.h"
 #include "cpvs/runtime/runtime.h"
 
 namespace cpvs::bench {
@@ -24,6 +25,25 @@ struct Frame {
 void writeFrame(const std::string& path, const Frame& frame);
 Frame readFrame(const std::string& path);
 
+/// A frame of many-light lookups as a camera sees it: the image size, and for each pixel
+/// that sees the scene its index (row-major) and its point and normal (a Frame). Written
+/// as the Frame file plus "CPVSFPX1", width and height (uint32) and a uint32 per point.
+struct ManyLightFrame {
+  int width = 0, height = 0;
+  std::vector<uint32_t> pixels;
+  Frame seen;
+};
+void writeManyLightFrame(const std::string& path, const ManyLightFrame& frame);
+ManyLightFrame readManyLightFrame(const std::string& path);
+/// Its lookups: tiled light culling over 16 x 16 tiles (cullLights), then one query per
+/// pixel and light of its tile's list, in pixel order.
+struct ManyLightQueries {
+  std::vector<uint32_t> lights;
+  Frame frame;
+  LightTiles tiles;
+};
+ManyLightQueries manyLightQueries(const BundleQuery& query, const ManyLightFrame& frame);
+
 /// A device for the timing, with a line saying which (or why none: CPU figures only).
 std::unique_ptr<runtime::GpuDevice> openTimingDevice(const runtime::DeviceOptions& options);
 
@@ -35,5 +55,11 @@ void printTimingRows(const std::string& scene, const std::string& resolution, ui
                      const std::shared_ptr<const runtime::ShadowArtifact>& artifact, const Frame& frame,
                      runtime::GpuDevice* device, int repeat);
 void printTimingFooter();
+
+/// The same for a light bundle's frame (one lookup per pixel and culled light): a table
+/// of its own, binary and 9x9 PCF rows, device and CPU medians over `repeat` frames.
+void printLightTimingHeader();
+void printLightTimingRows(const std::string& name, const std::shared_ptr<const runtime::LightArtifact>& artifact,
+                          const ManyLightQueries& queries, runtime::GpuDevice* device, int repeat);
 
 }  // namespace cpvs::bench

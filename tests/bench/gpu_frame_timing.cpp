@@ -1,6 +1,7 @@
 // The lookups of bench_gpu_query from files, for a machine with a GPU and nothing else:
 // every NAME.cpvs in DIR with its NAME.frame (bench_gpu_query --save DIR writes them),
-// timed on a Vulkan device and on the CPU. Links the runtime only (tests/gpu/device-check.sh
+// and every light bundle NAME.lights with its many-light NAME.frame (bench_lights --save
+// DIR), timed on a Vulkan device and on the CPU. Links the runtime only (tests/gpu/device-check.sh
 // carries it with its libraries).
 //   gpu_frame_timing DIR [--device TEXT] [--repeat N]
 #include <algorithm>
@@ -26,11 +27,14 @@ int main(int argc, char** argv) {
     } else dir = arg;
   }
   try {
-    std::vector<std::filesystem::path> artifacts;
-    for (const auto& e : std::filesystem::directory_iterator(dir))
+    std::vector<std::filesystem::path> artifacts, bundles;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
       if (e.path().extension() == ".cpvs") artifacts.push_back(e.path());
+      if (e.path().extension() == ".lights") bundles.push_back(e.path());
+    }
     std::sort(artifacts.begin(), artifacts.end());
-    if (artifacts.empty()) throw std::runtime_error("no .cpvs files in " + dir);
+    std::sort(bundles.begin(), bundles.end());
+    if (artifacts.empty() && bundles.empty()) throw std::runtime_error("no .cpvs or .lights files in " + dir);
     std::string model = "unknown";
     std::ifstream cpuinfo("/proc/cpuinfo");
     for (std::string line; std::getline(cpuinfo, line);)
@@ -43,7 +47,7 @@ int main(int argc, char** argv) {
     options.select = select;
     std::unique_ptr<runtime::GpuDevice> device = bench::openTimingDevice(options);
     std::printf("Median of %d frames\n\n", repeat);
-    bench::printTimingHeader();
+    if (!artifacts.empty()) bench::printTimingHeader();
     for (const auto& path : artifacts) {
       auto artifact = runtime::ShadowArtifact::open(path.string());
       std::filesystem::path framePath = path;
@@ -54,7 +58,19 @@ int main(int argc, char** argv) {
       bench::printTimingRows(stem.substr(0, dash), stem.substr(dash + 1), artifact->packed().bytes(), artifact, frame,
                              device.get(), repeat);
     }
-    bench::printTimingFooter();
+    if (!artifacts.empty()) bench::printTimingFooter();
+    if (!bundles.empty()) {
+      std::printf("\n## Many lights per frame\n\n");
+      bench::printLightTimingHeader();
+      for (const auto& path : bundles) {
+        auto bundle = runtime::LightArtifact::open(path.string());
+        std::filesystem::path framePath = path;
+        framePath.replace_extension(".frame");
+        const bench::ManyLightFrame frame = bench::readManyLightFrame(framePath.string());
+        bench::printLightTimingRows(path.stem().string(), bundle, bench::manyLightQueries(bundle->cpu(), frame),
+                                    device.get(), repeat);
+      }
+    }
     return device ? 0 : 3;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "gpu_frame_timing: %s\n", e.what());
