@@ -4,6 +4,7 @@
 // DAGs, gives the same bytes for any tile size, and bad bundles and bad lights are
 // refused with what is wrong before any work.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 #include <xxhash.h>
 
 #include <cstring>
@@ -197,11 +198,30 @@ TEST(LightBundle, BakesRoundTripsAndSharesAcrossLights) {
   }
   EXPECT_NE(inputErrorOf([&] { withPointerGrids(b, 6); }), "");
 
-  // Any tile size: the same pool and plan (the options record the tile size).
+  // Any tile size: the same pool and plan (the options record the tile size); grids baked
+  // one after another on one thread give the pool grids baked side by side give.
   options.log2TileSize = 12;
   const LightBundle whole = bakeLights(scene, lights, footprint, options, sceneHash(scene));
   EXPECT_EQ(*whole.pool, *b.pool);
   EXPECT_EQ(whole.plan, b.plan);
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    std::vector<double> seconds;
+    const LightBundle serial = bakeLights(scene, lights, footprint, options, sceneHash(scene), nullptr, nullptr, &seconds);
+    EXPECT_EQ(*serial.pool, *b.pool);
+    ASSERT_EQ(seconds.size(), b.grids.size());
+    for (double t : seconds) EXPECT_GT(t, 0);
+  }
+  // Cancelled from the progress callback: the bake stops with Cancelled.
+  size_t calls = 0;
+  EXPECT_THROW(bakeLights(scene, lights, footprint, options, sceneHash(scene), nullptr,
+                          [&](const std::string& stage, uint64_t done, uint64_t total) {
+                            EXPECT_EQ(stage, "lights");
+                            EXPECT_EQ(total, b.grids.size());
+                            return ++calls < 3;
+                          }),
+               Cancelled);
+  EXPECT_EQ(calls, 3u);
 }
 
 // Tiled culling over a picture of the city's street lamps: the culled picture equals

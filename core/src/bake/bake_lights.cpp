@@ -1,7 +1,12 @@
 #include "cpvs/bake/bake_lights.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 
 #include "cpvs/bake/bake.h"
 #include "cpvs/bake/bake_scene.h"
@@ -97,20 +102,43 @@ LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, dou
 
 LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, double footprint,
                        const BakeOptions& options, const Hash128& sceneHash, StageTimes* times,
-                       const ProgressFn& progress) {
+                       const ProgressFn& progress, std::vector<double>* gridSeconds) {
   std::vector<double> closest;
   LightBundle b = planLights(scene, lights, footprint, options, closest);
   b.sceneHash = sceneHash;
   StageTimes local;
   StageTimes& st = times ? *times : local;
-  std::vector<Dag> dags;
-  dags.reserve(b.grids.size());
-  if (progress && !progress("lights", 0, b.grids.size())) throw Cancelled();
-  for (const BundleGrid& g : b.grids) {
-    const BakeScene prepared(scene, g.grid, g.tanCone, options.renderer);
-    dags.push_back(bakeGrid(prepared, options, &st));
-    if (progress && !progress("lights", dags.size(), b.grids.size())) throw Cancelled();
-  }
+  const size_t n = b.grids.size();
+  std::vector<Dag> dags(n);
+  std::vector<StageTimes> gridTimes(n);
+  if (gridSeconds) gridSeconds->assign(n, 0);
+  if (progress && !progress("lights", 0, n)) throw Cancelled();
+  // Grids bake side by side, each parallel inside too: one grid alone leaves cores idle
+  // between its stages. Isolated, so that a thread waiting inside one grid's bake does
+  // not start another (at most one grid per thread in memory). Each grid's DAG depends
+  // on it alone, and they are shared in grid order: the bytes do not depend on the order.
+  std::mutex reporting;
+  size_t done = 0;
+  bool cancelled = false;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t k = range.begin(); k != range.end(); ++k) {
+      {
+        std::lock_guard<std::mutex> lock(reporting);
+        if (cancelled) return;
+      }
+      const auto start = std::chrono::steady_clock::now();
+      tbb::this_task_arena::isolate([&] {
+        const BakeScene prepared(scene, b.grids[k].grid, b.grids[k].tanCone, options.renderer);
+        dags[k] = bakeGrid(prepared, options, &gridTimes[k]);
+      });
+      std::lock_guard<std::mutex> lock(reporting);
+      if (gridSeconds) (*gridSeconds)[k] = secondsSince(start);
+      ++done;
+      if (progress && !cancelled && !progress("lights", done, n)) cancelled = true;
+    }
+  });
+  if (cancelled) throw Cancelled();
+  for (const StageTimes& t : gridTimes) st.add(t);
   auto start = std::chrono::steady_clock::now();
   std::vector<const Dag*> all;
   for (const Dag& d : dags) all.push_back(&d);

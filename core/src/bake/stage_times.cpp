@@ -15,4 +15,13 @@ void StageTimes::add(const std::string& stage, double s) {
   seconds[stage] += s;
 }
 
+void StageTimes::add(const StageTimes& o) {
+  for (const auto& [stage, s] : o.seconds) seconds[stage] += s;
+  insert.nodesCreated += o.insert.nodesCreated;
+  insert.leavesCreated += o.insert.leavesCreated;
+  insert.culledNodes += o.insert.culledNodes;
+  insert.culledLeaves += o.insert.culledLeaves;
+  tilesSkipped += o.tilesSkipped;
+}
+
 }  // namespace cpvs

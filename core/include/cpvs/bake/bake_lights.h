@@ -27,10 +27,12 @@ LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, dou
 /// nodes (shareNodes). The bytes depend only on the scene, the lights in their order,
 /// the footprint and the options. `sceneHash` is recorded. InputError for bad lights
 /// and for receivers other than everywhere (local lights declare none yet); Cancelled
-/// when `progress` returns false (stage "lights": grids done of all).
+/// when `progress` returns false (stage "lights": grids done of all; called from one
+/// thread at a time, not always the caller's). Grids bake side by side; `times` sums
+/// their stages, `gridSeconds` receives each grid's wall seconds.
 LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, double footprint,
                        const BakeOptions& options, const Hash128& sceneHash, StageTimes* times = nullptr,
-                       const ProgressFn& progress = nullptr);
+                       const ProgressFn& progress = nullptr, std::vector<double>* gridSeconds = nullptr);
 
 /// The scene file's point and spot lights (a spot light's cone is its outer one; the
 /// procedural city's are its street lamps), in the file's order; the others cast no

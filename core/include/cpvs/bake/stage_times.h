@@ -31,6 +31,9 @@ struct StageTimes {
   uint64_t tilesSkipped = 0;
   /// Adds `s` seconds to a stage of kStageNames (an unknown name is a bug: CPVS_CHECK).
   void add(const std::string& stage, double s);
+  /// Adds everything another bake's times hold (grids baked side by side: their
+  /// seconds add up to more than the wall time).
+  void add(const StageTimes& other);
 };
 
 }  // namespace cpvs
