@@ -171,8 +171,11 @@ TEST(LightBundle, BakesRoundTripsAndSharesAcrossLights) {
   for (int levels : {0, 1, 3, 5}) {
     const LightBundle shallow = withPointerGrids(b, levels);
     EXPECT_EQ(shallow.poolBytes, b.poolBytes);
-    if (levels < 5) EXPECT_LT(shallow.pool->size(), b.pool->size()) << levels << " levels: a smaller grid";
-    else EXPECT_EQ(*shallow.pool, *b.pool) << "bundles are baked with the deepest grid";
+    if (levels < 5) {
+      EXPECT_LT(shallow.pool->size(), b.pool->size()) << levels << " levels: a smaller grid";
+    } else {
+      EXPECT_EQ(*shallow.pool, *b.pool) << "bundles are baked with the deepest grid";
+    }
     const std::vector<uint8_t> bytes = encodeBundle(shallow, true);
     const LightBundle back = decodeBundle(bytes.data(), bytes.size(), "shallow");
     EXPECT_EQ(*back.pool, *shallow.pool);

@@ -447,7 +447,9 @@ TEST(GpuLightLookups, ABundleAnswersAsTheCpu) {
     EXPECT_EQ(differ, 0u) << "pcf " << pcf << ", " << points.size() << " queries";
     EXPECT_GT(lit, points.size() / 20) << "pcf " << pcf << ": the queries must see light";
     EXPECT_GT(dark, points.size() / 20) << "pcf " << pcf << ": and shadow";
-    if (pcf > 1) EXPECT_GT(partly, points.size() / 100) << "pcf " << pcf << ": and penumbrae";
+    if (pcf > 1) {
+      EXPECT_GT(partly, points.size() / 100) << "pcf " << pcf << ": and penumbrae";
+    }
   }
   // Shallower pointer grids, down to none (walks from the root): the same answers.
   for (int levels : {0, 2}) {

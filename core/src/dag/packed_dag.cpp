@@ -229,12 +229,14 @@ PackedDag::PackedDag(const Dag& dag) {
 }
 
 PackedDag PackedDag::fromWords(std::vector<uint32_t> words, Dag& dag) {
+  // A single DAG is packed with the deepest grid (PackedDag(const Dag&) gives these words).
+  PackedHeader h{};
+  if (words.size() >= kPackedHeaderWords) std::memcpy(&h, words.data(), sizeof h);
+  if (words.size() >= kPackedHeaderWords && h.log2Resolution >= uint32_t(kMinLog2Resolution) &&
+      h.log2Resolution <= uint32_t(kMaxLog2Resolution) && h.gridLevels != uint32_t(packedGridLevels(int(h.log2Resolution))))
+    invalid("the level counts do not match the resolution");
   NodePool pool = parsePackedPool(words, 1);
   const int log2R = pool.roots.front().log2Resolution;
-  // A single DAG is packed with the deepest grid (PackedDag(const Dag&) gives these words).
-  if (pool.roots.front().gridLevels != packedGridLevels(log2R))
-    invalid("its pointer grid has " + std::to_string(pool.roots.front().gridLevels) + " levels, a single DAG's has " +
-            std::to_string(packedGridLevels(log2R)));
   dag.reset(log2R, log2R);
   dag.leaves = std::move(pool.leaves);
   dag.levels = std::move(pool.levels);
