@@ -69,7 +69,6 @@ void writeBoth(const std::string& base, const Image& img) {
 // A light bundle: the scene at night under all its lights, each pixel shaded with the
 // lights its 16x16 tile's list holds; NAME-tiles shows how many that is.
 int renderBundle(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, int h, const std::string& base) {
-  if (a.gpu) throw InputError("--gpu: a light bundle is rendered on the CPU (the GPU takes sun artifacts)");
   if (a.reference) throw InputError("--reference compares a sun artifact with exact shadows; verify checks a light bundle");
   const LightBundle bundle = decodeBundle(bytes.data(), bytes.size(), a.file);
   Scene scene = openMatchingScene(a.scene, bundle.sceneHash);
@@ -86,7 +85,23 @@ int renderBundle(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, 
   const LightTiles tiles = cullLights(q, points, hit, w, h);
   const double cull = secondsSince(start);
   start = std::chrono::steady_clock::now();
-  writeBoth(base, shadeLightTiles(hits, q, tiles, a.pcf));
+  std::string where = "on the CPU";
+  if (a.gpu) {
+    // The same lookups on a device, shaded with its answers: the CPU's picture, bit for bit.
+    auto artifact = std::make_shared<const runtime::LightArtifact>(bundle);
+    auto device = runtime::GpuDevice::create();
+    runtime::GpuLights lights(*device, artifact);
+    std::vector<uint32_t> which, lit;
+    std::vector<Vec3> at, normals;
+    tileLookups(hits, tiles, which, at, normals);
+    lights.litTexels(which, at, normals, a.pcf, lit);
+    std::vector<float> visibility(lit.size());
+    for (size_t i = 0; i < lit.size(); ++i) visibility[i] = float(lit[i]) / float(a.pcf * a.pcf);
+    writeBoth(base, shadeLightTiles(hits, q, tiles, visibility));
+    where = "lookups on " + device->name();
+  } else {
+    writeBoth(base, shadeLightTiles(hits, q, tiles, a.pcf));
+  }
   const double shade = secondsSince(start);
   // Lights per tile, black (none) to white (the longest list).
   Image heat(w, h);
@@ -98,8 +113,8 @@ int renderBundle(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, 
     }
   writePng(base + "-tiles.png", heat);
   const size_t tileCount = tiles.begin.size() - 1;
-  std::printf("Wrote %s.png and %s.exr (%zu lights, PCF %d, on the CPU) and %s-tiles.png (lights per tile)\n",
-              base.c_str(), base.c_str(), q.lightCount(), a.pcf, base.c_str());
+  std::printf("Wrote %s.png and %s.exr (%zu lights, PCF %d, %s) and %s-tiles.png (lights per tile)\n",
+              base.c_str(), base.c_str(), q.lightCount(), a.pcf, where.c_str(), base.c_str());
   std::printf("  %zu tiles of 16x16: %.1f lights per tile on average, at most %u; %llu over a list of %u; culling %.3f s, "
               "shading %.3f s\n",
               tileCount, double(tiles.lights.size()) / double(std::max<size_t>(1, tileCount)), tiles.longest,

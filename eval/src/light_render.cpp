@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "cpvs/base/error.h"
+
 namespace cpvs {
 
 namespace {
@@ -30,8 +32,11 @@ Rgb night() { return {0.004f, 0.005f, 0.012f}; }
 }  // namespace
 
 Rgb lightRadiance(const BundleQuery& query, size_t i, const Vec3& p, const Vec3& n, int pcf) {
+  return lightRadiance(query, i, p, n, query.filtered(i, p, n, pcf));
+}
+
+Rgb lightRadiance(const BundleQuery& query, size_t i, const Vec3& p, const Vec3& n, float vis) {
   const Light& l = query.light(i).light;
-  const float vis = query.filtered(i, p, n, pcf);
   if (vis == 0) return {};
   const Vec3 toLight = l.position - p;
   const double d = length(toLight);
@@ -84,6 +89,59 @@ Image shadeLightTiles(const CameraHits& hits, const BundleQuery& query, const Li
     const size_t t = tiles.tile(x, y);
     for (uint32_t k = tiles.begin[t]; k < tiles.begin[t + 1]; ++k) fn(tiles.lights[k]);
   });
+}
+
+Image shadeLightTiles(const CameraHits& hits, const BundleQuery& query, const LightTiles& tiles,
+                      const std::vector<float>& visibility) {
+  // Where each row's lookups begin, so rows shade in parallel.
+  std::vector<size_t> rowBegin(size_t(hits.height) + 1, 0);
+  for (int y = 0; y < hits.height; ++y) {
+    size_t n = 0;
+    for (int x = 0; x < hits.width; ++x)
+      if (hits.pixels[size_t(y) * size_t(hits.width) + size_t(x)].hit) {
+        const size_t t = tiles.tile(x, y);
+        n += tiles.begin[t + 1] - tiles.begin[t];
+      }
+    rowBegin[size_t(y) + 1] = rowBegin[size_t(y)] + n;
+  }
+  CPVS_CHECK(visibility.size() == rowBegin.back());
+  Image img(hits.width, hits.height);
+  tbb::parallel_for(0, hits.height, [&](int y) {
+    size_t at = rowBegin[size_t(y)];
+    for (int x = 0; x < hits.width; ++x) {
+      const SurfaceHit& s = hits.pixels[size_t(y) * size_t(hits.width) + size_t(x)];
+      if (!s.hit) {
+        img.at(x, y) = night();
+        continue;
+      }
+      Rgb sum{kAmbient, kAmbient, kAmbient};
+      const size_t t = tiles.tile(x, y);
+      for (uint32_t k = tiles.begin[t]; k < tiles.begin[t + 1]; ++k) {
+        const Rgb r = lightRadiance(query, tiles.lights[k], s.point, s.normal, visibility[at++]);
+        sum.r += r.r;
+        sum.g += r.g;
+        sum.b += r.b;
+      }
+      img.at(x, y) = {kAlbedo * sum.r, kAlbedo * sum.g, kAlbedo * sum.b};
+    }
+  });
+  return img;
+}
+
+void tileLookups(const CameraHits& hits, const LightTiles& tiles, std::vector<uint32_t>& lights,
+                 std::vector<Vec3>& points, std::vector<Vec3>& normals) {
+  lights.clear(), points.clear(), normals.clear();
+  for (int y = 0; y < hits.height; ++y)
+    for (int x = 0; x < hits.width; ++x) {
+      const SurfaceHit& s = hits.pixels[size_t(y) * size_t(hits.width) + size_t(x)];
+      if (!s.hit) continue;
+      const size_t t = tiles.tile(x, y);
+      for (uint32_t k = tiles.begin[t]; k < tiles.begin[t + 1]; ++k) {
+        lights.push_back(tiles.lights[k]);
+        points.push_back(s.point);
+        normals.push_back(s.normal);
+      }
+    }
 }
 
 Image shadeAllLights(const CameraHits& hits, const BundleQuery& query, int pcf) {

@@ -16,10 +16,19 @@ namespace cpvs {
 /// times N.L, its colour and intensity, a spot light's cone (smooth from 3/4 of its
 /// half-angle to all of it) and a fall-off that reaches 0 at its reach.
 Rgb lightRadiance(const BundleQuery& query, size_t light, const Vec3& p, const Vec3& n, int pcf);
+/// The same with the visibility given (a GPU's lookup: lit texels / pcf²).
+Rgb lightRadiance(const BundleQuery& query, size_t light, const Vec3& p, const Vec3& n, float visibility);
 
 /// The lights' sum per pixel over each tile's list (cullLights of the hits), in light
 /// order; a faint ambient term and albedo as the sun pictures; sky where nothing is hit.
 Image shadeLightTiles(const CameraHits& hits, const BundleQuery& query, const LightTiles& tiles, int pcf);
+/// The same with each lookup's visibility given, in the order tileLookups lists them.
+Image shadeLightTiles(const CameraHits& hits, const BundleQuery& query, const LightTiles& tiles,
+                      const std::vector<float>& visibility);
+/// The lookups shadeLightTiles makes: for every pixel that sees the scene, row by row,
+/// each light of its tile's list: the light, the point and its normal.
+void tileLookups(const CameraHits& hits, const LightTiles& tiles, std::vector<uint32_t>& lights,
+                 std::vector<Vec3>& points, std::vector<Vec3>& normals);
 /// The same with every light at every pixel, no culling: the reference the culled
 /// picture must equal bit for bit.
 Image shadeAllLights(const CameraHits& hits, const BundleQuery& query, int pcf);
