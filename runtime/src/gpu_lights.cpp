@@ -103,7 +103,7 @@ std::vector<uint8_t> spotGridTableBytes(const LightBundle& bundle, uint32_t log2
     put(r.position, g.position());
     put(r.u, g.frame().u), put(r.v, g.frame().v), put(r.dir, g.frame().dir);
     r.tanHalfFov = g.tanHalfFov(), r.tanCone = b.tanCone, r.near = g.near(), r.far = g.far();
-    r.logRatio = double(g.resolution()) / g.slicesPerLog();
+    r.logRatio = g.logRatio();
     r.headerWord = bundle.dag(k).headerWord();
     r.firstBoundary = uint32_t(boundary);
     r.log2Resolution = uint32_t(g.log2Resolution());

@@ -109,7 +109,10 @@ void QueryKernel::upload(const std::vector<uint32_t>& w, const LookupMapping& lo
                                                   " bytes exceeds the device's storage binding limit of " +
                                                   std::to_string(g.bindingLimit));
   words_ = uploadToDevice(w.data(), bytes);
-  for (const Table& t : tables_) tableBuffers_.push_back(uploadToDevice(t.bytes.data(), t.bytes.size()));
+  for (Table& t : tables_) {
+    tableBuffers_.push_back(uploadToDevice(t.bytes.data(), t.bytes.size()));
+    t.bytes = {};  // the device holds them now
+  }
   mapping_ = g.createBuffer(sizeof(MappingBlock), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
   MappingBlock block{};
   block.mapping = lookup;
@@ -126,9 +129,9 @@ void QueryKernel::createPipeline(const Shaders& shaders) {
   const uint32_t wordBindings = bindings_ == 1 ? 1 : kMaxWordBindings;  // the shader variant's
   for (uint32_t k = 0; k < wordBindings; ++k) add(firstWordBinding_ + k, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
   // A light bundle's shader declares the sun's first word buffer too (the include reads
-  // either): it views the pool's first range and is never read.
-  const bool sunPlaceholder = firstWordBinding_ != kSunWordBinding;
-  if (sunPlaceholder) add(kSunWordBinding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
+  // either): bound to the pool's first range, never read.
+  const bool bindsSunWords = firstWordBinding_ != kSunWordBinding;
+  if (bindsSunWords) add(kSunWordBinding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
   add(kQueryBinding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
   add(kAnswerBinding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
   if (queryLights_) add(kQueryLightBinding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
@@ -179,7 +182,7 @@ void QueryKernel::createPipeline(const Shaders& shaders) {
     const VkDeviceSize offset = part * wordsPerBinding_ * 4;
     writeStorage(firstWordBinding_ + k, words_.buffer, offset, std::min<VkDeviceSize>(words_.size - offset, g.bindingLimit));
   }
-  if (sunPlaceholder) writeStorage(kSunWordBinding, words_.buffer, 0, std::min<VkDeviceSize>(words_.size, g.bindingLimit));
+  if (bindsSunWords) writeStorage(kSunWordBinding, words_.buffer, 0, std::min<VkDeviceSize>(words_.size, g.bindingLimit));
   for (size_t i = 0; i < tables_.size(); ++i)
     writeStorage(tables_[i].binding, tableBuffers_[i].buffer, 0, tableBuffers_[i].size);
   if (g.timestampBits != 0) {

@@ -67,6 +67,8 @@ class PerspectiveGrid final : public LightGrid {
   const double* sliceBoundaries() const { return boundaries_->data(); }
   /// R / ln(far / near): eq. (1)'s slices per unit of ln(zv / near).
   double slicesPerLog() const { return double(resolution()) / logRatio_; }
+  /// ln(far / near).
+  double logRatio() const { return logRatio_; }
 
   uint64_t side() const override { return resolution(); }
   Vec3 voxelFromWorld(const Vec3& world) const override;
