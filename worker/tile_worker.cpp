@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -90,7 +91,11 @@ void TileWorker::slotLoop(int slot) {
 }
 
 void TileWorker::bakeLeased(const pb::TileLease& lease) {
-  spdlog::info("tile {} ({}, {}) of job {}: baking", lease.tile_index(), lease.tile_x(), lease.tile_y(), lease.job_id());
+  if (lease.grid().projection() == v1::PROJECTION_PERSPECTIVE)
+    spdlog::info("tile {} ({}, {}) of light {}'s grid {} of job {}: baking", lease.tile_index(), lease.tile_x(),
+                 lease.tile_y(), lease.light(), lease.grid_index(), lease.job_id());
+  else
+    spdlog::info("tile {} ({}, {}) of job {}: baking", lease.tile_index(), lease.tile_x(), lease.tile_y(), lease.job_id());
   // Renew the lease in the background while the tile bakes: at a third of its length.
   std::mutex m;
   std::condition_variable cv;
@@ -133,11 +138,10 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     renewer.join();
   };
   try {
-    OrthoGrid grid = net::fromProto(lease.grid());
     BakeOptions options = net::fromProto(lease.options());
     // The hash names files in the cache: 32 hex digits, nothing a path could be made of (R23).
     parseHashHex(lease.scene_hash(), "the lease's scene_hash");
-    auto prepared = bakeScene(lease.scene_hash(), grid, options.renderer, lease.options().receivers());
+    auto prepared = bakeScene(lease.scene_hash(), lease.grid(), options.renderer, lease.options().receivers());
     StageTimes times;
     Dag dag = bakeTile(*prepared, lease.tile_x(), lease.tile_y(), options, &times);
     auto start = std::chrono::steady_clock::now();
@@ -289,8 +293,17 @@ std::string TileWorker::fetchSceneOnce(const std::string& sceneHash) {
   return final.string();
 }
 
-std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, const OrthoGrid& grid,
+std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, const v1::GridSpec& grid,
                                                  Renderer renderer, const v1::Receivers& receivers) {
+  // Checked before anything is fetched or cached: the grid either projection makes.
+  std::optional<OrthoGrid> ortho;
+  std::optional<net::SpotGridSpec> spot;
+  if (grid.projection() == v1::PROJECTION_PERSPECTIVE)
+    spot = net::spotFromProto(grid);
+  else
+    ortho = net::fromProto(grid);
+  if (spot && receivers.kind() != v1::RECEIVERS_EVERYWHERE)
+    throw std::runtime_error("a perspective grid is baked for receivers everywhere");
   std::shared_ptr<CachedScene> cached;
   {
     std::lock_guard lock(cacheMutex_);
@@ -300,13 +313,14 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
   std::lock_guard lock(cached->mutex);
   if (cached->scene.indices.empty()) cached->scene = loadScene(fetchScene(sceneHash), nullptr, ImportOptions{true});
   // Every field of the grid decides the projection; the bits of the doubles name it.
-  std::string key = optionName(renderer);
+  std::string key = std::string(optionName(renderer)) + "," + std::to_string(int(grid.projection()));
   char field[32];
-  for (const Vec3* v : {&grid.frame.dir, &grid.frame.u, &grid.frame.v, &grid.origin})
-    for (double x : {v->x, v->y, v->z}) key += (std::snprintf(field, sizeof field, ",%a", x), field);
-  for (double x : {grid.u0, grid.v0, grid.d0, grid.extent, grid.depthExtent})
+  for (const v1::Vec3* v : {&grid.light_dir(), &grid.frame_u(), &grid.frame_v(), &grid.origin(), &grid.position()})
+    for (double x : {v->x(), v->y(), v->z()}) key += (std::snprintf(field, sizeof field, ",%a", x), field);
+  for (double x : {grid.u0(), grid.v0(), grid.d0(), grid.extent(), grid.depth_extent(), grid.tan_half_fov(), grid.near(),
+                   grid.far(), grid.tan_cone()})
     key += (std::snprintf(field, sizeof field, ",%a", x), field);
-  key += "," + std::to_string(grid.log2Resolution);
+  key += "," + std::to_string(grid.log2_resolution());
   // The receivers as sent (kind, width, the volume's hash and boxes) decide what is freed.
   const std::string declared = receivers.SerializeAsString();
   key += "," + contentHash(declared.data(), declared.size()).hex();
@@ -318,7 +332,8 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
     auto start = std::chrono::steady_clock::now();
     const ReceiverDeclaration declaration =
         net::declarationOf(receivers, [&](const std::string& hash) { return loadScene(fetchScene(hash), nullptr, ImportOptions{true}); });
-    prepared = std::make_shared<BakeScene>(cached->scene, grid, renderer, config_.threads, declaration);
+    prepared = spot ? std::make_shared<BakeScene>(cached->scene, spot->grid, spot->tanCone, renderer, config_.threads)
+                    : std::make_shared<BakeScene>(cached->scene, *ortho, renderer, config_.threads, declaration);
     spdlog::info("scene {} prepared for the {} renderer in {:.2f} s", sceneHash, optionName(renderer), secondsSince(start));
   }
   return prepared;

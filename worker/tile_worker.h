@@ -56,8 +56,9 @@ class TileWorker {
   void slotLoop(int slot);
   /// Bakes and returns one leased tile; false when the coordinator is unreachable.
   void bakeLeased(const pb::TileLease& lease);
-  /// The scene prepared for a lease's grid and renderer, loaded and built once.
-  std::shared_ptr<BakeScene> bakeScene(const std::string& sceneHash, const OrthoGrid& grid, Renderer renderer,
+  /// The scene prepared for a lease's grid (a sun's or a light bundle's perspective one)
+  /// and renderer, loaded and built once; InputError for a grid the core refuses.
+  std::shared_ptr<BakeScene> bakeScene(const std::string& sceneHash, const v1::GridSpec& grid, Renderer renderer,
                                        const v1::Receivers& receivers);
   /// The cached file of a scene, fetched when missing; WorkerFault for trouble of the
   /// worker's own or a damaged scene.

@@ -69,10 +69,7 @@ std::vector<Light> withSceneLights(const LightFlags& flags, std::vector<Light> g
 }
 
 double footprintOf(const LightFlags& flags, const Scene& scene) {
-  if (flags.footprint > 0) return flags.footprint;
-  Vec3 lo, hi;
-  sceneBounds(scene, lo, hi);
-  return length(hi - lo) / 4096;
+  return flags.footprint > 0 ? flags.footprint : defaultFootprint(scene);
 }
 
 void checkNoSunWithLights(const SunFlags& sun) {

@@ -20,6 +20,7 @@
 #include "bake_flags.h"
 #include "cli_util.h"
 #include "commands.h"
+#include "cpvs/bake/bake_lights.h"
 #include "cpvs/base/error.h"
 #include "cpvs/scene/import.h"
 #include "cpvs/net/receiver_declaration.h"
@@ -27,6 +28,7 @@
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/base/text.h"
+#include "cpvs/dag/packed_layout.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/light/frame.h"
 #include "cpvs/light/ortho_grid.h"
@@ -128,6 +130,8 @@ std::string statusJson(const pb::JobStatus& s, const std::string& indent, bool w
     << in << "\"state\": " << jsonString(net::jobStateName(s.state())) << ",\n"
     << in << "\"priority\": " << s.spec().priority() << ",\n"
     << in << "\"resolution\": " << s.resolution() << ",\n"
+    << in << "\"lights\": " << s.lights() << ",\n"
+    << in << "\"grids\": " << s.grids() << ",\n"
     << in << "\"tiles\": " << s.tiles_total() << ",\n"
     << in << "\"tiles_done\": " << s.tiles_done() << ",\n"
     << in << "\"tiles_untouched\": " << s.tiles_untouched() << ",\n"
@@ -161,9 +165,16 @@ pb::JobStatus followJob(FarmClient& client, const std::string& jobId, bool show)
 }
 
 void printDone(const pb::JobStatus& s) {
-  const uint64_t R = s.resolution();
-  std::printf("Job %s done: %llu^3 in %llu tile%s, %.2f s\n", loggable(s.job_id()).c_str(), static_cast<unsigned long long>(R),
-              static_cast<unsigned long long>(s.tiles_total()), s.tiles_total() == 1 ? "" : "s", s.seconds_elapsed());
+  const uint64_t R = s.grids() ? 0 : s.resolution();  // a bundle's grids have resolutions of their own
+  if (s.grids())
+    std::printf("Job %s done: a light bundle of %u light%s in %u grids (the finest %llu^2), %llu tile%s, %.2f s\n",
+                loggable(s.job_id()).c_str(), s.lights(), s.lights() == 1 ? "" : "s", s.grids(),
+                static_cast<unsigned long long>(s.resolution()), static_cast<unsigned long long>(s.tiles_total()),
+                s.tiles_total() == 1 ? "" : "s", s.seconds_elapsed());
+  else
+    std::printf("Job %s done: %llu^3 in %llu tile%s, %.2f s\n", loggable(s.job_id()).c_str(),
+                static_cast<unsigned long long>(R), static_cast<unsigned long long>(s.tiles_total()),
+                s.tiles_total() == 1 ? "" : "s", s.seconds_elapsed());
   if (s.tiles_untouched() + s.tiles_unread() > 0)
     std::printf("  %llu tiles all lit, never leased: %llu touched by no triangle, %llu read by no receiver\n",
                 static_cast<unsigned long long>(s.tiles_untouched() + s.tiles_unread()),
@@ -286,6 +297,8 @@ struct SubmitArgs {
   std::string scene, jobFile, requestId, name, out;
   std::string resolution = "4K";
   SunFlags sun;
+  LightFlags lights;
+  int pointerGrid = kMaxGridLevels;
   OptionFlags options;
   int priority = 0;
   bool wait = false, json = false, quiet = false;
@@ -301,6 +314,7 @@ class TemporaryScene {
  public:
   explicit TemporaryScene(const std::string& spec) {
     Scene scene = openScene(spec);
+    lights_ = sceneLights(scene);
     std::string pattern = (fs::temp_directory_path() / "cpvs-scene-XXXXXX").string();
     if (!::mkdtemp(pattern.data())) throw InputError("cannot create a temporary folder: " + std::string(std::strerror(errno)));
     dir_ = pattern;
@@ -318,10 +332,15 @@ class TemporaryScene {
   TemporaryScene& operator=(const TemporaryScene&) = delete;
 
   const std::string& path() const { return path_; }
+  /// The generated scene's point and spot lights, which an OBJ cannot carry.
+  const std::vector<Light>& lights() const { return lights_; }
 
  private:
   std::string dir_, path_;
+  std::vector<Light> lights_;
 };
+
+void buildSun(const SubmitArgs& a, const CLI::App& c, pb::BakeSpec& spec);
 
 /// The spec to submit: the job file's, if any, with every flag given on the command line
 /// overriding its field, and the bake defaults for what neither gives. Validated here,
@@ -334,6 +353,50 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volu
     spec = net::specFromJson(std::string(bytes.begin(), bytes.end()), a.jobFile);
   }
 
+  // Local lights: the flags replace the job file's lights (or add the scene's).
+  if (!a.lights.spots.empty() || !a.lights.points.empty() || !a.lights.lightsFile.empty()) {
+    spec.clear_lights();
+    for (const Light& l : flagLights(a.lights)) *spec.add_lights() = net::toProto(l);
+  }
+  if (a.lights.sceneLights) spec.set_scene_lights(true);
+  if (given("--footprint")) {
+    if (!(a.lights.footprint > 0) || !std::isfinite(a.lights.footprint))
+      throw InputError("--footprint must be a finite width > 0");
+    spec.set_footprint(a.lights.footprint);
+  }
+  if (given("--pointer-grid")) {
+    if (a.pointerGrid < 0 || a.pointerGrid > kMaxGridLevels)
+      throw InputError("--pointer-grid " + std::to_string(a.pointerGrid) + ": levels 0 to " + std::to_string(kMaxGridLevels));
+    spec.set_pointer_grid(uint32_t(a.pointerGrid));
+  }
+  if (net::isLightBundle(spec)) {
+    checkNoSunWithLights(a.sun);
+    if (spec.sun_case() != pb::BakeSpec::SUN_NOT_SET)
+      throw InputError("local lights make a light bundle: " + a.jobFile + " names a sun too");
+    if (given("--resolution"))
+      throw InputError("--resolution is the sun's: give a light's own in a lights file, or --footprint");
+    (void)net::lightsOf(spec);
+  } else {
+    if (spec.has_pointer_grid() || spec.footprint() != 0)
+      throw InputError("--pointer-grid and --footprint are for local lights (--spot, --point, --lights, --scene-lights)");
+    buildSun(a, c, spec);
+  }
+  volumeMesh = applyOptionFlags(a.options, c, *spec.mutable_options());
+  if (net::isLightBundle(spec) && spec.options().receivers().kind() != pb::RECEIVERS_EVERYWHERE)
+    throw InputError("local lights are baked for receivers everywhere: --receivers is for the sun");
+
+  if (given("--priority")) spec.set_priority(a.priority);
+  if (given("--name")) spec.set_name(a.name);
+  if (spec.name().empty() && !a.scene.empty())
+    spec.set_name(isGeneratedScene(a.scene) ? a.scene : fs::path(a.scene).filename().string());
+  if (a.scene.empty() && spec.scene_hash().empty())
+    throw InputError("give the SCENE to bake (a file or city[:BLOCKS[:SEED]]), or a scene_hash in the job file");
+  return spec;
+}
+
+/// The sun and resolution of a sun bake's spec, from the flags over the job file's.
+void buildSun(const SubmitArgs& a, const CLI::App& c, pb::BakeSpec& spec) {
+  auto given = [&](const char* option) { return c.count(option) > 0; };
   const bool dir = given("--sun-dir"), elevation = given("--sun-elevation"), azimuth = given("--sun-azimuth");
   if (dir && (elevation || azimuth))
     throw InputError("give either --sun-dir or --sun-elevation/--sun-azimuth, not both");
@@ -348,22 +411,13 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volu
     *spec.mutable_sun_angles() = angles;
   }
   if (spec.sun_case() == pb::BakeSpec::SUN_NOT_SET)
-    throw InputError(std::string("give the light: --sun-dir X,Y,Z or --sun-elevation DEG") +
-                     (a.jobFile.empty() ? "" : " (or sun_direction or sun_angles in " + a.jobFile + ")"));
+    throw InputError(std::string("give the light: --sun-dir X,Y,Z or --sun-elevation DEG, or local lights (--spot, "
+                                 "--point, --lights, --scene-lights)") +
+                     (a.jobFile.empty() ? "" : " (or sun_direction, sun_angles or lights in " + a.jobFile + ")"));
   (void)net::lightOf(spec);
 
   if (given("--resolution") || spec.resolution().empty()) spec.set_resolution(a.resolution);
   (void)parseResolution(spec.resolution());
-
-  volumeMesh = applyOptionFlags(a.options, c, *spec.mutable_options());
-
-  if (given("--priority")) spec.set_priority(a.priority);
-  if (given("--name")) spec.set_name(a.name);
-  if (spec.name().empty() && !a.scene.empty())
-    spec.set_name(isGeneratedScene(a.scene) ? a.scene : fs::path(a.scene).filename().string());
-  if (a.scene.empty() && spec.scene_hash().empty())
-    throw InputError("give the SCENE to bake (a file or city[:BLOCKS[:SEED]]), or a scene_hash in the job file");
-  return spec;
 }
 
 int runSubmit(const SubmitArgs& a, const CLI::App& c) {
@@ -378,6 +432,15 @@ int runSubmit(const SubmitArgs& a, const CLI::App& c) {
     if (isGeneratedScene(a.scene)) {
       generated.emplace(a.scene);
       path = generated->path();
+      if (spec.scene_lights()) {
+        // The scene's lights go in the spec, first, as the local bake lists them.
+        if (generated->lights().empty()) throw InputError("--scene-lights: " + a.scene + " holds no point or spot light");
+        pb::BakeSpec withLights;
+        for (const Light& l : generated->lights()) *withLights.add_lights() = net::toProto(l);
+        for (const pb::Light& l : spec.lights()) *withLights.add_lights() = l;
+        spec.mutable_lights()->Swap(withLights.mutable_lights());
+        spec.set_scene_lights(false);
+      }
     }
     FarmClient::UploadResult up = client.uploadScene(path);
     if (up.alreadyThere)
@@ -400,8 +463,11 @@ int runSubmit(const SubmitArgs& a, const CLI::App& c) {
     return 0;
   }
 
-  note(!chatty, "job " + status.job_id() + " submitted: " + spec.resolution() + ", " +
-                    std::to_string(status.tiles_total()) + " tiles");
+  note(!chatty, "job " + status.job_id() + " submitted: " +
+                    (status.grids() ? std::to_string(status.lights()) + " lights in " + std::to_string(status.grids()) +
+                                          " grids"
+                                    : spec.resolution()) +
+                    ", " + std::to_string(status.tiles_total()) + " tiles");
   pb::JobStatus final = followJob(client, status.job_id(), chatty);
   std::string written;
   if (final.state() == pb::JOB_DONE && !a.out.empty()) {
@@ -506,6 +572,9 @@ void addSubmitCommand(CLI::App& app, int& status) {
   addSunFlags(c, a->sun);
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R (voxels a side): 1024, 4K, 16K, ... 1M")
       ->capture_default_str();
+  addLightFlags(c, a->lights);
+  c->add_option("--pointer-grid", a->pointerGrid,
+                "Local lights: levels each grid's pointer grid answers in one read, 0 (none) to 5 (default)");
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8): the unit of work of a worker");
   c->add_option("--request-id", a->requestId,
                 "Idempotency key: submitting again with it returns the same job (default: a random id)");

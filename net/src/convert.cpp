@@ -226,6 +226,8 @@ pb::GridSpec toProto(const OrthoGrid& g) {
 }
 
 OrthoGrid fromProto(const pb::GridSpec& p) {
+  if (p.projection() != pb::PROJECTION_ORTHOGRAPHIC)
+    throw InputError("grid.projection " + std::to_string(int(p.projection())) + " is not the sun's orthographic grid");
   OrthoGrid g;
   g.frame.dir = fromProto(p.light_dir());
   g.frame.u = fromProto(p.frame_u());
@@ -241,6 +243,55 @@ OrthoGrid fromProto(const pb::GridSpec& p) {
   g.log2Resolution = int(p.log2_resolution());
   checkGrid(g, "grid");
   return g;
+}
+
+pb::GridSpec toProto(const PerspectiveGrid& g, double tanCone) {
+  pb::GridSpec p;
+  p.set_projection(pb::PROJECTION_PERSPECTIVE);
+  *p.mutable_light_dir() = toProto(g.frame().dir);
+  *p.mutable_frame_u() = toProto(g.frame().u);
+  *p.mutable_frame_v() = toProto(g.frame().v);
+  p.set_log2_resolution(uint32_t(g.log2Resolution()));
+  *p.mutable_position() = toProto(g.position());
+  p.set_tan_half_fov(g.tanHalfFov());
+  p.set_near(g.near());
+  p.set_far(g.far());
+  p.set_tan_cone(tanCone);
+  return p;
+}
+
+SpotGridSpec spotFromProto(const pb::GridSpec& p) {
+  if (p.projection() != pb::PROJECTION_PERSPECTIVE)
+    throw InputError("grid.projection " + std::to_string(int(p.projection())) + " is not a perspective grid");
+  if (p.log2_resolution() > uint32_t(kMaxLog2Resolution))
+    throw InputError("grid.log2_resolution " + std::to_string(p.log2_resolution()) + " is out of range");
+  if (!(p.tan_cone() > 0) || !std::isfinite(p.tan_cone())) throw InputError("grid.tan_cone must be finite and > 0");
+  const LightFrame frame{fromProto(p.light_dir()), fromProto(p.frame_u()), fromProto(p.frame_v())};
+  try {
+    return {PerspectiveGrid(fromProto(p.position()), frame, p.tan_half_fov(), p.near(), p.far(),
+                            int(p.log2_resolution())),
+            p.tan_cone()};
+  } catch (const InputError& e) {
+    throw InputError(std::string("grid: ") + e.what());
+  }
+}
+
+bool isLightBundle(const pb::BakeSpec& spec) { return spec.lights_size() > 0 || spec.scene_lights(); }
+
+std::vector<Light> lightsOf(const pb::BakeSpec& spec) {
+  // Before converting any: 100,000 lights are refused without 100,000 conversions.
+  if (size_t(spec.lights_size()) > kMaxLights) checkLightCount(size_t(spec.lights_size()));
+  std::vector<Light> lights;
+  for (int i = 0; i < spec.lights_size(); ++i) {
+    try {
+      if (spec.lights(i).kind() == pb::LIGHT_SPOT && !spec.lights(i).has_direction())
+        throw InputError("a spot light needs a direction");
+      lights.push_back(fromProto(spec.lights(i)));
+    } catch (const InputError& e) {
+      throw InputError("lights[" + std::to_string(i) + "]: " + e.what());
+    }
+  }
+  return lights;
 }
 
 LightFrame lightOf(const pb::BakeSpec& spec) {

@@ -9,13 +9,16 @@
 #include <cmath>
 #include <limits>
 
+#include "coordinator/bundle_job.h"
 #include "coordinator/clock.h"
+#include "cpvs/bake/bake_lights.h"
 #include "cpvs/bake/bake_plan.h"
 #include "cpvs/bake/raster_scene.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/base/text.h"
+#include "cpvs/dag/packed_layout.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/net/receiver_declaration.h"
@@ -82,7 +85,13 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   s.set_error(j.error);
   s.set_bytes(j.bytes);
   s.set_file_bytes(j.fileBytes);
-  s.set_resolution(j.grid.resolution());
+  s.set_resolution(resolutionOf(j));
+  if (!j.grids.empty()) {
+    v1::LightList lights;
+    lights.ParseFromString(j.lights);
+    s.set_lights(uint32_t(lights.lights_size()));
+    s.set_grids(uint32_t(j.grids.size()));
+  }
   s.set_peak_merge_bytes(j.peakMergeBytes);
   s.set_created_unix_ms(j.createdMs);
   return s;
@@ -95,6 +104,9 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   if (auto existing = knownRequest(request, access)) return *existing;
   if (spec.name().size() > 256) throw FarmError(ErrorKind::InvalidArgument, "name is longer than 256 characters");
   if (std::abs(spec.priority()) > 1000) throw FarmError(ErrorKind::InvalidArgument, "priority must be in -1000..1000");
+  if (net::isLightBundle(spec)) return submitBundle(request, access);
+  if (spec.has_pointer_grid() || spec.footprint() != 0)
+    throw FarmError(ErrorKind::InvalidArgument, "pointer_grid and footprint are for light bundles (lights, scene_lights)");
   JobRecord j;
   LightFrame frame;
   BakeOptions options;
@@ -131,17 +143,9 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
   }
-  j.id = randomId("j");
-  j.requestId = request.request_id();
-  j.owner = access.owner;
-  j.sceneHash = spec.scene_hash();
-  j.geometryHash = sceneHash(scene).hex();
-  j.spec = spec.SerializeAsString();
   j.grid = grid;
   j.options = options;
   j.receiverHash = receiverHash(receivers);
-  j.priority = spec.priority();
-  j.createdMs = nowMs();
   j.tilesTotal = plan.count();
   // Tiles no triangle can touch, or no declared receiver reads, are all lit: done now,
   // merged without a worker. The plan classified every tile (BakePlan::tileClasses, the
@@ -159,23 +163,125 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
     if (bakePlan.tileClasses[i] == BakePlan::kUntouched) states[i] = TileState::Untouched;
     if (bakePlan.tileClasses[i] == BakePlan::kUnread) states[i] = TileState::Unread;
   }
-  {
-    // Checked again and created under one lock: a retry that arrives while its first call
-    // is still loading the scene gets the same job (not a unique-key error), and calls
-    // submitted at once cannot together exceed the job limit. The tile folder exists
-    // before a worker can lease a tile of the job.
-    std::lock_guard lock(submitMutex_);
-    if (auto existing = knownRequest(request, access)) return *existing;
-    checkRoom(access);
-    artifacts_.createTileFolder(j.id);
-    store_.createJob(j, states);
-    if (bakePlan.tilesUntouched + bakePlan.tilesUnread == j.tilesTotal)
-      store_.setJobState(j.id, JobState::Merging, "", nowMs());
-    for (uint64_t t = 0; t < j.tilesTotal; ++t)
-      if (states[t] != TileState::Queued) merges_.mergeTile(j.id, t);
-  }
+  if (auto existing = createJob(request, access, scene, j, states)) return *existing;
   spdlog::info("job {} submitted: scene {}, {}^3, {} tiles ({} touched by no triangle, {} read by no receiver)", j.id,
                j.sceneHash, j.grid.resolution(), j.tilesTotal, bakePlan.tilesUntouched, bakePlan.tilesUnread);
+  feed_.notify();
+  return status(j.id);
+}
+
+std::optional<pb::JobStatus> JobService::createJob(const pb::SubmitBakeRequest& request, const Access& access,
+                                                   const Scene& scene, JobRecord& j,
+                                                   const std::vector<TileState>& states) {
+  const pb::BakeSpec& spec = request.spec();
+  j.id = randomId("j");
+  j.requestId = request.request_id();
+  j.owner = access.owner;
+  j.sceneHash = spec.scene_hash();
+  j.geometryHash = sceneHash(scene).hex();
+  j.spec = spec.SerializeAsString();
+  j.priority = spec.priority();
+  j.createdMs = nowMs();
+  // Checked again and created under one lock: a retry that arrives while its first call
+  // is still loading the scene gets the same job (not a unique-key error), and calls
+  // submitted at once cannot together exceed the job limit. The tile folder exists
+  // before a worker can lease a tile of the job.
+  std::lock_guard lock(submitMutex_);
+  if (auto existing = knownRequest(request, access)) return existing;
+  checkRoom(access);
+  artifacts_.createTileFolder(j.id);
+  store_.createJob(j, states);
+  if (std::none_of(states.begin(), states.end(), [](TileState s) { return s == TileState::Queued; }))
+    store_.setJobState(j.id, JobState::Merging, "", nowMs());
+  for (uint64_t t = 0; t < j.tilesTotal; ++t)
+    if (states[t] != TileState::Queued) merges_.mergeTile(j.id, t);
+  return std::nullopt;
+}
+
+void JobService::checkTileCount(uint64_t tiles, const std::string& what) const {
+  if (tiles > limits_.maxTilesPerJob)
+    throw FarmError(ErrorKind::InvalidArgument, what + " makes " + std::to_string(tiles) +
+                                                    " tiles; this farm takes at most " +
+                                                    std::to_string(limits_.maxTilesPerJob) + " per job");
+}
+
+pb::JobStatus JobService::submitBundle(const pb::SubmitBakeRequest& request, const Access& access) {
+  const pb::BakeSpec& spec = request.spec();
+  if (spec.sun_case() != pb::BakeSpec::SUN_NOT_SET)
+    throw FarmError(ErrorKind::InvalidArgument, "lights and scene_lights make a light bundle: give no sun with them");
+  if (!spec.resolution().empty())
+    throw FarmError(ErrorKind::InvalidArgument,
+                    "resolution is the sun's: a light's grids take the light's own resolution, or one planned from "
+                    "footprint");
+  if (!std::isfinite(spec.footprint()) || spec.footprint() < 0)
+    throw FarmError(ErrorKind::InvalidArgument, "footprint must be finite and >= 0 (0: the scene's diagonal / 4096)");
+  if (spec.has_pointer_grid() && spec.pointer_grid() > uint32_t(kMaxGridLevels))
+    throw FarmError(ErrorKind::InvalidArgument,
+                    "pointer_grid " + std::to_string(spec.pointer_grid()) + ": levels 0 to " + std::to_string(kMaxGridLevels));
+  JobRecord j;
+  std::vector<Light> lights;
+  try {
+    j.options = net::fromProto(spec.options());
+    lights = net::lightsOf(spec);
+    net::checkReceivers(spec.options().receivers());
+  } catch (const InputError& e) {
+    throw FarmError(ErrorKind::InvalidArgument, e.what());
+  }
+  if (j.options.receivers != ReceiverKind::Everywhere)
+    throw FarmError(ErrorKind::InvalidArgument, "local lights are baked for receivers everywhere: receivers are for the sun");
+  checkRoom(access);  // before loading the scene, which may take long
+  const Scene scene = scenes_.load(spec.scene_hash());
+  LightBundle planned;
+  std::vector<double> closest;
+  try {
+    if (spec.scene_lights()) {
+      std::vector<Light> own = sceneLights(scene);
+      if (own.empty()) throw InputError("scene_lights: the scene holds no point or spot light");
+      own.insert(own.end(), lights.begin(), lights.end());
+      lights = std::move(own);
+    }
+    checkLightCount(lights.size());
+    const double footprint = spec.footprint() > 0 ? spec.footprint() : defaultFootprint(scene);
+    planned = planLights(scene, lights, footprint, j.options, closest);
+  } catch (const InputError& e) {
+    throw FarmError(ErrorKind::InvalidArgument, e.what());
+  }
+  for (size_t k = 0; k < planned.grids.size(); ++k) {
+    const int log2R = planned.grids[k].grid.log2Resolution();
+    if (log2R < limits_.minLog2Resolution || log2R > limits_.maxLog2Resolution)
+      throw FarmError(ErrorKind::InvalidArgument,
+                      lightLabel(lights[planned.grids[k].light], planned.grids[k].light) + ": a grid of " +
+                          std::to_string(uint64_t(1) << log2R) + " is outside this farm's limits (" +
+                          std::to_string(1ull << limits_.minLog2Resolution) + " .. " +
+                          std::to_string(1ull << limits_.maxLog2Resolution) + ")");
+    j.grids.push_back(jobGridOf(planned.grids[k], closest[k]));
+  }
+  const GridTiles tiles = tilesOf(j);
+  checkTileCount(tiles.count(), std::to_string(lights.size()) + " lights in " + std::to_string(j.grids.size()) +
+                                    " grids, tiles of " +
+                                    std::to_string(uint64_t(1) << j.options.log2TileSize) + " texels,");
+  v1::LightList list;
+  for (const Light& l : lights) *list.add_lights() = net::toProto(l);
+  j.lights = list.SerializeAsString();
+  j.plan = lightPlanJson(planned, closest);
+  j.tilesTotal = tiles.count();
+  // Tiles whose texels all lie outside their light's cone are all lit (no light falls
+  // there): done now, merged without a worker, as bakeTile would bake them.
+  std::vector<TileState> states(j.tilesTotal, TileState::Queued);
+  uint64_t dark = 0;
+  for (size_t k = 0; k < planned.grids.size(); ++k) {
+    const TilePlan& plan = tiles.plan(k);
+    const uint64_t side = uint64_t(1) << plan.log2TileSize();
+    for (uint64_t t = 0; t < plan.count(); ++t) {
+      const TileCoord at = plan.tile(t);
+      if (!planned.grids[k].grid.coneMissesTexels(at.x * side, at.y * side, side, side, planned.grids[k].tanCone)) continue;
+      states[tiles.first(k) + t] = TileState::Untouched;
+      ++dark;
+    }
+  }
+  if (auto existing = createJob(request, access, scene, j, states)) return *existing;
+  spdlog::info("job {} submitted: scene {}, a light bundle of {} lights in {} grids, {} tiles ({} outside every cone)",
+               j.id, j.sceneHash, lights.size(), j.grids.size(), j.tilesTotal, dark);
   feed_.notify();
   return status(j.id);
 }

@@ -67,6 +67,15 @@ class JobService {
   /// The job, when `access` may see it: NotFound, PermissionDenied otherwise.
   JobRecord visibleJob(const std::string& jobId, const Access& access);
   void checkRoom(const Access& access);
+  /// A light bundle's submit (lights or scene_lights): planned at once, a tile per
+  /// (grid, tile) of its grids.
+  pb::JobStatus submitBundle(const pb::SubmitBakeRequest& request, const Access& access);
+  /// Gives the job its identity from the request (id, owner, scene, spec, priority, time)
+  /// and creates it with its tiles in `states` (done ones queued for merging); the job a
+  /// retry names instead, when one does.
+  std::optional<pb::JobStatus> createJob(const pb::SubmitBakeRequest& request, const Access& access,
+                                         const Scene& scene, JobRecord& j, const std::vector<TileState>& states);
+  void checkTileCount(uint64_t tiles, const std::string& what) const;
 
   FarmStore& store_;
   SceneStore& scenes_;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "coordinator/bundle_job.h"
 #include "coordinator/clock.h"
 #include "coordinator/failpoint.h"
 #include "cpvs/bake/tile_plan.h"
@@ -79,11 +80,18 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   out.set_lease_id(l->leaseId);
   out.set_job_id(l->jobId);
   out.set_tile_index(l->tile);
-  const TileCoord tile = TilePlan(j->grid.log2Resolution, j->options.log2TileSize).tile(l->tile);
-  out.set_tile_x(tile.x);
-  out.set_tile_y(tile.y);
+  const GridTiles::At at = tilesOf(*j).at(l->tile);
+  out.set_tile_x(at.tile.x);
+  out.set_tile_y(at.tile.y);
   out.set_scene_hash(j->sceneHash);
-  *out.mutable_grid() = net::toProto(j->grid);
+  if (j->grids.empty()) {
+    *out.mutable_grid() = net::toProto(j->grid);
+  } else {
+    const JobGrid& g = j->grids[at.grid];
+    *out.mutable_grid() = net::toProto(perspectiveGridOf(g), g.tanCone);
+    out.set_grid_index(at.grid);
+    out.set_light(g.light);
+  }
   *out.mutable_options() = net::toProto(j->options);
   if (j->options.receivers != ReceiverKind::Everywhere) {
     // The volume (mesh hash, boxes) lives in the spec as submitted, not in the typed columns.
@@ -139,11 +147,12 @@ bool LeaseService::completeTile(const std::string& leaseId, const std::string& e
   try {
     Dag dag = decodeSubDag(reinterpret_cast<const uint8_t*>(encoded.data()), encoded.size(), source,
                            options.compress != CompressMode::None, options.hash);
-    if (dag.log2Resolution != j->grid.log2Resolution)
-      throw InputError(source + ": resolution does not match the job");
-    const TilePlan plan(j->grid.log2Resolution, options.log2TileSize);
-    const TileCoord tile = plan.tile(l->tile);
-    checkTileRoots(dag, tile.x, tile.y, plan.log2TileSize(), source);
+    const GridTiles tiles = tilesOf(*j);
+    const GridTiles::At at = tiles.at(l->tile);
+    const TilePlan& plan = tiles.plan(at.grid);
+    if (dag.log2Resolution != plan.log2Resolution())
+      throw InputError(source + ": resolution does not match the " + (j->grids.empty() ? "job" : "tile's grid"));
+    checkTileRoots(dag, at.tile.x, at.tile.y, plan.log2TileSize(), source);
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, std::string("rejected result: ") + e.what());
   }

@@ -2,14 +2,18 @@
 
 #include <spdlog/spdlog.h>
 
+#include "coordinator/bundle_job.h"
 #include "coordinator/failpoint.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/progress.h"
+#include "cpvs/dag/packed_layout.h"
+#include "cpvs/io/bundle_file.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/io/sub_dag_file.h"
+#include "cpvs/v1/farm.pb.h"
 #include "coordinator/clock.h"
 
 namespace cpvs::server {
@@ -120,13 +124,18 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
     return;
   }
   JobMerge& m = merges_[jobId];
-  if (!m.merger) m.merger = std::make_unique<StreamingMerger>(j->options.compress);
+  const GridTiles tiles = tilesOf(*j);
+  if (m.grids.empty()) m.grids.resize(tiles.grids());
+  const GridTiles::At at = tiles.at(tile);
+  const TilePlan& plan = tiles.plan(at.grid);
+  GridMerge& g = m.grids[at.grid];
+  CPVS_CHECK(!g.dag);  // every tile is merged once: a grid is assembled after its last
+  if (!g.merger) g.merger = std::make_unique<StreamingMerger>(j->options.compress);
   const auto start = std::chrono::steady_clock::now();
   Dag dag;
   const std::optional<TileState> state = store_.tileState(jobId, tile);
   if (state == TileState::Untouched || state == TileState::Unread) {
-    const TileCoord at = TilePlan(j->grid.log2Resolution, j->options.log2TileSize).tile(tile);
-    dag = bakeUntouchedTile(j->grid.log2Resolution, at.x, at.y, j->options);
+    dag = bakeUntouchedTile(plan.log2Resolution(), at.tile.x, at.tile.y, j->options);
   } else try {
     const std::vector<uint8_t> bytes = artifacts_.readTile(jobId, tile);
     dag = decodeSubDag(bytes.data(), bytes.size(), "tile " + std::to_string(tile) + " of job " + jobId,
@@ -134,10 +143,18 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
   } catch (const InputError& e) {
     throw TileUnreadable(e.what());
   }
-  m.merger->add(std::move(dag));
+  g.merger->add(std::move(dag));
+  ++g.merged;
   ++m.merged;
   failpoint("merge-step");
-  m.peak = std::max(m.peak, m.merger->heldBytes());
+  uint64_t held = 0;
+  for (const GridMerge& other : m.grids) held += other.merger ? other.merger->heldBytes() : other.dag ? other.dag->bytes() : 0;
+  m.peak = std::max(m.peak, held);
+  if (g.merged == plan.count()) {
+    // The grid's levels above its tile roots, as bakeGrid assembles them.
+    g.dag = assembleRoots(*g.merger->finish(), j->options.hash, j->options.compress);
+    g.merger.reset();
+  }
   try {
     store_.addStageSeconds(jobId, {{"merge", secondsSince(start)}});
   } catch (const StoreUnavailable&) {
@@ -149,21 +166,36 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
 bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
   if (m.file.empty()) {
     auto start = std::chrono::steady_clock::now();
-    CpvsArtifact art;
-    art.grid = j.grid;
-    art.options = j.options;
-    art.sceneHash = parseHashHex(j.geometryHash, "geometry hash");
-    art.receiverHash = j.receiverHash;
-    art.plan = j.plan;
-    art.dag = assembleRoots(*m.merger->finish(), art.options.hash, art.options.compress);
-    const double merged = secondsSince(start);
-    start = std::chrono::steady_clock::now();
-    m.file = encodeCpvs(art, true);
-    m.dagBytes = art.dag.bytes();
-    m.merger.reset();
-    try {
-      store_.addStageSeconds(j.id, {{"merge", merged}, {"write", secondsSince(start)}});
-    } catch (const StoreUnavailable&) {
+    std::vector<Dag> dags;
+    for (GridMerge& g : m.grids) dags.push_back(std::move(*g.dag));
+    m.grids.clear();
+    if (j.grids.empty()) {
+      CpvsArtifact art;
+      art.grid = j.grid;
+      art.options = j.options;
+      art.sceneHash = parseHashHex(j.geometryHash, "geometry hash");
+      art.receiverHash = j.receiverHash;
+      art.plan = j.plan;
+      art.dag = std::move(dags.at(0));
+      m.dagBytes = art.dag.bytes();
+      m.file = encodeCpvs(art, true);
+      try {
+        store_.addStageSeconds(j.id, {{"write", secondsSince(start)}});
+      } catch (const StoreUnavailable&) {
+      }
+    } else {
+      // The grids' nodes shared in grid order, as bakeLights shares them.
+      v1::BakeSpec spec;
+      spec.ParseFromString(j.spec);
+      const LightBundle bundle = bundleOf(j, std::move(dags), spec.has_pointer_grid() ? int(spec.pointer_grid()) : kMaxGridLevels);
+      m.dagBytes = bundle.poolBytes;
+      const double merged = secondsSince(start);
+      start = std::chrono::steady_clock::now();
+      m.file = encodeBundle(bundle, true);
+      try {
+        store_.addStageSeconds(j.id, {{"merge", merged}, {"write", secondsSince(start)}});
+      } catch (const StoreUnavailable&) {
+      }
     }
   }
   try {

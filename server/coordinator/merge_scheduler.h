@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -50,8 +51,15 @@ class MergeScheduler {
     std::string jobId;
     uint64_t tile = 0;
   };
-  struct JobMerge {
+  /// One grid of a job (the sun's only one, or a light bundle's): its tiles merged as
+  /// they come, then its levels above the tile roots assembled once all are in.
+  struct GridMerge {
     std::unique_ptr<StreamingMerger> merger;
+    uint64_t merged = 0;
+    std::optional<Dag> dag;
+  };
+  struct JobMerge {
+    std::vector<GridMerge> grids;
     uint64_t merged = 0;
     uint64_t peak = 0;
     // The finished artifact, kept until it is written and the job marked done: a full

@@ -1,6 +1,7 @@
 #include "store/farm_store.h"
 
 #include <chrono>
+#include <cmath>
 
 #include <sqlite3.h>
 
@@ -59,6 +60,7 @@ class Statement {
     sqlite3_clear_bindings(st_);
   }
   int64_t i64(int c) const { return sqlite3_column_int64(st_, c); }
+  bool isNull(int c) const { return sqlite3_column_type(st_, c) == SQLITE_NULL; }
   double f64(int c) const { return sqlite3_column_double(st_, c); }
   std::string str(int c) const {
     const void* p = sqlite3_column_blob(st_, c);
@@ -94,8 +96,8 @@ constexpr const char* kJobColumns =
     "light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, frame_u_z, frame_v_x, frame_v_y, frame_v_z, "
     "origin_x, origin_y, origin_z, u0, v0, d0, extent, depth_extent, log2_resolution, "
     "closed, exit_mode, cull, compress, undefined_rule, log2_tile_size, hash_kind, renderer, receivers, receiver_pcf, "
-    "receiver_hash, plan, owner";
-constexpr int kJobColumnCount = 47;
+    "receiver_hash, plan, owner, lights";
+constexpr int kJobColumnCount = 48;
 constexpr int kGridColumn = 16, kOptionsColumn = 34;
 
 /// The schema this build writes (PRAGMA user_version). 2: typed grid and option columns;
@@ -105,8 +107,10 @@ constexpr int kGridColumn = 16, kOptionsColumn = 34;
 /// receivers everywhere, no plan recorded); 6: the worker that failed a tile last
 /// (added to a version 2 to 5 store); 7: the owner of jobs and tracks (R28; added to a
 /// version 2 to 6 store as '', made without tokens: every client sees them) and when a
-/// scene was last used (for its retention; now, for the scenes of an upgraded store).
-constexpr int kSchemaVersion = 7;
+/// scene was last used (for its retention; now, for the scenes of an upgraded store);
+/// 8: light bundles, their lights (jobs.lights) and grids (job_grids), added to a version
+/// 2 to 7 store (whose jobs are sun bakes).
+constexpr int kSchemaVersion = 8;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -155,6 +159,7 @@ JobRecord readJob(const Statement& s) {
   if (!s.str(c + 10).empty()) j.receiverHash = parseHashHex(s.str(c + 10), "the job's receiver hash");
   j.plan = s.str(c + 11);
   j.owner = s.str(c + 12);
+  j.lights = s.str(c + 13);
   return j;
 }
 
@@ -177,6 +182,37 @@ void bindJob(Statement& s, const JobRecord& j) {
   s.text(c++, j.receiverHash == Hash128{} ? std::string() : j.receiverHash.hex());
   s.text(c++, j.plan);
   s.text(c++, j.owner);
+  s.bind(c++, j.lights);
+}
+
+constexpr const char* kGridColumns =
+    "job_id, grid, light, log2_resolution, position_x, position_y, position_z, dir_x, dir_y, dir_z, u_x, u_y, u_z, "
+    "v_x, v_y, v_z, tan_half_fov, near, far, tan_cone, closest";
+
+JobGrid readGrid(const Statement& s) {
+  JobGrid g;
+  g.light = uint32_t(s.i64(2));
+  g.log2Resolution = int(s.i64(3));
+  g.position = readVec(s, 4);
+  g.frame.dir = readVec(s, 7);
+  g.frame.u = readVec(s, 10);
+  g.frame.v = readVec(s, 13);
+  g.tanHalfFov = s.f64(16);
+  g.near = s.f64(17);
+  g.far = s.f64(18);
+  g.tanCone = s.f64(19);
+  // SQLite keeps no infinity apart from NULL on every path: none is stored as NULL.
+  g.closest = s.isNull(20) ? std::numeric_limits<double>::infinity() : s.f64(20);
+  return g;
+}
+
+void bindGrid(Statement& s, const std::string& jobId, size_t index, const JobGrid& g) {
+  s.text(1, jobId).bind(2, int64_t(index)).bind(3, int64_t(g.light)).bind(4, int64_t(g.log2Resolution));
+  int c = 5;
+  for (const Vec3* v : {&g.position, &g.frame.dir, &g.frame.u, &g.frame.v})
+    for (double x : {v->x, v->y, v->z}) s.bind(c++, x);
+  for (double x : {g.tanHalfFov, g.near, g.far, g.tanCone}) s.bind(c++, x);
+  if (std::isfinite(g.closest)) s.bind(c, g.closest);
 }
 
 }  // namespace
@@ -276,6 +312,7 @@ FarmStore::FarmStore(const std::string& path) {
       tracks.step();
       if (tracks.i64(0) > 0) exec("ALTER TABLE tracks ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
     }
+    if (upgradable && version <= 7) exec("ALTER TABLE jobs ADD COLUMN lights BLOB NOT NULL DEFAULT ''");
   }
   exec(
       "CREATE TABLE IF NOT EXISTS jobs(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, scene_hash TEXT, geometry_hash "
@@ -286,7 +323,13 @@ FarmStore::FarmStore(const std::string& path) {
       "frame_v_x REAL, frame_v_y REAL, frame_v_z REAL, origin_x REAL, origin_y REAL, origin_z REAL, u0 REAL, v0 REAL, "
       "d0 REAL, extent REAL, depth_extent REAL, log2_resolution INTEGER, closed INTEGER, exit_mode INTEGER, cull "
       "INTEGER, compress INTEGER, undefined_rule INTEGER, log2_tile_size INTEGER, hash_kind INTEGER, renderer INTEGER, "
-      "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT, plan TEXT, owner TEXT NOT NULL DEFAULT '')");
+      "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT, plan TEXT, owner TEXT NOT NULL DEFAULT '', "
+      "lights BLOB NOT NULL DEFAULT '')");
+  exec(
+      "CREATE TABLE IF NOT EXISTS job_grids(job_id TEXT REFERENCES jobs(id), grid INTEGER, light INTEGER, "
+      "log2_resolution INTEGER, position_x REAL, position_y REAL, position_z REAL, dir_x REAL, dir_y REAL, dir_z REAL, "
+      "u_x REAL, u_y REAL, u_z REAL, v_x REAL, v_y REAL, v_z REAL, tan_half_fov REAL, near REAL, far REAL, "
+      "tan_cone REAL, closest REAL, PRIMARY KEY(job_id, grid))");
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
       "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, failed_by TEXT, PRIMARY KEY(job_id, idx))");
@@ -419,6 +462,9 @@ void FarmStore::fillJobCounts(JobRecord& j) {
   j.tilesDone = uint64_t(d.i64(0));
   j.tilesUntouched = uint64_t(d.i64(1));
   j.tilesUnread = uint64_t(d.i64(2));
+  Statement g(db_, (std::string("SELECT ") + kGridColumns + " FROM job_grids WHERE job_id = ? ORDER BY grid").c_str());
+  g.text(1, j.id);
+  while (g.step()) j.grids.push_back(readGrid(g));
   Statement st(db_, "SELECT stage, seconds FROM job_stages WHERE job_id = ?");
   st.text(1, j.id);
   while (st.step()) j.stages[st.str(0)] = st.f64(1);
@@ -451,6 +497,13 @@ void FarmStore::createJob(const JobRecord& j, const std::vector<TileState>& stat
     tile.text(1, j.id).bind(2, int64_t(i)).bind(3, int64_t(state));
     tile.run();
     tile.reset();
+  }
+  Statement grid(db_, (std::string("INSERT INTO job_grids(") + kGridColumns +
+                       ") VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)").c_str());
+  for (size_t k = 0; k < j.grids.size(); ++k) {
+    bindGrid(grid, j.id, k, j.grids[k]);
+    grid.run();
+    grid.reset();
   }
   t.commit();
 }
@@ -486,7 +539,7 @@ std::vector<std::string> FarmStore::pruneFinishedJobs(int64_t beforeMs, size_t l
       "WHERE k.state = 0 AND t.state = 1 AND k.job_id IS NOT NULL) "
       "ORDER BY finished_ms, id LIMIT ?",
       beforeMs, limit,
-      {"DELETE FROM leases WHERE job_id = ?", "DELETE FROM tiles WHERE job_id = ?",
+      {"DELETE FROM leases WHERE job_id = ?", "DELETE FROM tiles WHERE job_id = ?", "DELETE FROM job_grids WHERE job_id = ?",
        "DELETE FROM job_stages WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"});
   t.commit();
   return ids;

@@ -15,6 +15,7 @@
 #include "cpvs/bake/options.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/vec3.h"
+#include "cpvs/light/frame.h"
 #include "cpvs/light/ortho_grid.h"
 
 struct sqlite3;
@@ -45,10 +46,28 @@ struct SceneRecord {
   bool complete = false;
 };
 
+/// One grid of a light bundle's job (table job_grids): a PerspectiveGrid's values, the
+/// cone its texels are cut off by, its light, and the closest geometry the planner found
+/// (infinity: none), which the artifact's plan records.
+struct JobGrid {
+  Vec3 position;
+  LightFrame frame;
+  double tanHalfFov = 0, near = 0, far = 0;
+  int log2Resolution = 0;
+  double tanCone = 0;
+  uint32_t light = 0;
+  double closest = 0;
+};
+
 struct JobRecord {
   std::string id, requestId, sceneHash, geometryHash;
   std::string spec;     // the request's cpvs.v1.BakeSpec as sent, serialized: shown back, compared on retries
-  OrthoGrid grid;       // what the tiles bake, in typed columns
+  OrthoGrid grid;       // what the tiles bake, in typed columns (a sun bake's)
+  /// A light bundle's lights, cpvs.v1.LightList serialized (the scene's own included: what
+  /// the artifact's light table records), and its grids, whose tiles are the job's in
+  /// GridTiles' order. Both empty for a sun bake.
+  std::string lights;
+  std::vector<JobGrid> grids;
   BakeOptions options;
   Hash128 receiverHash;  // receiverHash of the job's declaration (zero: receivers everywhere)
   std::string plan;      // planJson of the bake, made at submit: the artifact records it

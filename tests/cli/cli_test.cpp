@@ -554,6 +554,10 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
       {"bake city --sun-dir 0,-1,0 --receivers volume --receiver-box 0,0,0,1,1,1 --ground-slope 30", "needs --ground-layer"},
       {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 1e9", "taller than twice the scene's grid"},
       {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 2 --ground-slope 95", "below 90"},
+      {"submit --server 127.0.0.1:1 city --spot 1,2,3:0,-1,0:30 --sun-dir 0,-1,0", "the sun flags are for a sun bake"},
+      {"submit --server 127.0.0.1:1 city --spot 1,2,3:0,-1,0:30 --resolution 1K", "--resolution is the sun's"},
+      {"submit --server 127.0.0.1:1 city --spot 1,2,3:0,-1,0:30 --receivers surfaces", "--receivers is for the sun"},
+      {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --pointer-grid 2", "are for local lights"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     std::string args = cases[i].args;

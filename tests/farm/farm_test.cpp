@@ -180,6 +180,64 @@ TEST_F(FarmTest, OneAndThreeWorkersGiveTheLocalBytes) {
   EXPECT_EQ(jobs(address).size(), 2u);
 }
 
+// A light bundle (two spots and a point light: eight grids) baked on the farm: one
+// worker and three give the local bake's bytes, and the job says how many lights and
+// grids it holds.
+TEST_F(FarmTest, ALightBundleOnOneAndThreeWorkersGivesTheLocalBytes) {
+  std::ofstream(path("lamps.json")) << R"({"lights": [
+    {"kind": "LIGHT_SPOT", "name": "flood", "position": {"x": 30, "y": 55, "z": 30}, "direction": {"x": 0.2, "y": -1, "z": 0.1},
+     "coneDeg": 40, "resolution": "512"},
+    {"kind": "LIGHT_SPOT", "position": {"x": 60, "y": 54, "z": 20}, "direction": {"x": -0.3, "y": -1, "z": 0.2},
+     "coneDeg": 30, "range": 80, "resolution": "512"},
+    {"kind": "LIGHT_POINT", "name": "bulb", "position": {"x": 40, "y": 56, "z": 36}, "range": 70, "resolution": "256"}]})";
+  const std::string spec = " --lights " + path("lamps.json") + " --tile-size 128";
+  Ran local = runCli("bake " + path("city.obj") + spec + " -q -o " + path("lamps-local.cpvs"));
+  ASSERT_EQ(local.status, 0) << local.out;
+  const std::vector<uint8_t> expected = bytesOf(path("lamps-local.cpvs"));
+  ASSERT_FALSE(expected.empty());
+
+  std::string address = startServer("s-lamps");
+  startWorker(address, "w-lamps1");
+  auto submitLamps = [&](const std::string& name) {
+    return runCli("submit --server " + address + " --token " + kClientToken + " " + path("city.obj") + spec +
+                  " --request-id " + name + " --wait --json --out " + path(name + ".cpvs"));
+  };
+  Ran one = submitLamps("lamps-one");
+  ASSERT_EQ(one.status, 0) << one.out << servers_[0]->log();
+  json j = json::parse(one.out.substr(one.out.find('{')));
+  EXPECT_EQ(j["state"], "done");
+  EXPECT_EQ(j["lights"], 3);
+  EXPECT_EQ(j["grids"], 8);
+  EXPECT_GT(j["tiles"].get<uint64_t>(), 8u);
+  EXPECT_EQ(bytesOf(path("lamps-one.cpvs")), expected)
+      << runCli("inspect --json " + path("lamps-one.cpvs")).out << runCli("inspect --json " + path("lamps-local.cpvs")).out;
+
+  for (const char* name : {"w-lamps2", "w-lamps3"})
+    ASSERT_TRUE(startWorker(address, name, {"--threads", "1"}).waitForLog("pulling tiles", 30)) << workers_.back()->log();
+  Ran three = submitLamps("lamps-three");
+  ASSERT_EQ(three.status, 0) << three.out;
+  EXPECT_EQ(bytesOf(path("lamps-three.cpvs")), expected);
+  for (int w = 0; w < 3; ++w)
+    EXPECT_NE(workers_[size_t(w)]->log().find("returned"), std::string::npos) << "worker " << w + 1;
+
+  // A generated city's street lamps travel as the job's lights (an uploaded OBJ carries
+  // none): the farm's bundle is the local one but for the scene hash of the upload.
+  const std::string lamps = " city:3:5 --scene-lights --tile-size 1024";
+  ASSERT_EQ(runCli("bake" + lamps + " -q -o " + path("street-local.cpvs")).status, 0);
+  Ran street = runCli("submit --server " + address + " --token " + kClientToken + lamps +
+                      " --request-id street --wait -q --out " + path("street.cpvs"));
+  ASSERT_EQ(street.status, 0) << street.out;
+  auto described = [&](const std::string& file) {
+    json d = json::parse(runCli("inspect --json " + path(file)).out);
+    d.erase("file");
+    d.erase("scene_hash");
+    return d;
+  };
+  const json streetLocal = described("street-local.cpvs");
+  EXPECT_EQ(streetLocal["plan"]["grids"].size(), 6u);
+  EXPECT_EQ(described("street.cpvs"), streetLocal);
+}
+
 // R7, R27: certificates made as an operator makes them; a coordinator, a worker and a
 // client over TLS give the local bytes; a plaintext client and a client trusting another
 // CA get no answer.

@@ -974,12 +974,15 @@ TEST(Hardening, R6_ASceneMeshFileRoundTripsAndDamageIsRefused) {
   Scene scene = openScene("city:2:2");
   stats = finalizeScene(scene);
   scene.lights.push_back(SceneLight{"sun", SceneLight::Type::Directional, {0, 10, 0}, {0, -1, 0}, {1, 1, 1}, 0, 0});
+  scene.lights.push_back(SceneLight{"lamp", SceneLight::Type::Spot, {1, 2, 3}, {0, -1, 0}, {2, 1, 1}, 20, 30, 12.5});
   const std::vector<uint8_t> bytes = encodeSceneMesh(scene, stats);
   SceneStats back;
   const Scene decoded = decodeSceneMesh(bytes.data(), bytes.size(), "mesh", &back);
   EXPECT_EQ(sceneHash(decoded), sceneHash(scene));
-  ASSERT_EQ(decoded.lights.size(), scene.lights.size()) << "the city's street lamps and the sun";
-  EXPECT_EQ(decoded.lights.back().name, "sun");
+  ASSERT_EQ(decoded.lights.size(), scene.lights.size()) << "the city's street lamps, the sun and a lamp";
+  EXPECT_EQ(decoded.lights.back().name, "lamp");
+  EXPECT_EQ(decoded.lights.back().range, 12.5) << "a bundle planned from the stored mesh reaches as far as the file's";
+  EXPECT_EQ(decoded.lights.back().outerConeDeg, 30);
   EXPECT_EQ(back.closedParts, stats.closedParts);
   for (size_t at : {size_t(0), size_t(9), size_t(60), bytes.size() / 2, bytes.size() - 1}) {
     std::vector<uint8_t> bad = bytes;

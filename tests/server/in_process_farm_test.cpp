@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <sstream>
 #include <thread>
 
@@ -15,6 +17,7 @@
 #include "cpvs/scene/boxes.h"
 #include "coordinator/coordinator.h"
 #include "cpvs/bake/bake.h"
+#include "cpvs/light/perspective_grid.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
 #include "cpvs/client/farm_client.h"
@@ -383,6 +386,63 @@ server::JobRecord sampleJob(const std::string& id, int priority, uint64_t tiles)
   return j;
 }
 
+// A light bundle asked for wrongly is refused with what is wrong, before any tile exists.
+TEST(InProcessFarm, ABadLightBundleIsRefusedWithWhatIsWrong) {
+  TempDir dir("cpvs_in_process_bundle_refusals");
+  InProcessFarm farm(dir / "data");
+  const pb::BakeSpec sun = farm.uploadAndSpec(dir / "city.obj", "city:1:1", "256");
+  pb::BakeSpec lamp = sun;
+  lamp.clear_sun();
+  lamp.clear_resolution();
+  pb::Light* spot = lamp.add_lights();
+  spot->set_kind(pb::LIGHT_SPOT);
+  *spot->mutable_position() = net::toProto(Vec3{8, 20, 8});
+  *spot->mutable_direction() = net::toProto(Vec3{0, -1, 0});
+  spot->set_cone_deg(40);
+  spot->set_resolution("256");
+  const std::vector<std::pair<std::function<void(pb::BakeSpec&)>, std::string>> cases{
+      {[](pb::BakeSpec& s) { *s.mutable_sun_direction() = net::toProto(Vec3{0, -1, 0}); }, "give no sun"},
+      {[](pb::BakeSpec& s) { s.set_resolution("512"); }, "resolution is the sun's"},
+      {[](pb::BakeSpec& s) { s.set_footprint(-1); }, "footprint must be finite"},
+      {[](pb::BakeSpec& s) { s.set_footprint(std::numeric_limits<double>::quiet_NaN()); }, "footprint must be finite"},
+      {[](pb::BakeSpec& s) { s.set_pointer_grid(6); }, "pointer_grid 6"},
+      {[](pb::BakeSpec& s) { s.mutable_options()->mutable_receivers()->set_kind(pb::RECEIVERS_SURFACES); },
+       "receivers everywhere"},
+      {[](pb::BakeSpec& s) { s.mutable_lights(0)->set_cone_deg(0); }, "light 0: the cone's half-angle"},
+      {[](pb::BakeSpec& s) { s.mutable_lights(0)->clear_direction(); }, "lights[0]"},
+      {[](pb::BakeSpec& s) { s.mutable_lights(0)->set_resolution("300"); }, "lights[0]"},
+      {[](pb::BakeSpec& s) {
+         for (int k = 0; k < 5000; ++k) *s.add_lights() = s.lights(0);
+       }, "lights"},
+      {[](pb::BakeSpec& s) { s.set_scene_lights(true); }, "the scene holds no point or spot light"},
+  };
+  for (size_t i = 0; i < cases.size(); ++i) {
+    pb::BakeSpec bad = lamp;
+    cases[i].first(bad);
+    try {
+      farm.client.submit("bad-" + std::to_string(i), bad);
+      ADD_FAILURE() << "case " << i << " was accepted";
+    } catch (const client::FarmCallError& e) {
+      EXPECT_EQ(e.kind(), net::ErrorKind::InvalidArgument) << i << ": " << e.what();
+      EXPECT_NE(std::string(e.what()).find(cases[i].second), std::string::npos) << i << ": " << e.what();
+    }
+  }
+  // A sun bake takes neither a pointer grid nor a footprint.
+  for (int i = 0; i < 2; ++i) {
+    pb::BakeSpec bad = sun;
+    if (i) bad.set_footprint(0.5);
+    else bad.set_pointer_grid(2);
+    EXPECT_THROW(farm.client.submit("bad-sun-" + std::to_string(i), bad), client::FarmCallError);
+  }
+  EXPECT_TRUE(farm.client.list(true).empty());
+  // The good one is accepted: one light, one grid, 16 tiles of 64.
+  lamp.mutable_options()->set_tile_size(64);
+  const pb::JobStatus ok = farm.client.submit("good", lamp);
+  EXPECT_EQ(ok.lights(), 1u);
+  EXPECT_EQ(ok.grids(), 1u);
+  EXPECT_EQ(ok.tiles_total(), 16u);
+}
+
 TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
   TempDir dir("cpvs_farm_store");
   server::FarmStore store(dir / "farm.sqlite");
@@ -399,6 +459,44 @@ TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
   EXPECT_EQ(back->grid.depthExtent, want.grid.depthExtent);
   EXPECT_EQ(back->grid.log2Resolution, 10);
   EXPECT_EQ(back->spec, "spec bytes");
+  EXPECT_TRUE(back->grids.empty());
+
+  // A light bundle's grids come back in order with every value, an infinite `closest`
+  // (a grid no triangle reaches) included.
+  server::JobRecord bundle = sampleJob("bundle", 0, 3);
+  bundle.lights = std::string("light\0table", 11);
+  for (uint32_t g = 0; g < 2; ++g) {
+    server::JobGrid jg;
+    jg.position = {1.25 + g, -7.5, 1e-3};
+    jg.frame = LightFrame::fromDirection({0.1, -1, 0.3 * g});
+    jg.tanHalfFov = 0.75 + g;
+    jg.near = 0.0625;
+    jg.far = 80.5;
+    jg.log2Resolution = 9 - int(g);
+    jg.tanCone = 0.5;
+    jg.light = g;
+    jg.closest = g ? std::numeric_limits<double>::infinity() : 3.375;
+    bundle.grids.push_back(jg);
+  }
+  store.createJob(bundle, std::vector<server::TileState>(3, server::TileState::Untouched));  // leases nothing below
+  const auto b2 = store.job("bundle");
+  ASSERT_TRUE(b2.has_value());
+  EXPECT_EQ(b2->lights, bundle.lights);
+  ASSERT_EQ(b2->grids.size(), 2u);
+  for (size_t g = 0; g < 2; ++g) {
+    const server::JobGrid &got = b2->grids[g], &want = bundle.grids[g];
+    EXPECT_EQ(got.position, want.position);
+    EXPECT_EQ(got.frame.dir, want.frame.dir);
+    EXPECT_EQ(got.frame.u, want.frame.u);
+    EXPECT_EQ(got.frame.v, want.frame.v);
+    EXPECT_EQ(got.tanHalfFov, want.tanHalfFov);
+    EXPECT_EQ(got.near, want.near);
+    EXPECT_EQ(got.far, want.far);
+    EXPECT_EQ(got.log2Resolution, want.log2Resolution);
+    EXPECT_EQ(got.tanCone, want.tanCone);
+    EXPECT_EQ(got.light, want.light);
+    EXPECT_EQ(got.closest, want.closest);
+  }
 
   // Highest priority first, then the other job's tiles in order; nothing after that.
   auto a = store.leaseNextTile("w", "l1", 2000, 5000);
@@ -437,6 +535,7 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
                          "ALTER TABLE jobs DROP COLUMN receiver_pcf; ALTER TABLE jobs DROP COLUMN receiver_hash; "
                          "ALTER TABLE jobs DROP COLUMN plan; ALTER TABLE tiles DROP COLUMN failed_by; "
                          "ALTER TABLE jobs DROP COLUMN owner; ALTER TABLE scenes DROP COLUMN last_used_ms; DROP TABLE versions; "
+                         "ALTER TABLE jobs DROP COLUMN lights; DROP TABLE job_grids; "
                          "DROP TABLE keyframes; "
                          "DROP TABLE tracks; PRAGMA user_version = 2",
                          nullptr, nullptr, nullptr),
@@ -451,6 +550,8 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
   EXPECT_EQ(back->grid.log2Resolution, 10);
   EXPECT_EQ(back->tilesTotal, 2u);
   EXPECT_EQ(back->owner, "");  // made before owners: every client sees it
+  EXPECT_TRUE(back->lights.empty());  // made before light bundles: a sun bake
+  EXPECT_TRUE(back->grids.empty());
   server::JobRecord fresh = sampleJob("new", 0, 1);
   store.createJob(fresh);
   EXPECT_EQ(store.job("new")->options.renderer, Renderer::Raster);
@@ -668,6 +769,26 @@ TEST(Convert, OptionsAndGridsRoundTripAndTheWeakHashStaysHome) {
   EXPECT_EQ(back.origin, g.origin);
   EXPECT_EQ(back.extent, g.extent);
   EXPECT_EQ(back.frame.u, g.frame.u);
+  // A spot grid round-trips with its cone; neither reader takes the other's projection.
+  const PerspectiveGrid spot({1.5, 20.25, -3}, LightFrame::fromDirection({0.2, -1, 0.1}), 0.75, 0.0625, 80.5, 9);
+  const pb::GridSpec sp = net::toProto(spot, 0.5);
+  const net::SpotGridSpec spotBack = net::spotFromProto(sp);
+  EXPECT_EQ(spotBack.grid.position(), spot.position());
+  EXPECT_EQ(spotBack.grid.frame().dir, spot.frame().dir);
+  EXPECT_EQ(spotBack.grid.frame().u, spot.frame().u);
+  EXPECT_EQ(spotBack.grid.tanHalfFov(), spot.tanHalfFov());
+  EXPECT_EQ(spotBack.grid.near(), spot.near());
+  EXPECT_EQ(spotBack.grid.far(), spot.far());
+  EXPECT_EQ(spotBack.grid.log2Resolution(), 9);
+  EXPECT_EQ(spotBack.tanCone, 0.5);
+  EXPECT_THROW(net::fromProto(sp), InputError);
+  EXPECT_THROW(net::spotFromProto(net::toProto(g)), InputError);
+  pb::GridSpec badCone = sp;
+  badCone.set_tan_cone(0);
+  EXPECT_THROW(net::spotFromProto(badCone), InputError);
+  pb::GridSpec badNear = sp;
+  badNear.set_near(100);
+  EXPECT_THROW(net::spotFromProto(badNear), InputError);
   o.hash = HashKind::WeakForTests;
   EXPECT_THROW(net::toProto(o), InputError);
   pb::BakeOptions p;

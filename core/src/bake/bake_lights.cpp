@@ -140,16 +140,30 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
   if (cancelled) throw Cancelled();
   for (const StageTimes& t : gridTimes) st.add(t);
   auto start = std::chrono::steady_clock::now();
-  std::vector<const Dag*> all;
-  for (const Dag& d : dags) all.push_back(&d);
-  const NodePool pool = shareNodes(all);
-  dags.clear();
+  finishLightBundle(b, std::move(dags), closest);
+  st.add("merge", secondsSince(start));
+  return b;
+}
+
+void finishLightBundle(LightBundle& b, std::vector<Dag>&& dags, const std::vector<double>& closest) {
+  CPVS_CHECK(dags.size() == b.grids.size());
+  NodePool pool;
+  {
+    std::vector<const Dag*> all;
+    for (const Dag& d : dags) all.push_back(&d);
+    pool = shareNodes(all);
+    std::vector<Dag>().swap(dags);  // the pool holds every node now
+  }
   for (size_t k = 0; k < b.grids.size(); ++k) b.grids[k].bytes = reachableBytes(pool, k);
   b.poolBytes = pool.bytes();
   b.pool = std::make_shared<const std::vector<uint32_t>>(packPool(pool.leaves, pool.levels, pool.roots));
   b.plan = lightPlanJson(b, closest);
-  st.add("merge", secondsSince(start));
-  return b;
+}
+
+double defaultFootprint(const Scene& scene) {
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  return length(hi - lo) / 4096;
 }
 
 }  // namespace cpvs

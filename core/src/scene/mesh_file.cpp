@@ -11,7 +11,8 @@ namespace {
 static_assert(std::endian::native == std::endian::little, "the scene mesh file is little-endian");
 
 constexpr char kMagic[8] = {'C', 'P', 'V', 'S', 'M', 'E', 'S', 'H'};
-constexpr uint32_t kVersion = 1;
+// 2: a light keeps its range (a version 1 mesh is refused, and its scene imported again).
+constexpr uint32_t kVersion = 2;
 constexpr uint32_t kMaxNameBytes = 4096;
 
 struct Writer {
@@ -101,6 +102,7 @@ std::vector<uint8_t> encodeSceneMesh(const Scene& scene, const SceneStats& stats
     w.vec(l.color);
     w.put(l.innerConeDeg);
     w.put(l.outerConeDeg);
+    w.put(l.range);
   }
   const Hash128 check = contentHash(w.bytes.data(), w.bytes.size());
   w.raw(&check, sizeof check);
@@ -143,7 +145,7 @@ Scene decodeSceneMesh(const uint8_t* data, size_t size, const std::string& sourc
   scene.closed.assign(flags, flags + closed);
   for (uint8_t c : scene.closed)
     if (c > 1) r.fail("a closed flag of " + std::to_string(c));
-  scene.lights.resize(r.count(1 + 11 * 8 + 4, "lights"));
+  scene.lights.resize(r.count(1 + 12 * 8 + 4, "lights"));
   for (SceneLight& l : scene.lights) {
     l.name = r.text("light name");
     const uint8_t type = r.get<uint8_t>("lights");
@@ -154,6 +156,7 @@ Scene decodeSceneMesh(const uint8_t* data, size_t size, const std::string& sourc
     l.color = r.vec("lights");
     l.innerConeDeg = r.get<double>("lights");
     l.outerConeDeg = r.get<double>("lights");
+    l.range = r.get<double>("lights");
   }
   if (r.pos != r.size) r.fail(std::to_string(r.size - r.pos) + " bytes after its end");
   if (scene.indices.empty()) r.fail("it holds no triangles");

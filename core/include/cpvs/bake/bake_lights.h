@@ -7,6 +7,7 @@
 #include "cpvs/bake/options.h"
 #include "cpvs/bake/stage_times.h"
 #include "cpvs/base/progress.h"
+#include "cpvs/dag/dag.h"
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/light/light.h"
 
@@ -33,6 +34,17 @@ LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, dou
 LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, double footprint,
                        const BakeOptions& options, const Hash128& sceneHash, StageTimes* times = nullptr,
                        const ProgressFn& progress = nullptr, std::vector<double>* gridSeconds = nullptr);
+
+/// Ends a bake of `bundle`'s planned grids (planLights) from their DAGs, dags[k] grid k's
+/// as bakeGrid bakes it: the nodes shared in grid order (shareNodes), each grid's bytes,
+/// the pool packed with the deepest pointer grids, and the plan with each grid's
+/// `closest`. What bakeLights and the farm's coordinator both end with: the bytes depend
+/// on the plan and the DAGs alone, not on where or in what order the grids were baked.
+void finishLightBundle(LightBundle& bundle, std::vector<Dag>&& dags, const std::vector<double>& closest);
+
+/// The footprint a bake of local lights plans with when none is given: the scene's
+/// bounding-box diagonal / 4096.
+double defaultFootprint(const Scene& scene);
 
 /// The scene file's point and spot lights (a spot light's cone is its outer one; the
 /// procedural city's are its street lamps), in the file's order; the others cast no

@@ -2,7 +2,9 @@
 // coordinator, so that both enumerate the same tiles and give the same bytes.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <vector>
 
 namespace cpvs {
 
@@ -29,6 +31,30 @@ class TilePlan {
 
  private:
   int log2Resolution_, log2TileSize_;
+};
+
+/// The tiles of many grids (a light bundle's) as one job's: grid 0's tiles in its
+/// TilePlan's order, then grid 1's, and so on. The farm leases them by this index; the
+/// bytes do not depend on it (each grid's DAG depends on its own tiles only).
+class GridTiles {
+ public:
+  GridTiles(const std::vector<int>& log2Resolutions, int log2TileSize);
+
+  uint64_t count() const { return first_.back(); }
+  size_t grids() const { return plans_.size(); }
+  const TilePlan& plan(size_t grid) const { return plans_[grid]; }
+  /// The job's index of grid `grid`'s first tile.
+  uint64_t first(size_t grid) const { return first_[grid]; }
+  struct At {
+    uint32_t grid = 0;
+    TileCoord tile;
+  };
+  /// The grid of the job's tile `index` (< count()) and the tile within it.
+  At at(uint64_t index) const;
+
+ private:
+  std::vector<TilePlan> plans_;
+  std::vector<uint64_t> first_;  // one more than grids: first_.back() is the count
 };
 
 }  // namespace cpvs

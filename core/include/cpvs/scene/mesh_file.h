@@ -13,7 +13,7 @@ namespace cpvs {
 
 /// The bytes of a scene mesh file: magic "CPVSMESH", version, counts, the import's
 /// statistics and the geometry hash, the name, positions (doubles), indices, closed
-/// flags, lights, and a content hash of everything before it. Little-endian.
+/// flags, lights (with their range), and a content hash of everything before it. Little-endian.
 std::vector<uint8_t> encodeSceneMesh(const Scene& scene, const SceneStats& stats);
 
 /// Reads a scene mesh file. Nothing in it is trusted: FormatError naming `source` for a

@@ -9,6 +9,7 @@
 #include "cpvs/light/frame.h"
 #include "cpvs/light/light.h"
 #include "cpvs/light/ortho_grid.h"
+#include "cpvs/light/perspective_grid.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
@@ -45,8 +46,26 @@ constexpr int kMaxReceiverBoxes = 4096;
 void checkReceivers(const pb::Receivers& r);
 
 pb::GridSpec toProto(const OrthoGrid& g);
-/// Validates the grid as the file reader does (checkGrid).
+/// Validates the grid as the file reader does (checkGrid); InputError for a perspective
+/// one.
 OrthoGrid fromProto(const pb::GridSpec& g);
+
+/// A perspective grid and the cone its texels are cut off by (a light bundle's grid).
+struct SpotGridSpec {
+  PerspectiveGrid grid;
+  double tanCone;
+};
+pb::GridSpec toProto(const PerspectiveGrid& g, double tanCone);
+/// Validates as the bundle reader does (the PerspectiveGrid constructor, a finite cone
+/// > 0); InputError for an orthographic spec or an unknown projection.
+SpotGridSpec spotFromProto(const pb::GridSpec& g);
+
+/// Whether the spec asks for a light bundle (lights or scene_lights) rather than a sun.
+bool isLightBundle(const pb::BakeSpec& spec);
+/// The spec's own lights (not the scene's), converted and checked for what needs no
+/// scene: a known kind, a spot light with a direction, a resolution that parses, at most
+/// kMaxLights. InputError naming "lights[i]".
+std::vector<Light> lightsOf(const pb::BakeSpec& spec);
 
 /// The light of a spec: a finite non-zero direction or a sun above the horizon.
 LightFrame lightOf(const pb::BakeSpec& spec);

@@ -1,0 +1,65 @@
+#include "coordinator/bundle_job.h"
+
+#include <algorithm>
+
+#include "cpvs/bake/bake_lights.h"
+#include "cpvs/base/error.h"
+#include "cpvs/dag/packed_dag.h"
+#include "cpvs/net/convert.h"
+
+namespace cpvs::server {
+
+PerspectiveGrid perspectiveGridOf(const JobGrid& g) {
+  return PerspectiveGrid(g.position, g.frame, g.tanHalfFov, g.near, g.far, g.log2Resolution);
+}
+
+JobGrid jobGridOf(const BundleGrid& g, double closest) {
+  JobGrid j;
+  j.position = g.grid.position();
+  j.frame = g.grid.frame();
+  j.tanHalfFov = g.grid.tanHalfFov();
+  j.near = g.grid.near();
+  j.far = g.grid.far();
+  j.log2Resolution = g.grid.log2Resolution();
+  j.tanCone = g.tanCone;
+  j.light = g.light;
+  j.closest = closest;
+  return j;
+}
+
+GridTiles tilesOf(const JobRecord& j) {
+  std::vector<int> resolutions;
+  for (const JobGrid& g : j.grids) resolutions.push_back(g.log2Resolution);
+  if (j.grids.empty()) resolutions.push_back(j.grid.log2Resolution);
+  return GridTiles(resolutions, j.options.log2TileSize);
+}
+
+uint64_t resolutionOf(const JobRecord& j) {
+  if (j.grids.empty()) return j.grid.resolution();
+  int finest = 0;
+  for (const JobGrid& g : j.grids) finest = std::max(finest, g.log2Resolution);
+  return uint64_t(1) << finest;
+}
+
+LightBundle bundleOf(const JobRecord& j, std::vector<Dag>&& dags, int pointerGridLevels) {
+  LightBundle b;
+  b.options = j.options;
+  b.sceneHash = parseHashHex(j.geometryHash, "the job's geometry hash");
+  v1::LightList lights;
+  if (!lights.ParseFromString(j.lights)) throw FormatError("job " + j.id + ": its lights do not parse");
+  for (int i = 0; i < lights.lights_size(); ++i) b.lights.push_back({net::fromProto(lights.lights(i)), 0, 0});
+  std::vector<double> closest;
+  for (size_t k = 0; k < j.grids.size(); ++k) {
+    const JobGrid& g = j.grids[k];
+    if (g.light >= b.lights.size()) throw FormatError("job " + j.id + ": grid " + std::to_string(k) + " has no light");
+    BundleLight& l = b.lights[g.light];
+    if (l.gridCount == 0) l.firstGrid = uint32_t(k);
+    ++l.gridCount;
+    b.grids.push_back({perspectiveGridOf(g), g.tanCone, g.light, 0});
+    closest.push_back(g.closest);
+  }
+  finishLightBundle(b, std::move(dags), closest);
+  return pointerGridLevels == kMaxGridLevels ? b : withPointerGrids(b, pointerGridLevels);
+}
+
+}  // namespace cpvs::server
