@@ -12,6 +12,7 @@
 
 #include "cpvs/scene/import.h"
 #include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_lights.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/text.h"
 #include "cpvs/io/cpvs_file.h"
@@ -141,7 +142,8 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     BakeOptions options = net::fromProto(lease.options());
     // The hash names files in the cache: 32 hex digits, nothing a path could be made of (R23).
     parseHashHex(lease.scene_hash(), "the lease's scene_hash");
-    auto prepared = bakeScene(lease.scene_hash(), lease.grid(), options.renderer, lease.options().receivers());
+    auto prepared = bakeScene(lease.scene_hash(), lease.grid(), options.renderer, lease.options().receivers(),
+                              {lease.exclude().begin(), lease.exclude().end()});
     StageTimes times;
     Dag dag = bakeTile(*prepared, lease.tile_x(), lease.tile_y(), options, &times);
     auto start = std::chrono::steady_clock::now();
@@ -294,7 +296,8 @@ std::string TileWorker::fetchSceneOnce(const std::string& sceneHash) {
 }
 
 std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, const v1::GridSpec& grid,
-                                                 Renderer renderer, const v1::Receivers& receivers) {
+                                                 Renderer renderer, const v1::Receivers& receivers,
+                                                 const std::vector<std::string>& exclude) {
   // Checked before anything is fetched or cached: the grid either projection makes.
   std::optional<OrthoGrid> ortho;
   std::optional<net::SpotGridSpec> spot;
@@ -324,6 +327,7 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
   // The receivers as sent (kind, width, the volume's hash and boxes) decide what is freed.
   const std::string declared = receivers.SerializeAsString();
   key += "," + contentHash(declared.data(), declared.size()).hex();
+  for (const std::string& name : exclude) key += "," + std::to_string(name.size()) + ":" + name;
   // A job's tiles share one grid: a handful of entries cover the jobs a worker serves
   // (slots still baking keep theirs alive).
   if (!cached->prepared.count(key) && cached->prepared.size() >= 4) cached->prepared.clear();
@@ -332,7 +336,9 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
     auto start = std::chrono::steady_clock::now();
     const ReceiverDeclaration declaration =
         net::declarationOf(receivers, [&](const std::string& hash) { return loadScene(fetchScene(hash), nullptr, ImportOptions{true}); });
-    prepared = spot ? std::make_shared<BakeScene>(cached->scene, spot->grid, spot->tanCone, renderer, config_.threads)
+    Scene storage;
+    const Scene& casters = castersOf(cached->scene, exclude, "the lease's light", storage);
+    prepared = spot ? std::make_shared<BakeScene>(casters, spot->grid, spot->tanCone, renderer, config_.threads)
                     : std::make_shared<BakeScene>(cached->scene, *ortho, renderer, config_.threads, declaration);
     spdlog::info("scene {} prepared for the {} renderer in {:.2f} s", sceneHash, optionName(renderer), secondsSince(start));
   }

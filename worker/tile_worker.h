@@ -57,9 +57,10 @@ class TileWorker {
   /// Bakes and returns one leased tile; false when the coordinator is unreachable.
   void bakeLeased(const pb::TileLease& lease);
   /// The scene prepared for a lease's grid (a sun's or a light bundle's perspective one)
-  /// and renderer, loaded and built once; InputError for a grid the core refuses.
+  /// and renderer, without the light's fixture (`exclude`, Light::exclude), loaded and
+  /// built once; InputError for a grid or a fixture the core refuses.
   std::shared_ptr<BakeScene> bakeScene(const std::string& sceneHash, const v1::GridSpec& grid, Renderer renderer,
-                                       const v1::Receivers& receivers);
+                                       const v1::Receivers& receivers, const std::vector<std::string>& exclude);
   /// The cached file of a scene, fetched when missing; WorkerFault for trouble of the
   /// worker's own or a damaged scene.
   std::string fetchScene(const std::string& sceneHash);

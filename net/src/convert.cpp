@@ -37,6 +37,7 @@ pb::Light toProto(const Light& l) {
   p.set_intensity(l.intensity);
   p.set_near(l.near);
   if (l.log2Resolution != 0) p.set_resolution(std::to_string(uint64_t(1) << l.log2Resolution));
+  for (const std::string& name : l.exclude) p.add_exclude(name);
   return p;
 }
 
@@ -54,6 +55,7 @@ Light fromProto(const pb::Light& p) {
   if (p.has_intensity()) l.intensity = p.intensity();
   l.near = p.near();
   if (!p.resolution().empty()) l.log2Resolution = parseResolution(p.resolution());
+  l.exclude.assign(p.exclude().begin(), p.exclude().end());
   return l;
 }
 

@@ -91,6 +91,10 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
     *out.mutable_grid() = net::toProto(perspectiveGridOf(g), g.tanCone);
     out.set_grid_index(at.grid);
     out.set_light(g.light);
+    pb::LightList lights;
+    if (!lights.ParseFromString(j->lights) || g.light >= uint32_t(lights.lights_size()))
+      throw FarmError(ErrorKind::Internal, "job " + j->id + ": its stored lights do not hold light " + std::to_string(g.light));
+    *out.mutable_exclude() = lights.lights(int(g.light)).exclude();
   }
   *out.mutable_options() = net::toProto(j->options);
   if (j->options.receivers != ReceiverKind::Everywhere) {

@@ -23,6 +23,7 @@
 #include "cpvs/query/bundle_query.h"
 #include "cpvs/query/light_tiles.h"
 #include "cpvs/raytrace/ray_scene.h"
+#include "cpvs/scene/boxes.h"
 #include "cpvs/scene/source.h"
 #include "error_testing.h"
 #include "scene_testing.h"
@@ -273,17 +274,22 @@ TEST(LightTiles, CulledShadingEqualsEveryLightBitForBit) {
 // A bulb between a floor and a ceiling: every floor and ceiling point is lit, filtered
 // or not, across the seams of its cube's faces (each face's guard band holds the widest
 // footprint), and it lights in every direction (a point light has no cone).
-TEST(LightBundle, APointLightLightsEveryDirectionAcrossItsFaces) {
-  Scene scene;
-  testing::appendQuad(scene, {-50, 0, -50}, {-50, 0, 50}, {50, 0, 50}, {50, 0, -50});
-  testing::appendQuad(scene, {-50, 10, -50}, {50, 10, -50}, {50, 10, 50}, {-50, 10, 50});
-  finalizeScene(scene);
+/// A point light 5 over the ground, slightly off the axes, reaching 40, at 64 a face.
+Light testBulb() {
   Light bulb;
   bulb.kind = LightKind::Point;
   bulb.position = {0.3, 5, -0.2};
   bulb.range = 40;
   bulb.log2Resolution = 6;
-  const LightBundle b = bakeLights(scene, {bulb}, 0, BakeOptions{}, sceneHash(scene));
+  return bulb;
+}
+
+TEST(LightBundle, APointLightLightsEveryDirectionAcrossItsFaces) {
+  Scene scene;
+  testing::appendQuad(scene, {-50, 0, -50}, {-50, 0, 50}, {50, 0, 50}, {50, 0, -50});
+  testing::appendQuad(scene, {-50, 10, -50}, {50, 10, -50}, {50, 10, 50}, {-50, 10, 50});
+  finalizeScene(scene);
+  const LightBundle b = bakeLights(scene, {testBulb()}, 0, BakeOptions{}, sceneHash(scene));
   ASSERT_EQ(b.grids.size(), 6u);
   EXPECT_GT(b.grids[0].grid.tanHalfFov(), 1.0) << "a face's square widened by its guard band";
   const BundleQuery q(b);
@@ -298,6 +304,53 @@ TEST(LightBundle, APointLightLightsEveryDirectionAcrossItsFaces) {
         ++points;
       }
   EXPECT_GT(points, 10000u);
+}
+
+// A bulb inside a closed glass shade: without its fixture left out the shade darkens all
+// it lights; left out by its node's, mesh's or material's name, the bundle is the bundle of
+// the scene without the shade, and the plan records the names.
+TEST(LightBundle, ALightsFixtureCastsNoneOfItsShadows) {
+  Scene bare;
+  testing::appendQuad(bare, {-50, 0, -50}, {-50, 0, 50}, {50, 0, 50}, {50, 0, -50});
+  bare.meshes = {{"street", "ground", "asphalt", 0, 2}};
+  Scene scene = bare;
+  appendBox(scene, {-1, 4, -1}, {1, 6, 1});
+  scene.meshes.push_back({"lampNode", "shade", "glass", 2, 12});
+  finalizeScene(scene);
+  finalizeScene(bare);
+  const Light bulb = testBulb();
+  const double footprint = 0.05;
+  const LightBundle reference = bakeLights(bare, {bulb}, footprint, BakeOptions{}, sceneHash(scene));
+  const LightBundle shaded = bakeLights(scene, {bulb}, footprint, BakeOptions{}, sceneHash(scene));
+  EXPECT_EQ(BundleQuery(shaded).filtered(0, {3, 0, 2}, {0, 1, 0}, 1), 0.0f) << "the shade holds the light in";
+  EXPECT_EQ(shaded.plan.find("fixtures"), std::string::npos);
+  for (const char* name : {"lampNode", "shade", "glass"}) {
+    Light fitted = bulb;
+    fitted.exclude = {name};
+    const LightBundle b = bakeLights(scene, {fitted}, footprint, BakeOptions{}, sceneHash(scene));
+    ASSERT_EQ(b.grids.size(), reference.grids.size());
+    for (size_t k = 0; k < b.grids.size(); ++k) {
+      EXPECT_EQ(b.grids[k].grid.near(), reference.grids[k].grid.near()) << "planned from the ground, not the shade";
+      EXPECT_EQ(b.grids[k].bytes, reference.grids[k].bytes);
+    }
+    EXPECT_EQ(*b.pool, *reference.pool) << name;
+    EXPECT_NE(b.plan.find(std::string("\"fixtures\": [{\"light\": 0, \"exclude\": [\"") + name + "\"]}]"), std::string::npos)
+        << b.plan;
+    const BundleQuery q(b);
+    for (double x = -12; x <= 12; x += 1.3)
+      for (double z = -12; z <= 12; z += 1.7) ASSERT_EQ(q.filtered(0, {x, 0, z}, {0, 1, 0}, 3), 1.0f) << x << ", " << z;
+  }
+  Light unknown = bulb;
+  unknown.exclude = {"lampshade"};
+  unknown.name = "porch";
+  std::vector<double> closest;
+  EXPECT_NE(testing::inputErrorOf([&] { planLights(scene, {unknown}, footprint, BakeOptions{}, closest); })
+                .find("light 0 (porch): no mesh of the scene is named 'lampshade'"),
+            std::string::npos);
+  unknown.exclude = {""};
+  EXPECT_NE(testing::inputErrorOf([&] { bakeLights(scene, {unknown}, footprint, BakeOptions{}, sceneHash(scene)); })
+                .find("a fixture name must be 1 to"),
+            std::string::npos);
 }
 
 void resealChecksum(std::vector<uint8_t>& b) {

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "cpvs/bake/bake_lights.h"
 #include "cpvs/scene/procedural_city.h"
 #include "cpvs/scene/import.h"
 #include "cpvs/scene/source.h"
@@ -243,6 +245,92 @@ TEST(SceneHash, StableAndSensitive) {
   EXPECT_NE(sceneHash(a), sceneHash(d));
 }
 
+// Meshes: a fixture left out by its node's, mesh's or material's name takes exactly its
+// triangles; the rest keeps its order, and a part cut open is open; names are hashed.
+TEST(SceneMeshes, WithoutMeshesLeavesOutExactlyTheNamedTriangles) {
+  Scene s;
+  appendCube(s, {0, 0, 0});          // 12 triangles: the house
+  appendCube(s, {3, 0, 0}, 0.5);     // 12: the lamp's glass
+  appendCube(s, {6, 0, 0});          // 12: the lamp's housing, one mesh with two materials
+  s.meshes = {{"house", "walls", "brick", 0, 12}, {"lamp", "bulb", "glass", 12, 12},
+              {"lamp", "housing", "metal", 24, 6}, {"lamp", "housing", "paint", 30, 6}};
+  finalizeScene(s);
+  const Scene all = s;
+  auto triangles = [](const Scene& scene) {
+    std::vector<std::array<Vec3, 3>> out;
+    for (size_t t = 0; t < scene.triangleCount(); ++t) out.push_back({scene.vertex(t, 0), scene.vertex(t, 1), scene.vertex(t, 2)});
+    return out;
+  };
+  const auto every = triangles(all);
+  // Brute force: the triangles whose mesh answers to a name, left out of the full list.
+  auto expected = [&](const std::vector<std::string>& names) {
+    std::vector<std::array<Vec3, 3>> out;
+    for (size_t t = 0; t < every.size(); ++t) {
+      bool named = false;
+      for (const SceneMesh& m : all.meshes)
+        for (const std::string& n : names)
+          named |= t >= m.firstTriangle && t < m.firstTriangle + m.triangles && (m.node == n || m.mesh == n || m.material == n);
+      if (!named) out.push_back(every[t]);
+    }
+    return out;
+  };
+  for (const std::vector<std::string>& names :
+       std::vector<std::vector<std::string>>{{"lamp"}, {"bulb"}, {"glass"}, {"housing"}, {"paint"}, {"glass", "metal"}, {"brick"}}) {
+    const Scene cut = withoutMeshes(all, names, "light 0");
+    EXPECT_EQ(triangles(cut), expected(names)) << names[0];
+    uint64_t covered = 0;
+    for (const SceneMesh& m : cut.meshes) {
+      EXPECT_EQ(m.firstTriangle, covered);
+      covered += m.triangles;
+    }
+    EXPECT_EQ(covered, cut.triangleCount());
+  }
+  // Half the housing gone: what is left of it is open; the house stays closed.
+  const Scene halfHousing = withoutMeshes(all, {"paint"}, "light 0");
+  EXPECT_EQ(std::count(halfHousing.closed.begin(), halfHousing.closed.end(), 1), 24);
+  EXPECT_EQ(std::count(all.closed.begin(), all.closed.end(), 1), 36);
+  EXPECT_EQ(withoutMeshes(all, {"lamp"}, "light 0").positions.size(), 8u) << "unused vertices dropped";
+
+  EXPECT_NE(inputErrorOf([&] { withoutMeshes(all, {"shade"}, "light 2 (porch)"); })
+                .find("light 2 (porch): no mesh of the scene is named 'shade'"),
+            std::string::npos);
+  EXPECT_NE(inputErrorOf([&] { withoutMeshes(all, {"lamp", "house"}, "light 0"); }).find("no triangle"), std::string::npos);
+  Scene generated;
+  appendCube(generated, {0, 0, 0});
+  finalizeScene(generated);
+  EXPECT_NE(inputErrorOf([&] { withoutMeshes(generated, {"lamp"}, "light 0"); }).find("have no names"), std::string::npos);
+
+  // Degenerate triangles dropped at finalize keep every mesh's range.
+  Scene d;
+  appendCube(d, {0, 0, 0});
+  d.indices.insert(d.indices.begin() + 18, {0, 0, 1});  // a zero-area triangle inside the first mesh
+  appendCube(d, {3, 0, 0});
+  d.meshes = {{"a", "", "", 0, 13}, {"b", "", "", 13, 12}};
+  finalizeScene(d);
+  EXPECT_EQ(d.meshes[0].triangles, 12u);
+  EXPECT_EQ(d.meshes[1].firstTriangle, 12u);
+  Scene wrong = d;
+  wrong.meshes[1].triangles = 13;
+  EXPECT_NE(inputErrorOf([&] { finalizeScene(wrong); }).find("its meshes hold 25 triangles, more than its 24"), std::string::npos);
+  wrong.meshes[1].firstTriangle = 11;
+  EXPECT_NE(inputErrorOf([&] { finalizeScene(wrong); }).find("starts at triangle 11, not 12"), std::string::npos);
+  // A box appended to a loaded scene is an unnamed mesh of its own.
+  appendCube(d, {6, 0, 0});
+  finalizeScene(d);
+  ASSERT_EQ(d.meshes.size(), 3u);
+  EXPECT_EQ(d.meshes[2].node, "");
+  EXPECT_EQ(d.meshes[2].firstTriangle, 24u);
+  EXPECT_EQ(d.meshes[2].triangles, 12u);
+
+  // The names are part of the hash: a renamed material may bake differently.
+  Scene renamed = all;
+  renamed.meshes[1].material = "frosted";
+  EXPECT_NE(sceneHash(renamed), sceneHash(all));
+  Scene unnamed = all;
+  unnamed.meshes.clear();
+  EXPECT_NE(sceneHash(unnamed), sceneHash(all));
+}
+
 TEST(SceneHash, HexIsHiThenLo) {
   const Hash128 h{0x0123456789abcdefull, 0xfedcba9876543210ull};
   EXPECT_EQ(h.hex(), "fedcba98765432100123456789abcdef");
@@ -328,9 +416,11 @@ TEST(SceneImport, ObjCube) {
 }
 
 /// Writes `name`.gltf and `name`.bin: one mesh (float positions, uint16 indices) and the
-/// given "nodes" array, whose first node is the scene's only root.
+/// given "nodes" array, whose first node is the scene's only root; `topLevel` adds
+/// members (each followed by a comma) to the file's object.
 std::string writeGltf(const TempDir& dir, const std::string& name, const std::vector<float>& positions,
-                      const std::vector<uint16_t>& indices, const std::string& nodesJson) {
+                      const std::vector<uint16_t>& indices, const std::string& nodesJson,
+                      const std::string& topLevel = "") {
   std::string bin(reinterpret_cast<const char*>(positions.data()), positions.size() * sizeof(float));
   const size_t indexOffset = bin.size();
   bin.append(reinterpret_cast<const char*>(indices.data()), indices.size() * sizeof(uint16_t));
@@ -341,9 +431,9 @@ std::string writeGltf(const TempDir& dir, const std::string& name, const std::ve
     lo[i % 3] = std::min(lo[i % 3], positions[i]);
     hi[i % 3] = std::max(hi[i % 3], positions[i]);
   }
-  char json[2048];
+  char json[4096];
   std::snprintf(json, sizeof json, R"({
-  "asset": {"version": "2.0"},
+  "asset": {"version": "2.0"},%s
   "scene": 0,
   "scenes": [{"nodes": [0]}],
   "nodes": %s,
@@ -359,7 +449,7 @@ std::string writeGltf(const TempDir& dir, const std::string& name, const std::ve
     {"bufferView": 1, "componentType": 5123, "count": %zu, "type": "SCALAR"}
   ]
 })",
-                nodesJson.c_str(), name.c_str(), bin.size(), indexOffset, indexOffset,
+                topLevel.c_str(), nodesJson.c_str(), name.c_str(), bin.size(), indexOffset, indexOffset,
                 indices.size() * sizeof(uint16_t), positions.size() / 3, lo[0], lo[1], lo[2], hi[0],
                 hi[1], hi[2], indices.size());
   return dir.write(name + ".gltf", json);
@@ -389,6 +479,49 @@ TEST(SceneImport, GltfInstancesUnderNodeTransforms) {
     const Vec3 n = cross(s.vertex(t, 1) - s.vertex(t, 0), s.vertex(t, 2) - s.vertex(t, 0));
     EXPECT_GT(n.z, 0.0);
   }
+}
+
+// The importer keeps each placed mesh's node, mesh and material names; a light whose
+// node also places a mesh (a lamp with its bulb) has that node as its fixture.
+TEST(SceneImport, MeshesKeepTheirNamesAndALampsNodeIsItsFixture) {
+  TempDir dir;
+  Scene cube;
+  appendCube(cube, {-0.5, -0.5, -0.5});
+  std::vector<float> positions;
+  for (const Vec3& p : cube.positions) positions.insert(positions.end(), {float(p.x), float(p.y), float(p.z)});
+  const std::vector<uint16_t> indices(cube.indices.begin(), cube.indices.end());
+  const std::string path = writeGltf(dir, "lamp", positions, indices, R"([
+    {"name": "street", "children": [1, 2]},
+    {"name": "house", "translation": [0, 0.5, 0], "scale": [4, 1, 4], "mesh": 0},
+    {"name": "lampNode", "translation": [0, 5, 0], "scale": [0.3, 0.3, 0.3], "mesh": 0,
+     "extensions": {"KHR_lights_punctual": {"light": 0}}}
+  ])", R"(
+  "extensionsUsed": ["KHR_lights_punctual"],
+  "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "name": "bulb", "range": 20}]}},)");
+  const Scene s = loadScene(path);
+  ASSERT_EQ(s.meshes.size(), 2u);
+  EXPECT_EQ(s.meshes[0].node, "house");
+  EXPECT_EQ(s.meshes[1].node, "lampNode");
+  EXPECT_EQ(s.meshes[1].firstTriangle, 12u);
+  EXPECT_EQ(s.meshes[1].triangles, 12u);
+  ASSERT_EQ(s.lights.size(), 1u);
+  EXPECT_EQ(s.lights[0].name, "lampNode");
+  const std::vector<Light> lights = sceneLights(s);
+  ASSERT_EQ(lights.size(), 1u);
+  EXPECT_EQ(lights[0].exclude, std::vector<std::string>{"lampNode"});
+  EXPECT_EQ(withoutMeshes(s, lights[0].exclude, "light 0").triangleCount(), 12u);
+
+  // OBJ: objects and groups are nodes and meshes, usemtl names the material.
+  const std::string obj = dir.write("lamp.obj",
+                                    "mtllib lamp.mtl\no post\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
+                                    "usemtl glass\nf 1 2 3\nusemtl metal\nf 1 3 4\n");
+  dir.write("lamp.mtl", "newmtl glass\nKd 1 1 1\nnewmtl metal\nKd 0.5 0.5 0.5\n");
+  const Scene o = loadScene(obj);
+  ASSERT_FALSE(o.meshes.empty());
+  std::vector<std::string> materials;
+  for (const SceneMesh& m : o.meshes) materials.push_back(m.material + ":" + std::to_string(m.triangles));
+  EXPECT_EQ(materials, (std::vector<std::string>{"glass:1", "metal:1"}));
+  EXPECT_EQ(withoutMeshes(o, {"glass"}, "light 0").triangleCount(), 1u);
 }
 
 TEST(SceneImport, MirroredInstanceOfAClosedMeshStaysClosed) {

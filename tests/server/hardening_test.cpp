@@ -27,6 +27,7 @@
 #include "cpvs/net/convert.h"
 #include "cpvs/net/status.h"
 #include "cpvs/scene/mesh_file.h"
+#include "error_testing.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/scene/source.h"
 #include "farm_testing.h"
@@ -975,6 +976,8 @@ TEST(Hardening, R6_ASceneMeshFileRoundTripsAndDamageIsRefused) {
   stats = finalizeScene(scene);
   scene.lights.push_back(SceneLight{"sun", SceneLight::Type::Directional, {0, 10, 0}, {0, -1, 0}, {1, 1, 1}, 0, 0});
   scene.lights.push_back(SceneLight{"lamp", SceneLight::Type::Spot, {1, 2, 3}, {0, -1, 0}, {2, 1, 1}, 20, 30, 12.5});
+  const uint32_t half = uint32_t(scene.triangleCount() / 2);
+  scene.meshes = {{"city", "blocks", "stone", 0, half}, {"lampNode", "", "glass", half, uint32_t(scene.triangleCount()) - half}};
   const std::vector<uint8_t> bytes = encodeSceneMesh(scene, stats);
   SceneStats back;
   const Scene decoded = decodeSceneMesh(bytes.data(), bytes.size(), "mesh", &back);
@@ -984,6 +987,19 @@ TEST(Hardening, R6_ASceneMeshFileRoundTripsAndDamageIsRefused) {
   EXPECT_EQ(decoded.lights.back().range, 12.5) << "a bundle planned from the stored mesh reaches as far as the file's";
   EXPECT_EQ(decoded.lights.back().outerConeDeg, 30);
   EXPECT_EQ(back.closedParts, stats.closedParts);
+  ASSERT_EQ(decoded.meshes.size(), 2u) << "a fixture named in a bundle is found in the stored mesh";
+  EXPECT_EQ(decoded.meshes[1].node, "lampNode");
+  EXPECT_EQ(decoded.meshes[1].material, "glass");
+  EXPECT_EQ(decoded.meshes[1].firstTriangle, half);
+  // Meshes that do not cover the triangles in order are refused, the checksum resealed.
+  for (int way = 0; way < 2; ++way) {
+    Scene wrong = scene;
+    if (way == 0) wrong.meshes[1].firstTriangle += 1;
+    else wrong.meshes[1].triangles -= 1;
+    std::vector<uint8_t> b = encodeSceneMesh(wrong, stats);
+    EXPECT_NE(testing::inputErrorOf([&] { decodeSceneMesh(b.data(), b.size(), "mesh"); }).find(way ? "its meshes hold" : "a mesh starts"),
+              std::string::npos);
+  }
   for (size_t at : {size_t(0), size_t(9), size_t(60), bytes.size() / 2, bytes.size() - 1}) {
     std::vector<uint8_t> bad = bytes;
     bad[at] ^= 0x01;

@@ -17,6 +17,9 @@
 #include "cpvs/scene/boxes.h"
 #include "coordinator/coordinator.h"
 #include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_lights.h"
+#include "cpvs/io/bundle_file.h"
+#include "cpvs/query/bundle_query.h"
 #include "cpvs/light/perspective_grid.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
@@ -441,6 +444,61 @@ TEST(InProcessFarm, ABadLightBundleIsRefusedWithWhatIsWrong) {
   EXPECT_EQ(ok.lights(), 1u);
   EXPECT_EQ(ok.grids(), 1u);
   EXPECT_EQ(ok.tiles_total(), 16u);
+}
+
+// A lamp's fixture named in its light: the workers bake its tiles without the shade, and
+// the bundle is the local bake's (every grid's bytes and the plan that records it).
+TEST(InProcessFarm, ALightsFixtureIsLeftOutOnTheWorkersAsInTheLocalBake) {
+  TempDir dir("cpvs_in_process_fixture");
+  // A street and a closed lamp shade around the bulb, as separate OBJ objects.
+  const std::string obj = dir / "lamp.obj";
+  std::ofstream(obj) << "o street\nv -50 0 -50\nv -50 0 50\nv 50 0 50\nv 50 0 -50\nf 1 2 3 4\no lamp\n"
+                        "v -1 4 -1\nv 1 4 -1\nv -1 6 -1\nv 1 6 -1\nv -1 4 1\nv 1 4 1\nv -1 6 1\nv 1 6 1\n"
+                        "f 5 9 11 7\nf 6 8 12 10\nf 5 6 10 9\nf 7 11 12 8\nf 5 7 8 6\nf 9 10 12 11\n";
+  InProcessFarm farm(dir / "data");
+  worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
+  wc.threads = 2;
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+
+  Light lamp;
+  lamp.position = {0.3, 5, -0.2};
+  lamp.direction = {0.1, -1, 0};
+  lamp.coneDeg = 60;
+  lamp.log2Resolution = 8;
+  lamp.exclude = {"lamp"};
+  pb::BakeSpec spec;
+  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
+  *spec.add_lights() = net::toProto(lamp);
+  spec.mutable_options()->set_tile_size(64);
+  const pb::JobStatus submitted = farm.client.submit("fixture", spec);
+  const pb::JobStatus done = farm.client.watch(submitted.job_id());
+  ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
+  farm.client.download(submitted.job_id(), dir / "farm.cpvs");
+  tileWorker.stop();
+  workerThread.join();
+
+  const Scene scene = loadScene(obj);
+  BakeOptions options;
+  options.log2TileSize = 6;
+  const LightBundle local = bakeLights(scene, {lamp}, defaultFootprint(scene), options, sceneHash(scene));
+  const LightBundle fromFarm = readBundle(dir / "farm.cpvs");
+  ASSERT_EQ(fromFarm.grids.size(), 1u);
+  EXPECT_EQ(fromFarm.grids[0].bytes, local.grids[0].bytes);
+  EXPECT_EQ(fromFarm.plan, local.plan);
+  EXPECT_NE(fromFarm.plan.find("\"exclude\": [\"lamp\"]"), std::string::npos) << fromFarm.plan;
+  const BundleQuery q(fromFarm);
+  EXPECT_EQ(q.filtered(0, {0.5, 0, 0.5}, {0, 1, 0}, 3), 1.0f) << "under the lamp, lit through its shade";
+
+  // A fixture the scene does not name is refused at submit.
+  spec.mutable_lights(0)->set_exclude(0, "lampshade");
+  try {
+    farm.client.submit("no-such-fixture", spec);
+    ADD_FAILURE() << "a fixture the scene does not name was accepted";
+  } catch (const client::FarmCallError& e) {
+    EXPECT_EQ(e.kind(), net::ErrorKind::InvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("no mesh of the scene is named 'lampshade'"), std::string::npos) << e.what();
+  }
 }
 
 TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {

@@ -30,7 +30,17 @@ std::string lightPlanJson(const LightBundle& b, const std::vector<double>& close
            std::to_string(g.grid.resolution()) + ", \"closest\": " + (std::isfinite(c) ? jsonNumber(c) : "null") +
            ", \"bytes\": " + std::to_string(g.bytes) + "}";
   }
-  out += "]}";
+  out += "]";
+  bool fixtures = false;
+  for (size_t i = 0; i < b.lights.size(); ++i) {
+    const Light& l = b.lights[i].light;
+    if (l.exclude.empty()) continue;
+    out += std::string(fixtures ? ", " : ", \"fixtures\": [") + "{\"light\": " + std::to_string(i) + ", \"exclude\": [";
+    for (size_t n = 0; n < l.exclude.size(); ++n) out += (n ? ", " : "") + jsonString(l.exclude[n]);
+    out += "]}";
+    fixtures = true;
+  }
+  out += fixtures ? "]}" : "}";
   // A bundle of thousands of point lights would pass the largest plan a file records.
   if (out.size() > kMaxPlanBytes)
     return "{\"grids\": " + std::to_string(b.grids.size()) + ", \"per_grid\": \"omitted: more than " +
@@ -54,6 +64,13 @@ std::vector<Light> sceneLights(const Scene& scene) {
       l.coneDeg = s.outerConeDeg;
     }
     l.range = s.range;
+    // A name a file could not pass through the contract as it is (not UTF-8) names no fixture.
+    const bool nameable = !s.name.empty() && validUtf8Prefix(s.name, kMaxExcludeNameBytes) == s.name;
+    for (const SceneMesh& m : scene.meshes)
+      if (nameable && m.node == s.name) {
+        l.exclude = {s.name};
+        break;
+      }
     if (isFinite(s.color) && (s.color.x > 0 || s.color.y > 0 || s.color.z > 0)) {
       // Shading takes the colour and the intensity apart: the brightest channel is the intensity.
       const double peak = std::max({s.color.x, s.color.y, s.color.z});
@@ -84,7 +101,8 @@ LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, dou
   closest.clear();
   for (size_t i = 0; i < lights.size(); ++i) {
     BundleLight bl{lights[i], uint32_t(b.grids.size()), 0};
-    for (LightGridPlan& p : planLightGrids(scene, lights[i], footprint)) {
+    Scene storage;
+    for (LightGridPlan& p : planLightGrids(castersOf(scene, lights[i].exclude, lightLabel(lights[i], i), storage), lights[i], footprint)) {
       b.grids.push_back({std::move(p.grid), p.tanCone, uint32_t(i), 0});
       closest.push_back(p.closest);
     }
@@ -128,7 +146,10 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
       }
       const auto start = std::chrono::steady_clock::now();
       tbb::this_task_arena::isolate([&] {
-        const BakeScene prepared(scene, b.grids[k].grid, b.grids[k].tanCone, options.renderer);
+        const Light& light = b.lights[b.grids[k].light].light;
+        Scene storage;
+        const Scene& casters = castersOf(scene, light.exclude, lightLabel(light, b.grids[k].light), storage);
+        const BakeScene prepared(casters, b.grids[k].grid, b.grids[k].tanCone, options.renderer);
         dags[k] = bakeGrid(prepared, options, &gridTimes[k]);
       });
       std::lock_guard<std::mutex> lock(reporting);
@@ -158,6 +179,13 @@ void finishLightBundle(LightBundle& b, std::vector<Dag>&& dags, const std::vecto
   b.poolBytes = pool.bytes();
   b.pool = std::make_shared<const std::vector<uint32_t>>(packPool(pool.leaves, pool.levels, pool.roots));
   b.plan = lightPlanJson(b, closest);
+}
+
+const Scene& castersOf(const Scene& scene, const std::vector<std::string>& exclude, const std::string& source,
+                       Scene& storage) {
+  if (exclude.empty()) return scene;
+  storage = withoutMeshes(scene, exclude, source);
+  return storage;
 }
 
 double defaultFootprint(const Scene& scene) {

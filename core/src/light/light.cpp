@@ -58,6 +58,11 @@ void checkLight(const Light& l, const Vec3& lo, const Vec3& hi, const std::strin
   if (!std::isfinite(l.intensity) || l.intensity < 0) fail("the intensity must be finite and not negative");
   if (l.log2Resolution != 0 && (l.log2Resolution < kMinLog2Resolution || l.log2Resolution > kMaxLog2Resolution))
     fail("resolution 2^" + std::to_string(l.log2Resolution) + " is out of range");
+  if (l.exclude.size() > kMaxExcludeNames)
+    fail(std::to_string(l.exclude.size()) + " fixture names: a light takes at most " + std::to_string(kMaxExcludeNames));
+  for (const std::string& name : l.exclude)
+    if (name.empty() || name.size() > kMaxExcludeNameBytes)
+      fail("a fixture name must be 1 to " + std::to_string(kMaxExcludeNameBytes) + " bytes long");
 }
 
 namespace {

@@ -87,9 +87,12 @@ std::string describeVertex(const aiMesh& mesh, unsigned meshIndex, unsigned vert
 /// Appends one instance of `mesh` under `world` to `scene`: every vertex (so that indices
 /// stay valid) and every face with exactly three indices. Throws InputError for a
 /// vertex that is not finite in world space.
-void appendInstance(const std::string& path, const aiMesh& mesh, unsigned meshIndex,
-                    const Mat4d& world, Scene& scene) {
+void appendInstance(const std::string& path, const aiMesh& mesh, unsigned meshIndex, const Mat4d& world,
+                    const std::string& nodeName, const std::string& materialName, Scene& scene) {
   const size_t base = scene.positions.size();
+  const size_t firstTriangle = scene.triangleCount();
+  if (firstTriangle + mesh.mNumFaces > std::numeric_limits<uint32_t>::max())
+    throw InputError(path + ": more than 2^32 triangles after instancing");
   if (base + mesh.mNumVertices > std::numeric_limits<uint32_t>::max())
     throw InputError(path + ": more than 2^32 vertices after instancing");
   scene.positions.reserve(base + mesh.mNumVertices);
@@ -120,6 +123,8 @@ void appendInstance(const std::string& path, const aiMesh& mesh, unsigned meshIn
       scene.indices.push_back(static_cast<uint32_t>(base + idx));
     }
   }
+  scene.meshes.push_back({nodeName, mesh.mName.C_Str(), materialName, uint32_t(firstTriangle),
+                          uint32_t(scene.triangleCount() - firstTriangle)});
 }
 
 SceneLight lightOf(const aiLight& l, const Mat4d& world) {
@@ -223,7 +228,11 @@ Scene loadScene(const std::string& path, SceneStats* stats, const ImportOptions&
         if (meshIndex >= ai->mNumMeshes || ai->mMeshes[meshIndex] == nullptr)
           throw InputError(path + ": node '" + node->mName.C_Str() + "' references missing mesh " +
                            std::to_string(meshIndex));
-        appendInstance(path, *ai->mMeshes[meshIndex], meshIndex, world, scene);
+        const aiMesh& mesh = *ai->mMeshes[meshIndex];
+        std::string material;
+        if (mesh.mMaterialIndex < ai->mNumMaterials && ai->mMaterials[mesh.mMaterialIndex] != nullptr)
+          material = ai->mMaterials[mesh.mMaterialIndex]->GetName().C_Str();
+        appendInstance(path, mesh, meshIndex, world, node->mName.C_Str(), material, scene);
       }
       // Children pushed in reverse so that they are visited in file order, which keeps
       // vertex order (and so the scene hash) independent of the stack discipline.

@@ -11,8 +11,9 @@ namespace {
 static_assert(std::endian::native == std::endian::little, "the scene mesh file is little-endian");
 
 constexpr char kMagic[8] = {'C', 'P', 'V', 'S', 'M', 'E', 'S', 'H'};
-// 2: a light keeps its range (a version 1 mesh is refused, and its scene imported again).
-constexpr uint32_t kVersion = 2;
+// 2: a light keeps its range; 3: the meshes' names (an older mesh is refused, and its
+// scene imported again).
+constexpr uint32_t kVersion = 3;
 constexpr uint32_t kMaxNameBytes = 4096;
 
 struct Writer {
@@ -104,6 +105,12 @@ std::vector<uint8_t> encodeSceneMesh(const Scene& scene, const SceneStats& stats
     w.put(l.outerConeDeg);
     w.put(l.range);
   }
+  w.put<uint64_t>(scene.meshes.size());
+  for (const SceneMesh& m : scene.meshes) {
+    for (const std::string* name : {&m.node, &m.mesh, &m.material}) w.text(name->substr(0, kMaxNameBytes));
+    w.put(m.firstTriangle);
+    w.put(m.triangles);
+  }
   const Hash128 check = contentHash(w.bytes.data(), w.bytes.size());
   w.raw(&check, sizeof check);
   return std::move(w.bytes);
@@ -158,6 +165,17 @@ Scene decodeSceneMesh(const uint8_t* data, size_t size, const std::string& sourc
     l.outerConeDeg = r.get<double>("lights");
     l.range = r.get<double>("lights");
   }
+  scene.meshes.resize(r.count(3 * 4 + 8, "meshes"));
+  uint64_t next = 0;
+  for (SceneMesh& m : scene.meshes) {
+    for (std::string* name : {&m.node, &m.mesh, &m.material}) *name = r.text("mesh name");
+    m.firstTriangle = r.get<uint32_t>("meshes");
+    m.triangles = r.get<uint32_t>("meshes");
+    if (m.firstTriangle != next) r.fail("a mesh starts at triangle " + std::to_string(m.firstTriangle) + ", not " + std::to_string(next));
+    next += m.triangles;
+  }
+  if (!scene.meshes.empty() && next != indices / 3)
+    r.fail("its meshes hold " + std::to_string(next) + " of " + std::to_string(indices / 3) + " triangles");
   if (r.pos != r.size) r.fail(std::to_string(r.size - r.pos) + " bytes after its end");
   if (scene.indices.empty()) r.fail("it holds no triangles");
   if (sceneHash(scene) != geometry) r.fail("its geometry does not hash to the hash it stores");

@@ -49,19 +49,57 @@ bool isDegenerate(const Scene& scene, uint32_t ia, uint32_t ib, uint32_t ic) {
 }
 
 /// Removes zero-area triangles in place (keeping order); returns how many were removed.
-size_t dropDegenerate(Scene& scene) {
+/// InputError unless the meshes, when there are any, cover the triangles in order; the
+/// triangles appended after the last one (boxes added to a loaded scene) become an
+/// unnamed mesh, which no name leaves out.
+void completeMeshes(Scene& scene) {
+  if (scene.meshes.empty()) return;
+  uint64_t next = 0;
+  for (const SceneMesh& m : scene.meshes) {
+    if (m.firstTriangle != next)
+      throw InputError(scene.name + ": mesh '" + m.mesh + "' starts at triangle " + std::to_string(m.firstTriangle) +
+                       ", not " + std::to_string(next));
+    next += m.triangles;
+  }
+  if (next > scene.triangleCount())
+    throw InputError(scene.name + ": its meshes hold " + std::to_string(next) + " triangles, more than its " +
+                     std::to_string(scene.triangleCount()));
+  if (next < scene.triangleCount())
+    scene.meshes.push_back({"", "", "", uint32_t(next), uint32_t(scene.triangleCount() - next)});
+}
+
+/// Keeps the triangles `keep` says yes to, in order; the meshes' ranges follow.
+template <class Keep>
+void keepTriangles(Scene& scene, Keep keep) {
   const size_t n = scene.triangleCount();
-  size_t kept = 0;
+  std::vector<SceneMesh>& meshes = scene.meshes;
+  // Meshes cover every triangle in order (completeMeshes): `mesh` holds t, and its
+  // triangles before any was dropped end at `meshEnd`.
+  size_t kept = 0, mesh = 0, meshEnd = meshes.empty() ? n : meshes[0].triangles;
+  if (!meshes.empty()) meshes[0].firstTriangle = 0;
   for (size_t t = 0; t < n; ++t) {
-    const uint32_t a = scene.indices[3 * t], b = scene.indices[3 * t + 1], c = scene.indices[3 * t + 2];
-    if (isDegenerate(scene, a, b, c)) continue;
-    scene.indices[3 * kept] = a;
-    scene.indices[3 * kept + 1] = b;
-    scene.indices[3 * kept + 2] = c;
+    while (mesh + 1 < meshes.size() && t >= meshEnd) {
+      meshes[++mesh].firstTriangle = uint32_t(kept);
+      meshEnd += meshes[mesh].triangles;
+    }
+    if (!keep(t)) {
+      if (!meshes.empty()) --meshes[mesh].triangles;
+      continue;
+    }
+    for (int c = 0; c < 3; ++c) scene.indices[3 * kept + c] = scene.indices[3 * t + c];
+    if (!scene.closed.empty()) scene.closed[kept] = scene.closed[t];
     ++kept;
   }
   scene.indices.resize(3 * kept);
-  return n - kept;
+  if (!scene.closed.empty()) scene.closed.resize(kept);
+}
+
+size_t dropDegenerate(Scene& scene) {
+  const size_t n = scene.triangleCount();
+  keepTriangles(scene, [&](size_t t) {
+    return !isDegenerate(scene, scene.indices[3 * t], scene.indices[3 * t + 1], scene.indices[3 * t + 2]);
+  });
+  return n - scene.triangleCount();
 }
 
 /// Removes vertices no triangle references, keeping the order of the others, so that the
@@ -219,6 +257,7 @@ SceneStats finalizeScene(Scene& scene) {
                        std::to_string(scene.indices[i]) + ", past the " +
                        std::to_string(scene.positions.size()) + " vertices");
   }
+  completeMeshes(scene);
   SceneStats stats;
   stats.degenerateDropped = dropDegenerate(scene);
   compactVertices(scene);
@@ -240,9 +279,55 @@ Hash128 sceneHash(const Scene& scene) {
   XXH3_128bits_update(state, scene.positions.data(), scene.positions.size() * sizeof(Vec3));
   XXH3_128bits_update(state, scene.indices.data(), scene.indices.size() * sizeof(uint32_t));
   XXH3_128bits_update(state, scene.closed.data(), scene.closed.size());
+  // Names only where there are meshes: a generated scene hashes as its geometry alone.
+  for (const SceneMesh& m : scene.meshes) {
+    const uint32_t range[2] = {m.firstTriangle, m.triangles};
+    XXH3_128bits_update(state, range, sizeof range);
+    for (const std::string* name : {&m.node, &m.mesh, &m.material}) {
+      const uint64_t size = name->size();
+      XXH3_128bits_update(state, &size, sizeof size);
+      XXH3_128bits_update(state, name->data(), name->size());
+    }
+  }
   const XXH128_hash_t h = XXH3_128bits_digest(state);
   XXH3_freeState(state);
   return {h.low64, h.high64};
+}
+
+bool meshIsNamed(const SceneMesh& m, const std::string& name) {
+  return !name.empty() && (m.node == name || m.mesh == name || m.material == name);
+}
+
+Scene withoutMeshes(const Scene& scene, const std::vector<std::string>& names, const std::string& source) {
+  std::vector<uint8_t> drop(scene.triangleCount(), 0);
+  for (const std::string& name : names) {
+    bool found = false;
+    for (const SceneMesh& m : scene.meshes) {
+      if (!meshIsNamed(m, name)) continue;
+      found = true;
+      std::fill_n(drop.begin() + m.firstTriangle, m.triangles, uint8_t{1});
+    }
+    if (!found) {
+      // Some names it has, so that a typo is seen at once.
+      std::vector<std::string> some;
+      for (const SceneMesh& m : scene.meshes)
+        for (const std::string* n : {&m.node, &m.mesh, &m.material})
+          if (!n->empty() && some.size() < 8 && std::find(some.begin(), some.end(), *n) == some.end()) some.push_back(*n);
+      std::string listed;
+      for (const std::string& n : some) listed += (listed.empty() ? "'" : ", '") + n + "'";
+      throw InputError(source + ": no mesh of the scene is named '" + name + "' (by its node, mesh or material)" +
+                       (scene.meshes.empty() ? ": this scene's triangles have no names"
+                                             : some.empty() ? "" : "; it has " + listed + (some.size() == 8 ? ", ..." : "")));
+    }
+  }
+  Scene out = scene;
+  out.closed.clear();
+  keepTriangles(out, [&](size_t t) { return drop[t] == 0; });
+  if (out.indices.empty()) throw InputError(source + ": leaving out its fixture leaves no triangle to cast a shadow");
+  compactVertices(out);
+  SceneStats stats;
+  classifyClosed(out, stats);
+  return out;
 }
 
 void sceneBounds(const Scene& scene, Vec3& lo, Vec3& hi) {

@@ -2,6 +2,7 @@
 // grid baked, their DAGs shared in one node pool (the light bundle, bundle_file.h).
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "cpvs/bake/options.h"
@@ -42,6 +43,13 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
 /// on the plan and the DAGs alone, not on where or in what order the grids were baked.
 void finishLightBundle(LightBundle& bundle, std::vector<Dag>&& dags, const std::vector<double>& closest);
 
+/// The scene a light with the fixture `exclude` (Light::exclude) casts shadows with:
+/// `scene` itself when there is none, else `storage`, filled with the scene without it
+/// (withoutMeshes, errors naming `source`). What its grids are planned and baked with,
+/// here and on the farm.
+const Scene& castersOf(const Scene& scene, const std::vector<std::string>& exclude, const std::string& source,
+                       Scene& storage);
+
 /// The footprint a bake of local lights plans with when none is given: the scene's
 /// bounding-box diagonal / 4096.
 double defaultFootprint(const Scene& scene);
@@ -50,10 +58,12 @@ double defaultFootprint(const Scene& scene);
 /// procedural city's are its street lamps), in the file's order; the others cast no
 /// shadow a bundle holds (directional: a sun bake; area, ambient: none). A spot light
 /// whose cone is wider than kMaxConeDeg is baked as a point light (its axis and cone
-/// kept for shading).
+/// kept for shading). A light whose node also places meshes (glTF's lamp node with its
+/// bulb) has them as its fixture: `exclude` holds the node's name.
 std::vector<Light> sceneLights(const Scene& scene);
 
-/// What the planner chose, one JSON object per grid (the bundle's plan).
+/// What the planner chose, one JSON object per grid, and each fixture left out (the
+/// bundle's plan: the light table does not hold them).
 std::string lightPlanJson(const LightBundle& bundle, const std::vector<double>& closest);
 
 }  // namespace cpvs

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "cpvs/base/vec3.h"
 
@@ -23,6 +24,9 @@ constexpr double kMaxConeDeg = 85;
 constexpr size_t kMaxLights = 4096;
 /// How far outside the scene's bounding box a light may be, in its diagonal.
 constexpr double kLightBoundsMargin = 0.1;
+/// The most fixture names (Light::exclude) one light takes, and the longest, in bytes.
+constexpr size_t kMaxExcludeNames = 64;
+constexpr size_t kMaxExcludeNameBytes = 1024;
 
 struct Light {
   LightKind kind = LightKind::Spot;
@@ -35,6 +39,9 @@ struct Light {
   double intensity = 1;      // for shading only
   double near = 0;           // its grids' near; 0: planned from the closest geometry
   int log2Resolution = 0;    // its grids' resolution; 0: planned from the footprint
+  /// Its fixture: the meshes (by node, mesh or material name, meshIsNamed) that cast no
+  /// shadow of this light. The lamp's glass and housing would otherwise darken all it lights.
+  std::vector<std::string> exclude;
 };
 
 /// A point light's cube: face f looks along cubeFaceAxis(f), in the order +x, -x, +y, -y,
@@ -48,7 +55,8 @@ int cubeFace(const Vec3& fromLight);
 /// not finite or lies outside the scene's bounds [lo, hi] grown by kLightBoundsMargin of
 /// their diagonal, a spot direction that is zero, a cone outside (0, kMaxConeDeg], a
 /// negative or non-finite range, near or intensity, a near not below the range, a
-/// colour that is negative, or a resolution out of range.
+/// colour that is negative, a resolution out of range, or more than kMaxExcludeNames
+/// fixture names, an empty one or one longer than kMaxExcludeNameBytes.
 void checkLight(const Light& light, const Vec3& lo, const Vec3& hi, const std::string& source);
 /// InputError unless 1 <= count <= kMaxLights.
 void checkLightCount(size_t count);

@@ -25,6 +25,14 @@ struct SceneLight {
 /// "directional", "point", "spot", "area", "ambient", "unknown".
 const char* lightTypeName(SceneLight::Type type);
 
+/// One mesh of the file as placed by one node: its triangles [firstTriangle,
+/// firstTriangle + triangles) of the scene and the names a light's fixture is given by
+/// (Light::exclude).
+struct SceneMesh {
+  std::string node, mesh, material;
+  uint32_t firstTriangle = 0, triangles = 0;
+};
+
 /// One flattened triangle mesh in world space (all node transforms applied).
 /// Positions stay in double precision; every triangle indexes `positions`.
 /// `closed[i]` tells whether triangle i belongs to a closed, consistently oriented,
@@ -36,6 +44,9 @@ struct Scene {
   std::vector<uint8_t> closed;       // 1 per triangle, see above
   std::string name;                  // file name or generator name, for logs
   std::vector<SceneLight> lights;    // as the file holds them (not hashed: they cast no shadow)
+  /// The file's meshes in triangle order, covering every triangle (hashed: a light leaves
+  /// its fixture out by name); empty for generated scenes, whose triangles have no names.
+  std::vector<SceneMesh> meshes;
 
   size_t triangleCount() const { return indices.size() / 3; }
   Vec3 vertex(size_t tri, int corner) const { return positions[indices[3 * tri + corner]]; }
@@ -57,12 +68,23 @@ struct SceneStats {
 };
 
 /// Removes zero-area triangles, fills `closed` from the mesh topology (welded by exact
-/// position), and returns the counts. Every generator and importer calls it last.
+/// position), gives triangles appended after the last of `meshes` an unnamed mesh, and
+/// returns the counts. Every generator and importer calls it last.
 SceneStats finalizeScene(Scene& scene);
 
-/// Content hash of the geometry (positions as used, triangle indices, the closed flags):
-/// two scenes with the same hash bake to the same bytes.
+/// Content hash of the geometry (positions as used, triangle indices, the closed flags)
+/// and of the meshes' names and ranges: two scenes with the same hash bake to the same
+/// bytes.
 Hash128 sceneHash(const Scene& scene);
+
+/// Whether mesh `m` answers to `name`: its node's, its mesh's or its material's name.
+bool meshIsNamed(const SceneMesh& m, const std::string& name);
+
+/// The scene without the triangles of every mesh one of `names` names (meshIsNamed), its
+/// closed parts classified again (a part cut open has an inside that can be reached):
+/// what a light whose fixture those meshes are casts shadows with. InputError naming
+/// `source` for a name no mesh answers to, or one that leaves no triangle.
+Scene withoutMeshes(const Scene& scene, const std::vector<std::string>& names, const std::string& source);
 
 /// Axis-aligned bounds of the vertices referenced by triangles.
 void sceneBounds(const Scene& scene, Vec3& lo, Vec3& hi);
