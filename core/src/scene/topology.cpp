@@ -68,7 +68,8 @@ void completeMeshes(Scene& scene) {
     scene.meshes.push_back({"", "", "", uint32_t(next), uint32_t(scene.triangleCount() - next)});
 }
 
-/// Keeps the triangles `keep` says yes to, in order; the meshes' ranges follow.
+/// Keeps the triangles `keep` says yes to, in order; the meshes' ranges follow. The closed
+/// flags are the caller's to classify again.
 template <class Keep>
 void keepTriangles(Scene& scene, Keep keep) {
   const size_t n = scene.triangleCount();
@@ -87,11 +88,9 @@ void keepTriangles(Scene& scene, Keep keep) {
       continue;
     }
     for (int c = 0; c < 3; ++c) scene.indices[3 * kept + c] = scene.indices[3 * t + c];
-    if (!scene.closed.empty()) scene.closed[kept] = scene.closed[t];
     ++kept;
   }
   scene.indices.resize(3 * kept);
-  if (!scene.closed.empty()) scene.closed.resize(kept);
 }
 
 size_t dropDegenerate(Scene& scene) {
@@ -321,7 +320,6 @@ Scene withoutMeshes(const Scene& scene, const std::vector<std::string>& names, c
     }
   }
   Scene out = scene;
-  out.closed.clear();
   keepTriangles(out, [&](size_t t) { return drop[t] == 0; });
   if (out.indices.empty()) throw InputError(source + ": leaving out its fixture leaves no triangle to cast a shadow");
   compactVertices(out);
