@@ -61,11 +61,7 @@ std::vector<Light> flagLights(const LightFlags& flags) {
 std::vector<Light> withSceneLights(const LightFlags& flags, std::vector<Light> given, const Scene& scene,
                                    const std::string& sceneSpec) {
   if (!flags.sceneLights) return given;
-  std::vector<Light> lights = sceneLights(scene);
-  if (lights.empty())
-    throw InputError("--scene-lights: " + sceneSpec + " holds no point or spot light (cpvs plan lists its lights)");
-  lights.insert(lights.end(), given.begin(), given.end());
-  return lights;
+  return withSceneLights(scene, std::move(given), "--scene-lights: " + sceneSpec);
 }
 
 double footprintOf(const LightFlags& flags, const Scene& scene) {

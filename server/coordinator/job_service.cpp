@@ -87,9 +87,8 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   s.set_file_bytes(j.fileBytes);
   s.set_resolution(resolutionOf(j));
   if (!j.grids.empty()) {
-    v1::LightList lights;
-    lights.ParseFromString(j.lights);
-    s.set_lights(uint32_t(lights.lights_size()));
+    // Grids are in light order and every light has at least one.
+    s.set_lights(j.grids.back().light + 1);
     s.set_grids(uint32_t(j.grids.size()));
   }
   s.set_peak_merge_bytes(j.peakMergeBytes);
@@ -234,12 +233,7 @@ pb::JobStatus JobService::submitBundle(const pb::SubmitBakeRequest& request, con
   LightBundle planned;
   std::vector<double> closest;
   try {
-    if (spec.scene_lights()) {
-      std::vector<Light> own = sceneLights(scene);
-      if (own.empty()) throw InputError("scene_lights: the scene holds no point or spot light");
-      own.insert(own.end(), lights.begin(), lights.end());
-      lights = std::move(own);
-    }
+    if (spec.scene_lights()) lights = withSceneLights(scene, std::move(lights), "scene_lights: the scene");
     checkLightCount(lights.size());
     const double footprint = spec.footprint() > 0 ? spec.footprint() : defaultFootprint(scene);
     planned = planLights(scene, lights, footprint, j.options, closest);

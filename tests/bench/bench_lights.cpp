@@ -196,8 +196,7 @@ int run(const Args& a) {
   std::unique_ptr<tbb::global_control> limit;
   if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
   Scene scene = openScene(a.scene);
-  std::vector<Light> lights = sceneLights(scene);
-  if (lights.empty()) throw InputError(a.scene + " holds no point or spot light");
+  std::vector<Light> lights = withSceneLights(scene, {}, a.scene);
   if (a.lights > 0 && a.lights < lights.size()) lights.resize(a.lights);
   for (Light& l : lights) l.log2Resolution = a.log2R;
   BakeOptions options;

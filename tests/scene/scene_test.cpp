@@ -314,6 +314,21 @@ TEST(SceneMeshes, WithoutMeshesLeavesOutExactlyTheNamedTriangles) {
   EXPECT_NE(inputErrorOf([&] { finalizeScene(wrong); }).find("its meshes hold 25 triangles, more than its 24"), std::string::npos);
   wrong.meshes[1].firstTriangle = 11;
   EXPECT_NE(inputErrorOf([&] { finalizeScene(wrong); }).find("starts at triangle 11, not 12"), std::string::npos);
+  // Empty meshes after the last triangle follow a dropped one.
+  Scene trailing;
+  appendCube(trailing, {0, 0, 0});
+  trailing.indices.insert(trailing.indices.begin() + 18, {0, 0, 1});
+  trailing.meshes = {{"a", "", "", 0, 13}, {"empty", "", "", 13, 0}, {"last", "", "", 13, 0}};
+  finalizeScene(trailing);
+  EXPECT_EQ(trailing.meshes[1].firstTriangle, 12u);
+  EXPECT_EQ(trailing.meshes[2].firstTriangle, 12u);
+  EXPECT_NO_THROW(finalizeScene(trailing)) << "its meshes still cover its triangles in order";
+  // A name is kept to its first kMaxMeshNameBytes, whole UTF-8 characters.
+  Scene longName;
+  appendCube(longName, {0, 0, 0});
+  longName.meshes = {{std::string(kMaxMeshNameBytes - 1, 'x') + "\u00e9", "", "", 0, 12}};
+  finalizeScene(longName);
+  EXPECT_EQ(longName.meshes[0].node, std::string(kMaxMeshNameBytes - 1, 'x'));
   // A box appended to a loaded scene is an unnamed mesh of its own.
   appendCube(d, {6, 0, 0});
   finalizeScene(d);
@@ -510,6 +525,15 @@ TEST(SceneImport, MeshesKeepTheirNamesAndALampsNodeIsItsFixture) {
   ASSERT_EQ(lights.size(), 1u);
   EXPECT_EQ(lights[0].exclude, std::vector<std::string>{"lampNode"});
   EXPECT_EQ(withoutMeshes(s, lights[0].exclude, "light 0").triangleCount(), 12u);
+
+  // A node name that is also another node's mesh (a lamp mesh instanced under nodes, named
+  // as its first) would leave every instance out: such a light has no fixture.
+  Scene shared = s;
+  shared.meshes[0].mesh = "lampNode";
+  EXPECT_TRUE(sceneLights(shared)[0].exclude.empty());
+  shared.meshes[0].mesh = "";
+  shared.meshes[1].material = "lampNode";
+  EXPECT_EQ(sceneLights(shared)[0].exclude, std::vector<std::string>{"lampNode"}) << "its own meshes may share its name";
 
   // OBJ: objects and groups are nodes and meshes, usemtl names the material.
   const std::string obj = dir.write("lamp.obj",

@@ -1007,6 +1007,14 @@ TEST(Hardening, R6_ASceneMeshFileRoundTripsAndDamageIsRefused) {
   }
   for (size_t size : {size_t(0), size_t(7), size_t(40), bytes.size() - 1})
     EXPECT_THROW(decodeSceneMesh(bytes.data(), size, "mesh"), FormatError) << "cut to " << size;
+
+  // A name longer than a mesh file keeps is cut at finalize, so the stored mesh hashes as the scene.
+  Scene named = scene;
+  named.meshes[0].node = std::string(5000, 'n');
+  const SceneStats namedStats = finalizeScene(named);
+  EXPECT_EQ(named.meshes[0].node.size(), kMaxMeshNameBytes);
+  const std::vector<uint8_t> namedBytes = encodeSceneMesh(named, namedStats);
+  EXPECT_EQ(sceneHash(decodeSceneMesh(namedBytes.data(), namedBytes.size(), "mesh")), sceneHash(named));
 }
 
 // R15: every WatchJob held a server thread with no bound; 1,000 of them took the

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <mutex>
 
 #include "cpvs/bake/bake.h"
@@ -66,11 +67,15 @@ std::vector<Light> sceneLights(const Scene& scene) {
     l.range = s.range;
     // A name a file could not pass through the contract as it is (not UTF-8) names no fixture.
     const bool nameable = !s.name.empty() && validUtf8Prefix(s.name, kMaxExcludeNameBytes) == s.name;
+    // Only where the name is the node's alone: a mesh or material of that name elsewhere
+    // (an instanced lamp mesh named as its first node) would leave those out too.
+    bool placesMeshes = false, alone = nameable;
     for (const SceneMesh& m : scene.meshes)
-      if (nameable && m.node == s.name) {
-        l.exclude = {s.name};
-        break;
+      if (meshIsNamed(m, s.name)) {
+        placesMeshes |= m.node == s.name;
+        alone &= m.node == s.name;
       }
+    if (placesMeshes && alone) l.exclude = {s.name};
     if (isFinite(s.color) && (s.color.x > 0 || s.color.y > 0 || s.color.z > 0)) {
       // Shading takes the colour and the intensity apart: the brightest channel is the intensity.
       const double peak = std::max({s.color.x, s.color.y, s.color.z});
@@ -80,6 +85,13 @@ std::vector<Light> sceneLights(const Scene& scene) {
     out.push_back(std::move(l));
   }
   return out;
+}
+
+std::vector<Light> withSceneLights(const Scene& scene, std::vector<Light> given, const std::string& what) {
+  std::vector<Light> lights = sceneLights(scene);
+  if (lights.empty()) throw InputError(what + " holds no point or spot light");
+  lights.insert(lights.end(), std::make_move_iterator(given.begin()), std::make_move_iterator(given.end()));
+  return lights;
 }
 
 LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, double footprint, const BakeOptions& options,
@@ -138,6 +150,15 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
   std::mutex reporting;
   size_t done = 0;
   bool cancelled = false;
+  // A light with a fixture bakes its grids (a point light's six) with one copy of the
+  // scene without it, made by the first of them and freed after the last.
+  struct Casters {
+    std::mutex made;
+    std::unique_ptr<Scene> scene;
+    size_t gridsLeft = 0;
+  };
+  std::vector<Casters> casters(b.lights.size());
+  for (const BundleGrid& g : b.grids) ++casters[g.light].gridsLeft;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1), [&](const tbb::blocked_range<size_t>& range) {
     for (size_t k = range.begin(); k != range.end(); ++k) {
       {
@@ -146,11 +167,27 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
       }
       const auto start = std::chrono::steady_clock::now();
       tbb::this_task_arena::isolate([&] {
-        const Light& light = b.lights[b.grids[k].light].light;
-        Scene storage;
-        const Scene& casters = castersOf(scene, light.exclude, lightLabel(light, b.grids[k].light), storage);
-        const BakeScene prepared(casters, b.grids[k].grid, b.grids[k].tanCone, options.renderer);
-        dags[k] = bakeGrid(prepared, options, &gridTimes[k]);
+        const uint32_t i = b.grids[k].light;
+        const Light& light = b.lights[i].light;
+        Casters& c = casters[i];
+        const Scene* cast = &scene;
+        if (!light.exclude.empty()) {
+          std::lock_guard<std::mutex> lock(c.made);
+          if (!c.scene) {
+            auto made = std::make_unique<Scene>();
+            castersOf(scene, light.exclude, lightLabel(light, i), *made);
+            c.scene = std::move(made);
+          }
+          cast = c.scene.get();
+        }
+        {
+          const BakeScene prepared(*cast, b.grids[k].grid, b.grids[k].tanCone, options.renderer);
+          dags[k] = bakeGrid(prepared, options, &gridTimes[k]);
+        }
+        if (!light.exclude.empty()) {
+          std::lock_guard<std::mutex> lock(c.made);
+          if (--c.gridsLeft == 0) c.scene.reset();
+        }
       });
       std::lock_guard<std::mutex> lock(reporting);
       if (gridSeconds) (*gridSeconds)[k] = secondsSince(start);

@@ -14,6 +14,7 @@
 #include <xxhash.h>
 
 #include "cpvs/scene/scene.h"
+#include "cpvs/base/text.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
@@ -55,7 +56,9 @@ bool isDegenerate(const Scene& scene, uint32_t ia, uint32_t ib, uint32_t ic) {
 void completeMeshes(Scene& scene) {
   if (scene.meshes.empty()) return;
   uint64_t next = 0;
-  for (const SceneMesh& m : scene.meshes) {
+  for (SceneMesh& m : scene.meshes) {
+    for (std::string* name : {&m.node, &m.mesh, &m.material})
+      if (name->size() > kMaxMeshNameBytes) *name = validUtf8Prefix(*name, kMaxMeshNameBytes);
     if (m.firstTriangle != next)
       throw InputError(scene.name + ": mesh '" + m.mesh + "' starts at triangle " + std::to_string(m.firstTriangle) +
                        ", not " + std::to_string(next));
@@ -90,6 +93,8 @@ void keepTriangles(Scene& scene, Keep keep) {
     for (int c = 0; c < 3; ++c) scene.indices[3 * kept + c] = scene.indices[3 * t + c];
     ++kept;
   }
+  // Empty meshes after the last triangle start where the kept ones end.
+  while (mesh + 1 < meshes.size()) meshes[++mesh].firstTriangle = uint32_t(kept);
   scene.indices.resize(3 * kept);
 }
 

@@ -59,8 +59,14 @@ double defaultFootprint(const Scene& scene);
 /// shadow a bundle holds (directional: a sun bake; area, ambient: none). A spot light
 /// whose cone is wider than kMaxConeDeg is baked as a point light (its axis and cone
 /// kept for shading). A light whose node also places meshes (glTF's lamp node with its
-/// bulb) has them as its fixture: `exclude` holds the node's name.
+/// bulb) has them as its fixture: `exclude` holds the node's name, unless a mesh or
+/// material of another node has that name too (none then: name it in a lights file).
 std::vector<Light> sceneLights(const Scene& scene);
+
+/// The scene's own lights (sceneLights) first, then `given`: the order a bake, a plan and
+/// the farm list them in. A scene with none is an InputError that starts with `what`
+/// (the flag or field that asked for them, and the scene).
+std::vector<Light> withSceneLights(const Scene& scene, std::vector<Light> given, const std::string& what);
 
 /// What the planner chose, one JSON object per grid, and each fixture left out (the
 /// bundle's plan: the light table does not hold them).

@@ -27,7 +27,9 @@ const char* lightTypeName(SceneLight::Type type);
 
 /// One mesh of the file as placed by one node: its triangles [firstTriangle,
 /// firstTriangle + triangles) of the scene and the names a light's fixture is given by
-/// (Light::exclude).
+/// (Light::exclude). finalizeScene cuts a longer name to its first kMaxMeshNameBytes
+/// (whole UTF-8 characters), so that the scene hashes as its mesh file stores it.
+constexpr size_t kMaxMeshNameBytes = 1024;
 struct SceneMesh {
   std::string node, mesh, material;
   uint32_t firstTriangle = 0, triangles = 0;
