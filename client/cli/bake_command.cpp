@@ -161,6 +161,7 @@ int runBake(const BakeArgs& a) {
   auto totalStart = std::chrono::steady_clock::now();
   std::unique_ptr<tbb::global_control> limit;
   if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
+  checkOutputFolder(a.out, "--out");
   if (a.lights.given()) return runLightBake(a, totalStart);
   if (a.pointerGrid != kMaxGridLevels) throw InputError("--pointer-grid is for light bundles (--spot, --point, --lights)");
 

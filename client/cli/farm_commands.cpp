@@ -422,6 +422,7 @@ void buildSun(const SubmitArgs& a, const CLI::App& c, pb::BakeSpec& spec) {
 int runSubmit(const SubmitArgs& a, const CLI::App& c) {
   std::string volumeMesh;
   pb::BakeSpec spec = buildSpec(a, c, volumeMesh);
+  if (!a.out.empty()) checkOutputFolder(a.out, "--out");
   const bool chatty = !a.json && !a.quiet;
   FarmClient client(connectionOf(a.conn));
 

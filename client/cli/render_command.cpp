@@ -133,6 +133,7 @@ int runRender(const RenderArgs& a) {
   if (ext != ".png" && ext != ".exr" && !ext.empty())
     throw InputError("--out '" + a.out + "': name an image .png or .exr (both are written)");
   std::string base = (out.parent_path() / out.stem()).string();
+  checkOutputFolder(a.out, "--out");
 
   const std::vector<uint8_t> bytes = readFile(a.file);
   if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return renderBundle(a, bytes, w, h, base);
@@ -182,6 +183,7 @@ int runSheet(const SheetArgs& a) {
   parseSize(a.size, w, h);
   if (a.columns < 1 || a.columns > 64) throw InputError("--columns must be 1..64");
   namespace fs = std::filesystem;
+  checkOutputFolder(a.out, "--out");
   std::vector<fs::path> files;
   if (!fs::is_directory(a.dir)) throw InputError(a.dir + " is not a folder");
   for (const auto& e : fs::directory_iterator(a.dir))

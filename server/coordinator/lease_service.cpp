@@ -92,8 +92,13 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
     out.set_grid_index(at.grid);
     out.set_light(g.light);
     pb::LightList lights;
-    if (!lights.ParseFromString(j->lights) || g.light >= uint32_t(lights.lights_size()))
-      throw FarmError(ErrorKind::Internal, "job " + j->id + ": its stored lights do not hold light " + std::to_string(g.light));
+    if (!lights.ParseFromString(j->lights) || g.light >= uint32_t(lights.lights_size())) {
+      // Damaged in the store: no tile of the job can bake, so it fails instead of
+      // leasing the same tile until its attempts run out.
+      const std::string why = "its stored lights do not hold light " + std::to_string(g.light);
+      jobs_.failJob(l->jobId, why);
+      throw FarmError(ErrorKind::Internal, "job " + j->id + ": " + why);
+    }
     *out.mutable_exclude() = lights.lights(int(g.light)).exclude();
   }
   *out.mutable_options() = net::toProto(j->options);

@@ -575,6 +575,23 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
     EXPECT_EQ(r.out.find("internal error"), std::string::npos) << args << "\n" << r.out;
   }
   EXPECT_FALSE(fs::exists(path("x.cpvs"))) << "a failed bake leaves no output";
+
+  // An output path whose folder is not there is refused before any work is done.
+  struct BadOutput {
+    std::string args, message;
+  };
+  const std::vector<BadOutput> outputs{
+      {"bake city:3:5 --scene-lights -o " + path("no/such/x.cpvs"), "the folder " + path("no/such") + " does not exist"},
+      {"bake city:4 --sun-dir 0,-1,0 -o " + path("c.cpvs") + "/x.cpvs", path("c.cpvs") + " is not a folder"},
+      {"render " + path("c.cpvs") + " city:4 -o " + path("no/x.png"), "--out " + path("no/x.png") + ": the folder"},
+  };
+  for (const BadOutput& c : outputs) {
+    CliRun r = cpvs(c.args);
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out;
+    EXPECT_NE(r.out.find(c.message), std::string::npos) << c.args << "\n" << r.out;
+    EXPECT_EQ(r.out.find("grids ("), std::string::npos) << "nothing was baked: " << r.out;
+    EXPECT_EQ(r.out.find("tiles ("), std::string::npos) << "nothing was baked: " << r.out;
+  }
 }
 
 // Local lights: a bundle from a lights file and flags, inspected, queried per light and

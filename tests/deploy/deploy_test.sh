@@ -407,8 +407,8 @@ if [ -f "$DEPLOY/make-secrets.sh" ]; then
     fi
     if [ ${#tls_args[@]} -gt 0 ]; then
       if timeout "$LIMIT" openssl verify -CAfile "$tmp/s/ca.crt" "$tmp/s/tls.crt" >/dev/null 2>&1 \
-         && openssl x509 -in "$tmp/s/tls.crt" -noout -text | grep -q 'DNS:cpvs-coordinator' \
-         && openssl x509 -in "$tmp/s/tls.crt" -noout -text | grep -q 'IP Address:10.1.2.3'; then
+         && openssl x509 -in "$tmp/s/tls.crt" -noout -text | grep 'DNS:cpvs-coordinator' >/dev/null \
+         && openssl x509 -in "$tmp/s/tls.crt" -noout -text | grep 'IP Address:10.1.2.3' >/dev/null; then
         ok "make-secrets.sh --tls: certificate verifies against ca.crt and names cpvs-coordinator, 10.1.2.3"
       else
         fail "make-secrets.sh --tls: certificate does not verify or lacks its names"

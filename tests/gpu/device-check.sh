@@ -42,13 +42,13 @@ fi
 echo "device-check: $(uname -m), $(nproc) cores; GPU: $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo 'nvidia-smi not found')"
 
 # The Vulkan loader: the machine's, or carried Debian packages unpacked.
-if ! ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1'; then
+if ! ldconfig -p 2>/dev/null | grep 'libvulkan.so.1' >/dev/null; then
   if ls .gl/*.deb >/dev/null 2>&1; then
     for f in .gl/*.deb; do dpkg -x "$f" /; done
     ldconfig
   fi
 fi
-if ! ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1'; then
+if ! ldconfig -p 2>/dev/null | grep 'libvulkan.so.1' >/dev/null; then
   echo "device-check: no Vulkan loader (libvulkan.so.1) on this machine, and none carried in .gl/: no GPU figures"
   exit 0
 fi

@@ -501,6 +501,38 @@ TEST(InProcessFarm, ALightsFixtureIsLeftOutOnTheWorkersAsInTheLocalBake) {
   }
 }
 
+// A bundle whose stored lights are damaged cannot bake a tile: it fails at its first
+// lease instead of leasing its tiles until their attempts run out.
+TEST(InProcessFarm, ABundleWhoseStoredLightsAreDamagedFailsAtItsFirstLease) {
+  TempDir dir("cpvs_in_process_damaged_lights");
+  const std::string obj = dir / "street.obj";
+  std::ofstream(obj) << "o street\nv -50 0 -50\nv -50 0 50\nv 50 0 50\nv 50 0 -50\nf 1 2 3 4\n"
+                        "o post\nv -1 0 -1\nv 1 0 -1\nv 0 6 0\nf 5 6 7\n";
+  std::string job;
+  {
+    InProcessFarm farm(dir / "data");
+    Light lamp;
+    lamp.position = {0.3, 5, -0.2};
+    lamp.direction = {0.1, -1, 0};
+    lamp.coneDeg = 60;
+    lamp.log2Resolution = 7;
+    pb::BakeSpec spec;
+    spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
+    *spec.add_lights() = net::toProto(lamp);
+    job = farm.client.submit("damaged", spec).job_id();
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir / "data/farm.sqlite").c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "UPDATE jobs SET lights = x'ff01'", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  InProcessFarm farm(dir / "data");
+  EXPECT_THROW(farm.coordinator.leases().lease("w"), net::FarmError);
+  const pb::JobStatus failed = farm.coordinator.jobs().status(job);
+  EXPECT_EQ(failed.state(), pb::JOB_FAILED);
+  EXPECT_NE(failed.error().find("its stored lights do not hold light 0"), std::string::npos) << failed.error();
+  EXPECT_FALSE(farm.coordinator.leases().lease("w").granted()) << "no tile of it is leased again";
+}
+
 TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
   TempDir dir("cpvs_farm_store");
   server::FarmStore store(dir / "farm.sqlite");

@@ -546,7 +546,10 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
           cuts[ncuts++] = xa, cuts[ncuts++] = xb + 1;
         }
         if (rings == 0) continue;
-        std::sort(cuts, cuts + ncuts);
+        // At most 2 * kMaxRings cuts: insertion sort (std::sort's 16-element branch,
+        // unreachable here, is what GCC's -Warray-bounds sees).
+        for (uint32_t c = 1; c < ncuts; ++c)
+          for (uint32_t d = c; d > 0 && cuts[d - 1] > cuts[d]; --d) std::swap(cuts[d - 1], cuts[d]);
         const size_t row = size_t(y - int64_t(gy0)) * width - size_t(x0);
         const double base = s.pz - s.gx * s.px + s.gy * (cy - s.py);
         for (uint32_t c = 0; c + 1 < ncuts; ++c) {

@@ -41,6 +41,18 @@ int writeAll(int fd, const void* data, size_t size) {
 
 }  // namespace
 
+void checkOutputFolder(const std::string& path, const std::string& flag) {
+  namespace fs = std::filesystem;
+  const fs::path folder = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
+  std::error_code ec;
+  const fs::file_status st = fs::status(folder, ec);
+  if (!fs::exists(st))
+    throw InputError(flag + " " + path + ": the folder " + folder.string() + " does not exist");
+  if (!fs::is_directory(st)) throw InputError(flag + " " + path + ": " + folder.string() + " is not a folder");
+  if (::access(folder.c_str(), W_OK | X_OK) != 0)
+    throw InputError(flag + " " + path + ": the folder " + folder.string() + " is not writable (" + std::strerror(errno) + ")");
+}
+
 void syncParentFolder(const std::string& path) {
   std::string folder = std::filesystem::path(path).parent_path().string();
   if (folder.empty()) folder = ".";

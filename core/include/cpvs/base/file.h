@@ -14,6 +14,11 @@ namespace cpvs {
 /// InputError naming the path on any failure; the temporary is removed.
 void writeFileAtomic(const std::string& path, const std::vector<uint8_t>& bytes);
 
+/// InputError, starting with `flag` and naming `path`, unless the folder that would hold
+/// the file at `path` exists and this process may create files in it: checked before
+/// long work, so that a typo in an output path costs nothing.
+void checkOutputFolder(const std::string& path, const std::string& flag);
+
 /// The whole file; InputError naming the path when it can't be opened or read.
 std::vector<uint8_t> readFile(const std::string& path);
 
