@@ -299,12 +299,13 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
                                                  Renderer renderer, const v1::Receivers& receivers,
                                                  const std::vector<std::string>& exclude) {
   // Checked before anything is fetched or cached: the grid either projection makes.
+  const GridSpec spec = net::gridSpecOf(grid);
   std::optional<OrthoGrid> ortho;
-  std::optional<net::SpotGridSpec> spot;
-  if (grid.projection() == v1::PROJECTION_PERSPECTIVE)
-    spot = net::spotFromProto(grid);
+  std::optional<PerspectiveGrid> spot;
+  if (spec.projection == Projection::Perspective)
+    spot.emplace(perspectiveGridOf(spec, "grid"));
   else
-    ortho = net::fromProto(grid);
+    ortho = orthoGridOf(spec, "grid");
   if (spot && receivers.kind() != v1::RECEIVERS_EVERYWHERE)
     throw std::runtime_error("a perspective grid is baked for receivers everywhere");
   std::shared_ptr<CachedScene> cached;
@@ -338,7 +339,7 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
         net::declarationOf(receivers, [&](const std::string& hash) { return loadScene(fetchScene(hash), nullptr, ImportOptions{true}); });
     Scene storage;
     const Scene& casters = castersOf(cached->scene, exclude, "the lease's light", storage);
-    prepared = spot ? std::make_shared<BakeScene>(casters, spot->grid, spot->tanCone, renderer, config_.threads)
+    prepared = spot ? std::make_shared<BakeScene>(casters, *spot, spec.tanCone, renderer, config_.threads)
                     : std::make_shared<BakeScene>(cached->scene, *ortho, renderer, config_.threads, declaration);
     spdlog::info("scene {} prepared for the {} renderer in {:.2f} s", sceneHash, optionName(renderer), secondsSince(start));
   }

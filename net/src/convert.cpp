@@ -212,70 +212,47 @@ BakeOptions fromProto(const pb::BakeOptions& p) {
   return o;
 }
 
-pb::GridSpec toProto(const OrthoGrid& g) {
+pb::GridSpec toProto(const GridSpec& g) {
   pb::GridSpec p;
+  p.set_projection(g.projection == Projection::Perspective ? pb::PROJECTION_PERSPECTIVE : pb::PROJECTION_ORTHOGRAPHIC);
   *p.mutable_light_dir() = toProto(g.frame.dir);
   *p.mutable_frame_u() = toProto(g.frame.u);
   *p.mutable_frame_v() = toProto(g.frame.v);
   p.set_log2_resolution(uint32_t(g.log2Resolution));
-  *p.mutable_origin() = toProto(g.origin);
-  p.set_u0(g.u0);
-  p.set_v0(g.v0);
-  p.set_d0(g.d0);
-  p.set_extent(g.extent);
-  p.set_depth_extent(g.depthExtent);
-  return p;
-}
-
-OrthoGrid fromProto(const pb::GridSpec& p) {
-  if (p.projection() != pb::PROJECTION_ORTHOGRAPHIC)
-    throw InputError("grid.projection " + std::to_string(int(p.projection())) + " is not the sun's orthographic grid");
-  OrthoGrid g;
-  g.frame.dir = fromProto(p.light_dir());
-  g.frame.u = fromProto(p.frame_u());
-  g.frame.v = fromProto(p.frame_v());
-  g.origin = fromProto(p.origin());
-  g.u0 = p.u0();
-  g.v0 = p.v0();
-  g.d0 = p.d0();
-  g.extent = p.extent();
-  g.depthExtent = p.depth_extent();
-  if (p.log2_resolution() > uint32_t(kMaxLog2Resolution))
-    throw InputError("grid.log2_resolution " + std::to_string(p.log2_resolution()) + " is out of range");
-  g.log2Resolution = int(p.log2_resolution());
-  checkGrid(g, "grid");
-  return g;
-}
-
-pb::GridSpec toProto(const PerspectiveGrid& g, double tanCone) {
-  pb::GridSpec p;
-  p.set_projection(pb::PROJECTION_PERSPECTIVE);
-  *p.mutable_light_dir() = toProto(g.frame().dir);
-  *p.mutable_frame_u() = toProto(g.frame().u);
-  *p.mutable_frame_v() = toProto(g.frame().v);
-  p.set_log2_resolution(uint32_t(g.log2Resolution()));
-  *p.mutable_position() = toProto(g.position());
-  p.set_tan_half_fov(g.tanHalfFov());
-  p.set_near(g.near());
-  p.set_far(g.far());
-  p.set_tan_cone(tanCone);
-  return p;
-}
-
-SpotGridSpec spotFromProto(const pb::GridSpec& p) {
-  if (p.projection() != pb::PROJECTION_PERSPECTIVE)
-    throw InputError("grid.projection " + std::to_string(int(p.projection())) + " is not a perspective grid");
-  if (p.log2_resolution() > uint32_t(kMaxLog2Resolution))
-    throw InputError("grid.log2_resolution " + std::to_string(p.log2_resolution()) + " is out of range");
-  if (!(p.tan_cone() > 0) || !std::isfinite(p.tan_cone())) throw InputError("grid.tan_cone must be finite and > 0");
-  const LightFrame frame{fromProto(p.light_dir()), fromProto(p.frame_u()), fromProto(p.frame_v())};
-  try {
-    return {PerspectiveGrid(fromProto(p.position()), frame, p.tan_half_fov(), p.near(), p.far(),
-                            int(p.log2_resolution())),
-            p.tan_cone()};
-  } catch (const InputError& e) {
-    throw InputError(std::string("grid: ") + e.what());
+  if (g.projection == Projection::Orthographic) {
+    *p.mutable_origin() = toProto(g.origin);
+    p.set_u0(g.u0);
+    p.set_v0(g.v0);
+    p.set_d0(g.d0);
+    p.set_extent(g.extent);
+    p.set_depth_extent(g.depthExtent);
+  } else {
+    *p.mutable_position() = toProto(g.position);
+    p.set_tan_half_fov(g.tanHalfFov);
+    p.set_near(g.near);
+    p.set_far(g.far);
+    p.set_tan_cone(g.tanCone);
   }
+  return p;
+}
+
+GridSpec gridSpecOf(const pb::GridSpec& p) {
+  GridSpec g;
+  switch (p.projection()) {
+    case pb::PROJECTION_ORTHOGRAPHIC: g.projection = Projection::Orthographic; break;
+    case pb::PROJECTION_PERSPECTIVE: g.projection = Projection::Perspective; break;
+    default: throw InputError("grid.projection " + std::to_string(int(p.projection())) + " is not a projection");
+  }
+  if (p.log2_resolution() > uint32_t(kMaxLog2Resolution))
+    throw InputError("grid.log2_resolution " + std::to_string(p.log2_resolution()) + " is out of range");
+  g.frame = {fromProto(p.light_dir()), fromProto(p.frame_u()), fromProto(p.frame_v())};
+  g.log2Resolution = int(p.log2_resolution());
+  g.origin = fromProto(p.origin());
+  g.u0 = p.u0(), g.v0 = p.v0(), g.d0 = p.d0();
+  g.extent = p.extent(), g.depthExtent = p.depth_extent();
+  g.position = fromProto(p.position());
+  g.tanHalfFov = p.tan_half_fov(), g.near = p.near(), g.far = p.far(), g.tanCone = p.tan_cone();
+  return g;
 }
 
 bool isLightBundle(const pb::BakeSpec& spec) { return spec.lights_size() > 0 || spec.scene_lights(); }

@@ -9,27 +9,11 @@
 
 namespace cpvs::server {
 
-PerspectiveGrid perspectiveGridOf(const JobGrid& g) {
-  return PerspectiveGrid(g.position, g.frame, g.tanHalfFov, g.near, g.far, g.log2Resolution);
-}
-
-JobGrid jobGridOf(const BundleGrid& g, double closest) {
-  JobGrid j;
-  j.position = g.grid.position();
-  j.frame = g.grid.frame();
-  j.tanHalfFov = g.grid.tanHalfFov();
-  j.near = g.grid.near();
-  j.far = g.grid.far();
-  j.log2Resolution = g.grid.log2Resolution();
-  j.tanCone = g.tanCone;
-  j.light = g.light;
-  j.closest = closest;
-  return j;
-}
+JobGrid jobGridOf(const BundleGrid& g, double closest) { return {gridSpecOf(g.grid, g.tanCone), g.light, closest}; }
 
 GridTiles tilesOf(const JobRecord& j) {
   std::vector<int> resolutions;
-  for (const JobGrid& g : j.grids) resolutions.push_back(g.log2Resolution);
+  for (const JobGrid& g : j.grids) resolutions.push_back(g.grid.log2Resolution);
   if (j.grids.empty()) resolutions.push_back(j.grid.log2Resolution);
   return GridTiles(resolutions, j.options.log2TileSize);
 }
@@ -37,7 +21,7 @@ GridTiles tilesOf(const JobRecord& j) {
 uint64_t resolutionOf(const JobRecord& j) {
   if (j.grids.empty()) return j.grid.resolution();
   int finest = 0;
-  for (const JobGrid& g : j.grids) finest = std::max(finest, g.log2Resolution);
+  for (const JobGrid& g : j.grids) finest = std::max(finest, g.grid.log2Resolution);
   return uint64_t(1) << finest;
 }
 
@@ -55,7 +39,7 @@ LightBundle bundleOf(const JobRecord& j, std::vector<Dag>&& dags, int pointerGri
     BundleLight& l = b.lights[g.light];
     if (l.gridCount == 0) l.firstGrid = uint32_t(k);
     ++l.gridCount;
-    b.grids.push_back({perspectiveGridOf(g), g.tanCone, g.light, 0});
+    b.grids.push_back({perspectiveGridOf(g.grid, "job " + j.id + ": grid " + std::to_string(k)), g.grid.tanCone, g.light, 0});
     closest.push_back(g.closest);
   }
   finishLightBundle(b, std::move(dags), closest);

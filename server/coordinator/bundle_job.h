@@ -12,8 +12,6 @@
 
 namespace cpvs::server {
 
-/// The grid a job's record describes (the PerspectiveGrid constructor's checks apply).
-PerspectiveGrid perspectiveGridOf(const JobGrid& g);
 /// A planned grid as the store keeps it, with the closest geometry its planner found.
 JobGrid jobGridOf(const BundleGrid& g, double closest);
 

@@ -85,10 +85,10 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   out.set_tile_y(at.tile.y);
   out.set_scene_hash(j->sceneHash);
   if (j->grids.empty()) {
-    *out.mutable_grid() = net::toProto(j->grid);
+    *out.mutable_grid() = net::toProto(gridSpecOf(j->grid));
   } else {
     const JobGrid& g = j->grids[at.grid];
-    *out.mutable_grid() = net::toProto(perspectiveGridOf(g), g.tanCone);
+    *out.mutable_grid() = net::toProto(g.grid);
     out.set_grid_index(at.grid);
     out.set_light(g.light);
     pb::LightList lights;

@@ -190,8 +190,10 @@ constexpr const char* kGridColumns =
     "v_x, v_y, v_z, tan_half_fov, near, far, tan_cone, closest";
 
 JobGrid readGrid(const Statement& s) {
-  JobGrid g;
-  g.light = uint32_t(s.i64(2));
+  JobGrid j;
+  GridSpec& g = j.grid;
+  g.projection = Projection::Perspective;
+  j.light = uint32_t(s.i64(2));
   g.log2Resolution = int(s.i64(3));
   g.position = readVec(s, 4);
   g.frame.dir = readVec(s, 7);
@@ -202,17 +204,19 @@ JobGrid readGrid(const Statement& s) {
   g.far = s.f64(18);
   g.tanCone = s.f64(19);
   // SQLite keeps no infinity apart from NULL on every path: none is stored as NULL.
-  g.closest = s.isNull(20) ? std::numeric_limits<double>::infinity() : s.f64(20);
-  return g;
+  j.closest = s.isNull(20) ? std::numeric_limits<double>::infinity() : s.f64(20);
+  return j;
 }
 
-void bindGrid(Statement& s, const std::string& jobId, size_t index, const JobGrid& g) {
-  s.text(1, jobId).bind(2, int64_t(index)).bind(3, int64_t(g.light)).bind(4, int64_t(g.log2Resolution));
+void bindGrid(Statement& s, const std::string& jobId, size_t index, const JobGrid& j) {
+  const GridSpec& g = j.grid;
+  CPVS_CHECK(g.projection == Projection::Perspective);
+  s.text(1, jobId).bind(2, int64_t(index)).bind(3, int64_t(j.light)).bind(4, int64_t(g.log2Resolution));
   int c = 5;
   for (const Vec3* v : {&g.position, &g.frame.dir, &g.frame.u, &g.frame.v})
     for (double x : {v->x, v->y, v->z}) s.bind(c++, x);
   for (double x : {g.tanHalfFov, g.near, g.far, g.tanCone}) s.bind(c++, x);
-  if (std::isfinite(g.closest)) s.bind(c, g.closest);
+  if (std::isfinite(j.closest)) s.bind(c, j.closest);
 }
 
 }  // namespace

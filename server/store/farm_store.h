@@ -16,6 +16,7 @@
 #include "cpvs/base/hash.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/light/frame.h"
+#include "cpvs/light/grid_spec.h"
 #include "cpvs/light/ortho_grid.h"
 
 struct sqlite3;
@@ -46,15 +47,11 @@ struct SceneRecord {
   bool complete = false;
 };
 
-/// One grid of a light bundle's job (table job_grids): a PerspectiveGrid's values, the
-/// cone its texels are cut off by, its light, and the closest geometry the planner found
+/// One grid of a light bundle's job (table job_grids): the grid (perspective, with the
+/// cone its texels are cut off by), its light, and the closest geometry the planner found
 /// (infinity: none), which the artifact's plan records.
 struct JobGrid {
-  Vec3 position;
-  LightFrame frame;
-  double tanHalfFov = 0, near = 0, far = 0;
-  int log2Resolution = 0;
-  double tanCone = 0;
+  GridSpec grid;
   uint32_t light = 0;
   double closest = 0;
 };

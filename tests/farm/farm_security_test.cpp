@@ -369,7 +369,7 @@ struct SuiteState {
   /// not the job's).
   std::string bake(const pb::TileLease& lease, uint64_t tileX, uint64_t tileY, bool otherLight = false) const {
     Scene scene = loadScene(scenePath);
-    OrthoGrid grid = net::fromProto(lease.grid());
+    OrthoGrid grid = orthoGridOf(net::gridSpecOf(lease.grid()), "grid");
     if (otherLight) grid = makeGrid(scene, LightFrame::fromDirection({-0.6, -1, 0.5}), grid.log2Resolution);
     BakeOptions options = net::fromProto(lease.options());
     std::vector<uint8_t> bytes = encodeSubDag(bakeTileWith(scene, grid, tileX, tileY, options));

@@ -460,7 +460,7 @@ class OneBadLease final : public pb::Workers::Service {
     out->set_lease_id("l-bad");
     out->set_job_id("j");
     out->set_scene_hash("../../escaped");
-    *out->mutable_grid() = net::toProto(g);
+    *out->mutable_grid() = net::toProto(gridSpecOf(g));
     *out->mutable_options() = net::toProto(BakeOptions{});
     out->set_deadline_unix_ms(std::chrono::duration_cast<std::chrono::milliseconds>(
                                   std::chrono::system_clock::now().time_since_epoch()).count() + 60000);

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <thread>
 
+#include "error_testing.h"
 #include "scene_testing.h"
 #include "cpvs/scene/boxes.h"
 #include "coordinator/coordinator.h"
@@ -557,13 +558,14 @@ TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
   bundle.lights = std::string("light\0table", 11);
   for (uint32_t g = 0; g < 2; ++g) {
     server::JobGrid jg;
-    jg.position = {1.25 + g, -7.5, 1e-3};
-    jg.frame = LightFrame::fromDirection({0.1, -1, 0.3 * g});
-    jg.tanHalfFov = 0.75 + g;
-    jg.near = 0.0625;
-    jg.far = 80.5;
-    jg.log2Resolution = 9 - int(g);
-    jg.tanCone = 0.5;
+    jg.grid.projection = Projection::Perspective;
+    jg.grid.position = {1.25 + g, -7.5, 1e-3};
+    jg.grid.frame = LightFrame::fromDirection({0.1, -1, 0.3 * g});
+    jg.grid.tanHalfFov = 0.75 + g;
+    jg.grid.near = 0.0625;
+    jg.grid.far = 80.5;
+    jg.grid.log2Resolution = 9 - int(g);
+    jg.grid.tanCone = 0.5;
     jg.light = g;
     jg.closest = g ? std::numeric_limits<double>::infinity() : 3.375;
     bundle.grids.push_back(jg);
@@ -575,15 +577,7 @@ TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
   ASSERT_EQ(b2->grids.size(), 2u);
   for (size_t g = 0; g < 2; ++g) {
     const server::JobGrid &got = b2->grids[g], &want = bundle.grids[g];
-    EXPECT_EQ(got.position, want.position);
-    EXPECT_EQ(got.frame.dir, want.frame.dir);
-    EXPECT_EQ(got.frame.u, want.frame.u);
-    EXPECT_EQ(got.frame.v, want.frame.v);
-    EXPECT_EQ(got.tanHalfFov, want.tanHalfFov);
-    EXPECT_EQ(got.near, want.near);
-    EXPECT_EQ(got.far, want.far);
-    EXPECT_EQ(got.log2Resolution, want.log2Resolution);
-    EXPECT_EQ(got.tanCone, want.tanCone);
+    EXPECT_TRUE(got.grid == want.grid) << "grid " << g;
     EXPECT_EQ(got.light, want.light);
     EXPECT_EQ(got.closest, want.closest);
   }
@@ -855,30 +849,41 @@ TEST(Convert, OptionsAndGridsRoundTripAndTheWeakHashStaysHome) {
   o.log2TileSize = 9;
   EXPECT_EQ(net::fromProto(net::toProto(o)), o);
   const OrthoGrid g = sampleJob("x", 0, 1).grid;
-  const OrthoGrid back = net::fromProto(net::toProto(g));
+  const OrthoGrid back = orthoGridOf(net::gridSpecOf(net::toProto(gridSpecOf(g))), "grid");
   EXPECT_EQ(back.origin, g.origin);
   EXPECT_EQ(back.extent, g.extent);
   EXPECT_EQ(back.frame.u, g.frame.u);
-  // A spot grid round-trips with its cone; neither reader takes the other's projection.
+  EXPECT_TRUE(gridSpecOf(back) == gridSpecOf(g));
+  // A spot grid round-trips with its cone; neither projection is made from the other's.
   const PerspectiveGrid spot({1.5, 20.25, -3}, LightFrame::fromDirection({0.2, -1, 0.1}), 0.75, 0.0625, 80.5, 9);
-  const pb::GridSpec sp = net::toProto(spot, 0.5);
-  const net::SpotGridSpec spotBack = net::spotFromProto(sp);
-  EXPECT_EQ(spotBack.grid.position(), spot.position());
-  EXPECT_EQ(spotBack.grid.frame().dir, spot.frame().dir);
-  EXPECT_EQ(spotBack.grid.frame().u, spot.frame().u);
-  EXPECT_EQ(spotBack.grid.tanHalfFov(), spot.tanHalfFov());
-  EXPECT_EQ(spotBack.grid.near(), spot.near());
-  EXPECT_EQ(spotBack.grid.far(), spot.far());
-  EXPECT_EQ(spotBack.grid.log2Resolution(), 9);
-  EXPECT_EQ(spotBack.tanCone, 0.5);
-  EXPECT_THROW(net::fromProto(sp), InputError);
-  EXPECT_THROW(net::spotFromProto(net::toProto(g)), InputError);
+  const pb::GridSpec sp = net::toProto(gridSpecOf(spot, 0.5));
+  const GridSpec spotSpec = net::gridSpecOf(sp);
+  EXPECT_TRUE(spotSpec == gridSpecOf(spot, 0.5));
+  const PerspectiveGrid spotBack = perspectiveGridOf(spotSpec, "grid");
+  EXPECT_EQ(spotBack.position(), spot.position());
+  EXPECT_EQ(spotBack.frame().dir, spot.frame().dir);
+  EXPECT_EQ(spotBack.frame().u, spot.frame().u);
+  EXPECT_EQ(spotBack.tanHalfFov(), spot.tanHalfFov());
+  EXPECT_EQ(spotBack.near(), spot.near());
+  EXPECT_EQ(spotBack.far(), spot.far());
+  EXPECT_EQ(spotBack.log2Resolution(), 9);
+  EXPECT_EQ(spotSpec.tanCone, 0.5);
+  EXPECT_NE(testing::inputErrorOf([&] { orthoGridOf(spotSpec, "grid"); }).find("grid: a perspective grid, not the orthographic"),
+            std::string::npos);
+  EXPECT_THROW(perspectiveGridOf(gridSpecOf(g), "grid"), InputError);
   pb::GridSpec badCone = sp;
   badCone.set_tan_cone(0);
-  EXPECT_THROW(net::spotFromProto(badCone), InputError);
+  EXPECT_NE(testing::inputErrorOf([&] { perspectiveGridOf(net::gridSpecOf(badCone), "grid"); }).find("cone"), std::string::npos);
   pb::GridSpec badNear = sp;
   badNear.set_near(100);
-  EXPECT_THROW(net::spotFromProto(badNear), InputError);
+  EXPECT_THROW(perspectiveGridOf(net::gridSpecOf(badNear), "grid"), InputError);
+  pb::GridSpec badProjection = sp;
+  badProjection.set_projection(pb::GridProjection(7));
+  EXPECT_NE(testing::inputErrorOf([&] { net::gridSpecOf(badProjection); }).find("grid.projection 7 is not a projection"),
+            std::string::npos);
+  pb::GridSpec badResolution = sp;
+  badResolution.set_log2_resolution(4000000000u);
+  EXPECT_NE(testing::inputErrorOf([&] { net::gridSpecOf(badResolution); }).find("out of range"), std::string::npos);
   o.hash = HashKind::WeakForTests;
   EXPECT_THROW(net::toProto(o), InputError);
   pb::BakeOptions p;

@@ -7,6 +7,7 @@
 
 #include "cpvs/bake/options.h"
 #include "cpvs/light/frame.h"
+#include "cpvs/light/grid_spec.h"
 #include "cpvs/light/light.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/light/perspective_grid.h"
@@ -45,20 +46,12 @@ constexpr int kMaxReceiverBoxes = 4096;
 /// InputError naming the field.
 void checkReceivers(const pb::Receivers& r);
 
-pb::GridSpec toProto(const OrthoGrid& g);
-/// Validates the grid as the file reader does (checkGrid); InputError for a perspective
-/// one.
-OrthoGrid fromProto(const pb::GridSpec& g);
-
-/// A perspective grid and the cone its texels are cut off by (a light bundle's grid).
-struct SpotGridSpec {
-  PerspectiveGrid grid;
-  double tanCone;
-};
-pb::GridSpec toProto(const PerspectiveGrid& g, double tanCone);
-/// Validates as the bundle reader does (the PerspectiveGrid constructor, a finite cone
-/// > 0); InputError for an orthographic spec or an unknown projection.
-SpotGridSpec spotFromProto(const pb::GridSpec& g);
+/// A grid of either projection, field for field (the contract's GridSpec is the core's).
+pb::GridSpec toProto(const GridSpec& g);
+/// InputError for an unknown projection or a resolution out of range; the other fields
+/// are checked by the grid made from it (orthoGridOf, perspectiveGridOf), as the file
+/// readers check theirs.
+GridSpec gridSpecOf(const pb::GridSpec& g);
 
 /// Whether the spec asks for a light bundle (lights or scene_lights) rather than a sun.
 bool isLightBundle(const pb::BakeSpec& spec);

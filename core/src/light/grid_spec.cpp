@@ -1,0 +1,85 @@
+#include "cpvs/light/grid_spec.h"
+
+#include <cmath>
+
+#include "cpvs/base/error.h"
+#include "cpvs/base/limits.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/light/perspective_grid.h"
+
+namespace cpvs {
+
+const char* projectionName(Projection p) {
+  switch (p) {
+    case Projection::Orthographic: return "orthographic";
+    case Projection::Perspective: return "perspective";
+  }
+  return "unknown";
+}
+
+namespace {
+
+bool sameFrame(const LightFrame& a, const LightFrame& b) { return a.dir == b.dir && a.u == b.u && a.v == b.v; }
+
+void checkProjection(const GridSpec& s, Projection want, const std::string& what) {
+  if (s.projection != want)
+    throw InputError(what + ": a " + projectionName(s.projection) + " grid, not the " + projectionName(want) +
+                     " one it must be");
+  if (s.log2Resolution < kMinLog2Resolution || s.log2Resolution > kMaxLog2Resolution)
+    throw InputError(what + ": log2 resolution " + std::to_string(s.log2Resolution) + " is out of range");
+}
+
+}  // namespace
+
+bool operator==(const GridSpec& a, const GridSpec& b) {
+  return a.projection == b.projection && sameFrame(a.frame, b.frame) && a.log2Resolution == b.log2Resolution &&
+         a.origin == b.origin && a.u0 == b.u0 && a.v0 == b.v0 && a.d0 == b.d0 && a.extent == b.extent &&
+         a.depthExtent == b.depthExtent && a.position == b.position && a.tanHalfFov == b.tanHalfFov &&
+         a.near == b.near && a.far == b.far && a.tanCone == b.tanCone;
+}
+
+GridSpec gridSpecOf(const OrthoGrid& g) {
+  GridSpec s;
+  s.projection = Projection::Orthographic;
+  s.frame = g.frame;
+  s.log2Resolution = g.log2Resolution;
+  s.origin = g.origin;
+  s.u0 = g.u0, s.v0 = g.v0, s.d0 = g.d0;
+  s.extent = g.extent, s.depthExtent = g.depthExtent;
+  return s;
+}
+
+GridSpec gridSpecOf(const PerspectiveGrid& g, double tanCone) {
+  GridSpec s;
+  s.projection = Projection::Perspective;
+  s.frame = g.frame();
+  s.log2Resolution = g.log2Resolution();
+  s.position = g.position();
+  s.tanHalfFov = g.tanHalfFov(), s.near = g.near(), s.far = g.far();
+  s.tanCone = tanCone;
+  return s;
+}
+
+OrthoGrid orthoGridOf(const GridSpec& s, const std::string& what) {
+  checkProjection(s, Projection::Orthographic, what);
+  OrthoGrid g;
+  g.frame = s.frame;
+  g.log2Resolution = s.log2Resolution;
+  g.origin = s.origin;
+  g.u0 = s.u0, g.v0 = s.v0, g.d0 = s.d0;
+  g.extent = s.extent, g.depthExtent = s.depthExtent;
+  checkGrid(g, what);
+  return g;
+}
+
+PerspectiveGrid perspectiveGridOf(const GridSpec& s, const std::string& what) {
+  checkProjection(s, Projection::Perspective, what);
+  if (!(s.tanCone > 0) || !std::isfinite(s.tanCone)) throw InputError(what + ": the cone's tangent must be finite and > 0");
+  try {
+    return PerspectiveGrid(s.position, s.frame, s.tanHalfFov, s.near, s.far, s.log2Resolution);
+  } catch (const InputError& e) {
+    throw InputError(what + ": " + e.what());
+  }
+}
+
+}  // namespace cpvs
