@@ -11,15 +11,22 @@ namespace cpvs::server {
 
 JobGrid jobGridOf(const BundleGrid& g, double closest) { return {gridSpecOf(g.grid, g.tanCone), g.light, closest}; }
 
+OrthoGrid sunGridOf(const JobRecord& j) {
+  if (j.isBundle() || j.grids.size() != 1) throw FormatError("job " + j.id + " is not a sun bake of one grid");
+  try {
+    return orthoGridOf(j.grids[0].grid, "job " + j.id + "'s grid");
+  } catch (const InputError& e) {
+    throw FormatError(e.what());
+  }
+}
+
 GridTiles tilesOf(const JobRecord& j) {
   std::vector<int> resolutions;
   for (const JobGrid& g : j.grids) resolutions.push_back(g.grid.log2Resolution);
-  if (j.grids.empty()) resolutions.push_back(j.grid.log2Resolution);
   return GridTiles(resolutions, j.options.log2TileSize);
 }
 
 uint64_t resolutionOf(const JobRecord& j) {
-  if (j.grids.empty()) return j.grid.resolution();
   int finest = 0;
   for (const JobGrid& g : j.grids) finest = std::max(finest, g.grid.log2Resolution);
   return uint64_t(1) << finest;

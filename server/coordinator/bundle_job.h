@@ -15,8 +15,11 @@ namespace cpvs::server {
 /// A planned grid as the store keeps it, with the closest geometry its planner found.
 JobGrid jobGridOf(const BundleGrid& g, double closest);
 
-/// The tiles of a job in lease order: a bundle's grids' (GridTiles), or the sun's grid's
-/// TilePlan as a single grid.
+/// A sun job's grid. FormatError for a bundle or a stored grid that is not one.
+OrthoGrid sunGridOf(const JobRecord& j);
+
+/// The tiles of a job's grids in lease order (GridTiles: the sun's one grid's TilePlan,
+/// or a bundle's grids' one after the other).
 GridTiles tilesOf(const JobRecord& j);
 
 /// The finest grid resolution of a job (the sun's grid, or a bundle's finest).

@@ -86,7 +86,7 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   s.set_bytes(j.bytes);
   s.set_file_bytes(j.fileBytes);
   s.set_resolution(resolutionOf(j));
-  if (!j.grids.empty()) {
+  if (j.isBundle()) {
     // Grids are in light order and every light has at least one.
     s.set_lights(j.grids.back().light + 1);
     s.set_grids(uint32_t(j.grids.size()));
@@ -142,7 +142,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
   }
-  j.grid = grid;
+  j.grids = {JobGrid{gridSpecOf(grid)}};
   j.options = options;
   j.receiverHash = receiverHash(receivers);
   j.tilesTotal = plan.count();
@@ -164,7 +164,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   }
   if (auto existing = createJob(request, access, scene, j, states)) return *existing;
   spdlog::info("job {} submitted: scene {}, {}^3, {} tiles ({} touched by no triangle, {} read by no receiver)", j.id,
-               j.sceneHash, j.grid.resolution(), j.tilesTotal, bakePlan.tilesUntouched, bakePlan.tilesUnread);
+               j.sceneHash, grid.resolution(), j.tilesTotal, bakePlan.tilesUntouched, bakePlan.tilesUnread);
   feed_.notify();
   return status(j.id);
 }

@@ -84,11 +84,9 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   out.set_tile_x(at.tile.x);
   out.set_tile_y(at.tile.y);
   out.set_scene_hash(j->sceneHash);
-  if (j->grids.empty()) {
-    *out.mutable_grid() = net::toProto(gridSpecOf(j->grid));
-  } else {
-    const JobGrid& g = j->grids[at.grid];
-    *out.mutable_grid() = net::toProto(g.grid);
+  const JobGrid& g = j->grids.at(at.grid);
+  *out.mutable_grid() = net::toProto(g.grid);
+  if (j->isBundle()) {
     out.set_grid_index(at.grid);
     out.set_light(g.light);
     pb::LightList lights;
@@ -160,7 +158,7 @@ bool LeaseService::completeTile(const std::string& leaseId, const std::string& e
     const GridTiles::At at = tiles.at(l->tile);
     const TilePlan& plan = tiles.plan(at.grid);
     if (dag.log2Resolution != plan.log2Resolution())
-      throw InputError(source + ": resolution does not match the " + (j->grids.empty() ? "job" : "tile's grid"));
+      throw InputError(source + ": resolution does not match the " + (j->isBundle() ? "tile's grid" : "job"));
     checkTileRoots(dag, at.tile.x, at.tile.y, plan.log2TileSize(), source);
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, std::string("rejected result: ") + e.what());

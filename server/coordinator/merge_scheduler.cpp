@@ -169,9 +169,9 @@ bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
     std::vector<Dag> dags;
     for (GridMerge& g : m.grids) dags.push_back(std::move(*g.dag));
     m.grids.clear();
-    if (j.grids.empty()) {
+    if (!j.isBundle()) {
       CpvsArtifact art;
-      art.grid = j.grid;
+      art.grid = sunGridOf(j);
       art.options = j.options;
       art.sceneHash = parseHashHex(j.geometryHash, "geometry hash");
       art.receiverHash = j.receiverHash;

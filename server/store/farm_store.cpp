@@ -93,12 +93,17 @@ class Transaction {
 constexpr const char* kJobColumns =
     "id, request_id, scene_hash, geometry_hash, spec, state, priority, created_ms, started_ms, finished_ms, error, "
     "artifact_checksum, tiles_total, bytes, file_bytes, peak_merge_bytes, "
-    "light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, frame_u_z, frame_v_x, frame_v_y, frame_v_z, "
-    "origin_x, origin_y, origin_z, u0, v0, d0, extent, depth_extent, log2_resolution, "
     "closed, exit_mode, cull, compress, undefined_rule, log2_tile_size, hash_kind, renderer, receivers, receiver_pcf, "
     "receiver_hash, plan, owner, lights";
-constexpr int kJobColumnCount = 48;
-constexpr int kGridColumn = 16, kOptionsColumn = 34;
+constexpr int kJobColumnCount = 30;
+
+/// "?, ?, ..., ?": n of them.
+std::string placeholders(int n) {
+  std::string out;
+  for (int i = 0; i < n; ++i) out += i ? ", ?" : "?";
+  return out;
+}
+constexpr int kOptionsColumn = 16;
 
 /// The schema this build writes (PRAGMA user_version). 2: typed grid and option columns;
 /// 3: the renderer column (a version 2 store is upgraded in place: its jobs were Embree's);
@@ -109,8 +114,10 @@ constexpr int kGridColumn = 16, kOptionsColumn = 34;
 /// version 2 to 6 store as '', made without tokens: every client sees them) and when a
 /// scene was last used (for its retention; now, for the scenes of an upgraded store);
 /// 8: light bundles, their lights (jobs.lights) and grids (job_grids), added to a version
-/// 2 to 7 store (whose jobs are sun bakes).
-constexpr int kSchemaVersion = 8;
+/// 2 to 7 store (whose jobs are sun bakes); 9: every job's grids in job_grids, of either
+/// projection (a sun job's one orthographic grid moved there from the jobs table's
+/// columns when a version 2 to 8 store is upgraded).
+constexpr int kSchemaVersion = 9;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -132,20 +139,8 @@ JobRecord readJob(const Statement& s) {
   j.bytes = uint64_t(s.i64(13));
   j.fileBytes = uint64_t(s.i64(14));
   j.peakMergeBytes = uint64_t(s.i64(15));
-  OrthoGrid& g = j.grid;
-  int c = kGridColumn;
-  g.frame.dir = readVec(s, c);
-  g.frame.u = readVec(s, c + 3);
-  g.frame.v = readVec(s, c + 6);
-  g.origin = readVec(s, c + 9);
-  g.u0 = s.f64(c + 12);
-  g.v0 = s.f64(c + 13);
-  g.d0 = s.f64(c + 14);
-  g.extent = s.f64(c + 15);
-  g.depthExtent = s.f64(c + 16);
-  g.log2Resolution = int(s.i64(c + 17));
   BakeOptions& o = j.options;
-  c = kOptionsColumn;
+  const int c = kOptionsColumn;
   o.closed = ClosedMode(s.i64(c));
   o.exit = ExitMode(s.i64(c + 1));
   o.cull = s.i64(c + 2) != 0;
@@ -168,12 +163,7 @@ void bindJob(Statement& s, const JobRecord& j) {
   s.bind(6, int64_t(j.state)).bind(7, int64_t(j.priority)).bind(8, j.createdMs).bind(9, j.startedMs);
   s.bind(10, j.finishedMs).text(11, j.error).text(12, j.artifactChecksum).bind(13, int64_t(j.tilesTotal));
   s.bind(14, int64_t(0)).bind(15, int64_t(0)).bind(16, int64_t(0));
-  const OrthoGrid& g = j.grid;
-  int c = kGridColumn + 1;
-  for (const Vec3* v : {&g.frame.dir, &g.frame.u, &g.frame.v, &g.origin})
-    for (double x : {v->x, v->y, v->z}) s.bind(c++, x);
-  for (double v : {g.u0, g.v0, g.d0, g.extent, g.depthExtent}) s.bind(c++, v);
-  s.bind(c++, int64_t(g.log2Resolution));
+  int c = kOptionsColumn + 1;
   const BakeOptions& o = j.options;
   for (int64_t v : {int64_t(o.closed), int64_t(o.exit), int64_t(o.cull), int64_t(o.compress),
                     int64_t(o.undefinedRule), int64_t(o.log2TileSize), int64_t(o.hash), int64_t(o.renderer),
@@ -187,12 +177,23 @@ void bindJob(Statement& s, const JobRecord& j) {
 
 constexpr const char* kGridColumns =
     "job_id, grid, light, log2_resolution, position_x, position_y, position_z, dir_x, dir_y, dir_z, u_x, u_y, u_z, "
-    "v_x, v_y, v_z, tan_half_fov, near, far, tan_cone, closest";
+    "v_x, v_y, v_z, tan_half_fov, near, far, tan_cone, closest, projection, origin_x, origin_y, origin_z, u0, v0, "
+    "d0, extent, depth_extent";
+constexpr int kGridColumnCount = 30;
+
+/// Table job_grids: a GridSpec's fields, each projection's own zero in the other's rows.
+constexpr const char* kCreateJobGrids =
+    "CREATE TABLE IF NOT EXISTS job_grids(job_id TEXT REFERENCES jobs(id), grid INTEGER, light INTEGER, "
+    "log2_resolution INTEGER, position_x REAL, position_y REAL, position_z REAL, dir_x REAL, dir_y REAL, dir_z REAL, "
+    "u_x REAL, u_y REAL, u_z REAL, v_x REAL, v_y REAL, v_z REAL, tan_half_fov REAL, near REAL, far REAL, "
+    "tan_cone REAL, closest REAL, projection INTEGER NOT NULL DEFAULT 1, origin_x REAL NOT NULL DEFAULT 0, "
+    "origin_y REAL NOT NULL DEFAULT 0, origin_z REAL NOT NULL DEFAULT 0, u0 REAL NOT NULL DEFAULT 0, "
+    "v0 REAL NOT NULL DEFAULT 0, d0 REAL NOT NULL DEFAULT 0, extent REAL NOT NULL DEFAULT 0, "
+    "depth_extent REAL NOT NULL DEFAULT 0, PRIMARY KEY(job_id, grid))";
 
 JobGrid readGrid(const Statement& s) {
   JobGrid j;
   GridSpec& g = j.grid;
-  g.projection = Projection::Perspective;
   j.light = uint32_t(s.i64(2));
   g.log2Resolution = int(s.i64(3));
   g.position = readVec(s, 4);
@@ -205,18 +206,27 @@ JobGrid readGrid(const Statement& s) {
   g.tanCone = s.f64(19);
   // SQLite keeps no infinity apart from NULL on every path: none is stored as NULL.
   j.closest = s.isNull(20) ? std::numeric_limits<double>::infinity() : s.f64(20);
+  g.projection = s.i64(21) == int64_t(Projection::Orthographic) ? Projection::Orthographic : Projection::Perspective;
+  g.origin = readVec(s, 22);
+  g.u0 = s.f64(25);
+  g.v0 = s.f64(26);
+  g.d0 = s.f64(27);
+  g.extent = s.f64(28);
+  g.depthExtent = s.f64(29);
   return j;
 }
 
 void bindGrid(Statement& s, const std::string& jobId, size_t index, const JobGrid& j) {
   const GridSpec& g = j.grid;
-  CPVS_CHECK(g.projection == Projection::Perspective);
   s.text(1, jobId).bind(2, int64_t(index)).bind(3, int64_t(j.light)).bind(4, int64_t(g.log2Resolution));
   int c = 5;
   for (const Vec3* v : {&g.position, &g.frame.dir, &g.frame.u, &g.frame.v})
     for (double x : {v->x, v->y, v->z}) s.bind(c++, x);
   for (double x : {g.tanHalfFov, g.near, g.far, g.tanCone}) s.bind(c++, x);
   if (std::isfinite(j.closest)) s.bind(c, j.closest);
+  ++c;
+  s.bind(c++, int64_t(g.projection));
+  for (double x : {g.origin.x, g.origin.y, g.origin.z, g.u0, g.v0, g.d0, g.extent, g.depthExtent}) s.bind(c++, x);
 }
 
 }  // namespace
@@ -317,23 +327,37 @@ FarmStore::FarmStore(const std::string& path) {
       if (tracks.i64(0) > 0) exec("ALTER TABLE tracks ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
     }
     if (upgradable && version <= 7) exec("ALTER TABLE jobs ADD COLUMN lights BLOB NOT NULL DEFAULT ''");
+    if (upgradable && version <= 8) {
+      // A sun job's grid moves from the jobs table's columns to its job_grids row.
+      if (version == 8) {
+        exec("ALTER TABLE job_grids ADD COLUMN projection INTEGER NOT NULL DEFAULT 1");
+        for (const char* column : {"origin_x", "origin_y", "origin_z", "u0", "v0", "d0", "extent", "depth_extent"})
+          exec((std::string("ALTER TABLE job_grids ADD COLUMN ") + column + " REAL NOT NULL DEFAULT 0").c_str());
+      } else {
+        exec(kCreateJobGrids);
+      }
+      exec(
+          "INSERT INTO job_grids(job_id, grid, light, log2_resolution, position_x, position_y, position_z, dir_x, "
+          "dir_y, dir_z, u_x, u_y, u_z, v_x, v_y, v_z, tan_half_fov, near, far, tan_cone, closest, projection, "
+          "origin_x, origin_y, origin_z, u0, v0, d0, extent, depth_extent) "
+          "SELECT id, 0, 0, log2_resolution, 0, 0, 0, light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, "
+          "frame_u_z, frame_v_x, frame_v_y, frame_v_z, 0, 0, 0, 0, NULL, 0, origin_x, origin_y, origin_z, u0, v0, d0, "
+          "extent, depth_extent FROM jobs WHERE length(lights) = 0");
+      for (const char* column : {"light_dir_x", "light_dir_y", "light_dir_z", "frame_u_x", "frame_u_y", "frame_u_z",
+                                 "frame_v_x", "frame_v_y", "frame_v_z", "origin_x", "origin_y", "origin_z", "u0", "v0",
+                                 "d0", "extent", "depth_extent", "log2_resolution"})
+        exec((std::string("ALTER TABLE jobs DROP COLUMN ") + column).c_str());
+    }
   }
   exec(
       "CREATE TABLE IF NOT EXISTS jobs(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, scene_hash TEXT, geometry_hash "
       "TEXT, spec BLOB, state INTEGER, priority INTEGER, created_ms INTEGER, started_ms INTEGER, finished_ms INTEGER, "
       "error TEXT, artifact_checksum TEXT, tiles_total INTEGER, bytes INTEGER, file_bytes INTEGER, "
-      "peak_merge_bytes INTEGER, "
-      "light_dir_x REAL, light_dir_y REAL, light_dir_z REAL, frame_u_x REAL, frame_u_y REAL, frame_u_z REAL, "
-      "frame_v_x REAL, frame_v_y REAL, frame_v_z REAL, origin_x REAL, origin_y REAL, origin_z REAL, u0 REAL, v0 REAL, "
-      "d0 REAL, extent REAL, depth_extent REAL, log2_resolution INTEGER, closed INTEGER, exit_mode INTEGER, cull "
+      "peak_merge_bytes INTEGER, closed INTEGER, exit_mode INTEGER, cull "
       "INTEGER, compress INTEGER, undefined_rule INTEGER, log2_tile_size INTEGER, hash_kind INTEGER, renderer INTEGER, "
       "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT, plan TEXT, owner TEXT NOT NULL DEFAULT '', "
       "lights BLOB NOT NULL DEFAULT '')");
-  exec(
-      "CREATE TABLE IF NOT EXISTS job_grids(job_id TEXT REFERENCES jobs(id), grid INTEGER, light INTEGER, "
-      "log2_resolution INTEGER, position_x REAL, position_y REAL, position_z REAL, dir_x REAL, dir_y REAL, dir_z REAL, "
-      "u_x REAL, u_y REAL, u_z REAL, v_x REAL, v_y REAL, v_z REAL, tan_half_fov REAL, near REAL, far REAL, "
-      "tan_cone REAL, closest REAL, PRIMARY KEY(job_id, grid))");
+  exec(kCreateJobGrids);
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
       "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, failed_by TEXT, PRIMARY KEY(job_id, idx))");
@@ -490,9 +514,7 @@ void FarmStore::createJob(const JobRecord& j, const std::vector<TileState>& stat
   CPVS_CHECK(states.empty() || states.size() == j.tilesTotal);
   std::lock_guard lock(mutex_);
   Transaction t(db_);
-  std::string placeholders;
-  for (int i = 0; i < kJobColumnCount; ++i) placeholders += i ? ", ?" : "?";
-  Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns + ") VALUES(" + placeholders + ")").c_str());
+  Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns + ") VALUES(" + placeholders(kJobColumnCount) + ")").c_str());
   bindJob(s, j);
   s.run();
   Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, ?, 0, NULL, 0, '', NULL)");  // prepared once
@@ -502,8 +524,8 @@ void FarmStore::createJob(const JobRecord& j, const std::vector<TileState>& stat
     tile.run();
     tile.reset();
   }
-  Statement grid(db_, (std::string("INSERT INTO job_grids(") + kGridColumns +
-                       ") VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)").c_str());
+  Statement grid(db_, (std::string("INSERT INTO job_grids(") + kGridColumns + ") VALUES(" + placeholders(kGridColumnCount) +
+                       ")").c_str());
   for (size_t k = 0; k < j.grids.size(); ++k) {
     bindGrid(grid, j.id, k, j.grids[k]);
     grid.run();

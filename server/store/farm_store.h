@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -47,23 +48,23 @@ struct SceneRecord {
   bool complete = false;
 };
 
-/// One grid of a light bundle's job (table job_grids): the grid (perspective, with the
-/// cone its texels are cut off by), its light, and the closest geometry the planner found
-/// (infinity: none), which the artifact's plan records.
+/// One grid of a job (table job_grids): a sun job's one orthographic grid, or one of a
+/// light bundle's perspective ones (with the cone its texels are cut off by), its light,
+/// and the closest geometry the planner found (infinity: none), which a bundle's plan
+/// records.
 struct JobGrid {
   GridSpec grid;
   uint32_t light = 0;
-  double closest = 0;
+  double closest = std::numeric_limits<double>::infinity();
 };
 
 struct JobRecord {
   std::string id, requestId, sceneHash, geometryHash;
   std::string spec;     // the request's cpvs.v1.BakeSpec as sent, serialized: shown back, compared on retries
-  OrthoGrid grid;       // what the tiles bake, in typed columns (a sun bake's)
   /// A light bundle's lights, cpvs.v1.LightList serialized (the scene's own included: what
-  /// the artifact's light table records), and its grids, whose tiles are the job's in
-  /// GridTiles' order. Both empty for a sun bake.
+  /// the artifact's light table records); empty for a sun bake.
   std::string lights;
+  /// What the tiles bake, in GridTiles' order: the sun's one grid, or a bundle's.
   std::vector<JobGrid> grids;
   BakeOptions options;
   Hash128 receiverHash;  // receiverHash of the job's declaration (zero: receivers everywhere)
@@ -78,6 +79,8 @@ struct JobRecord {
   uint64_t tilesUnread = 0;                // of tilesDone, those no declared receiver reads
   uint64_t bytes = 0, fileBytes = 0, peakMergeBytes = 0;
   std::map<std::string, double> stages;
+
+  bool isBundle() const { return !lights.empty(); }
 };
 
 struct LeaseRecord {

@@ -51,8 +51,10 @@ server::JobRecord oneTileJob(const std::string& id) {
   j.geometryHash = std::string(32, 'c');
   j.createdMs = 1000;
   j.tilesTotal = 1;
-  j.grid.frame = LightFrame::fromDirection({0, -1, 0});
-  j.grid.log2Resolution = 6;
+  OrthoGrid g;
+  g.frame = LightFrame::fromDirection({0, -1, 0});
+  g.log2Resolution = 6;
+  j.grids = {server::JobGrid{gridSpecOf(g)}};
   return j;
 }
 

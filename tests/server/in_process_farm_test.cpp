@@ -373,14 +373,16 @@ server::JobRecord sampleJob(const std::string& id, int priority, uint64_t tiles)
   j.priority = priority;
   j.createdMs = 1000;
   j.tilesTotal = tiles;
-  j.grid.frame = LightFrame::fromDirection({0.3, -1, 0.2});
-  j.grid.log2Resolution = 10;
-  j.grid.origin = {1.5, -2.25, 1e5};
-  j.grid.u0 = -3.125;
-  j.grid.v0 = 7.5;
-  j.grid.d0 = -0.0625;
-  j.grid.extent = 12.75;
-  j.grid.depthExtent = 3.5;
+  OrthoGrid g;
+  g.frame = LightFrame::fromDirection({0.3, -1, 0.2});
+  g.log2Resolution = 10;
+  g.origin = {1.5, -2.25, 1e5};
+  g.u0 = -3.125;
+  g.v0 = 7.5;
+  g.d0 = -0.0625;
+  g.extent = 12.75;
+  g.depthExtent = 3.5;
+  j.grids = {server::JobGrid{gridSpecOf(g)}};
   j.options.closed = ClosedMode::Off;
   j.options.exit = ExitMode::Approx;
   j.options.cull = false;
@@ -543,19 +545,18 @@ TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
   ASSERT_TRUE(back.has_value());
   const server::JobRecord want = sampleJob("low", 0, 2);
   EXPECT_EQ(back->options, want.options);
-  EXPECT_EQ(back->grid.frame.dir, want.grid.frame.dir);
-  EXPECT_EQ(back->grid.frame.v, want.grid.frame.v);
-  EXPECT_EQ(back->grid.origin, want.grid.origin);
-  EXPECT_EQ(back->grid.u0, want.grid.u0);
-  EXPECT_EQ(back->grid.depthExtent, want.grid.depthExtent);
-  EXPECT_EQ(back->grid.log2Resolution, 10);
+  ASSERT_EQ(back->grids.size(), 1u) << "a sun job's one grid";
+  EXPECT_TRUE(back->grids[0].grid == want.grids[0].grid);
+  EXPECT_EQ(back->grids[0].grid.projection, Projection::Orthographic);
+  EXPECT_EQ(back->grids[0].grid.log2Resolution, 10);
+  EXPECT_FALSE(back->isBundle());
   EXPECT_EQ(back->spec, "spec bytes");
-  EXPECT_TRUE(back->grids.empty());
 
   // A light bundle's grids come back in order with every value, an infinite `closest`
   // (a grid no triangle reaches) included.
   server::JobRecord bundle = sampleJob("bundle", 0, 3);
   bundle.lights = std::string("light\0table", 11);
+  bundle.grids.clear();
   for (uint32_t g = 0; g < 2; ++g) {
     server::JobGrid jg;
     jg.grid.projection = Projection::Perspective;
@@ -601,6 +602,59 @@ TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
   EXPECT_EQ(store.job("low")->tilesDone, 1u);
 }
 
+// Turns a store of this build's schema into one of schema 8: a sun job's grid in the jobs
+// table's columns, job_grids with a bundle's perspective grids only.
+void downgradeToSchema8(sqlite3* db) {
+  const char* moved[][2] = {{"light_dir_x", "dir_x"}, {"light_dir_y", "dir_y"}, {"light_dir_z", "dir_z"},
+                            {"frame_u_x", "u_x"},     {"frame_u_y", "u_y"},     {"frame_u_z", "u_z"},
+                            {"frame_v_x", "v_x"},     {"frame_v_y", "v_y"},     {"frame_v_z", "v_z"},
+                            {"origin_x", "origin_x"}, {"origin_y", "origin_y"}, {"origin_z", "origin_z"},
+                            {"u0", "u0"},             {"v0", "v0"},             {"d0", "d0"},
+                            {"extent", "extent"},     {"depth_extent", "depth_extent"},
+                            {"log2_resolution", "log2_resolution"}};
+  std::string sql;
+  for (const auto& [job, grid] : moved)
+    sql += std::string("ALTER TABLE jobs ADD COLUMN ") + job + (std::string(job) == "log2_resolution" ? " INTEGER; " : " REAL; ") +
+           "UPDATE jobs SET " + job + " = (SELECT " + grid + " FROM job_grids WHERE job_grids.job_id = jobs.id AND projection = 0); ";
+  sql += "DELETE FROM job_grids WHERE projection = 0; ";
+  for (const char* column : {"projection", "origin_x", "origin_y", "origin_z", "u0", "v0", "d0", "extent", "depth_extent"})
+    sql += std::string("ALTER TABLE job_grids DROP COLUMN ") + column + "; ";
+  sql += "PRAGMA user_version = 8";
+  ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
+}
+
+// A store of schema 8 (a sun job's grid in the jobs table) is upgraded in place: every
+// job's grids come back from job_grids, a sun's and a bundle's alike.
+TEST(FarmStore, ASchemaEightStoreKeepsEveryGridOfEveryJob) {
+  TempDir dir("cpvs_farm_store_v8");
+  const std::string path = dir / "farm.sqlite";
+  const server::JobRecord sun = sampleJob("sun", 0, 2);
+  server::JobRecord bundle = sampleJob("bundle", 0, 1);
+  bundle.lights = "lights";
+  const PerspectiveGrid spot({1.5, 20.25, -3}, LightFrame::fromDirection({0.2, -1, 0.1}), 0.75, 0.0625, 80.5, 9);
+  bundle.grids = {server::JobGrid{gridSpecOf(spot, 0.5), 0, 3.25}};
+  {
+    server::FarmStore store(path);
+    store.createJob(sun);
+    store.createJob(bundle);
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  downgradeToSchema8(db);
+  sqlite3_close(db);
+  server::FarmStore store(path);
+  const auto s = store.job("sun"), b = store.job("bundle");
+  ASSERT_TRUE(s && b);
+  ASSERT_EQ(s->grids.size(), 1u);
+  EXPECT_TRUE(s->grids[0].grid == sun.grids[0].grid);
+  EXPECT_EQ(s->grids[0].closest, std::numeric_limits<double>::infinity());
+  ASSERT_EQ(b->grids.size(), 1u);
+  EXPECT_TRUE(b->grids[0].grid == bundle.grids[0].grid);
+  EXPECT_EQ(b->grids[0].closest, 3.25);
+  store.createJob(sampleJob("after", 0, 1));
+  EXPECT_TRUE(store.job("after")->grids.at(0).grid == sun.grids[0].grid);
+}
+
 // A store of schema 2 (before the renderer column) is upgraded in place: its jobs were
 // baked by Embree, and they keep every other field.
 TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
@@ -614,6 +668,7 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
   }
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  downgradeToSchema8(db);
   ASSERT_EQ(sqlite3_exec(db,
                          "ALTER TABLE jobs DROP COLUMN renderer; ALTER TABLE jobs DROP COLUMN receivers; "
                          "ALTER TABLE jobs DROP COLUMN receiver_pcf; ALTER TABLE jobs DROP COLUMN receiver_hash; "
@@ -631,11 +686,11 @@ TEST(FarmStore, ASchemaTwoStoreIsUpgradedAndItsJobsKeepEmbree) {
   EXPECT_EQ(back->options.renderer, Renderer::Embree);
   EXPECT_EQ(back->options.receivers, ReceiverKind::Everywhere);  // and baked for receivers everywhere
   EXPECT_EQ(back->receiverHash, Hash128{});
-  EXPECT_EQ(back->grid.log2Resolution, 10);
+  ASSERT_EQ(back->grids.size(), 1u);
+  EXPECT_TRUE(back->grids[0].grid == sampleJob("old", 0, 2).grids[0].grid);
   EXPECT_EQ(back->tilesTotal, 2u);
   EXPECT_EQ(back->owner, "");  // made before owners: every client sees it
   EXPECT_TRUE(back->lights.empty());  // made before light bundles: a sun bake
-  EXPECT_TRUE(back->grids.empty());
   server::JobRecord fresh = sampleJob("new", 0, 1);
   store.createJob(fresh);
   EXPECT_EQ(store.job("new")->options.renderer, Renderer::Raster);
@@ -848,7 +903,7 @@ TEST(Convert, OptionsAndGridsRoundTripAndTheWeakHashStaysHome) {
   o.undefinedRule = UndefinedRule::Old;
   o.log2TileSize = 9;
   EXPECT_EQ(net::fromProto(net::toProto(o)), o);
-  const OrthoGrid g = sampleJob("x", 0, 1).grid;
+  const OrthoGrid g = orthoGridOf(sampleJob("x", 0, 1).grids[0].grid, "grid");
   const OrthoGrid back = orthoGridOf(net::gridSpecOf(net::toProto(gridSpecOf(g))), "grid");
   EXPECT_EQ(back.origin, g.origin);
   EXPECT_EQ(back.extent, g.extent);
