@@ -9,6 +9,7 @@
 #include "cpvs/base/limits.h"
 #include "cpvs/base/text.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/light/grid_spec.h"
 #include "io/bake_fields.h"
 #include "io/container.h"
 
@@ -57,17 +58,18 @@ std::vector<uint8_t> encodeBundle(const LightBundle& b, bool zstd) {
     w.put<uint16_t>(uint16_t(l.name.size()));
     w.raw(l.name.data(), l.name.size());
   }
-  for (const BundleGrid& g : b.grids) {
-    w.putVec(g.grid.frame().dir);
-    w.putVec(g.grid.frame().u);
-    w.putVec(g.grid.frame().v);
-    w.put(g.grid.tanHalfFov());
+  for (const BundleGrid& bg : b.grids) {
+    const GridSpec g = gridSpecOf(bg.grid, bg.tanCone);
+    w.putVec(g.frame.dir);
+    w.putVec(g.frame.u);
+    w.putVec(g.frame.v);
+    w.put(g.tanHalfFov);
     w.put(g.tanCone);
-    w.put(g.grid.near());
-    w.put(g.grid.far());
-    w.put<int32_t>(g.grid.log2Resolution());
-    w.put<uint32_t>(g.light);
-    w.put<uint64_t>(g.bytes);
+    w.put(g.near);
+    w.put(g.far);
+    w.put<int32_t>(g.log2Resolution);
+    w.put<uint32_t>(bg.light);
+    w.put<uint64_t>(bg.bytes);
   }
   putWordSection(w, *b.pool, zstd);
   return sealContainer(std::move(w));
@@ -129,25 +131,30 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
   uint64_t slices = 0;
   for (uint32_t k = 0; k < gridCount; ++k) {
     const std::string label = "grid " + std::to_string(k);
-    LightFrame frame;
-    frame.dir = h.getVec("grid table");
-    frame.u = h.getVec("grid table");
-    frame.v = h.getVec("grid table");
-    const double tanHalf = h.get<double>("grid table"), tanCone = h.get<double>("grid table");
-    const double near = h.get<double>("grid table"), far = h.get<double>("grid table");
-    const int32_t log2R = h.get<int32_t>("grid table");
+    // A grid's apex is its light's position (the light table's).
+    GridSpec g;
+    g.projection = Projection::Perspective;
+    g.frame.dir = h.getVec("grid table");
+    g.frame.u = h.getVec("grid table");
+    g.frame.v = h.getVec("grid table");
+    g.tanHalfFov = h.get<double>("grid table");
+    g.tanCone = h.get<double>("grid table");
+    g.near = h.get<double>("grid table");
+    g.far = h.get<double>("grid table");
+    g.log2Resolution = h.get<int32_t>("grid table");
     const uint32_t light = h.get<uint32_t>("grid table");
     const uint64_t bytes = h.get<uint64_t>("grid table");
     if (light >= lightCount || k < b.lights[light].firstGrid || k >= b.lights[light].firstGrid + b.lights[light].gridCount)
       h.fail(label + " names light " + std::to_string(light) + ", which does not hold it");
-    if (!(tanCone > 0) || !std::isfinite(tanCone)) h.fail(label + "'s cone is invalid");
-    if (log2R >= kMinLog2Resolution && log2R <= kMaxLog2Resolution) slices += (uint64_t(1) << log2R) + 1;
+    g.position = b.lights[light].light.position;
+    if (g.log2Resolution >= kMinLog2Resolution && g.log2Resolution <= kMaxLog2Resolution)
+      slices += g.resolution() + 1;
     if (slices > kMaxBundleSlices)
       h.fail("the grids hold more than " + std::to_string(kMaxBundleSlices) + " slice boundaries together");
     try {
-      b.grids.push_back({PerspectiveGrid(b.lights[light].light.position, frame, tanHalf, near, far, log2R), tanCone, light, bytes});
+      b.grids.push_back({perspectiveGridOf(g, label), g.tanCone, light, bytes});
     } catch (const InputError& e) {
-      h.fail(label + ": " + e.what());
+      h.fail(e.what());
     }
   }
 
