@@ -49,7 +49,8 @@ int main(int argc, char** argv) {
   double importMemoryMb = 8192;
   app.add_option("--listen", listen, "HOST:PORT to serve on; port 0 picks a free port")->capture_default_str();
   app.add_option("--data", data, "Folder for the job database, scenes, tile results and artifacts")->required();
-  app.add_option("--address-file", addressFile, "Write the bound HOST:PORT here once serving");
+  app.add_option("--address-file", addressFile,
+                 "Write the bound HOST:PORT here once serving (an old file there is removed at start)");
   app.add_option("--tokens", tokensFile, "Bearer tokens, lines 'ROLE TOKEN' (client, worker, admin); none = open");
   app.add_option("--tls-cert", tlsCert, "PEM certificate chain: serve TLS (with --tls-key)");
   app.add_option("--tls-key", tlsKey, "PEM private key of --tls-cert");
@@ -107,6 +108,13 @@ int main(int argc, char** argv) {
   }
   spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%l] %v");
   try {
+    // The file says that this run serves: one left by an earlier run must not say so
+    // while this one starts (or fails to).
+    if (!addressFile.empty()) {
+      std::error_code ec;
+      std::filesystem::remove(addressFile, ec);
+      if (ec) throw cpvs::InputError("--address-file " + addressFile + ": cannot remove the old one: " + ec.message());
+    }
     if (tlsCert.empty() != tlsKey.empty()) throw cpvs::InputError("give both --tls-cert and --tls-key, or neither");
     config.dataDir = data;
     config.retention.keepFinishedSeconds = keepFinishedHours * 3600;

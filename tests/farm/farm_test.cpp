@@ -267,10 +267,13 @@ TEST_F(FarmTest, TlsEndToEndAndPlaintextOrAnotherCaRefused) {
 // R7: no open farm and no cleartext tokens beyond this machine unless asked for in words;
 // a client and a worker do not send a token in cleartext to another machine.
 TEST_F(FarmTest, InsecureDefaultsAreRefusedBeforeAnythingIsServedOrSent) {
-  Ran open = testing::runShell("timeout 30 '" CPVS_SERVER "' --listen 0.0.0.0:0 --data '" + path("open.data") + "' 2>&1");
+  std::ofstream(path("stale.address")) << "127.0.0.1:1\n";  // an earlier run's
+  Ran open = testing::runShell("timeout 30 '" CPVS_SERVER "' --listen 0.0.0.0:0 --data '" + path("open.data") +
+                               "' --address-file '" + path("stale.address") + "' 2>&1");
   EXPECT_EQ(open.status, 2) << open.out;
   EXPECT_NE(open.out.find("without --tokens"), std::string::npos) << open.out;
   EXPECT_FALSE(fs::exists(path("open.data")));
+  EXPECT_FALSE(fs::exists(path("stale.address"))) << "a waiting script must not take an earlier run's address";
   Ran clear = testing::runShell("timeout 30 '" CPVS_SERVER "' --listen 0.0.0.0:0 --data '" + path("clear.data") +
                                 "' --tokens '" + path("tokens") + "' 2>&1");
   EXPECT_EQ(clear.status, 2) << clear.out;
