@@ -97,8 +97,8 @@ constexpr const char* kJobColumns =
     "receiver_hash, plan, owner, lights";
 constexpr int kJobColumnCount = 30;
 
-/// "?, ?, ..., ?": n of them.
-std::string placeholders(int n) {
+/// The SQL parameters of an INSERT of n columns: "?, ?, ..., ?".
+std::string parameterMarks(int n) {
   std::string out;
   for (int i = 0; i < n; ++i) out += i ? ", ?" : "?";
   return out;
@@ -514,7 +514,7 @@ void FarmStore::createJob(const JobRecord& j, const std::vector<TileState>& stat
   CPVS_CHECK(states.empty() || states.size() == j.tilesTotal);
   std::lock_guard lock(mutex_);
   Transaction t(db_);
-  Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns + ") VALUES(" + placeholders(kJobColumnCount) + ")").c_str());
+  Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns + ") VALUES(" + parameterMarks(kJobColumnCount) + ")").c_str());
   bindJob(s, j);
   s.run();
   Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, ?, 0, NULL, 0, '', NULL)");  // prepared once
@@ -524,7 +524,7 @@ void FarmStore::createJob(const JobRecord& j, const std::vector<TileState>& stat
     tile.run();
     tile.reset();
   }
-  Statement grid(db_, (std::string("INSERT INTO job_grids(") + kGridColumns + ") VALUES(" + placeholders(kGridColumnCount) +
+  Statement grid(db_, (std::string("INSERT INTO job_grids(") + kGridColumns + ") VALUES(" + parameterMarks(kGridColumnCount) +
                        ")").c_str());
   for (size_t k = 0; k < j.grids.size(); ++k) {
     bindGrid(grid, j.id, k, j.grids[k]);
