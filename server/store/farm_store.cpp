@@ -337,12 +337,10 @@ FarmStore::FarmStore(const std::string& path) {
         exec(kCreateJobGrids);
       }
       exec(
-          "INSERT INTO job_grids(job_id, grid, light, log2_resolution, position_x, position_y, position_z, dir_x, "
-          "dir_y, dir_z, u_x, u_y, u_z, v_x, v_y, v_z, tan_half_fov, near, far, tan_cone, closest, projection, "
-          "origin_x, origin_y, origin_z, u0, v0, d0, extent, depth_extent) "
+          (std::string("INSERT INTO job_grids(") + kGridColumns + ") "
           "SELECT id, 0, 0, log2_resolution, 0, 0, 0, light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, "
           "frame_u_z, frame_v_x, frame_v_y, frame_v_z, 0, 0, 0, 0, NULL, 0, origin_x, origin_y, origin_z, u0, v0, d0, "
-          "extent, depth_extent FROM jobs WHERE length(lights) = 0");
+          "extent, depth_extent FROM jobs WHERE length(lights) = 0").c_str());
       for (const char* column : {"light_dir_x", "light_dir_y", "light_dir_z", "frame_u_x", "frame_u_y", "frame_u_z",
                                  "frame_v_x", "frame_v_y", "frame_v_z", "origin_x", "origin_y", "origin_z", "u0", "v0",
                                  "d0", "extent", "depth_extent", "log2_resolution"})

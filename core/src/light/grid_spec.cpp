@@ -19,8 +19,6 @@ const char* projectionName(Projection p) {
 
 namespace {
 
-bool sameFrame(const LightFrame& a, const LightFrame& b) { return a.dir == b.dir && a.u == b.u && a.v == b.v; }
-
 void checkProjection(const GridSpec& s, Projection want, const std::string& what) {
   if (s.projection != want)
     throw InputError(what + ": a " + projectionName(s.projection) + " grid, not the " + projectionName(want) +
@@ -30,13 +28,6 @@ void checkProjection(const GridSpec& s, Projection want, const std::string& what
 }
 
 }  // namespace
-
-bool operator==(const GridSpec& a, const GridSpec& b) {
-  return a.projection == b.projection && sameFrame(a.frame, b.frame) && a.log2Resolution == b.log2Resolution &&
-         a.origin == b.origin && a.u0 == b.u0 && a.v0 == b.v0 && a.d0 == b.d0 && a.extent == b.extent &&
-         a.depthExtent == b.depthExtent && a.position == b.position && a.tanHalfFov == b.tanHalfFov &&
-         a.near == b.near && a.far == b.far && a.tanCone == b.tanCone;
-}
 
 GridSpec gridSpecOf(const OrthoGrid& g) {
   GridSpec s;

@@ -11,6 +11,8 @@ namespace cpvs {
 struct LightFrame {
   Vec3 dir, u, v;
 
+  bool operator==(const LightFrame&) const = default;
+
   /// `d` need not be normalized; throws InputError when it is not finite or is zero.
   static LightFrame fromDirection(const Vec3& d);
   /// Sun given by elevation above the horizon (Y is up) and azimuth (degrees, 0 = the sun

@@ -39,9 +39,8 @@ struct GridSpec {
   double tanHalfFov = 0, near = 0, far = 0, tanCone = 0;
 
   uint64_t resolution() const { return uint64_t(1) << log2Resolution; }
+  bool operator==(const GridSpec&) const = default;
 };
-
-bool operator==(const GridSpec& a, const GridSpec& b);
 
 GridSpec gridSpecOf(const OrthoGrid& grid);
 GridSpec gridSpecOf(const PerspectiveGrid& grid, double tanCone);
