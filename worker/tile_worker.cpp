@@ -306,8 +306,6 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
     spot.emplace(perspectiveGridOf(spec, "grid"));
   else
     ortho = orthoGridOf(spec, "grid");
-  if (spot && receivers.kind() != v1::RECEIVERS_EVERYWHERE)
-    throw std::runtime_error("a perspective grid is baked for receivers everywhere");
   std::shared_ptr<CachedScene> cached;
   {
     std::lock_guard lock(cacheMutex_);
@@ -339,7 +337,9 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
         net::declarationOf(receivers, [&](const std::string& hash) { return loadScene(fetchScene(hash), nullptr, ImportOptions{true}); });
     Scene storage;
     const Scene& casters = castersOf(cached->scene, exclude, "the lease's light", storage);
-    prepared = spot ? std::make_shared<BakeScene>(casters, *spot, spec.tanCone, renderer, config_.threads)
+    // A light's fixture casts none of its shadows but receives as the rest of the scene.
+    prepared = spot ? std::make_shared<BakeScene>(casters, *spot, spec.tanCone, renderer, config_.threads, declaration,
+                                                  &cached->scene)
                     : std::make_shared<BakeScene>(cached->scene, *ortho, renderer, config_.threads, declaration);
     spdlog::info("scene {} prepared for the {} renderer in {:.2f} s", sceneHash, optionName(renderer), secondsSince(start));
   }

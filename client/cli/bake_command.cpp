@@ -116,8 +116,7 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
 int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point totalStart) {
   checkNoSunWithLights(a.sun);
   const BakeOptions opt = optionsOf(a.options);
-  if (receiversOf(a.options).kind != ReceiverKind::Everywhere)
-    throw InputError("local lights are baked for receivers everywhere: --receivers is for the sun");
+  const ReceiverDeclaration receivers = receiversOf(a.options);
   if (a.pointerGrid < 0 || a.pointerGrid > kMaxGridLevels)
     throw InputError("--pointer-grid " + std::to_string(a.pointerGrid) + ": levels 0 to " + std::to_string(kMaxGridLevels));
   std::vector<Light> given = flagLights(a.lights);
@@ -133,8 +132,9 @@ int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point 
     spdlog::info("{}: {} triangles ({} closed), {} light{}, texels at most {:.4g} wide at a light's far end", scene.name,
                  ss.triangles, ss.closedTriangles, lights.size(), lights.size() == 1 ? "" : "s", footprint);
   ProgressDisplay progress(!a.json && !a.quiet);
-  LightBundle bundle = bakeLights(scene, lights, footprint, opt, sceneHash(scene), &st,
-                                  [&](const std::string& s, uint64_t d, uint64_t t) { return progress.update(s, d, t); });
+  LightBundle bundle = bakeLights(
+      scene, lights, footprint, opt, sceneHash(scene), &st,
+      [&](const std::string& s, uint64_t d, uint64_t t) { return progress.update(s, d, t); }, nullptr, receivers);
   progress.finish();
   if (a.pointerGrid != kMaxGridLevels) bundle = withPointerGrids(bundle, a.pointerGrid);
   start = std::chrono::steady_clock::now();

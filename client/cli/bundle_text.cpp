@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <sstream>
 
+#include "bake_flags.h"
 #include "cli_util.h"
 
 namespace cpvs::cli {
@@ -42,11 +43,12 @@ std::string bundleTable(const LightBundle& b) {
                 b.lights.size(), b.grids.size(), humanBytes(b.poolBytes).c_str(), humanBytes(separate).c_str(),
                 double(separate) / double(std::max<uint64_t>(1, b.poolBytes)), humanBytes(maps).c_str(),
                 double(maps) / double(std::max<uint64_t>(1, b.poolBytes)));
-  o << line;
+  o << line << "  receivers: " << receiversText(b.options, b.receiverHash) << "\n";
   return o.str();
 }
 
-std::string lightPlanTable(const LightBundle& b, const std::vector<double>& closest, double footprint) {
+std::string lightPlanTable(const LightBundle& b, const std::vector<double>& closest, double footprint,
+                           const ReceiverDeclaration& receivers) {
   std::ostringstream o;
   char line[512];
   std::snprintf(line, sizeof line, "%zu local light%s, %zu grid%s; each grid's resolution keeps its texels at most %.4g wide "
@@ -79,7 +81,7 @@ std::string lightPlanTable(const LightBundle& b, const std::vector<double>& clos
   }
   std::snprintf(line, sizeof line, "\n  16-bit shadow maps of these grids would hold %s; the bake shares one node pool\n",
                 humanBytes(bundleShadowMapBytes(b)).c_str());
-  o << line;
+  o << line << "  receivers: " << receiversText(b.options, receiverHash(receivers)) << "\n";
   return o.str();
 }
 
@@ -110,7 +112,8 @@ std::string bundleJsonFields(const LightBundle& b) {
     o << "], \"bytes\": " << b.lightBytes(i) << "}";
   }
   o << "\n  ],\n  \"grids\": " << b.grids.size() << ",\n  \"pool_bytes\": " << b.poolBytes
-    << ",\n  \"separate_bytes\": " << separate << ",\n  \"shadow_map_bytes\": " << bundleShadowMapBytes(b);
+    << ",\n  \"separate_bytes\": " << separate << ",\n  \"shadow_map_bytes\": " << bundleShadowMapBytes(b)
+    << ",\n  \"receivers\": " << receiversJson(b.options, b.receiverHash);
   return o.str();
 }
 

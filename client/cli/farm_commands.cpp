@@ -381,8 +381,6 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volu
     buildSun(a, c, spec);
   }
   volumeMesh = applyOptionFlags(a.options, c, *spec.mutable_options());
-  if (net::isLightBundle(spec) && spec.options().receivers().kind() != pb::RECEIVERS_EVERYWHERE)
-    throw InputError("local lights are baked for receivers everywhere: --receivers is for the sun");
 
   if (given("--priority")) spec.set_priority(a.priority);
   if (given("--name")) spec.set_name(a.name);

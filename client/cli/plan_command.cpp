@@ -61,12 +61,13 @@ int runLightPlan(const PlanArgs& a) {
   const std::vector<Light> lights = withSceneLights(a.lights, std::move(given), scene, a.scene);
   const double footprint = footprintOf(a.lights, scene);
   std::vector<double> closest;
-  const LightBundle planned = planLights(scene, lights, footprint, options, closest);
+  const ReceiverDeclaration receivers = receiversOf(a.options);
+  const LightBundle planned = planLights(scene, lights, footprint, options, closest, receivers);
   if (a.json)
     std::cout << "{\"footprint\": " << jsonNumber(footprint) << ", \"lights\": " << planned.lights.size()
               << ", \"plan\": " << lightPlanJson(planned, closest) << "}\n";
   else
-    std::cout << lightPlanTable(planned, closest, footprint);
+    std::cout << lightPlanTable(planned, closest, footprint, receivers);
   return 0;
 }
 

@@ -28,12 +28,12 @@ struct VerifyArgs {
   OptionFlags receivers;  // --receivers volume:FILE and --receiver-box, for a volume bake
 };
 
-// The declaration the artifact was baked for: its kind and PCF from the header, a
-// volume from the flags, which must hash to what the header recorded.
-ReceiverDeclaration bakedReceivers(const VerifyArgs& a, const CpvsArtifact& art) {
+// The declaration an artifact or bundle was baked for: its kind and PCF from the header,
+// a volume from the flags, which must hash to what the header recorded.
+ReceiverDeclaration bakedReceivers(const VerifyArgs& a, const BakeOptions& options, const Hash128& bakedHash) {
   ReceiverDeclaration d;
-  d.kind = art.options.receivers;
-  d.maxPcf = art.options.receiverPcf;
+  d.kind = options.receivers;
+  d.maxPcf = options.receiverPcf;
   const OptionFlags& f = a.receivers;
   const bool given = f.receivers != optionName(ReceiverKind::Everywhere) || !f.receiverBoxes.empty() ||
                      cameraFlagsGiven(f) || !f.groundLayer.empty();
@@ -45,23 +45,24 @@ ReceiverDeclaration bakedReceivers(const VerifyArgs& a, const CpvsArtifact& art)
     OptionFlags copy = f;
     copy.receiverPcf = d.maxPcf;
     d = receiversOf(copy);
-    if (d.kind != art.options.receivers) throw InputError("--receivers: " + a.file + " was baked for '" + baked + "'");
+    if (d.kind != options.receivers) throw InputError("--receivers: " + a.file + " was baked for '" + baked + "'");
   } else if (given && f.receivers != baked) {
     throw InputError("--receivers: " + a.file + " was baked for '" + baked + "', not '" + f.receivers + "'");
   }
-  if (receiverHash(d) != art.receiverHash)
+  if (receiverHash(d) != bakedHash)
     throw InputError("the receivers given are not the ones " + a.file + " was baked for (declaration " +
-                     receiverHash(d).hex() + ", the file's " + art.receiverHash.hex() + ")");
+                     receiverHash(d).hex() + ", the file's " + bakedHash.hex() + ")");
   return d;
 }
 
 // A light bundle: each light against exact segment rays at surface points in its cone
-// (a point light's: in each face), --samples shared out among the lights.
+// (a point light's: in each face; for declared receivers, on their sides), --samples
+// shared out among the lights.
 int verifyBundle(const VerifyArgs& a, const std::vector<uint8_t>& bytes) {
-  if (a.receivers.receivers != optionName(ReceiverKind::Everywhere))
-    throw InputError("--receivers: a light bundle is baked for receivers everywhere");
   const LightBundle bundle = decodeBundle(bytes.data(), bytes.size(), a.file);
+  const ReceiverDeclaration receivers = bakedReceivers(a, bundle.options, bundle.receiverHash);
   const Scene scene = openMatchingScene(a.scene, bundle.sceneHash);
+  const std::vector<uint8_t> sides = receivingSides(scene, receivers);
   Vec3 lo, hi;
   sceneBounds(scene, lo, hi);
   const RayScene rays(scene, (lo + hi) * 0.5);
@@ -74,7 +75,7 @@ int verifyBundle(const VerifyArgs& a, const std::vector<uint8_t>& bytes) {
     VerifyResult total;
     for (uint32_t k = l.firstGrid; k < l.firstGrid + l.gridCount; ++k) {
       total += verifyBundleGrid(q, k, bundle.options.closed, scene, rays, std::max<uint64_t>(1, perLight / l.gridCount),
-                                a.seed + k);
+                                a.seed + k, &sides);
     }
     elsewhere += total.mismatchElsewhere;
     results.push_back(std::move(total));
@@ -121,7 +122,7 @@ int runVerify(const VerifyArgs& a) {
   if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return verifyBundle(a, bytes);
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   Scene scene = openMatchingScene(a.scene, art);
-  const ReceiverDeclaration receivers = bakedReceivers(a, art);
+  const ReceiverDeclaration receivers = bakedReceivers(a, art.options, art.receiverHash);
   RayScene rays(scene, art.grid.origin);
   ShadowQuery q(art.grid, std::move(art.packed));
   const auto samples = sampleReceivers(scene, rays, art.options.closed, art.grid.frame.dir, receivers, a.samples, a.seed);

@@ -90,12 +90,13 @@ std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& ra
 
 std::vector<SurfaceSample> sampleSpotSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                               const PerspectiveGrid& grid, double tanCone, uint64_t count,
-                                              uint64_t seed) {
+                                              uint64_t seed, const std::vector<uint8_t>* sides) {
   const Vec3 lamp = grid.position(), axis = grid.frame().dir;
   const double cone = std::atan(tanCone);
   // A triangle may reach into the cone when its bounding sphere does: the sphere holds the
   // light, or its angle from the axis, less the angle the sphere subtends, is within it.
   const AreaPicker picker(scene, [&](uint32_t t) {
+    if (sides && (*sides)[t] == 0) return false;
     const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
     const Vec3 centre = (a + b + c) / 3.0;
     const double r = std::max({length(a - centre), length(b - centre), length(c - centre)});
@@ -115,7 +116,14 @@ std::vector<SurfaceSample> sampleSpotSurfaces(const Scene& scene, const RayScene
       if (!grid.insideCone(p, tanCone)) continue;
       const Vec3 a = scene.vertex(t, 0), b = scene.vertex(t, 1), c = scene.vertex(t, 2);
       Vec3 n = normalize(cross(b - a, c - a));
-      if (!rays.triangleClosed(uint32_t(t), closed) && dot(n, lamp - p) < 0) n = -n;
+      const bool open = !rays.triangleClosed(uint32_t(t), closed);
+      uint8_t side = 1;
+      if (open && dot(n, lamp - p) < 0) n = -n, side = 2;
+      if (sides && !((*sides)[t] & side)) {
+        // The side facing the light does not receive: the other one, where it does.
+        if (!open || !((*sides)[t] & (3 - side))) continue;
+        n = -n;
+      }
       drawn[i] = SurfaceSample{p, n};
       found[i] = 1;
       return;

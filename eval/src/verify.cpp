@@ -18,21 +18,23 @@ VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const S
 }
 
 VerifyResult verifySpotArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
-                                uint64_t count, uint64_t seed) {
+                                uint64_t count, uint64_t seed, const std::vector<uint8_t>* sides) {
   CPVS_CHECK(query.spot());
   return verifySamples(query, closed, rays,
-                       sampleSpotSurfaces(scene, rays, closed, *query.spot(), query.tanCone(), count, seed));
+                       sampleSpotSurfaces(scene, rays, closed, *query.spot(), query.tanCone(), count, seed, sides));
 }
 
 // tan 43.5°: a cube face's inscribed cone, 1.5 degrees inside its square's edges.
 constexpr double kFaceSampleTanCone = 0.9490;
 
 VerifyResult verifyBundleGrid(const BundleQuery& query, size_t grid, ClosedMode closed, const Scene& scene,
-                              const RayScene& rays, uint64_t count, uint64_t seed) {
+                              const RayScene& rays, uint64_t count, uint64_t seed, const std::vector<uint8_t>* sides) {
   const ShadowQuery& q = query.grid(grid);
   // A spot light's cone cuts its texels; a cube face's cone is wider than its square.
-  if (query.light(query.lightOfGrid(grid)).light.kind == LightKind::Spot) return verifySpotArtifact(q, closed, scene, rays, count, seed);
-  return verifySamples(q, closed, rays, sampleSpotSurfaces(scene, rays, closed, *q.spot(), kFaceSampleTanCone, count, seed));
+  if (query.light(query.lightOfGrid(grid)).light.kind == LightKind::Spot)
+    return verifySpotArtifact(q, closed, scene, rays, count, seed, sides);
+  return verifySamples(q, closed, rays,
+                       sampleSpotSurfaces(scene, rays, closed, *q.spot(), kFaceSampleTanCone, count, seed, sides));
 }
 
 VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const RayScene& rays,

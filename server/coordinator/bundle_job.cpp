@@ -36,6 +36,7 @@ LightBundle bundleOf(const JobRecord& j, std::vector<Dag>&& dags, int pointerGri
   LightBundle b;
   b.options = j.options;
   b.sceneHash = parseHashHex(j.geometryHash, "the job's geometry hash");
+  b.receiverHash = j.receiverHash;
   v1::LightList lights;
   if (!lights.ParseFromString(j.lights)) throw FormatError("job " + j.id + ": its lights do not parse");
   for (int i = 0; i < lights.lights_size(); ++i) b.lights.push_back({net::fromProto(lights.lights(i)), 0, 0});

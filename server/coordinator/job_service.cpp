@@ -226,17 +226,18 @@ pb::JobStatus JobService::submitBundle(const pb::SubmitBakeRequest& request, con
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
   }
-  if (j.options.receivers != ReceiverKind::Everywhere)
-    throw FarmError(ErrorKind::InvalidArgument, "local lights are baked for receivers everywhere: receivers are for the sun");
   checkRoom(access);  // before loading the scene, which may take long
   const Scene scene = scenes_.load(spec.scene_hash());
   LightBundle planned;
   std::vector<double> closest;
   try {
+    const ReceiverDeclaration receivers =
+        net::declarationOf(spec.options().receivers(), [&](const std::string& hash) { return scenes_.load(hash); });
+    j.receiverHash = receiverHash(receivers);
     if (spec.scene_lights()) lights = withSceneLights(scene, std::move(lights), "scene_lights: the scene");
     checkLightCount(lights.size());
     const double footprint = spec.footprint() > 0 ? spec.footprint() : defaultFootprint(scene);
-    planned = planLights(scene, lights, footprint, j.options, closest);
+    planned = planLights(scene, lights, footprint, j.options, closest, receivers);
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
   }

@@ -41,6 +41,8 @@ constexpr const char* kUsage =
     "  --resolution R      every grid's resolution (default 8K, as seed 000's city)\n"
     "  --lights N          the first N lights only (default all)\n"
     "  --renderer raster|embree (default raster)\n"
+    "  --receivers KIND    bake for these receivers (surfaces, surfaces-two-sided; PCF up to 9) and, in the same\n"
+    "                      run, for receivers everywhere: bytes and seconds side by side (default everywhere only)\n"
     "  --threads N         worker threads (default all cores)\n"
     "  --width W, --height H  the many-light frame's size (default 1920 x 1080; --width 0: no frame)\n"
     "  --camera EX,EY,EZ,TX,TY,TZ[,FOV]  its camera (default: cpvs render's view of the scene)\n"
@@ -55,6 +57,7 @@ struct Args {
   int threads = 0;
   int width = 1920, height = 1080;
   std::string camera, device, save;
+  ReceiverKind receivers = ReceiverKind::Everywhere;
   bool help = false;
 };
 
@@ -72,6 +75,12 @@ Args parseArgs(int argc, char** argv) {
     else if (o == "--resolution") a.log2R = parseResolution(v);
     else if (o == "--lights") a.lights = size_t(parsePositive(v, o));
     else if (o == "--renderer") a.renderer = parseOption<Renderer>(v, o);
+    else if (o == "--receivers") {
+      a.receivers = parseOption<ReceiverKind>(v, o);
+      if (a.receivers != ReceiverKind::Everywhere && a.receivers != ReceiverKind::Surfaces &&
+          a.receivers != ReceiverKind::SurfacesTwoSided)
+        throw InputError("--receivers: everywhere, surfaces or surfaces-two-sided (a volume or cameras need more flags)");
+    }
     else if (o == "--threads") a.threads = parsePositive(v, o);
     else if (o == "--width") a.width = v == "0" ? 0 : parsePositive(v, o);
     else if (o == "--height") a.height = parsePositive(v, o);
@@ -201,6 +210,9 @@ int run(const Args& a) {
   for (Light& l : lights) l.log2Resolution = a.log2R;
   BakeOptions options;
   options.renderer = a.renderer;
+  ReceiverDeclaration receivers;
+  receivers.kind = a.receivers;
+  options.receivers = a.receivers;
 
   std::printf("# bench_lights: %s, %s\n\nCPU: %s; rasterizer SIMD: %s; %s renderer; every grid %s^3\n\n", a.scene.c_str(),
               now().c_str(), cpuModel().c_str(), rasterInstructionSet(), optionName(a.renderer),
@@ -208,9 +220,11 @@ int run(const Args& a) {
   std::vector<double> gridSeconds;  // each grid's wall seconds (grids bake side by side)
   const auto start = std::chrono::steady_clock::now();
   StageTimes stages;
-  const LightBundle b = bakeLights(scene, lights, 1, options, sceneHash(scene), &stages, nullptr, &gridSeconds);
+  const LightBundle b =
+      bakeLights(scene, lights, 1, options, sceneHash(scene), &stages, nullptr, &gridSeconds, receivers);
   const double wall = secondsSince(start);
   const std::vector<uint8_t> file = encodeBundle(b, true);
+  std::printf("receivers: %s%s\n\n", optionName(a.receivers), a.receivers == ReceiverKind::Everywhere ? "" : ", PCF up to 9");
 
   std::vector<double> gridBytes;
   uint64_t separate = 0, maps = 0;
@@ -244,6 +258,20 @@ int run(const Args& a) {
   std::printf("whole bundle: %.2f s wall (planning, %zu grid bakes, sharing, packing)\n", wall, b.grids.size());
   std::printf("targets (issue, the city's ~165 lamps at 8K, 2 cores): bundle <= 48 MB: %s (%s); whole bundle <= 120 s: %s (%.1f s)\n",
               b.poolBytes <= 48'000'000 ? "met" : "missed", mb(double(b.poolBytes)).c_str(), wall <= 120 ? "met" : "missed", wall);
+  if (a.receivers != ReceiverKind::Everywhere) {
+    // The baseline, in the same run: the same lights baked for receivers everywhere.
+    BakeOptions everywhere = options;
+    everywhere.receivers = ReceiverKind::Everywhere;
+    const auto again = std::chrono::steady_clock::now();
+    const LightBundle e = bakeLights(scene, lights, 1, everywhere, sceneHash(scene));
+    const double eWall = secondsSince(again);
+    const size_t eFile = encodeBundle(e, true).size();
+    std::printf("\n| receivers | shared node pool | the file (zstd) | whole bundle wall |\n|---|---:|---:|---:|\n");
+    std::printf("| everywhere | %s | %s | %.1f s |\n", mb(double(e.poolBytes)).c_str(), mb(double(eFile)).c_str(), eWall);
+    std::printf("| %s (PCF up to 9) | %s (%s) | %s (%s) | %.1f s |\n", optionName(a.receivers), mb(double(b.poolBytes)).c_str(),
+                times(ratio(double(b.poolBytes), double(e.poolBytes))).c_str(), mb(double(file.size())).c_str(),
+                times(ratio(double(file.size()), double(eFile))).c_str(), wall);
+  }
   if (a.width > 0) benchFrame(a, scene, b);
   return 0;
 }

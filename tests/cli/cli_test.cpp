@@ -556,7 +556,7 @@ TEST_F(Cli, BadInputIsRejectedClearly) {
       {"bake city --sun-dir 0,-1,0 --receivers volume --ground-layer 2 --ground-slope 95", "below 90"},
       {"submit --server 127.0.0.1:1 city --spot 1,2,3:0,-1,0:30 --sun-dir 0,-1,0", "the sun flags are for a sun bake"},
       {"submit --server 127.0.0.1:1 city --spot 1,2,3:0,-1,0:30 --resolution 1K", "--resolution is the sun's"},
-      {"submit --server 127.0.0.1:1 city --spot 1,2,3:0,-1,0:30 --receivers surfaces", "--receivers is for the sun"},
+      {"submit --server 127.0.0.1:1 city --spot 1,2,3:0,-1,0:30 --receivers volume", "RECEIVERS_VOLUME needs"},
       {"submit --server 127.0.0.1:1 city --sun-dir 0,-1,0 --pointer-grid 2", "are for local lights"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
@@ -681,6 +681,26 @@ TEST_F(Cli, LightBundlesBakeInspectQueryAndVerify) {
     EXPECT_GT(l["lit"].get<uint64_t>(), 50u) << "each light lights some of the city: " << l;
   }
 
+  // Baked for surface receivers: recorded, shown, smaller, and verified on the declared sides.
+  r = cpvs("bake city:3 --lights " + path("lights.json") + " --spot 60,54,20:-0.3,-1,0.2:30:80 --footprint 0.4 "
+           "--receivers surfaces --receiver-pcf 5 --json -o " + path("lamps-surfaces.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json declared = parse(r);
+  EXPECT_EQ(declared["receivers"]["kind"], "surfaces");
+  EXPECT_EQ(declared["receivers"]["pcf"], 5);
+  EXPECT_LT(declared["pool_bytes"].get<uint64_t>(), b["pool_bytes"].get<uint64_t>());
+  EXPECT_EQ(b["receivers"]["kind"], "everywhere");
+  r = cpvs("inspect " + path("lamps-surfaces.cpvs"));
+  EXPECT_NE(r.out.find("receivers: surfaces, PCF up to 5"), std::string::npos) << r.out;
+  r = cpvs("plan city:3 --lights " + path("lights.json") + " --receivers surfaces");
+  EXPECT_NE(r.out.find("receivers: surfaces, PCF up to 9"), std::string::npos) << r.out;
+  r = cpvs("verify --json " + path("lamps-surfaces.cpvs") + " city:3 --samples 6000");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(parse(r)["mismatch_elsewhere_count"], 0);
+  r = cpvs("verify " + path("lamps-surfaces.cpvs") + " city:3 --receivers surfaces-two-sided");
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("was baked for 'surfaces'"), std::string::npos) << r.out;
+
   r = cpvs("render " + path("lamps.cpvs") + " city:3 --size 160x100 --pcf 5 --out " + path("night.png"));
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("3 lights"), std::string::npos) << r.out;
@@ -727,7 +747,7 @@ TEST_F(Cli, LightBundlesBakeInspectQueryAndVerify) {
       {"bake city:3 --spot 30,50,30:0,-1,0", "X,Y,Z:DX,DY,DZ:CONE"},
       {"bake city:3 --spot 3000,50,30:0,-1,0:30", "outside the scene's bounds"},
       {"bake city:3 --point 30,50,30 --sun-dir 0,-1,0", "the sun flags are for a sun bake"},
-      {"bake city:3 --point 30,50,30 --receivers surfaces", "receivers everywhere"},
+      {"bake city:3 --point 30,50,30 --receivers volume", "'volume' needs a volume"},
       {"query LAMPS --point 1,2,3 --light 9", "give all or a light index"},
       {"query LAMPS --point 1,2,3 --gpu", "on the CPU"},
       {"query SUN --point 1,2,3 --light 0", "has the sun only"},

@@ -420,9 +420,18 @@ TEST(LightBundle, BadBundlesAndBadLightsAreRefused) {
   EXPECT_LE(plan.size(), kMaxPlanBytes);
   EXPECT_NE(plan.find("omitted"), std::string::npos);
 
+  // Receivers: the options must name the declaration, which must be valid.
   BakeOptions surfaces;
   surfaces.receivers = ReceiverKind::Surfaces;
-  EXPECT_NE(inputErrorOf([&] { bakeLights(scene, lights, 1, surfaces, {}); }).find("receivers everywhere"), std::string::npos);
+  EXPECT_NE(inputErrorOf([&] { bakeLights(scene, lights, 1, surfaces, {}); }).find("the declaration 'everywhere'"),
+            std::string::npos);
+  ReceiverDeclaration volume;
+  volume.kind = ReceiverKind::Volume;
+  BakeOptions volumeOptions;
+  volumeOptions.receivers = ReceiverKind::Volume;
+  EXPECT_NE(inputErrorOf([&] { bakeLights(scene, lights, 1, volumeOptions, {}, nullptr, nullptr, nullptr, volume); })
+                .find("'volume' needs a volume"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -412,8 +412,8 @@ TEST(InProcessFarm, ABadLightBundleIsRefusedWithWhatIsWrong) {
       {[](pb::BakeSpec& s) { s.set_footprint(-1); }, "footprint must be finite"},
       {[](pb::BakeSpec& s) { s.set_footprint(std::numeric_limits<double>::quiet_NaN()); }, "footprint must be finite"},
       {[](pb::BakeSpec& s) { s.set_pointer_grid(6); }, "pointer_grid 6"},
-      {[](pb::BakeSpec& s) { s.mutable_options()->mutable_receivers()->set_kind(pb::RECEIVERS_SURFACES); },
-       "receivers everywhere"},
+      {[](pb::BakeSpec& s) { s.mutable_options()->mutable_receivers()->set_kind(pb::RECEIVERS_VOLUME); },
+       "RECEIVERS_VOLUME needs"},
       {[](pb::BakeSpec& s) { s.mutable_lights(0)->set_cone_deg(0); }, "light 0: the cone's half-angle"},
       {[](pb::BakeSpec& s) { s.mutable_lights(0)->clear_direction(); }, "lights[0]"},
       {[](pb::BakeSpec& s) { s.mutable_lights(0)->set_resolution("300"); }, "lights[0]"},
@@ -478,6 +478,15 @@ TEST(InProcessFarm, ALightsFixtureIsLeftOutOnTheWorkersAsInTheLocalBake) {
   const pb::JobStatus done = farm.client.watch(submitted.job_id());
   ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
   farm.client.download(submitted.job_id(), dir / "farm.cpvs");
+  // Declared receivers: the workers keep what lookups on the surfaces read (the shade's
+  // too, though it casts nothing), as the local bake does.
+  pb::BakeSpec declared = spec;
+  declared.mutable_options()->mutable_receivers()->set_kind(pb::RECEIVERS_SURFACES);
+  declared.mutable_options()->mutable_receivers()->set_max_pcf(5);
+  const pb::JobStatus submittedSurfaces = farm.client.submit("fixture-surfaces", declared);
+  const pb::JobStatus doneSurfaces = farm.client.watch(submittedSurfaces.job_id());
+  ASSERT_EQ(doneSurfaces.state(), pb::JOB_DONE) << doneSurfaces.error();
+  farm.client.download(submittedSurfaces.job_id(), dir / "farm-surfaces.cpvs");
   tileWorker.stop();
   workerThread.join();
 
@@ -489,6 +498,18 @@ TEST(InProcessFarm, ALightsFixtureIsLeftOutOnTheWorkersAsInTheLocalBake) {
   ASSERT_EQ(fromFarm.grids.size(), 1u);
   EXPECT_EQ(fromFarm.grids[0].bytes, local.grids[0].bytes);
   EXPECT_EQ(fromFarm.plan, local.plan);
+  ReceiverDeclaration surfaces;
+  surfaces.kind = ReceiverKind::Surfaces;
+  surfaces.maxPcf = 5;
+  BakeOptions surfacesOptions = options;
+  surfacesOptions.receivers = ReceiverKind::Surfaces;
+  surfacesOptions.receiverPcf = 5;
+  const LightBundle localSurfaces = bakeLights(scene, {lamp}, defaultFootprint(scene), surfacesOptions, sceneHash(scene),
+                                               nullptr, nullptr, nullptr, surfaces);
+  const LightBundle farmSurfaces = readBundle(dir / "farm-surfaces.cpvs");
+  EXPECT_EQ(encodeBundle(farmSurfaces, false), encodeBundle(localSurfaces, false));
+  EXPECT_EQ(farmSurfaces.receiverHash, receiverHash(surfaces));
+  EXPECT_EQ(farmSurfaces.options.receivers, ReceiverKind::Surfaces);
   EXPECT_NE(fromFarm.plan.find("\"exclude\": [\"lamp\"]"), std::string::npos) << fromFarm.plan;
   const BundleQuery q(fromFarm);
   EXPECT_EQ(q.filtered(0, {0.5, 0, 0.5}, {0, 1, 0}, 3), 1.0f) << "under the lamp, lit through its shade";

@@ -95,10 +95,13 @@ std::vector<Light> withSceneLights(const Scene& scene, std::vector<Light> given,
 }
 
 LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, double footprint, const BakeOptions& options,
-                       std::vector<double>& closest) {
-  if (options.receivers != ReceiverKind::Everywhere)
-    throw InputError("local lights are baked for receivers everywhere (--receivers " +
-                     std::string(optionName(options.receivers)) + " is for the sun)");
+                       std::vector<double>& closest, const ReceiverDeclaration& receivers) {
+  if (options.receivers != receivers.kind ||
+      (receivers.kind != ReceiverKind::Everywhere && options.receiverPcf != receivers.maxPcf))
+    throw InputError(std::string("baking lights: the options name receivers '") + optionName(options.receivers) +
+                     "' (pcf " + std::to_string(options.receiverPcf) + "), the declaration '" +
+                     optionName(receivers.kind) + "' (pcf " + std::to_string(receivers.maxPcf) + ")");
+  checkReceiverDeclaration(receivers);
   checkLightCount(lights.size());
   if (scene.triangleCount() == 0) throw InputError("baking lights: the scene is empty");
   Vec3 lo, hi;
@@ -132,10 +135,13 @@ LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, dou
 
 LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, double footprint,
                        const BakeOptions& options, const Hash128& sceneHash, StageTimes* times,
-                       const ProgressFn& progress, std::vector<double>* gridSeconds) {
+                       const ProgressFn& progress, std::vector<double>* gridSeconds, const ReceiverDeclaration& receivers) {
   std::vector<double> closest;
-  LightBundle b = planLights(scene, lights, footprint, options, closest);
+  LightBundle b = planLights(scene, lights, footprint, options, closest, receivers);
   b.sceneHash = sceneHash;
+  b.receiverHash = receiverHash(receivers);
+  if (receivers.kind == ReceiverKind::Cameras && receivers.cameraVisibility == CameraVisibility::Sampled)
+    (void)receivingSides(scene, receivers);  // cast once, before the grids share it
   StageTimes local;
   StageTimes& st = times ? *times : local;
   const size_t n = b.grids.size();
@@ -181,7 +187,7 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
           cast = c.scene.get();
         }
         {
-          const BakeScene prepared(*cast, b.grids[k].grid, b.grids[k].tanCone, options.renderer);
+          const BakeScene prepared(*cast, b.grids[k].grid, b.grids[k].tanCone, options.renderer, 0, receivers, &scene);
           dags[k] = bakeGrid(prepared, options, &gridTimes[k]);
         }
         if (!light.exclude.empty()) {

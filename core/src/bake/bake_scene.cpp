@@ -16,8 +16,9 @@ BakeScene::BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer rendere
   if (renderer == Renderer::Embree) rays_ = std::make_unique<RayScene>(scene, grid.origin, threads);
 }
 
-BakeScene::BakeScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone, Renderer renderer, int threads)
-    : renderer_(renderer), raster_(scene, grid, tanCone), receivers_(ReceiverSet::everywhere(grid.resolution())) {
+BakeScene::BakeScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone, Renderer renderer, int threads,
+                     const ReceiverDeclaration& receivers, const Scene* receiving)
+    : renderer_(renderer), raster_(scene, grid, tanCone), receivers_(receiving ? *receiving : scene, grid, receivers) {
   if (renderer == Renderer::Embree) rays_ = std::make_unique<RayScene>(scene, grid.position(), threads);
 }
 

@@ -128,6 +128,40 @@ std::vector<uint32_t> volumeParts(const Scene& volume) {
   return part;
 }
 
+
+// A point in a spot light's frame: along u and v, and its view depth.
+struct LightPoint {
+  double a, b, zv;
+};
+
+// The polygon clipped to zLo <= zv (and zv <= zHi unless it is infinite); the points made
+// on a clipping plane take its depth exactly.
+std::vector<LightPoint> clipDepths(std::vector<LightPoint> poly, double zLo, double zHi) {
+  for (int side = 0; side < 2 && !poly.empty(); ++side) {
+    if (side == 1 && std::isinf(zHi)) break;
+    const double plane = side ? zHi : zLo;
+    std::vector<LightPoint> out;
+    for (size_t i = 0; i < poly.size(); ++i) {
+      const LightPoint& p = poly[i];
+      const LightPoint& q = poly[(i + 1) % poly.size()];
+      const double dp = side ? zHi - p.zv : p.zv - zLo, dq = side ? zHi - q.zv : q.zv - zLo;
+      if (dp >= 0) out.push_back(p);
+      if ((dp >= 0) != (dq >= 0)) {
+        const double t = dp / (dp - dq);
+        out.push_back({p.a + (q.a - p.a) * t, p.b + (q.b - p.b) * t, plane});
+      }
+    }
+    poly = std::move(out);
+  }
+  return poly;
+}
+
+// Whether a span's column bounds meet the columns [x0, x1] x [y0, y1].
+template <class S>
+bool reachesRectangle(const S& s, uint64_t x0, uint64_t y0, uint64_t x1, uint64_t y1) {
+  return s.xMax >= int64_t(x0) && s.xMin <= int64_t(x1) && s.yMax >= int64_t(y0) && s.yMin <= int64_t(y1);
+}
+
 }  // namespace
 
 std::vector<uint8_t> receivingSides(const Scene& scene, const ReceiverDeclaration& d) {
@@ -410,23 +444,202 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
     }
   }
 
-  log2Cell_ = std::min(grid.log2Resolution, kLog2Cell);
+  indexCells(spans_, grid.log2Resolution);
+}
+
+template <class S>
+void ReceiverSet::indexCells(const std::vector<S>& spans, int log2Resolution) {
+  log2Cell_ = std::min(log2Resolution, kLog2Cell);
   cellsPerSide_ = uint64_t(R_) >> log2Cell_;
   const size_t cells = size_t(cellsPerSide_ * cellsPerSide_);
   cellBegin_.assign(cells + 1, 0);
-  auto forCells = [&](const Span& s, auto&& fn) {
+  auto forCells = [&](const S& s, auto&& fn) {
     for (int64_t cy = s.yMin >> log2Cell_; cy <= s.yMax >> log2Cell_; ++cy)
       for (int64_t cx = s.xMin >> log2Cell_; cx <= s.xMax >> log2Cell_; ++cx) fn(size_t(cy) * cellsPerSide_ + size_t(cx));
   };
   uint64_t entries = 0;
-  for (const Span& s : spans_) forCells(s, [&](size_t c) { ++cellBegin_[c + 1], ++entries; });
+  for (const S& s : spans) forCells(s, [&](size_t c) { ++cellBegin_[c + 1], ++entries; });
   if (entries > std::numeric_limits<uint32_t>::max())
     throw InputError("receivers: the declared receivers reach too much of the grid to be listed (" +
                      std::to_string(entries) + " cell entries)");
   for (size_t c = 0; c < cells; ++c) cellBegin_[c + 1] += cellBegin_[c];
   cellItems_.resize(cellBegin_[cells]);
   std::vector<uint32_t> fill(cellBegin_.begin(), cellBegin_.end() - 1);
-  for (uint32_t i = 0; i < spans_.size(); ++i) forCells(spans_[i], [&](size_t c) { cellItems_[fill[c]++] = i; });
+  for (uint32_t i = 0; i < spans.size(); ++i) forCells(spans[i], [&](size_t c) { cellItems_[fill[c]++] = i; });
+}
+
+ReceiverSet::ReceiverSet(const Scene& scene, const PerspectiveGrid& grid, const ReceiverDeclaration& d)
+    : kind_(d.kind), maxPcf_(d.maxPcf), R_(uint32_t(grid.resolution())) {
+  checkReceiverDeclaration(d);
+  if (kind_ == ReceiverKind::Everywhere) return;
+  spot_.emplace(grid);
+  const LightFrame& f = grid.frame();
+  const double R = double(R_), t = grid.tanHalfFov(), centre = 0.5 * R, scale = centre / t;
+  // Any normal offset moves a lookup at most `cube` voxels along each axis; its footprint
+  // reaches `window` texels beyond the texel it lands in.
+  const double cube = normalOffsetVoxels(maxPcf_) * kOffsetExcess + kSlack;
+  const double window = 0.5 * (maxPcf_ - 1) + cube + kSlack;
+  // Depths whose voxel z is more than an offset before slice 0 or beyond slice R - 1 read
+  // nothing (a lookup there is lit before near, dark beyond far, without a read).
+  const double b0 = grid.sliceBoundary(0), b1 = grid.sliceBoundary(1);
+  const double bR = grid.sliceBoundary(R_), bLast = grid.sliceBoundary(R_ - 1);
+  double zNear = b0 - (cube + 1) * (b1 - b0);
+  const double zFar = bR + (cube + 1) * (bR - bLast);
+  // When every depth in front of the light may reach slice 0 (a coarse grid over a deep
+  // range), triangles are clipped a thousandth of near from the light instead: what lies
+  // closer projects outside the grid unless it is within `apexReach` of the light's axis,
+  // and a triangle that comes that close reads from slice 0 wherever it projects.
+  const bool clipsAtApex = !(zNear > 0);
+  if (clipsAtApex) zNear = b0 * 1e-3;
+  const double apexReach = t * (1 + 2 * (window + 1) / R) * zNear;
+
+  auto toLight = [&](const Vec3& p) {
+    const Vec3 q = p - grid.position();
+    return LightPoint{dot(q, f.u), dot(q, f.v), dot(q, f.dir)};
+  };
+  // Adds a triangle's span, unless it reads nothing. `zLoOff`, `zHiOff`: its reads' voxel
+  // z relative to its points'; `part` > 0: a closed part's boundary, not clipped beyond
+  // far (its interior there may still read slices, and only a hull of its whole boundary
+  // bounds them). `nearClipped` says whether some of it was clipped before near.
+  auto add = [&](const Vec3 (&v)[3], double zLoOff, double zHiOff, uint32_t part, bool& nearClipped) {
+    nearClipped = false;
+    std::vector<LightPoint> poly;
+    for (const Vec3& p : v) poly.push_back(toLight(p));
+    double zMin = poly[0].zv, zMax = zMin;
+    double aMin = poly[0].a, aMax = aMin, bMin = poly[0].b, bMax = bMin;
+    for (const LightPoint& p : poly) {
+      zMin = std::min(zMin, p.zv), zMax = std::max(zMax, p.zv);
+      aMin = std::min(aMin, p.a), aMax = std::max(aMax, p.a), bMin = std::min(bMin, p.b), bMax = std::max(bMax, p.b);
+    }
+    if (!(zMax > zNear) || (part == 0 && !(zMin < zFar))) return;
+    nearClipped = zMin < zNear;
+    const bool atApex = clipsAtApex && zMin < zNear && aMin <= apexReach && aMax >= -apexReach &&
+                        bMin <= apexReach && bMax >= -apexReach;
+    FrustumSpan s{};
+    s.part = part;
+    s.window = window;
+    s.zLoOff = atApex ? -std::numeric_limits<double>::infinity() : zLoOff - kSlack;
+    s.zHiOff = zHiOff + kSlack;
+    // 1 / zv across the plane: n . q = n . q0 along the ray q = zv (xi, eta, 1).
+    const Vec3 q0{poly[0].a, poly[0].b, poly[0].zv}, q1{poly[1].a, poly[1].b, poly[1].zv}, q2{poly[2].a, poly[2].b, poly[2].zv};
+    const Vec3 n = cross(q1 - q0, q2 - q0);
+    const double dPlane = dot(n, q0);
+    const double size = std::max({length(q0), length(q1), length(q2)});
+    s.planar = std::fabs(dPlane) > 1e-7 * length(n) * size && std::isfinite(dPlane);
+    if (s.planar) {
+      // xi = (x - centre) / scale.
+      s.wx = n.x / (dPlane * scale);
+      s.wy = n.y / (dPlane * scale);
+      s.w0 = (n.z - (n.x + n.y) * centre / scale) / dPlane;
+      s.planar = std::isfinite(s.wx) && std::isfinite(s.wy) && std::isfinite(s.w0);
+    }
+    poly = clipDepths(std::move(poly), zNear, part == 0 ? zFar : std::numeric_limits<double>::infinity());
+    if (poly.empty()) return;
+    double xLo = std::numeric_limits<double>::infinity(), xHi = -xLo, yLo = xLo, yHi = -xLo;
+    double wLo = xLo, wHi = -xLo;
+    for (const LightPoint& p : poly) {
+      const double x = p.a / p.zv * scale + centre, y = p.b / p.zv * scale + centre;
+      xLo = std::min(xLo, x), xHi = std::max(xHi, x), yLo = std::min(yLo, y), yHi = std::max(yHi, y);
+      wLo = std::min(wLo, 1 / p.zv), wHi = std::max(wHi, 1 / p.zv);
+    }
+    if (atApex) {
+      // Its points nearest the light are clipped away: they may land on any column.
+      xLo = yLo = -std::numeric_limits<double>::infinity(), xHi = yHi = -xLo;
+      s.planar = false;
+    }
+    s.wLo = wLo * (1 - 1e-12);
+    s.wHi = wHi * (1 + 1e-12);
+    const double last = R - 1;
+    const double x0 = std::floor(xLo - window), x1 = std::floor(xHi + window);
+    const double y0 = std::floor(yLo - window), y1 = std::floor(yHi + window);
+    if (!(x0 <= last && y0 <= last && x1 >= 0 && y1 >= 0)) return;
+    s.xMin = int64_t(std::max(0.0, x0)), s.xMax = int64_t(std::min(last, x1));
+    s.yMin = int64_t(std::max(0.0, y0)), s.yMax = int64_t(std::min(last, y1));
+    frustumSpans_.push_back(s);
+  };
+
+  // Surfaces: a side facing the light reads towards it (its offset's voxel z is <= 0, as
+  // the sign of n . (p - light) is the same everywhere on the plane), one facing away
+  // behind it; a plane through the light, either way.
+  const std::vector<uint8_t> receiving = receivingSides(scene, d);
+  for (size_t i = 0; i < scene.triangleCount(); ++i) {
+    if (receiving[i] == 0) continue;
+    const Vec3 v[3] = {scene.vertex(i, 0), scene.vertex(i, 1), scene.vertex(i, 2)};
+    const Vec3 n = triangleNormal(scene, i), q = v[0] - grid.position();
+    const double facing = dot(n, q);
+    if (!std::isfinite(facing)) continue;
+    const bool grazing = std::fabs(facing) <= 1e-4 * length(n) * length(q);
+    double lo = 0, hi = 0;
+    for (int side = 0; side < 2; ++side) {
+      if (!(receiving[i] & (1 << side))) continue;
+      const double towards = side ? -facing : facing;  // < 0: this side faces the light
+      if (grazing || towards < 0) lo = -cube;
+      if (grazing || towards > 0) hi = cube;
+    }
+    bool clipped = false;
+    add(v, lo, hi, 0, clipped);
+  }
+
+  // Closed parts (the volume's, and a ground layer's prisms): any point inside, any
+  // normal; hulled per column. A part clipped before near reads from slice 0 on.
+  uint32_t parts = 0;
+  auto addPart = [&](const std::vector<std::array<Vec3, 3>>& triangles, uint32_t part) {
+    const size_t first = frustumSpans_.size();
+    bool fromFront = false;
+    for (const auto& tri : triangles) {
+      const Vec3 v[3] = {tri[0], tri[1], tri[2]};
+      bool clipped = false;
+      add(v, -cube, cube, part, clipped);
+      fromFront |= clipped;
+    }
+    if (fromFront)
+      for (size_t k = first; k < frustumSpans_.size(); ++k) frustumSpans_[k].zLoOff = -std::numeric_limits<double>::infinity();
+  };
+  if (d.volume.triangleCount() != 0) {
+    const std::vector<uint32_t> partOf = volumeParts(d.volume);
+    std::map<uint32_t, std::vector<std::array<Vec3, 3>>> byPart;
+    for (size_t i = 0; i < d.volume.triangleCount(); ++i)
+      byPart[partOf[i]].push_back({d.volume.vertex(i, 0), d.volume.vertex(i, 1), d.volume.vertex(i, 2)});
+    for (const auto& [k, triangles] : byPart) addPart(triangles, ++parts);
+  }
+  if (d.groundLayer > 0) {
+    const Vec3 bottom{0, d.groundLayerFrom, 0}, top{0, d.groundLayer, 0};
+    for (size_t i = 0; i < scene.triangleCount(); ++i) {
+      if (!walkable(scene, d, i)) continue;
+      Vec3 lo[3], hi[3];
+      for (int c = 0; c < 3; ++c) lo[c] = scene.vertex(i, c) + bottom, hi[c] = scene.vertex(i, c) + top;
+      std::vector<std::array<Vec3, 3>> prism{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
+      for (int e = 0; e < 3; ++e) {
+        const int f = (e + 1) % 3;
+        prism.push_back({lo[e], lo[f], hi[f]});
+        prism.push_back({lo[e], hi[f], hi[e]});
+      }
+      addPart(prism, ++parts);
+    }
+  }
+  indexCells(frustumSpans_, grid.log2Resolution());
+}
+
+bool ReceiverSet::frustumReads(const FrustumSpan& s, int64_t x, int64_t y, uint32_t& a, uint32_t& b) const {
+  double lo = s.wLo, hi = s.wHi;
+  if (s.planar) {
+    const double xa = double(x) - s.window, xb = double(x) + 1 + s.window;
+    const double ya = double(y) - s.window, yb = double(y) + 1 + s.window;
+    const double wxa = s.wx * xa, wxb = s.wx * xb, wya = s.wy * ya, wyb = s.wy * yb;
+    // Rounding of the fit and of these sums, far below this (relative 1e-6 of the terms).
+    const double slack = 1e-6 * (std::fabs(s.w0) + std::max(std::fabs(wxa), std::fabs(wxb)) +
+                                 std::max(std::fabs(wya), std::fabs(wyb)));
+    lo = std::max(lo, s.w0 + std::min(wxa, wxb) + std::min(wya, wyb) - slack);
+    hi = std::min(hi, s.w0 + std::max(wxa, wxb) + std::max(wya, wyb) + slack);
+    if (!(lo <= hi)) return false;
+  }
+  const PerspectiveGrid& g = *spot_;
+  const double top = double(R_) - 1;
+  const double zLo = g.voxelZ(1 / hi) + s.zLoOff, zHi = g.voxelZ(1 / lo) + s.zHiOff;
+  if (!(zHi >= 0) || !(zLo <= top) || std::isnan(zLo)) return false;
+  a = uint32_t(std::max(0.0, zLo));
+  b = uint32_t(std::min(top, zHi));
+  return true;
 }
 
 ReceiverSet ReceiverSet::everywhere(uint64_t resolution) {
@@ -443,8 +656,9 @@ bool ReceiverSet::touchesRectangle(uint64_t x0, uint64_t y0, uint64_t width, uin
     for (uint64_t cx = x0 >> log2Cell_; cx <= x1 >> log2Cell_; ++cx) {
       const size_t c = size_t(cy * cellsPerSide_ + cx);
       for (uint32_t k = cellBegin_[c]; k < cellBegin_[c + 1]; ++k) {
-        const Span& s = spans_[cellItems_[k]];
-        if (s.xMax >= int64_t(x0) && s.xMin <= int64_t(x1) && s.yMax >= int64_t(y0) && s.yMin <= int64_t(y1)) return true;
+        const uint32_t i = cellItems_[k];
+        const bool hit = spot_ ? reachesRectangle(frustumSpans_[i], x0, y0, x1, y1) : reachesRectangle(spans_[i], x0, y0, x1, y1);
+        if (hit) return true;
       }
     }
   return false;
@@ -459,6 +673,12 @@ uint64_t ReceiverSet::columnsReached() const {
 std::vector<uint8_t> ReceiverSet::reachedColumns() const {
   std::vector<uint8_t> reached(size_t(R_) * R_, kind_ == ReceiverKind::Everywhere ? 1 : 0);
   if (kind_ == ReceiverKind::Everywhere) return reached;
+  for (const FrustumSpan& s : frustumSpans_)
+    for (int64_t y = s.yMin; y <= s.yMax; ++y)
+      for (int64_t x = s.xMin; x <= s.xMax; ++x) {
+        uint32_t a = 0, b = 0;
+        if (frustumReads(s, x, y, a, b)) reached[size_t(y) * R_ + size_t(x)] = 1;
+      }
   for (const Span& s : spans_)
     for (int64_t y = s.yMin; y <= s.yMax; ++y) {
       int64_t x0 = 0, x1 = 0;
@@ -515,8 +735,9 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
         const size_t c = size_t(cy * cellsPerSide_ + cx);
         items.insert(items.end(), cellItems_.begin() + cellBegin_[c], cellItems_.begin() + cellBegin_[c + 1]);
       }
+    auto partOf = [&](uint32_t i) { return spot_ ? frustumSpans_[i].part : spans_[i].part; };
     std::sort(items.begin(), items.end(), [&](uint32_t a, uint32_t b) {
-      return spans_[a].part != spans_[b].part ? spans_[a].part < spans_[b].part : a < b;
+      return partOf(a) != partOf(b) ? partOf(a) < partOf(b) : a < b;
     });
     items.erase(std::unique(items.begin(), items.end()), items.end());
     // Per column of the band, the hull of one volume part's reads.
@@ -576,20 +797,42 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
         }
       }
     };
+    // On a spot grid, each column of a span's reach in the band (frustumReads).
+    auto forFrustumColumns = [&](const FrustumSpan& s, auto&& fn) {
+      const int64_t ya = std::max<int64_t>(s.yMin, int64_t(gy0)), yb = std::min<int64_t>(s.yMax, int64_t(gy1));
+      const int64_t xa = std::max<int64_t>(s.xMin, int64_t(x0)), xb = std::min<int64_t>(s.xMax, int64_t(gx1));
+      for (int64_t y = ya; y <= yb; ++y) {
+        const size_t row = size_t(y - int64_t(gy0)) * width - size_t(x0);
+        for (int64_t x = xa; x <= xb; ++x) {
+          uint32_t a = 0, b = 0;
+          if (frustumReads(s, x, y, a, b)) fn(row + size_t(x), a, b);
+        }
+      }
+    };
+    auto forSpan = [&](uint32_t i, auto&& fn) {
+      if (spot_)
+        forFrustumColumns(frustumSpans_[i], fn);
+      else
+        forColumns(spans_[i], fn);
+    };
+    auto boundsOf = [&](uint32_t i) {
+      return spot_ ? std::array<int64_t, 4>{frustumSpans_[i].xMin, frustumSpans_[i].yMin, frustumSpans_[i].xMax, frustumSpans_[i].yMax}
+                   : std::array<int64_t, 4>{spans_[i].xMin, spans_[i].yMin, spans_[i].xMax, spans_[i].yMax};
+    };
     for (size_t i = 0; i < items.size();) {
-      const uint32_t part = spans_[items[i]].part;
+      const uint32_t part = partOf(items[i]);
       size_t j = i;
-      while (j < items.size() && spans_[items[j]].part == part) ++j;
+      while (j < items.size() && partOf(items[j]) == part) ++j;
       if (part == 0) {
-        for (size_t k = i; k < j; ++k) forColumns(spans_[items[k]], need);
+        for (size_t k = i; k < j; ++k) forSpan(items[k], need);
       } else {
         // hullLo > hullHi: not read. Only the part's reach in the band is swept.
         if (hullLo.size() < texels) hullLo.resize(texels), hullHi.resize(texels);
         int64_t rx0 = int64_t(gx1), rx1 = int64_t(x0), ry0 = int64_t(gy1), ry1 = int64_t(gy0);
         for (size_t k = i; k < j; ++k) {
-          const Span& s = spans_[items[k]];
-          rx0 = std::min(rx0, std::max(s.xMin, int64_t(x0))), rx1 = std::max(rx1, std::min(s.xMax, int64_t(gx1)));
-          ry0 = std::min(ry0, std::max(s.yMin, int64_t(gy0))), ry1 = std::max(ry1, std::min(s.yMax, int64_t(gy1)));
+          const auto [xMin, yMin, xMax, yMax] = boundsOf(items[k]);
+          rx0 = std::min(rx0, std::max(xMin, int64_t(x0))), rx1 = std::max(rx1, std::min(xMax, int64_t(gx1)));
+          ry0 = std::min(ry0, std::max(yMin, int64_t(gy0))), ry1 = std::max(ry1, std::min(yMax, int64_t(gy1)));
         }
         auto rect = [&](auto&& fn) {
           for (int64_t y = ry0; y <= ry1; ++y)
@@ -597,7 +840,7 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
         };
         rect([&](size_t t) { hullLo[t] = R_, hullHi[t] = 0; });
         for (size_t k = i; k < j; ++k)
-          forColumns(spans_[items[k]], [&](size_t t, uint32_t a, uint32_t b) {
+          forSpan(items[k], [&](size_t t, uint32_t a, uint32_t b) {
             hullLo[t] = std::min(hullLo[t], a);
             hullHi[t] = std::max(hullHi[t], b);
           });

@@ -37,7 +37,7 @@ std::vector<uint8_t> encodeBundle(const LightBundle& b, bool zstd) {
   ByteWriter w;
   beginContainer(w, kCpvsKind, zstd ? kContainerZstd : 0);
   putOptions(w, b.options, b.sceneHash);
-  putReceiversAndPlan(w, b.options, Hash128{}, b.plan);
+  putReceiversAndPlan(w, b.options, b.receiverHash, b.plan);
   w.put<uint32_t>(uint32_t(b.lights.size()));
   w.put<uint32_t>(uint32_t(b.grids.size()));
   for (const BundleLight& bl : b.lights) {
@@ -82,9 +82,7 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
     h.fail("a sun artifact (format " + std::to_string(version) + "), not a light bundle");
   LightBundle b;
   getOptions(h, b.options, b.sceneHash);
-  Hash128 receiverHash;
-  getReceiversAndPlan(h, b.options, receiverHash, b.plan);
-  if (b.options.receivers != ReceiverKind::Everywhere) h.fail("a light bundle's receivers must be everywhere");
+  getReceiversAndPlan(h, b.options, b.receiverHash, b.plan);
   const uint32_t lightCount = h.get<uint32_t>("light table"), gridCount = h.get<uint32_t>("light table");
   if (lightCount == 0 || lightCount > kMaxLights)
     h.fail("the light count " + std::to_string(lightCount) + " is outside [1, " + std::to_string(kMaxLights) + "]");

@@ -37,6 +37,7 @@ const OrthoGrid& ShadowQuery::grid() const {
 }
 
 bool ShadowQuery::dark(int64_t x, int64_t y) const {
+  if (!spot_) return false;
   return x < 0 || y < 0 || x >= R_ || y >= R_ || spot_->coneMissesTexel(uint64_t(x), uint64_t(y), tanCone_);
 }
 

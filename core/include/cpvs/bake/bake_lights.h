@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "cpvs/bake/options.h"
+#include "cpvs/bake/receivers.h"
 #include "cpvs/bake/stage_times.h"
 #include "cpvs/base/progress.h"
 #include "cpvs/dag/dag.h"
@@ -19,22 +20,26 @@ struct Scene;
 /// What bakeLights bakes, without baking: the same checks (receivers, the lights, the
 /// slice budget), each light's grids planned, every grid's bytes 0 and no pool.
 /// `closest` receives each grid's closest geometry (LightGridPlan::closest). What
-/// `cpvs plan` prints for local lights.
+/// `cpvs plan` prints for local lights. `receivers` is the declaration options.receivers
+/// and options.receiverPcf name (InputError when they differ, or it is not valid).
 LightBundle planLights(const Scene& scene, const std::vector<Light>& lights, double footprint, const BakeOptions& options,
-                       std::vector<double>& closest);
+                       std::vector<double>& closest, const ReceiverDeclaration& receivers = {});
 
 /// Checks every light against the scene (checkLightCount, checkLight) and plans its grids
 /// (planLightGrids with `footprint`) before any bake starts, then bakes each grid as
 /// bakeGrid does (options.renderer, tiles of options.log2TileSize) and shares their
 /// nodes (shareNodes). The bytes depend only on the scene, the lights in their order,
-/// the footprint and the options. `sceneHash` is recorded. InputError for bad lights
-/// and for receivers other than everywhere (local lights declare none yet); Cancelled
-/// when `progress` returns false (stage "lights": grids done of all; called from one
-/// thread at a time, not always the caller's). Grids bake side by side; `times` sums
-/// their stages, `gridSeconds` receives each grid's wall seconds.
+/// the footprint, the options and the receivers. `sceneHash` is recorded. Every grid
+/// keeps what the declared `receivers` read (ReceiverSet on its spot grid; the whole
+/// scene's surfaces receive, a light's fixture included); its hash is recorded.
+/// InputError for bad lights and receivers; Cancelled when `progress` returns false
+/// (stage "lights": grids done of all; called from one thread at a time, not always the
+/// caller's). Grids bake side by side; `times` sums their stages, `gridSeconds` receives
+/// each grid's wall seconds.
 LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, double footprint,
                        const BakeOptions& options, const Hash128& sceneHash, StageTimes* times = nullptr,
-                       const ProgressFn& progress = nullptr, std::vector<double>* gridSeconds = nullptr);
+                       const ProgressFn& progress = nullptr, std::vector<double>* gridSeconds = nullptr,
+                       const ReceiverDeclaration& receivers = {});
 
 /// Ends a bake of `bundle`'s planned grids (planLights) from their DAGs, dags[k] grid k's
 /// as bakeGrid bakes it: the nodes shared in grid order (shareNodes), each grid's bytes,

@@ -25,8 +25,11 @@ class BakeScene {
   BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer renderer, int threads = 0,
             const ReceiverDeclaration& receivers = {});
   /// A spot light's grid, cut off by its cone of half-angle atan(tanCone): texels outside
-  /// it are undefined. Every point receives (ReceiverKind::Everywhere).
-  BakeScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone, Renderer renderer, int threads = 0);
+  /// it are undefined. `scene` casts the shadows; the surfaces of `receiving` (null:
+  /// `scene`) receive as `receivers` declares: a light's casters leave out its fixture,
+  /// which still receives.
+  BakeScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone, Renderer renderer, int threads = 0,
+            const ReceiverDeclaration& receivers = {}, const Scene* receiving = nullptr);
   ~BakeScene();
   BakeScene(const BakeScene&) = delete;
   BakeScene& operator=(const BakeScene&) = delete;

@@ -6,12 +6,14 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <utility>
 #include <vector>
 
 #include "cpvs/bake/options.h"
 #include "cpvs/bake/texel_slices.h"
 #include "cpvs/light/ortho_grid.h"
+#include "cpvs/light/perspective_grid.h"
 #include "cpvs/scene/scene.h"
 
 namespace cpvs {
@@ -93,6 +95,16 @@ class ReceiverSet {
   /// InputError for an invalid declaration. Everywhere gives an empty set that frees
   /// nothing (freeIntervals leaves slices as they are).
   ReceiverSet(const Scene& scene, const OrthoGrid& grid, const ReceiverDeclaration& declaration);
+  /// The same reads on a spot grid (a spot light's, or a face of a point light's cube),
+  /// where a plane is not a plane in voxels: each receiver triangle is clipped to the view
+  /// depths whose lookups can reach a slice, and at each column the view depths of its
+  /// points that a lookup there can come from are bounded by 1 / zv, which is affine in
+  /// texel coordinates across a plane (its range over the column's window, cut to the
+  /// triangle's); their voxel z (PerspectiveGrid::voxelZ) widened by the normal offset is
+  /// the column's read range. A surface side facing the light reads towards it, one facing
+  /// away behind it. Volume parts are hulled per column as on the sun's grid; a ground
+  /// layer is one closed prism per walkable triangle, hulled alike.
+  ReceiverSet(const Scene& scene, const PerspectiveGrid& grid, const ReceiverDeclaration& declaration);
   /// Every point of an R^3 grid (of any light kind) receives: nothing is freed.
   static ReceiverSet everywhere(uint64_t resolution);
 
@@ -142,13 +154,32 @@ class ReceiverSet {
     uint32_t part;                // 0: a surface; k > 0: the k-th volume part (hulled)
     bool planar;
   };
+  /// A receiver triangle on a spot grid (a volume's or a prism's boundary triangle, hulled
+  /// by `part`), in texel coordinates.
+  struct FrustumSpan {
+    int64_t xMin, yMin, xMax, yMax;  // columns its lookups reach (inclusive, inside the grid)
+    double wx, wy, w0;               // 1 / zv = w0 + wx x + wy y on its plane, when planar
+    double wLo, wHi;                 // 1 / zv over the triangle clipped to the depths read
+    double window;                   // a column x is read from points of texel x in [x - window, x + 1 + window)
+    double zLoOff, zHiOff;           // reads' voxel z relative to the point's own
+    uint32_t part;                   // 0: a surface; k > 0: the k-th closed part (hulled)
+    bool planar;
+  };
+
  private:
   ReceiverSet() = default;
   static bool columnRange(const Span& s, const Ring& r, const double* dirYTimesCy, int64_t& x0, int64_t& x1);
+  /// The slices [a, b] span s reads at column (x, y); false when it reads none there.
+  bool frustumReads(const FrustumSpan& s, int64_t x, int64_t y, uint32_t& a, uint32_t& b) const;
+  /// Lists every span per cell of 2^log2Cell_ texels by its column bounds.
+  template <class S>
+  void indexCells(const std::vector<S>& spans, int log2Resolution);
   ReceiverKind kind_ = ReceiverKind::Everywhere;
   int maxPcf_ = kMaxPcfWidthOption;
   uint32_t R_ = 0;
   std::vector<Span> spans_;
+  std::optional<PerspectiveGrid> spot_;     // a spot grid: its spans are frustumSpans_
+  std::vector<FrustumSpan> frustumSpans_;
   // Spans listed per cell of 2^log2Cell texels, by their column bounds.
   int log2Cell_ = 0;
   uint64_t cellsPerSide_ = 0;

@@ -38,8 +38,9 @@ struct BundleLight {
 
 /// Many local lights baked for one scene: what `cpvs bake --spot/--point/--lights` writes.
 struct LightBundle {
-  BakeOptions options;
+  BakeOptions options;  // receivers and receiverPcf: what every grid was baked for
   Hash128 sceneHash;
+  Hash128 receiverHash;  // receiverHash of the declaration (zero: receivers everywhere)
   std::string plan;  // JSON: what the planner chose per grid
   std::vector<BundleLight> lights;
   std::vector<BundleGrid> grids;

@@ -105,11 +105,12 @@ class PerspectiveGrid final : public LightGrid {
   /// must outlive it.
   SpotTexelMapping texelMapping(const Vec3& relativeTo) const { return SpotTexelMapping(*this, relativeTo); }
 
- private:
   /// The continuous voxel z of view depth zv (linear within each slice, extended
-  /// linearly beyond near and far), and its inverse.
+  /// linearly beyond near and far; increasing), and its inverse.
   double voxelZ(double zv) const;
   double depthOfVoxelZ(double z) const;
+
+ private:
   /// The image-plane coordinate (at unit depth) of continuous texel coordinate x. 2 / R is
   /// a power of two: exact before the one multiplication by t, for any texel of any tile.
   double planeCoordinate(double x) const { return (x * (2.0 / double(resolution())) - 1) * tanHalfFov_; }

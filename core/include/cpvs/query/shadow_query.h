@@ -67,10 +67,12 @@ class ShadowQuery {
   void batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
              std::vector<float>& out) const;
 
+  /// Whether no light reaches texel (x, y) of a spot light: outside the grid or the cone
+  /// (false for the sun's grid). A lookup counts such texels dark whatever the DAG holds.
+  bool dark(int64_t x, int64_t y) const;
+
  private:
   static inline const PcfWidth kBinary{1};
-  // Whether no light reaches texel (x, y) of a spot light: outside the grid or the cone.
-  bool dark(int64_t x, int64_t y) const;
 
   OrthoGrid grid_;
   std::optional<PerspectiveGrid> spot_;

@@ -28,9 +28,11 @@ std::vector<SurfaceSample> sampleSurfaces(const Scene& scene, const RayScene& ra
 /// cone (half-angle atan(tanCone)), deterministic for a seed: sample i is drawn up to
 /// kConeSampleAttempts times from the triangles that may reach into the cone, dropped
 /// when none lands inside it. Normals as sampleSurfaces, open geometry's facing the light.
+/// With `sides` (receivingSides: bit 0 the front, bit 1 the back), only receiving sides:
+/// an open triangle's other side where the one facing the light does not receive.
 std::vector<SurfaceSample> sampleSpotSurfaces(const Scene& scene, const RayScene& rays, ClosedMode closed,
                                               const PerspectiveGrid& grid, double tanCone, uint64_t count,
-                                              uint64_t seed);
+                                              uint64_t seed, const std::vector<uint8_t>* sides = nullptr);
 constexpr int kConeSampleAttempts = 64;
 
 /// `count` points where the declared receivers are, deterministic for a seed: for

@@ -52,13 +52,16 @@ VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const S
 /// (sampleSpotSurfaces): exact visibility is inside the cone and nothing on the segment to
 /// the light, "within one voxel" is in the spot grid's voxels.
 VerifyResult verifySpotArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
-                                uint64_t count, uint64_t seed);
+                                uint64_t count, uint64_t seed, const std::vector<uint8_t>* sides = nullptr);
 
 /// The same for grid k of a light bundle: a spot light's as verifySpotArtifact; a point
 /// light's cube face at surface points inside the cone its square holds (less a margin of
-/// a few degrees, so that every offset point stays in the face).
+/// a few degrees, so that every offset point stays in the face). With `sides`
+/// (receivingSides of the declaration it was baked for), at receiving sides only
+/// (sampleSpotSurfaces).
 VerifyResult verifyBundleGrid(const BundleQuery& query, size_t grid, ClosedMode closed, const Scene& scene,
-                              const RayScene& rays, uint64_t count, uint64_t seed);
+                              const RayScene& rays, uint64_t count, uint64_t seed,
+                              const std::vector<uint8_t>* sides = nullptr);
 
 /// The same comparison at given points (sampleReceivers: where a bake's declared
 /// receivers are, the only points a bake for them answers exactly).
