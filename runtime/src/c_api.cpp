@@ -18,6 +18,7 @@ struct CpvsDevice_T {
 
 struct CpvsShadows_T {
   std::unique_ptr<ShadowLookups> lookups;
+  std::vector<uint8_t> sun;  // cpvsGetShadowsBuffer's CpvsSun block
 };
 
 struct CpvsLights_T {
@@ -116,6 +117,7 @@ CpvsStatus cpvsOpenShadows(const char* path, CpvsDevice device, uint32_t flags, 
     auto s = std::make_unique<CpvsShadows_T>();
     auto artifact = ShadowArtifact::open(path);
     const Backend backend = (flags & CPVS_FALLBACK_CPU) ? Backend::Auto : Backend::Gpu;
+    s->sun = sunBlockBytes(*artifact, 0);
     s->lookups = device ? std::make_unique<ShadowLookups>(artifact, *device->device, backend)
                         : std::make_unique<ShadowLookups>(artifact, Backend::Cpu);
     *shadows = s.release();
@@ -150,6 +152,18 @@ CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* poi
   });
 }
 
+CpvsStatus cpvsGetShadowsBuffer(CpvsShadows shadows, CpvsShadowsBuffer which, const void** data, size_t* bytes) {
+  return guarded([&] {
+    require(shadows != nullptr && data != nullptr && bytes != nullptr, "cpvsGetShadowsBuffer: an argument is null");
+    const std::vector<uint32_t>& words = shadows->lookups->artifact().packed().words();
+    switch (which) {
+      case CPVS_SHADOWS_BUFFER_SUN: *data = shadows->sun.data(), *bytes = shadows->sun.size(); return;
+      case CPVS_SHADOWS_BUFFER_WORDS: *data = words.data(), *bytes = words.size() * 4; return;
+    }
+    require(false, "cpvsGetShadowsBuffer: no such buffer");
+  });
+}
+
 CpvsStatus cpvsOpenLights(const char* path, CpvsDevice device, uint32_t flags, CpvsLights* lights) {
   return guarded([&] {
     require(lights != nullptr, "cpvsOpenLights: lights is null");
@@ -160,7 +174,7 @@ CpvsStatus cpvsOpenLights(const char* path, CpvsDevice device, uint32_t flags, C
     l->artifact = LightArtifact::open(path);
     l->fallback = (flags & CPVS_FALLBACK_CPU) != 0;
     const LightBundle& b = l->artifact->bundle();
-    l->lights = lightTableBytes(b), l->grids = spotGridTableBytes(b, 0), l->boundaries = sliceBoundaryBytes(b);
+    l->lights = lightTableBytes(b), l->grids = gridTableBytes(b, 0), l->boundaries = sliceBoundaryBytes(b);
     if (device) try {
         l->gpu = std::make_unique<GpuLights>(*device->device, l->artifact);
       } catch (const RuntimeError&) {

@@ -17,7 +17,7 @@ namespace cpvs::runtime {
 
 namespace {
 
-// The shader's CpvsLight and CpvsSpotGrid (std430: floats and uints at 4, doubles at 8).
+// The shader's CpvsLight (std430: floats and uints at 4); its grids are GpuGrid records.
 struct GpuLight {
   uint32_t kind, firstGrid, gridCount, reserved;
   float position[3], range;
@@ -25,13 +25,6 @@ struct GpuLight {
   float colour[3], intensity;
 };
 static_assert(sizeof(GpuLight) == 64, "cpvs_shadow.glsl's CpvsLight is 64 bytes");
-
-struct GpuSpotGrid {
-  double position[3], u[3], v[3], dir[3];
-  double tanHalfFov, tanCone, near, far, logRatio;
-  uint32_t headerWord, firstBoundary, log2Resolution, light;
-};
-static_assert(sizeof(GpuSpotGrid) == 152, "cpvs_shadow.glsl's CpvsSpotGrid is 152 bytes");
 
 // Bindings of cpvs_light_query.comp's tables (CPVS_LIGHT_BINDING 12), then its pool.
 constexpr uint32_t kLightTableBinding = 12, kLightWordBinding = 15;
@@ -44,7 +37,6 @@ std::vector<uint8_t> bytesOf(const std::vector<T>& rows) {
 }
 
 void put(float* out, const Vec3& v) { out[0] = float(v.x), out[1] = float(v.y), out[2] = float(v.z); }
-void put(double* out, const Vec3& v) { out[0] = v.x, out[1] = v.y, out[2] = v.z; }
 
 void checkQueries(const LightArtifact& artifact, const std::vector<uint32_t>& lights, const std::vector<Vec3>& points,
                   const std::vector<Vec3>& normals, int pcf) {
@@ -93,23 +85,14 @@ std::vector<uint8_t> lightTableBytes(const LightBundle& bundle) {
   return bytesOf(rows);
 }
 
-std::vector<uint8_t> spotGridTableBytes(const LightBundle& bundle, uint32_t log2BufferWords) {
-  std::vector<GpuSpotGrid> rows;
+std::vector<uint8_t> gridTableBytes(const LightBundle& bundle, uint32_t log2BufferWords) {
+  std::vector<GpuGrid> rows;
   uint64_t boundary = 0;
   for (size_t k = 0; k < bundle.grids.size(); ++k) {
     const BundleGrid& b = bundle.grids[k];
-    const PerspectiveGrid& g = b.grid;
-    GpuSpotGrid r{};
-    put(r.position, g.position());
-    put(r.u, g.frame().u), put(r.v, g.frame().v), put(r.dir, g.frame().dir);
-    r.tanHalfFov = g.tanHalfFov(), r.tanCone = b.tanCone, r.near = g.near(), r.far = g.far();
-    r.logRatio = g.logRatio();
-    r.headerWord = bundle.dag(k).headerWord();
-    r.firstBoundary = uint32_t(boundary);
-    r.log2Resolution = uint32_t(g.log2Resolution());
-    r.light = b.light;
-    rows.push_back(r);
-    boundary += g.resolution() + 1;
+    rows.push_back(gpuGridOf(gridSpecOf(b.grid, b.tanCone), "grid " + std::to_string(k), bundle.dag(k).headerWord(),
+                             uint32_t(boundary), b.light));
+    boundary += b.grid.resolution() + 1;
   }
   // The header: log2 of the words per pool buffer, the grid count (8 bytes, so the rows
   // keep their doubles' alignment).
@@ -133,10 +116,10 @@ struct GpuLights::Impl {
   QueryKernel kernel;
   Impl(GpuDevice::Impl& g, std::shared_ptr<const LightArtifact> a)
       : artifact(std::move(a)),
-        kernel(g, *artifact->bundle().pool, LookupMapping{},
+        kernel(g, *artifact->bundle().pool, GpuGrid{},
                {{kLightTableBinding, lightTableBytes(artifact->bundle())},
                 {kLightTableBinding + 1,
-                 spotGridTableBytes(artifact->bundle(), uint32_t(std::countr_zero(g.bindingLimit / 4)))},
+                 gridTableBytes(artifact->bundle(), uint32_t(std::countr_zero(g.bindingLimit / 4)))},
                 {kLightTableBinding + 2, sliceBoundaryBytes(artifact->bundle())}},
                {lightQueryShaderOneBuffer(), lightQueryShaderEightBuffers(), true, kLightWordBinding}, "the light bundle") {}
 };

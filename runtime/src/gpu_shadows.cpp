@@ -1,4 +1,6 @@
 // An artifact on a device: its packed words uploaded as they are, the query pipeline.
+#include <cstring>
+
 #include "gpu_device_impl.h"
 #include "query_kernel.h"
 
@@ -9,9 +11,18 @@ struct GpuShadows::Impl {
   QueryKernel kernel;
   Impl(GpuDevice::Impl& g, std::shared_ptr<const ShadowArtifact> a)
       : artifact(std::move(a)),
-        kernel(g, artifact->packed().words(), artifact->grid().lookupMapping(), {},
+        kernel(g, artifact->packed().words(), gpuGridOf(gridSpecOf(artifact->grid()), "the artifact's grid"), {},
                {queryShaderOneBuffer(), queryShaderEightBuffers(), false, 1}, "the DAG") {}
 };
+
+std::vector<uint8_t> sunBlockBytes(const ShadowArtifact& artifact, uint32_t log2BufferWords) {
+  SunBlock block{};
+  block.grid = gpuGridOf(gridSpecOf(artifact.grid()), "the artifact's grid");
+  block.log2BufferWords = log2BufferWords;
+  std::vector<uint8_t> bytes(sizeof block);
+  std::memcpy(bytes.data(), &block, sizeof block);
+  return bytes;
+}
 
 GpuShadows::GpuShadows(GpuDevice& device, std::shared_ptr<const ShadowArtifact> artifact) {
   if (!artifact) throw RuntimeError(Status::InvalidArgument, "no artifact to upload");

@@ -12,22 +12,14 @@ namespace cpvs::runtime {
 
 namespace {
 
-// Bindings of the query shaders (cpvs_query.comp, cpvs_light_query.comp): the mapping,
+// Bindings of the query shaders (cpvs_query.comp, cpvs_light_query.comp): the sun's grid,
 // the word buffers, the queries, the answers, each query's light; tables after them.
-constexpr uint32_t kMappingBinding = 0, kSunWordBinding = 1, kMaxWordBindings = 8, kQueryBinding = 9,
+constexpr uint32_t kSunBinding = 0, kSunWordBinding = 1, kMaxWordBindings = 8, kQueryBinding = 9,
                    kAnswerBinding = 10, kQueryLightBinding = 11;
 constexpr uint32_t kGroupSize = 64;
 constexpr uint32_t kQueryDoubles = 6;
 // Queries per dispatch at most (48 MiB of queries): bounded by the binding limit too.
 constexpr uint64_t kMaxBatch = uint64_t(1) << 20;
-
-/// The uniform block CpvsMapping of cpvs_shadow.glsl.
-struct MappingBlock {
-  LookupMapping mapping;
-  uint32_t log2BufferWords;
-  uint32_t pad[3];
-};
-static_assert(sizeof(MappingBlock) == 160);
 
 struct BatchConstants {
   uint32_t count, pcf, groupsX;
@@ -45,11 +37,11 @@ void checkQueryShape(size_t points, size_t normals, int pcf) {
     throw RuntimeError(Status::InvalidArgument, std::to_string(normals) + " normals for " + std::to_string(points) + " points");
 }
 
-QueryKernel::QueryKernel(GpuDevice::Impl& device, const std::vector<uint32_t>& words, const LookupMapping& mapping,
+QueryKernel::QueryKernel(GpuDevice::Impl& device, const std::vector<uint32_t>& words, const GpuGrid& sun,
                          std::vector<Table> tables, const Shaders& shaders, const char* what)
     : g(device), tables_(std::move(tables)), queryLights_(shaders.queryLights), firstWordBinding_(shaders.firstWordBinding) {
   try {
-    upload(words, mapping, what);
+    upload(words, sun, what);
     createPipeline(shaders);
   } catch (...) {
     release();
@@ -61,7 +53,7 @@ QueryKernel::~QueryKernel() { release(); }
 
 void QueryKernel::release() {
   if (!g.lost) g.vkd.vkDeviceWaitIdle(g.device);
-  for (VulkanBuffer* b : {&words_, &mapping_, &queries_, &answers_, &lights_, &staging_}) g.destroy(*b);
+  for (VulkanBuffer* b : {&words_, &sun_, &queries_, &answers_, &lights_, &staging_}) g.destroy(*b);
   for (VulkanBuffer& b : tableBuffers_) g.destroy(b);
   tableBuffers_.clear();
   if (timestamps_) g.vkd.vkDestroyQueryPool(g.device, timestamps_, nullptr);
@@ -92,7 +84,7 @@ VulkanBuffer QueryKernel::uploadToDevice(const void* data, uint64_t bytes) {
   return target;
 }
 
-void QueryKernel::upload(const std::vector<uint32_t>& w, const LookupMapping& lookup, const char* what) {
+void QueryKernel::upload(const std::vector<uint32_t>& w, const GpuGrid& sun, const char* what) {
   const uint64_t bytes = uint64_t(w.size()) * 4;
   wordsPerBinding_ = g.bindingLimit / 4;
   bindings_ = uint32_t((bytes + g.bindingLimit - 1) / g.bindingLimit);
@@ -113,11 +105,11 @@ void QueryKernel::upload(const std::vector<uint32_t>& w, const LookupMapping& lo
     tableBuffers_.push_back(uploadToDevice(t.bytes.data(), t.bytes.size()));
     t.bytes = {};  // the device holds them now
   }
-  mapping_ = g.createBuffer(sizeof(MappingBlock), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
-  MappingBlock block{};
-  block.mapping = lookup;
+  sun_ = g.createBuffer(sizeof(SunBlock), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
+  SunBlock block{};
+  block.grid = sun;
   block.log2BufferWords = uint32_t(std::countr_zero(wordsPerBinding_));
-  std::memcpy(mapping_.mapped, &block, sizeof block);
+  std::memcpy(sun_.mapped, &block, sizeof block);
 }
 
 void QueryKernel::createPipeline(const Shaders& shaders) {
@@ -125,7 +117,7 @@ void QueryKernel::createPipeline(const Shaders& shaders) {
   auto add = [&](uint32_t binding, VkDescriptorType type) {
     layout.push_back({binding, type, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
   };
-  add(kMappingBinding, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER);
+  add(kSunBinding, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER);
   const uint32_t wordBindings = bindings_ == 1 ? 1 : kMaxWordBindings;  // the shader variant's
   for (uint32_t k = 0; k < wordBindings; ++k) add(firstWordBinding_ + k, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
   // A light bundle's shader declares the sun's first word buffer too (the include reads
@@ -174,7 +166,7 @@ void QueryKernel::createPipeline(const Shaders& shaders) {
   alloc.pSetLayouts = &setLayout_;
   g.check(g.vkd.vkAllocateDescriptorSets(g.device, &alloc, &set_), "vkAllocateDescriptorSets");
 
-  writeDescriptor(kMappingBinding, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, mapping_.buffer, 0, sizeof(MappingBlock));
+  writeDescriptor(kSunBinding, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, sun_.buffer, 0, sizeof(SunBlock));
   // Binding k views words [k * wordsPerBinding, ...) of the one buffer; bindings past the
   // array's end (the 8-binding variant) view its last range and are never read.
   for (uint32_t k = 0; k < wordBindings; ++k) {

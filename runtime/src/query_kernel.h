@@ -1,6 +1,6 @@
 // A compute pipeline of lookups over one packed word array on a device: the words
 // uploaded as they are (one buffer, bound whole or split across up to 8 bindings), the
-// mapping block, the read-only tables a shader needs besides (a light bundle's lights,
+// sun's grid block (a light bundle's kernel leaves it zero), the read-only tables a shader needs besides (a light bundle's lights,
 // grids and slice boundaries), and batches of queries in, lit texel counts out. What
 // GpuShadows and GpuLights share. Private to runtime.
 #pragma once
@@ -9,11 +9,20 @@
 #include <vector>
 
 #include "cpvs/base/vec3.h"
-#include "cpvs/light/lookup_mapping.h"
+#include "cpvs/light/gpu_grid.h"
 #include "gpu_device_impl.h"
 #include "query_shaders.h"
 
 namespace cpvs::runtime {
+
+/// The uniform block CpvsSun of cpvs_shadow.glsl (std140: the sun's grid, then the log2 of
+/// the words per word buffer, padded to the block's 16-byte alignment).
+struct SunBlock {
+  GpuGrid grid;
+  uint32_t log2BufferWords;
+  uint32_t pad[3];
+};
+static_assert(sizeof(SunBlock) == 224);
 
 /// InvalidArgument unless pcf is a valid filter width and there are no normals or one per
 /// point.
@@ -32,7 +41,7 @@ class QueryKernel {
     uint32_t firstWordBinding;  // 1 (the sun's words), 15 (a light bundle's pool)
   };
   /// `what` names the words in errors ("the DAG", "the light bundle").
-  QueryKernel(GpuDevice::Impl& device, const std::vector<uint32_t>& words, const LookupMapping& mapping,
+  QueryKernel(GpuDevice::Impl& device, const std::vector<uint32_t>& words, const GpuGrid& sun,
               std::vector<Table> tables, const Shaders& shaders, const char* what);
   ~QueryKernel();
   QueryKernel(const QueryKernel&) = delete;
@@ -48,7 +57,7 @@ class QueryKernel {
  private:
   /// Every device object, destroyed (twice is harmless).
   void release();
-  void upload(const std::vector<uint32_t>& words, const LookupMapping& mapping, const char* what);
+  void upload(const std::vector<uint32_t>& words, const GpuGrid& sun, const char* what);
   void createPipeline(const Shaders& shaders);
   void ensureCapacity(uint64_t n);
   void writeDescriptor(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize offset, VkDeviceSize range);
@@ -62,7 +71,7 @@ class QueryKernel {
   std::vector<VulkanBuffer> tableBuffers_;
   bool queryLights_ = false;
   uint32_t firstWordBinding_ = 1;
-  VulkanBuffer words_, mapping_, queries_, answers_, lights_, staging_;
+  VulkanBuffer words_, sun_, queries_, answers_, lights_, staging_;
   uint32_t bindings_ = 1;
   uint64_t wordsPerBinding_ = 0;
   VkDescriptorSetLayout setLayout_ = VK_NULL_HANDLE;

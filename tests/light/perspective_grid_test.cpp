@@ -1,13 +1,17 @@
 // The LightGrid mapping of a spot light against its definition (seed 000 §5, NOTES
 // §1.2.1-§1.2.4 and §1.4 items 1 and 5): eq. (1)'s slices through one boundary table, the
 // round trip, texel rays, the Jacobian against central differences, the cone mask
-// against a brute force, the minimal bias at the frustum's corners, and refused input.
+// against a brute force, the minimal bias at the frustum's corners, refused input, and the
+// GPU's one grid record of either projection.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 
 #include "cpvs/base/error.h"
+#include "cpvs/light/gpu_grid.h"
+#include "cpvs/light/ortho_grid.h"
 #include "cpvs/light/perspective_grid.h"
 
 namespace cpvs {
@@ -224,6 +228,56 @@ TEST(PerspectiveGrid, BadLightsAreRefused) {
   refused({0, 0, 0}, frame, 1, 0.1, INFINITY, 8, "0 < near < far");
   refused({0, 0, 0}, frame, 1, 0.1, 10, 40, "resolution");
   refused({0, 0, 0}, frame, 1, 1, 1 + 1e-13, 12, "too close");
+}
+
+}  // namespace
+}  // namespace cpvs
+
+namespace cpvs {
+namespace {
+
+// The GPU's one grid record, from the one description, for both projections: the sun's
+// carries its lookup constants bit for bit (what the CPU's lookups evaluate), a spot
+// grid's its apex, frame and depth range; a record maps back to nothing it was not made
+// from, and a bad description is refused.
+TEST(GpuGrid, EitherProjectionIsOneRecordFromItsDescription) {
+  OrthoGrid sun;
+  sun.frame = LightFrame::fromDirection({0.3, -1, 0.25});
+  sun.origin = {10, -2, 3};
+  sun.u0 = -40, sun.v0 = -35, sun.d0 = -60;
+  sun.extent = 80, sun.depthExtent = 120;
+  sun.log2Resolution = 9;
+  const GpuGrid o = gpuGridOf(gridSpecOf(sun), "sun", 0, 0, 0);
+  EXPECT_EQ(o.projection, uint32_t(Projection::Orthographic));
+  EXPECT_EQ(o.log2Resolution, 9u);
+  const LookupMapping m = sun.lookupMapping();
+  EXPECT_EQ(std::memcmp(&o.mapping, &m, sizeof m), 0) << "the sun's record holds the CPU's lookup constants";
+  EXPECT_EQ(o.tanHalfFov, 0);
+  EXPECT_EQ(o.far, 0);
+
+  const PerspectiveGrid spot = sampleGrid(7, 0.7);
+  const GpuGrid s = gpuGridOf(gridSpecOf(spot, 0.6), "spot", 96, 1234, 5);
+  EXPECT_EQ(s.projection, uint32_t(Projection::Perspective));
+  EXPECT_EQ(s.log2Resolution, 7u);
+  EXPECT_EQ(s.headerWord, 96u);
+  EXPECT_EQ(s.firstBoundary, 1234u);
+  EXPECT_EQ(s.light, 5u);
+  EXPECT_EQ(Vec3(s.mapping.origin[0], s.mapping.origin[1], s.mapping.origin[2]), spot.position());
+  EXPECT_EQ(Vec3(s.mapping.dir[0], s.mapping.dir[1], s.mapping.dir[2]), spot.frame().dir);
+  EXPECT_EQ(Vec3(s.mapping.u[0], s.mapping.u[1], s.mapping.u[2]), spot.frame().u);
+  EXPECT_EQ(s.mapping.scale[0], 0) << "no orthographic constants in a perspective record";
+  EXPECT_EQ(s.tanHalfFov, 0.7);
+  EXPECT_EQ(s.tanCone, 0.6);
+  EXPECT_EQ(s.near, spot.near());
+  EXPECT_EQ(s.far, spot.far());
+  EXPECT_EQ(s.logRatio, spot.logRatio());
+
+  GridSpec bad = gridSpecOf(spot, 0.6);
+  bad.near = bad.far * 2;
+  EXPECT_THROW(gpuGridOf(bad, "bad"), InputError);
+  bad = gridSpecOf(sun);
+  bad.log2Resolution = 40;
+  EXPECT_THROW(gpuGridOf(bad, "bad"), InputError);
 }
 
 }  // namespace

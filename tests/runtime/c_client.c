@@ -1,10 +1,12 @@
 /* A C program as an engine's plugin would be: it includes only cpvs_runtime.h and links
  * only libcpvs_runtime.so. It opens an artifact on the CPU and on a device (validation
  * on), asks both the same queries, and exits 0 when every answer agrees and the
- * validation layer reported nothing; it prints what went wrong otherwise.
+ * validation layer reported nothing, and the bytes an engine's shader binds for the sun
+ * (cpvsGetShadowsBuffer) describe its grid; it prints what went wrong otherwise.
  *   c_client FILE.cpvs X Y Z    (a point inside the artifact's scene) */
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "cpvs/runtime/cpvs_runtime.h"
 
@@ -52,6 +54,25 @@ int main(int argc, char** argv) {
            COUNT, differ, cpvsGetDeviceName(device));
     failures += differ != 0 || shadowed == 0 || shadowed == COUNT;
   }
+  /* The sun's block: an orthographic CpvsGrid (projection at byte 184) of the words'
+   * resolution (log2 at byte 188, header word 1 of the words). */
+  const void* sun = NULL;
+  const void* words = NULL;
+  size_t sunBytes = 0, wordBytes = 0;
+  if (cpvsGetShadowsBuffer(cpu, CPVS_SHADOWS_BUFFER_SUN, &sun, &sunBytes) != CPVS_OK ||
+      cpvsGetShadowsBuffer(cpu, CPVS_SHADOWS_BUFFER_WORDS, &words, &wordBytes) != CPVS_OK) {
+    fprintf(stderr, "c_client: cpvsGetShadowsBuffer: %s\n", cpvsGetLastError());
+    return 1;
+  }
+  uint32_t projection = 1, log2Resolution = 0, header[2] = {0, 0};
+  if (sunBytes == 224 && wordBytes >= 8) {
+    memcpy(&projection, (const char*)sun + 184, 4);
+    memcpy(&log2Resolution, (const char*)sun + 188, 4);
+    memcpy(header, words, 8);
+  }
+  printf("the sun's block: %zu bytes, projection %u, 2^%u texels a side; %zu bytes of words\n", sunBytes, projection,
+         log2Resolution, wordBytes);
+  failures += sunBytes != 224 || projection != 0 || log2Resolution != header[1] || log2Resolution == 0;
   if (cpvsGetValidationMessageCount(device) != 0) {
     fprintf(stderr, "c_client: the validation layer reported %zu messages\n", cpvsGetValidationMessageCount(device));
     ++failures;

@@ -17,6 +17,7 @@
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/eval/surface_sampling.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/light/gpu_grid.h"
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/runtime/cpvs_runtime.h"
 #include "cpvs/runtime/runtime.h"
@@ -538,7 +539,15 @@ TEST(GpuLightLookups, ABundleAnswersAsTheCpu) {
   ASSERT_EQ(cpvsGetLightBuffer(onDevice, CPVS_LIGHT_BUFFER_LIGHTS, &data, &bytes), CPVS_OK);
   EXPECT_EQ(bytes, 3u * 64);
   ASSERT_EQ(cpvsGetLightBuffer(onDevice, CPVS_LIGHT_BUFFER_GRIDS, &data, &bytes), CPVS_OK);
-  EXPECT_EQ(bytes, 8 + 8u * 152);
+  ASSERT_EQ(bytes, 8 + 8u * sizeof(GpuGrid));
+  // One record a grid, from the grid's description: what the sun's block holds too.
+  for (size_t k = 0; k < 8; ++k) {
+    const BundleGrid& g = bundle.grids[k];
+    uint32_t first = 0;
+    for (size_t j = 0; j < k; ++j) first += uint32_t(bundle.grids[j].grid.resolution() + 1);
+    const GpuGrid want = gpuGridOf(gridSpecOf(g.grid, g.tanCone), "grid", bundle.dag(k).headerWord(), first, g.light);
+    EXPECT_EQ(std::memcmp(static_cast<const uint8_t*>(data) + 8 + k * sizeof(GpuGrid), &want, sizeof want), 0) << "grid " << k;
+  }
   ASSERT_EQ(cpvsGetLightBuffer(onDevice, CPVS_LIGHT_BUFFER_BOUNDARIES, &data, &bytes), CPVS_OK);
   EXPECT_EQ(bytes, (257u + 129u * 7) * 8);
   CpvsLights refused = nullptr;
@@ -585,6 +594,19 @@ TEST(CApi, QueriesAndErrors) {
   std::fill(got.begin(), got.end(), 0);
   ASSERT_EQ(cpvsQueryShadows(onCpu, points.size(), p.data(), n.data(), 9, got.data()), CPVS_OK);
   EXPECT_EQ(got, want);
+  // What an engine's shader binds for the sun: its grid's one record and the words.
+  const void* data = nullptr;
+  size_t bytes = 0;
+  ASSERT_EQ(cpvsGetShadowsBuffer(onCpu, CPVS_SHADOWS_BUFFER_SUN, &data, &bytes), CPVS_OK);
+  ASSERT_EQ(bytes, 224u);
+  const GpuGrid sun = gpuGridOf(gridSpecOf(b.artifact->grid()), "sun");
+  EXPECT_EQ(std::memcmp(data, &sun, sizeof sun), 0);
+  const LookupMapping cpu = b.artifact->grid().lookupMapping();
+  EXPECT_EQ(std::memcmp(&sun.mapping, &cpu, sizeof cpu), 0) << "the CPU's constants";
+  ASSERT_EQ(cpvsGetShadowsBuffer(onCpu, CPVS_SHADOWS_BUFFER_WORDS, &data, &bytes), CPVS_OK);
+  EXPECT_EQ(bytes, b.artifact->packed().words().size() * 4);
+  EXPECT_EQ(std::memcmp(data, b.artifact->packed().words().data(), bytes), 0);
+  EXPECT_EQ(cpvsGetShadowsBuffer(onCpu, CpvsShadowsBuffer(7), &data, &bytes), CPVS_ERROR_INVALID_ARGUMENT);
   cpvsReleaseShadows(onCpu);
 
   // Lost: an error without the fallback flag; with it, the CPU answers.

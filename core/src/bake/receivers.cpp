@@ -532,6 +532,10 @@ ReceiverSet::ReceiverSet(const Scene& scene, const PerspectiveGrid& grid, const 
       s.wy = n.y / (dPlane * scale);
       s.w0 = (n.z - (n.x + n.y) * centre / scale) / dPlane;
       s.planar = std::isfinite(s.wx) && std::isfinite(s.wy) && std::isfinite(s.w0);
+      // Rounding of the fit and of the window's sums: far below relative 1e-6 of the
+      // terms at any column of the grid and its window.
+      const double reach = R + 2 * window + 2;
+      s.slack = 1e-6 * (std::fabs(s.w0) + (std::fabs(s.wx) + std::fabs(s.wy)) * reach);
     }
     poly = clipDepths(std::move(poly), zNear, part == 0 ? zFar : std::numeric_limits<double>::infinity());
     if (poly.empty()) return;
@@ -620,26 +624,77 @@ ReceiverSet::ReceiverSet(const Scene& scene, const PerspectiveGrid& grid, const 
   indexCells(frustumSpans_, grid.log2Resolution());
 }
 
-bool ReceiverSet::frustumReads(const FrustumSpan& s, int64_t x, int64_t y, uint32_t& a, uint32_t& b) const {
+ReceiverSet::FrustumRead ReceiverSet::frustumReads(const FrustumSpan& s, int64_t x, int64_t y, uint32_t& a,
+                                                   uint32_t& b, uint32_t* hints) const {
   double lo = s.wLo, hi = s.wHi;
   if (s.planar) {
-    const double xa = double(x) - s.window, xb = double(x) + 1 + s.window;
+    // The window's extremes of w0 + wx x + wy y: the row's part first, then the column's,
+    // with one slack for the whole grid, so each is monotone in x.
     const double ya = double(y) - s.window, yb = double(y) + 1 + s.window;
-    const double wxa = s.wx * xa, wxb = s.wx * xb, wya = s.wy * ya, wyb = s.wy * yb;
-    // Rounding of the fit and of these sums, far below this (relative 1e-6 of the terms).
-    const double slack = 1e-6 * (std::fabs(s.w0) + std::max(std::fabs(wxa), std::fabs(wxb)) +
-                                 std::max(std::fabs(wya), std::fabs(wyb)));
-    lo = std::max(lo, s.w0 + std::min(wxa, wxb) + std::min(wya, wyb) - slack);
-    hi = std::min(hi, s.w0 + std::max(wxa, wxb) + std::max(wya, wyb) + slack);
-    if (!(lo <= hi)) return false;
+    const double xa = double(x) - s.window, xb = double(x) + 1 + s.window;
+    const double low = (s.w0 + std::min(s.wy * ya, s.wy * yb) - s.slack) + std::min(s.wx * xa, s.wx * xb);
+    const double high = (s.w0 + std::max(s.wy * ya, s.wy * yb) + s.slack) + std::max(s.wx * xa, s.wx * xb);
+    if (!(high >= s.wLo)) return kNoneBefore;  // every point in the window is farther than the triangle
+    if (!(low <= s.wHi)) return kNoneAfter;    // nearer
+    lo = std::max(lo, low);
+    hi = std::min(hi, high);
   }
   const PerspectiveGrid& g = *spot_;
   const double top = double(R_) - 1;
-  const double zLo = g.voxelZ(1 / hi) + s.zLoOff, zHi = g.voxelZ(1 / lo) + s.zHiOff;
-  if (!(zHi >= 0) || !(zLo <= top) || std::isnan(zLo)) return false;
+  const double zLo = g.voxelZ(1 / hi, hints[0]) + s.zLoOff, zHi = g.voxelZ(1 / lo, hints[1]) + s.zHiOff;
+  if (!(zLo <= top)) return kNoneBefore;  // behind the grid
+  if (!(zHi >= 0)) return kNoneAfter;     // in front of it
   a = uint32_t(std::max(0.0, zLo));
   b = uint32_t(std::min(top, zHi));
-  return true;
+  return kReads;
+}
+
+template <class Fn>
+void ReceiverSet::forFrustumRow(const FrustumSpan& s, int64_t y, int64_t xa, int64_t xb, Fn&& fn) const {
+  struct End {
+    FrustumRead read;
+    uint32_t a, b;
+  };
+  uint32_t hints[2] = {0, 0};
+  auto at = [&](int64_t x) {
+    End e{kNoneBefore, 0, 0};
+    e.read = frustumReads(s, x, y, e.a, e.b, hints);
+    return e;
+  };
+  auto same = [](const End& p, const End& q) { return p.read == q.read && (p.read != kReads || (p.a == q.a && p.b == q.b)); };
+  auto emit = [&](int64_t l, int64_t r, const End& e) {
+    if (e.read == kReads)
+      for (int64_t x = l; x <= r; ++x) fn(x, e.a, e.b);
+  };
+  if (xa > xb) return;
+  if (!s.planar) {  // the same everywhere
+    emit(xa, xb, at(xa));
+    return;
+  }
+  struct Run {
+    int64_t l, r;
+    End el, er;
+  };
+  std::vector<Run> stack;
+  for (int64_t block = xa & ~int64_t(63); block <= xb; block += 64) {
+    const int64_t l = std::max(block, xa), r = std::min(block + 63, xb);
+    stack.push_back({l, r, at(l), at(r)});
+    while (!stack.empty()) {
+      const Run run = stack.back();
+      stack.pop_back();
+      if (same(run.el, run.er)) {
+        emit(run.l, run.r, run.el);
+      } else if (run.r - run.l < 8) {  // short: each column (its ends known)
+        emit(run.l, run.l, run.el);
+        for (int64_t x = run.l + 1; x < run.r; ++x) emit(x, x, at(x));
+        emit(run.r, run.r, run.er);
+      } else {
+        const int64_t m = run.l + (run.r - run.l) / 2;
+        stack.push_back({m + 1, run.r, at(m + 1), run.er});
+        stack.push_back({run.l, m, run.el, at(m)});
+      }
+    }
+  }
 }
 
 ReceiverSet ReceiverSet::everywhere(uint64_t resolution) {
@@ -676,8 +731,8 @@ std::vector<uint8_t> ReceiverSet::reachedColumns() const {
   for (const FrustumSpan& s : frustumSpans_)
     for (int64_t y = s.yMin; y <= s.yMax; ++y)
       for (int64_t x = s.xMin; x <= s.xMax; ++x) {
-        uint32_t a = 0, b = 0;
-        if (frustumReads(s, x, y, a, b)) reached[size_t(y) * R_ + size_t(x)] = 1;
+        uint32_t a = 0, b = 0, hints[2] = {0, 0};
+        if (frustumReads(s, x, y, a, b, hints) == kReads) reached[size_t(y) * R_ + size_t(x)] = 1;
       }
   for (const Span& s : spans_)
     for (int64_t y = s.yMin; y <= s.yMax; ++y) {
@@ -803,10 +858,7 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
       const int64_t xa = std::max<int64_t>(s.xMin, int64_t(x0)), xb = std::min<int64_t>(s.xMax, int64_t(gx1));
       for (int64_t y = ya; y <= yb; ++y) {
         const size_t row = size_t(y - int64_t(gy0)) * width - size_t(x0);
-        for (int64_t x = xa; x <= xb; ++x) {
-          uint32_t a = 0, b = 0;
-          if (frustumReads(s, x, y, a, b)) fn(row + size_t(x), a, b);
-        }
+        forFrustumRow(s, y, xa, xb, [&](int64_t x, uint32_t a, uint32_t b) { fn(row + size_t(x), a, b); });
       }
     };
     auto forSpan = [&](uint32_t i, auto&& fn) {

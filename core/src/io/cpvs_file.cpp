@@ -2,6 +2,7 @@
 
 #include "cpvs/base/error.h"
 #include "cpvs/base/text.h"
+#include "cpvs/light/grid_spec.h"
 
 #include "io/bake_fields.h"
 #include "io/container.h"
@@ -20,7 +21,8 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   ContainerKind kind = kCpvsKind;
   kind.version = kCpvsFormatVersion;
   beginContainer(w, kind, zstd ? kContainerZstd : 0);
-  const OrthoGrid& g = a.grid;
+  // The grid's description (GridSpec), its orthographic fields in their version 1 order.
+  const GridSpec g = gridSpecOf(a.grid);
   w.putVec(g.frame.dir);
   w.putVec(g.frame.u);
   w.putVec(g.frame.v);
@@ -51,22 +53,24 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
 
   CpvsArtifact a;
   a.formatVersion = version;
-  OrthoGrid& g = a.grid;
-  g.frame.dir = h.getVec("header");
-  g.frame.u = h.getVec("header");
-  g.frame.v = h.getVec("header");
-  g.origin = h.getVec("header");
-  g.u0 = h.get<double>("header");
-  g.v0 = h.get<double>("header");
-  g.d0 = h.get<double>("header");
-  g.extent = h.get<double>("header");
-  g.depthExtent = h.get<double>("header");
-  g.log2Resolution = h.get<int32_t>("header");
+  GridSpec spec;
+  spec.projection = Projection::Orthographic;
+  spec.frame.dir = h.getVec("header");
+  spec.frame.u = h.getVec("header");
+  spec.frame.v = h.getVec("header");
+  spec.origin = h.getVec("header");
+  spec.u0 = h.get<double>("header");
+  spec.v0 = h.get<double>("header");
+  spec.d0 = h.get<double>("header");
+  spec.extent = h.get<double>("header");
+  spec.depthExtent = h.get<double>("header");
+  spec.log2Resolution = h.get<int32_t>("header");
   try {
-    checkGrid(g, source);
+    a.grid = orthoGridOf(spec, source);
   } catch (const InputError& e) {
     throw FormatError(e.what());  // bad bytes, not a bad argument
   }
+  const OrthoGrid& g = a.grid;
 
   getOptions(h, a.options, a.sceneHash);
   if (version >= 3) getReceiversAndPlan(h, a.options, a.receiverHash, a.plan);

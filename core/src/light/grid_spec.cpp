@@ -23,8 +23,7 @@ void checkProjection(const GridSpec& s, Projection want, const std::string& what
   if (s.projection != want)
     throw InputError(what + ": a " + projectionName(s.projection) + " grid, not the " + projectionName(want) +
                      " one it must be");
-  if (s.log2Resolution < kMinLog2Resolution || s.log2Resolution > kMaxLog2Resolution)
-    throw InputError(what + ": log2 resolution " + std::to_string(s.log2Resolution) + " is out of range");
+  // The resolution is checked where the grid is made (checkGrid, PerspectiveGrid).
 }
 
 }  // namespace

@@ -77,6 +77,24 @@ double PerspectiveGrid::voxelZ(double zv) const {
   return double(k) + std::min(within, std::nextafter(1.0, 0.0));
 }
 
+double PerspectiveGrid::voxelZ(double zv, uint32_t& hint) const {
+  const std::vector<double>& b = *boundaries_;
+  const uint64_t R = resolution();
+  if (zv < near_) return (zv - b[0]) / (b[1] - b[0]);
+  if (zv >= far_) return double(R) + (zv - b[R]) / (b[R] - b[R - 1]);
+  // A few steps through the table from the hint; farther, eq. (1)'s estimate. The table
+  // decides either way: the same slice as sliceOfDepth.
+  uint64_t k = std::min<uint64_t>(hint, R - 1);
+  int steps = 0;
+  while (k > 0 && zv < b[k])
+    if (--k, ++steps > 8) k = sliceOfDepth(zv);
+  while (k + 1 < R && zv >= b[k + 1])
+    if (++k, ++steps > 8) k = sliceOfDepth(zv);
+  hint = uint32_t(k);
+  const double within = (zv - b[k]) / (b[k + 1] - b[k]);
+  return double(k) + std::min(within, std::nextafter(1.0, 0.0));
+}
+
 double PerspectiveGrid::depthOfVoxelZ(double z) const {
   const std::vector<double>& b = *boundaries_;
   const uint64_t R = resolution();

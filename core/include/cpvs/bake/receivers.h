@@ -159,6 +159,7 @@ class ReceiverSet {
   struct FrustumSpan {
     int64_t xMin, yMin, xMax, yMax;  // columns its lookups reach (inclusive, inside the grid)
     double wx, wy, w0;               // 1 / zv = w0 + wx x + wy y on its plane, when planar
+    double slack;                    // on that: above its rounding anywhere in the grid
     double wLo, wHi;                 // 1 / zv over the triangle clipped to the depths read
     double window;                   // a column x is read from points of texel x in [x - window, x + 1 + window)
     double zLoOff, zHiOff;           // reads' voxel z relative to the point's own
@@ -169,8 +170,17 @@ class ReceiverSet {
  private:
   ReceiverSet() = default;
   static bool columnRange(const Span& s, const Ring& r, const double* dirYTimesCy, int64_t& x0, int64_t& x1);
-  /// The slices [a, b] span s reads at column (x, y); false when it reads none there.
-  bool frustumReads(const FrustumSpan& s, int64_t x, int64_t y, uint32_t& a, uint32_t& b) const;
+  /// What span s reads at column (x, y): kReads and the slices [a, b], or why none. Along
+  /// a row the answer is monotone (the read range moves one way, and each kind of none
+  /// holds at one end only), so a run whose ends agree answers alike in between.
+  enum FrustumRead : int { kReads = 0, kNoneBefore = 1, kNoneAfter = 2 };
+  /// `hints`: the slices of the last call's depths (PerspectiveGrid::voxelZ), updated.
+  FrustumRead frustumReads(const FrustumSpan& s, int64_t x, int64_t y, uint32_t& a, uint32_t& b, uint32_t* hints) const;
+  /// fn(x, a, b) for each column of [xa, xb] in row y that span s reads: exactly the
+  /// columns and slices of frustumReads, evaluated at the ends of aligned runs only where
+  /// they agree.
+  template <class Fn>
+  void forFrustumRow(const FrustumSpan& s, int64_t y, int64_t xa, int64_t xb, Fn&& fn) const;
   /// Lists every span per cell of 2^log2Cell_ texels by its column bounds.
   template <class S>
   void indexCells(const std::vector<S>& spans, int log2Resolution);

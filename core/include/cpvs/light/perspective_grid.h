@@ -108,6 +108,9 @@ class PerspectiveGrid final : public LightGrid {
   /// The continuous voxel z of view depth zv (linear within each slice, extended
   /// linearly beyond near and far; increasing), and its inverse.
   double voxelZ(double zv) const;
+  /// The same, the slice found from `hint` (a nearby depth's slice), which it updates:
+  /// for many depths in order.
+  double voxelZ(double zv, uint32_t& hint) const;
   double depthOfVoxelZ(double z) const;
 
  private:

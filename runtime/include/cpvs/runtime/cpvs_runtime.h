@@ -72,6 +72,17 @@ int cpvsShadowsOnDevice(CpvsShadows shadows);
 CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* points, const double* normals, int pcf,
                             uint32_t* litTexels);
 
+/* The buffers an engine's own shader binds for cpvs_shadow.glsl's sun lookups, as bytes
+ * to upload: the uniform block CpvsSun (224 bytes: the grid's one record, CpvsGrid, as a
+ * light bundle's grids have it, then the log2 of the words per word buffer, 0 here: an
+ * engine that splits the words across buffers, CPVS_WORD_BUFFERS > 1, writes its own at
+ * byte 208) and the packed words (CpvsWords). Valid while the CpvsShadows lives. */
+typedef enum CpvsShadowsBuffer {
+  CPVS_SHADOWS_BUFFER_SUN = 0,
+  CPVS_SHADOWS_BUFFER_WORDS = 1
+} CpvsShadowsBuffer;
+CpvsStatus cpvsGetShadowsBuffer(CpvsShadows shadows, CpvsShadowsBuffer which, const void** data, size_t* bytes);
+
 /* --- local lights: a light bundle (.cpvs format 4, `cpvs bake --spot/--point/--lights`) */
 
 /* Opens a light bundle and uploads it to `device` (NULL: lookups on the CPU); flags as
@@ -105,8 +116,8 @@ CpvsStatus cpvsQueryLights(CpvsLights lights, size_t count, const uint32_t* ligh
                            const double* points, const double* normals, int pcf, uint32_t* litTexels);
 
 /* The buffers an engine's own shader binds for cpvs_shadow.glsl with CPVS_LIGHTS, as
- * bytes to upload: the shared pool's words (CpvsLightWords), CpvsLights, CpvsSpotGrids
- * and CpvsSliceBoundaries. CpvsSpotGrids begins with the log2 of the words per pool
+ * bytes to upload: the shared pool's words (CpvsLightWords), CpvsLights, CpvsGrids
+ * and CpvsSliceBoundaries. CpvsGrids begins with the log2 of the words per pool
  * buffer, 0 here: an engine that splits the pool across buffers (CPVS_LIGHT_WORD_BUFFERS
  * > 1) writes its own there. Valid while the CpvsLights lives. */
 typedef enum CpvsLightBuffer {

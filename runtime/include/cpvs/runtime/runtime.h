@@ -216,12 +216,18 @@ class GpuLights {
   std::unique_ptr<Impl> impl_;
 };
 
+/// The uniform block CpvsSun that cpvs_shadow.glsl reads the sun's grid from, as bytes
+/// (224: the 208-byte GpuGrid of gpu_grid.h, then log2BufferWords, the log2 of the words
+/// per word buffer where the words are split, 0 where they are not).
+std::vector<uint8_t> sunBlockBytes(const ShadowArtifact& artifact, uint32_t log2BufferWords);
+
 /// The buffers cpvs_shadow.glsl's CPVS_LIGHTS section binds besides the pool, as bytes:
-/// CpvsLights (64 bytes a light), CpvsSpotGrids (8 bytes of header: log2BufferWords, the
+/// CpvsLights (64 bytes a light), CpvsGrids (8 bytes of header: log2BufferWords, the
 /// log2 of the words per pool buffer where the pool is split, and the grid count; then
-/// 152 bytes a grid) and CpvsSliceBoundaries (doubles).
+/// a 208-byte GpuGrid a grid, the record the sun's grid has too) and
+/// CpvsSliceBoundaries (doubles).
 std::vector<uint8_t> lightTableBytes(const LightBundle& bundle);
-std::vector<uint8_t> spotGridTableBytes(const LightBundle& bundle, uint32_t log2BufferWords);
+std::vector<uint8_t> gridTableBytes(const LightBundle& bundle, uint32_t log2BufferWords);
 std::vector<uint8_t> sliceBoundaryBytes(const LightBundle& bundle);
 
 /// Where lookups run.
