@@ -16,9 +16,7 @@
 #include "cpvs/bake/options.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/vec3.h"
-#include "cpvs/light/frame.h"
 #include "cpvs/light/grid_spec.h"
-#include "cpvs/light/ortho_grid.h"
 
 struct sqlite3;
 

@@ -9,8 +9,6 @@
 #include "cpvs/light/frame.h"
 #include "cpvs/light/grid_spec.h"
 #include "cpvs/light/light.h"
-#include "cpvs/light/ortho_grid.h"
-#include "cpvs/light/perspective_grid.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
