@@ -93,4 +93,17 @@ Scene openMatchingScene(const std::string& spec, const Hash128& baked) {
   return scene;
 }
 
+void checkGridInTheAir(const CpvsArtifact& artifact, const std::string& file, const std::string& flag) {
+  const ReceiverKind kind = artifact.options.receivers;
+  if (kind == ReceiverKind::Everywhere) return;
+  if (kind == ReceiverKind::Volume || kind == ReceiverKind::Cameras) {
+    std::fprintf(stderr, "note: %s was baked for '%s' receivers: %s is answered right only inside the declared volume\n",
+                 file.c_str(), optionName(kind), flag.c_str());
+    return;
+  }
+  throw InputError(flag + ": " + file + " was baked for '" + optionName(kind) +
+                   "' receivers, whose grid is undefined in the air; light along a segment needs a bake with "
+                   "--receivers everywhere (or a volume holding the segments)");
+}
+
 }  // namespace cpvs::cli

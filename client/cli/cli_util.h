@@ -57,4 +57,9 @@ Scene openMatchingScene(const std::string& spec, const CpvsArtifact& artifact);
 /// The same for any file that recorded the scene's hash (a light bundle).
 Scene openMatchingScene(const std::string& spec, const Hash128& sceneHash);
 
+/// Light along segments (`query --segment`, `render --fog`) reads the grid in the air:
+/// InputError for an artifact baked for surfaces only, whose voxels off them are free;
+/// a note for one baked for declared volumes, which answers only inside them.
+void checkGridInTheAir(const CpvsArtifact& artifact, const std::string& file, const std::string& flag);
+
 }  // namespace cpvs::cli

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <memory>
 #include <sstream>
 
@@ -20,7 +21,7 @@ namespace cpvs::cli {
 namespace {
 
 struct QueryArgs {
-  std::string file, point, normal, pointsCsv, light = "all";
+  std::string file, point, normal, pointsCsv, segment, medium, light = "all";
   int pcf = 1;
   bool gpu = false;
 };
@@ -140,8 +141,47 @@ int queryBundle(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
   return 0;
 }
 
+// The sun's light along a segment: where it reaches, and with a medium what it scatters
+// towards the segment's start.
+int querySegment(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
+  if (a.gpu) throw InputError("--gpu: segments are walked on the CPU");
+  if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion)
+    throw InputError("--segment: light along a segment is answered for the sun; " + a.file + " is a light bundle");
+  const size_t colon = a.segment.find(':');
+  if (colon == std::string::npos)
+    throw InputError("--segment '" + a.segment + "': expected AX,AY,AZ:BX,BY,BZ (from the eye A to B)");
+  const Vec3 from = parseVec3(a.segment.substr(0, colon), "--segment's start");
+  const Vec3 to = parseVec3(a.segment.substr(colon + 1), "--segment's end");
+  std::optional<Medium> medium;
+  if (!a.medium.empty()) medium = parseMedium(a.medium, "--medium");
+  CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
+  checkGridInTheAir(art, a.file, "--segment");
+  const ShadowQuery q(art.grid, std::move(art.packed));
+  const auto lit = q.litStretches(from, to);
+  const double len = length(to - from);
+  double litLength = 0;
+  for (const auto& [u0, u1] : lit) litLength += u1 - u0;
+  std::printf("length %.9g  lit %.9g (%.4g%%) in %zu stretch%s\n", len, litLength, len > 0 ? 100 * litLength / len : 100.0,
+              lit.size(), lit.size() == 1 ? "" : "es");
+  for (size_t k = 0; k < std::min<size_t>(lit.size(), 20); ++k)
+    std::printf("  lit from %.9g to %.9g\n", lit[k].first, lit[k].second);
+  if (lit.size() > 20) std::printf("  ... %zu more\n", lit.size() - 20);
+  if (medium) {
+    const SegmentLight s = q.inScattering(from, to, *medium);
+    std::printf("transmittance %.9g  in-scattered %.9g (radiance towards the start per unit of sun irradiance)\n",
+                s.transmittance, s.inScattering);
+  }
+  return 0;
+}
+
 int runQuery(const QueryArgs& a) {
-  if (a.point.empty() == a.pointsCsv.empty()) throw InputError("give exactly one of --point X,Y,Z and --points FILE.csv");
+  if (!a.segment.empty()) {
+    if (!a.point.empty() || !a.pointsCsv.empty()) throw InputError("give one of --point, --points and --segment");
+    return querySegment(a, readFile(a.file));
+  }
+  if (!a.medium.empty()) throw InputError("--medium goes with --segment");
+  if (a.point.empty() == a.pointsCsv.empty())
+    throw InputError("give exactly one of --point X,Y,Z, --points FILE.csv and --segment A:B");
   if (!a.pointsCsv.empty() && !a.normal.empty())
     throw InputError("--normal goes with --point; in --points files put the normal in columns 4-6");
   const std::vector<uint8_t> bytes = readFile(a.file);
@@ -212,6 +252,12 @@ void addQueryCommand(CLI::App& app, int& status) {
   c->add_option("--point,-p", a->point, "World point X,Y,Z");
   c->add_option("--normal,-n", a->normal, "Surface normal at the point (applies the normal offset)");
   c->add_option("--points", a->pointsCsv, "CSV file of x,y,z or x,y,z,nx,ny,nz rows");
+  c->add_option("--segment", a->segment,
+                 "AX,AY,AZ:BX,BY,BZ: where the sun reaches along the segment from A to B (the voxels as they are "
+                 "baked: needs a bake for receivers everywhere)");
+  c->add_option("--medium", a->medium,
+                "SIGMA_S,SIGMA_A[,G] with --segment: a homogeneous medium (scattering and absorption per world unit, "
+                "Henyey-Greenstein g): prints the transmittance and the sun light scattered towards A");
   c->add_option("--light", a->light, "A light bundle's light: its index, or all (a line or a column each)")
       ->capture_default_str();
   c->add_option("--pcf", a->pcf, "Filter width in texels: 1, 3, 5, 7 or 9")

@@ -23,7 +23,7 @@ namespace cpvs::cli {
 namespace {
 
 struct RenderArgs {
-  std::string file, scene, camera, out, size = "960x600";
+  std::string file, scene, camera, out, fog, size = "960x600";
   int pcf = 3;
   bool reference = false, gpu = false;
 };
@@ -136,8 +136,14 @@ int runRender(const RenderArgs& a) {
   checkOutputFolder(a.out, "--out");
 
   const std::vector<uint8_t> bytes = readFile(a.file);
-  if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return renderBundle(a, bytes, w, h, base);
+  std::optional<Medium> fog;
+  if (!a.fog.empty()) fog = parseMedium(a.fog, "--fog");
+  if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) {
+    if (fog) throw InputError("--fog: the fog is lit by the sun; " + a.file + " is a light bundle");
+    return renderBundle(a, bytes, w, h, base);
+  }
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
+  if (fog) checkGridInTheAir(art, a.file, "--fog");
   Scene scene = openMatchingScene(a.scene, art);
   RayScene rays(scene, art.grid.origin);
   const Vec3 L = art.grid.frame.dir;
@@ -150,9 +156,19 @@ int runRender(const RenderArgs& a) {
   CameraHits hits = traceCamera(scene, rays, cam, w, h);
   auto lookup = [&](int pcf) { return gpu ? gpuVisibility(hits, *gpu, pcf) : cpvsVisibility(hits, q, pcf); };
   std::vector<float> vis = lookup(a.pcf);
-  writeBoth(base, shadeHits(hits, vis, L));
-  std::printf("Wrote %s.png and %s.exr (CPVS shadows, PCF %d, looked up on %s)\n", base.c_str(), base.c_str(), a.pcf,
-              gpu ? gpu->deviceName().c_str() : "the CPU");
+  if (fog) {
+    Vec3 lo, hi;
+    sceneBounds(scene, lo, hi);
+    const auto start = std::chrono::steady_clock::now();
+    writeBoth(base, foggedImage(shadeHits(hits, vis, L), hits, cam, q, *fog, lo, hi));
+    std::printf("Wrote %s.png and %s.exr (CPVS shadows, PCF %d, looked up on %s; sun shafts through the fog "
+                "walked on the CPU in %.2f s)\n", base.c_str(), base.c_str(), a.pcf,
+                gpu ? gpu->deviceName().c_str() : "the CPU", secondsSince(start));
+  } else {
+    writeBoth(base, shadeHits(hits, vis, L));
+    std::printf("Wrote %s.png and %s.exr (CPVS shadows, PCF %d, looked up on %s)\n", base.c_str(), base.c_str(), a.pcf,
+                gpu ? gpu->deviceName().c_str() : "the CPU");
+  }
   if (a.reference) {
     std::vector<float> exact = exactVisibility(hits, rays, grid);
     writeBoth(base + "-reference", shadeHits(hits, exact, L));
@@ -255,6 +271,10 @@ void addRenderCommand(CLI::App& app, int& status) {
   c->add_flag("--gpu", a->gpu,
               "Look the shadows up on a Vulkan device (headless; CPVS_DEVICE picks one by name): the same "
               "picture as the CPU's. Exit status 5 when there is none");
+  c->add_option("--fog", a->fog,
+                 "SIGMA_S,SIGMA_A[,G]: the scene's box filled with a homogeneous medium (scattering and absorption per "
+                 "world unit, Henyey-Greenstein g) that the sun lights where the baked voxels are lit: sun shafts. "
+                 "Needs a bake for receivers everywhere");
   c->add_flag("--reference", a->reference,
               "Also render exact ray-traced shadows (NAME-reference) and the difference (NAME-diff)");
   c->callback([a, &status] { status = runRender(*a); });

@@ -41,7 +41,76 @@ Rgb sky(int y, int height) {
 
 float ambient(const Vec3& n) { return 0.12f + 0.08f * float(n.y); }
 
+// The sun's irradiance in shadeHits's units: a white Lambertian surface facing it has
+// radiance albedo * E / pi = 0.9 albedo.
+constexpr double kSunIrradiance = 0.9 * std::numbers::pi;
+// Sky light scattered by the medium, as radiance: about the sky's ambient level.
+constexpr Rgb kSkyInScatter{0.09f, 0.11f, 0.14f};
+
+// The stretch [t0, t1] of the ray from `from` along `dir` inside the box [lo, hi]; empty
+// (t0 > t1) when it misses the box.
+std::pair<double, double> boxSpan(const Vec3& from, const Vec3& dir, const Vec3& lo, const Vec3& hi) {
+  double tIn = 0, tOut = std::numeric_limits<double>::infinity();
+  const double f[3] = {from.x, from.y, from.z}, d[3] = {dir.x, dir.y, dir.z}, l[3] = {lo.x, lo.y, lo.z},
+               h[3] = {hi.x, hi.y, hi.z};
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] == 0) {
+      if (f[a] < l[a] || f[a] > h[a]) return {1, 0};
+      continue;
+    }
+    double t0 = (l[a] - f[a]) / d[a], t1 = (h[a] - f[a]) / d[a];
+    if (t0 > t1) std::swap(t0, t1);
+    tIn = std::max(tIn, t0);
+    tOut = std::min(tOut, t1);
+  }
+  return {tIn, tOut};
+}
+
 }  // namespace
+
+Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& camera, const ShadowQuery& query,
+                  const Medium& medium, const Vec3& lo, const Vec3& hi) {
+  checkMedium(medium);
+  const double sigma = medium.extinction();
+  if (sigma == 0) return clear;  // nothing in the air
+  const CameraRays rays(camera, double(hits.width) / double(hits.height));
+  const Vec3 sunDir = query.grid().frame.dir;
+  const double inf = std::numeric_limits<double>::infinity();
+  Image img(hits.width, hits.height);
+  tbb::parallel_for(0, hits.height, [&](int y) {
+    for (int x = 0; x < hits.width; ++x) {
+      const size_t i = size_t(y) * size_t(hits.width) + size_t(x);
+      const SurfaceHit& s = hits.pixels[i];
+      const Rgb c = clear.pixels[i];
+      const Vec3 eye = rays.eye(), dir = rays.through((x + 0.5) / hits.width, (y + 0.5) / hits.height);
+      // The ray's stretch in the layer, then in the scene's box (which the grid covers):
+      // past the box the sun reaches every point, in closed form.
+      auto [t0, t1] = boxSpan(eye, dir, {-inf, lo.y, -inf}, {inf, hi.y, inf});
+      if (s.hit) t1 = std::min(t1, dot(s.point - eye, dir));
+      if (!(t0 < t1)) {
+        img.at(x, y) = c;
+        continue;
+      }
+      const auto [b0, b1] = boxSpan(eye, dir, lo, hi);
+      const double w0 = std::max(t0, b0), w1 = std::min(t1, b1);
+      double sun = 0;
+      if (w0 < w1) sun += query.inScattering(eye + dir * w0, eye + dir * w1, medium).inScattering * std::exp(-sigma * (w0 - t0));
+      // The lit rest of the layer before and after the box.
+      const double phase = medium.scattering * henyeyGreenstein(medium.g, std::clamp(-dot(sunDir, dir), -1.0, 1.0));
+      if (w0 < w1) {
+        sun += phase * (attenuatedLength(sigma, 0, w0 - t0) + attenuatedLength(sigma, w1 - t0, t1 - t0));
+      } else {
+        sun += phase * attenuatedLength(sigma, 0, t1 - t0);
+      }
+      const float t = float(std::exp(-sigma * (t1 - t0)));
+      const float sky = float(medium.scattering / sigma) * (1 - t);
+      const float f = float(kSunIrradiance * sun);
+      img.at(x, y) = {c.r * t + f * 1.0f + sky * kSkyInScatter.r, c.g * t + f * 0.97f + sky * kSkyInScatter.g,
+                      c.b * t + f * 0.9f + sky * kSkyInScatter.b};
+    }
+  });
+  return img;
+}
 
 Image shadeHits(const CameraHits& hits, const std::vector<float>& visibility, const Vec3& lightDir) {
   Image img(hits.width, hits.height);

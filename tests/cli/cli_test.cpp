@@ -255,6 +255,40 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
 // an open triangle: the directional light is this bake's or named with its --sun-dir,
 // the local lights are skipped with the reason, no exit search runs; a bake records the
 // same plan, which inspect shows.
+// The sun along a segment and through fog: the lit stretches and the medium's figures,
+// and the refusals (a bake for surfaces leaves the air undefined; a medium needs a segment
+// and sane coefficients).
+TEST_F(Cli, SegmentsAndFogReadTheGridInTheAir) {
+  CliRun r = cpvs("query " + path("c.cpvs") + " --segment 0,60,0:40,0,40");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("length 82.4621125  lit "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("lit from 0 to "), std::string::npos) << r.out;  // the sky above the city is lit
+  r = cpvs("query " + path("c.cpvs") + " --segment 0,60,0:40,0,40 --medium 0.02,0.01,0.3");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("transmittance 0.0842"), std::string::npos) << r.out;  // e^(-0.03 * 82.46)
+  EXPECT_NE(r.out.find("in-scattered "), std::string::npos) << r.out;
+  r = cpvs("query " + path("c.cpvs") + " --segment 0,60,0:40,0,40 --medium 0.02,-1");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find("absorption"), std::string::npos) << r.out;
+  r = cpvs("query " + path("c.cpvs") + " --point 1,2,3 --medium 0.02,0.01");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find("--medium goes with --segment"), std::string::npos) << r.out;
+  r = cpvs("query " + path("c.cpvs") + " --segment 0,60,0");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find("AX,AY,AZ:BX,BY,BZ"), std::string::npos) << r.out;
+  r = cpvs("render " + path("c.cpvs") + " city:3 --size 64x40 --fog 0.02,0.005,0.6 -o " + path("fog.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_GT(fs::file_size(path("fog.png")), 0u);
+  r = cpvs("bake city:3 --sun-dir 0.3,-1,0.2 -r 64 -q --receivers surfaces -o " + path("air.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const std::string& command : {"query " + path("air.cpvs") + " --segment 0,60,0:40,0,40",
+                                     "render " + path("air.cpvs") + " city:3 --size 64x40 --fog 0.02,0 -o " + path("x.png")}) {
+    r = cpvs(command);
+    EXPECT_NE(r.status, 0) << command;
+    EXPECT_NE(r.out.find("undefined in the air"), std::string::npos) << r.out;
+  }
+}
+
 TEST_F(Cli, PlanSaysWhatABakeComputesAndTheBakeRecordsIt) {
   std::ofstream(path("lights.gltf")) << "{\"asset\": {\"version\": \"2.0\"}, \"extensionsUsed\": [\"KHR_lights_punctual\"], \"extensions\": {\"KHR_lights_punctual\": {\"lights\": [{\"type\": \"directional\", \"name\": \"sun\", \"color\": [1, 1, 1]}, {\"type\": \"point\", \"name\": \"lamp\"}, {\"type\": \"spot\", \"name\": \"torch\", \"spot\": {\"innerConeAngle\": 0.2, \"outerConeAngle\": 0.5}}]}}, \"scenes\": [{\"nodes\": [0, 1, 2, 3]}], \"scene\": 0, \"nodes\": [{\"mesh\": 0, \"name\": \"ground\"}, {\"name\": \"sunNode\", \"rotation\": [-0.7071068, 0, 0, 0.7071068], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 0}}}, {\"name\": \"lampNode\", \"translation\": [1, 2, 3], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 1}}}, {\"name\": \"torchNode\", \"translation\": [0, 5, 0], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 2}}}], \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}}]}], \"buffers\": [{\"byteLength\": 36, \"uri\": \"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAAAAAAAAAAAAAIA/AACAPwAAAAAAAAAA\"}], \"bufferViews\": [{\"buffer\": 0, \"byteLength\": 36}], \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 3, \"type\": \"VEC3\", \"min\": [0, 0, 0], \"max\": [1, 0, 1]}]}";
   CliRun r = cpvs("plan " + path("lights.gltf") + " --sun-dir 0,-1,0 -r 1K --json");

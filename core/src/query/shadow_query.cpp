@@ -7,6 +7,7 @@
 
 #include "cpvs/base/error.h"
 #include "cpvs/query/batch_lookups.h"
+#include "cpvs/query/segment_walk.h"
 
 namespace cpvs {
 
@@ -105,6 +106,28 @@ uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) cons
     }
   }
   return uint32_t(texels - shadowed);
+}
+
+std::vector<std::pair<double, double>> ShadowQuery::litStretches(const Vec3& a, const Vec3& b) const {
+  if (spot_) throw InputError("light along a segment is answered for the sun; a spot light's voxels are not straight");
+  const double distance = length(b - a);
+  std::vector<std::pair<double, double>> lit;
+  walkSegment(dag_, grid_.voxelFromWorld(a), grid_.voxelFromWorld(b), [&](const SegmentPiece& piece) {
+    if (piece.shadowed || piece.t1 <= piece.t0) return;
+    const double u0 = piece.t0 * distance, u1 = piece.t1 * distance;
+    if (!lit.empty() && lit.back().second == u0) lit.back().second = u1;
+    else lit.emplace_back(u0, u1);
+  });
+  return lit;
+}
+
+SegmentLight ShadowQuery::inScattering(const Vec3& a, const Vec3& b, const Medium& m) const {
+  checkMedium(m);
+  const Vec3 toEye = a - b;
+  const double distance = length(toEye);
+  // The angle between the sun's travel and the light scattered back along the view ray.
+  const double cosTheta = distance > 0 ? dot(grid_.frame.dir, toEye) / distance : 1.0;
+  return scatterAlong(litStretches(a, b), distance, m, std::clamp(cosTheta, -1.0, 1.0));
 }
 
 void ShadowQuery::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,

@@ -56,26 +56,41 @@ class PackedDag {
   /// Bytes of the whole array, header and pointer grid included: what a GPU holds.
   uint64_t arrayBytes() const { return words_->size() * 4; }
 
-  /// The 8x8 shadow mask (bit ty*8+tx set = shadowed) of the leaf slice holding voxel
-  /// (x, y, z), each < 2^log2Resolution; all ones or zeros inside a homogeneous node. One
-  /// walk answers 64 voxels of one depth, which is what a filtered lookup needs: a 9x9
-  /// footprint touches at most 4 slices instead of 81 walks (PCF 9x9 on the bunny, 1K-16K:
-  /// 1.4-2.5 us per lookup with one walk per texel, 0.14-0.28 us with this).
-  uint64_t leafSliceMask(uint64_t x, uint64_t y, uint64_t z) const {
+  /// Where the walk to voxel (x, y, z) ends: a homogeneous block (a pointer-grid cell, or
+  /// a node's lit or shadowed child) or the 8x8x1 leaf slice holding the voxel. The block
+  /// is aligned: its corner is the voxel's coordinates with the low bits cleared.
+  struct Block {
+    uint64_t mask;  // the leaf slice's 8x8 shadow mask (bit ty*8+tx); all ones or zeros when homogeneous
+    int log2Side;   // the block is 2^log2Side voxels in x and y ...
+    int log2Depth;  // ... and 2^log2Depth in z (0 for a leaf slice and the slices of a level-0 node)
+    bool homogeneous;
+  };
+  Block block(uint64_t x, uint64_t y, uint64_t z) const {
     const uint32_t* w = w_;
     uint32_t at = w[header_.gridWord + gridCell(log2Resolution(), int(header_.gridLevels), x, y, z)];
-    if (at >= kGridShadowed) return at == kGridShadowed ? ~uint64_t{0} : 0;
+    if (at >= kGridShadowed) {
+      const int side = log2Resolution() - int(header_.gridLevels);
+      return {at == kGridShadowed ? ~uint64_t{0} : 0, side, side, true};
+    }
     for (int level = header_.cellLevel(); level >= 0; --level) {
       CPVS_DCHECK(at < words_->size());
       const uint32_t codes = w[at];
       const int c = childOfVoxel(level, x, y, z);
       const uint32_t code = childCode(codes, c);
-      if (code != kRef) return code == kShadowed ? ~uint64_t{0} : 0;
+      // A node of level l is 2^(l+3) a side; its children half that, but level 0's are
+      // its 8x8x1 depth slices.
+      if (code != kRef) return {code == kShadowed ? ~uint64_t{0} : 0, level + 2 + (level == 0), level == 0 ? 0 : level + 2, true};
       at = w[at + 1 + uint32_t(refRank(codes, c))];
     }
     CPVS_DCHECK(at + 1 < words_->size());
-    return uint64_t(w[at]) | uint64_t(w[at + 1]) << 32;
+    return {uint64_t(w[at]) | uint64_t(w[at + 1]) << 32, 3, 0, false};
   }
+  /// The 8x8 shadow mask (bit ty*8+tx set = shadowed) of the leaf slice holding voxel
+  /// (x, y, z), each < 2^log2Resolution; all ones or zeros inside a homogeneous node. One
+  /// walk answers 64 voxels of one depth, which is what a filtered lookup needs: a 9x9
+  /// footprint touches at most 4 slices instead of 81 walks (PCF 9x9 on the bunny, 1K-16K:
+  /// 1.4-2.5 us per lookup with one walk per texel, 0.14-0.28 us with this).
+  uint64_t leafSliceMask(uint64_t x, uint64_t y, uint64_t z) const { return block(x, y, z).mask; }
   /// Shadow value of one voxel: true = shadowed.
   bool voxelShadowed(uint64_t x, uint64_t y, uint64_t z) const {
     return (leafSliceMask(x, y, z) >> leafBit(x, y)) & 1;

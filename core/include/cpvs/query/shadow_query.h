@@ -9,6 +9,7 @@
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/light/perspective_grid.h"
+#include "cpvs/query/medium.h"
 #include "cpvs/query/normal_offset.h"
 
 namespace cpvs {
@@ -66,6 +67,15 @@ class ShadowQuery {
   /// for an invalid pcf or a normal count that is neither 0 nor the point count.
   void batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
              std::vector<float>& out) const;
+
+  /// The stretches of the world segment a -> b that the sun reaches, as distances from a,
+  /// in order and merged: exact for the voxelization (every voxel as voxelShadowed answers
+  /// it), found by walking the DAG a homogeneous block at a time (segment_walk.h). The sun
+  /// only: InputError for a spot light, whose voxels a straight segment crosses on a curve.
+  std::vector<std::pair<double, double>> litStretches(const Vec3& a, const Vec3& b) const;
+  /// Sun light scattered towards a by medium m along the segment from a to b (a view ray
+  /// from the eye a to the surface b): medium.h's SegmentLight over litStretches.
+  SegmentLight inScattering(const Vec3& a, const Vec3& b, const Medium& m) const;
 
   /// Whether no light reaches texel (x, y) of a spot light: outside the grid or the cone
   /// (false for the sun's grid). A lookup counts such texels dark whatever the DAG holds.

@@ -25,6 +25,16 @@ std::vector<float> exactVisibility(const CameraHits& hits, const RayScene& rays,
 /// gradient where nothing was hit. Linear values.
 Image shadeHits(const CameraHits& hits, const std::vector<float>& visibility, const Vec3& lightDir);
 
+/// The picture seen through a homogeneous medium in the sun (sun shafts): each pixel's
+/// colour attenuated along its view ray, plus the sun light the medium scatters towards
+/// the eye on the ray's lit stretches (ShadowQuery::inScattering: exact for the voxels),
+/// plus a dim sky light scattered all along it. The medium is a layer of fog between the
+/// heights (Y) of the scene's box [lo, hi], without end across: past the box the sun
+/// reaches it everywhere (in closed form), and a ray that leaves the layer sees the sky.
+/// The sun's strength is shadeHits's.
+Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& camera, const ShadowQuery& query,
+                  const Medium& medium, const Vec3& lo, const Vec3& hi);
+
 /// Where two visibilities disagree on a surface facing the sun: red where `a` is darker,
 /// blue where it is brighter, the scene in dim grey elsewhere. Counts the sunlit-facing
 /// pixels compared and those that differ by more than half.
