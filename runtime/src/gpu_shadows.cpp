@@ -1,18 +1,26 @@
 // An artifact on a device: its packed words uploaded as they are, the query pipeline.
 #include <cstring>
 
+#include "cpvs/base/error.h"
+#include "cpvs/query/medium.h"
 #include "gpu_device_impl.h"
 #include "query_kernel.h"
 
 namespace cpvs::runtime {
 
 struct GpuShadows::Impl {
+  GpuDevice::Impl& device;
   std::shared_ptr<const ShadowArtifact> artifact;
   QueryKernel kernel;
+  // Segments (sun shafts) have their own pipeline, made on first use: the words uploaded
+  // a second time then, and never for a game that asks for none.
+  std::unique_ptr<QueryKernel> segments;
   Impl(GpuDevice::Impl& g, std::shared_ptr<const ShadowArtifact> a)
-      : artifact(std::move(a)),
-        kernel(g, artifact->packed().words(), gpuGridOf(gridSpecOf(artifact->grid()), "the artifact's grid"), {},
-               {queryShaderOneBuffer(), queryShaderEightBuffers(), false, 1}, "the DAG") {}
+      : device(g),
+        artifact(std::move(a)),
+        kernel(g, artifact->packed().words(), sunGrid(), {}, {queryShaderOneBuffer(), queryShaderEightBuffers(), false, 1},
+               "the DAG") {}
+  GpuGrid sunGrid() const { return gpuGridOf(gridSpecOf(artifact->grid()), "the artifact's grid"); }
 };
 
 std::vector<uint8_t> sunBlockBytes(const ShadowArtifact& artifact, uint32_t log2BufferWords) {
@@ -35,6 +43,33 @@ GpuShadows::~GpuShadows() = default;
 double GpuShadows::lastDeviceNanoseconds() const { return impl_->kernel.lastDeviceNanoseconds(); }
 int GpuShadows::wordBindings() const { return impl_->kernel.wordBindings(); }
 const ShadowArtifact& GpuShadows::artifact() const { return *impl_->artifact; }
+
+void GpuShadows::segments(const std::vector<Vec3>& from, const std::vector<Vec3>& to, const Medium& medium,
+                          std::vector<double>& litFraction, std::vector<float>& inScattering) {
+  if (from.size() != to.size())
+    throw RuntimeError(Status::InvalidArgument, std::to_string(from.size()) + " segment starts for " +
+                                                    std::to_string(to.size()) + " ends");
+  try {
+    checkMedium(medium);
+  } catch (const InputError& e) {
+    throw RuntimeError(Status::InvalidArgument, e.what());
+  }
+  if (!impl_->segments)
+    impl_->segments = std::make_unique<QueryKernel>(impl_->device, impl_->artifact->packed().words(), impl_->sunGrid(),
+                                                    std::vector<QueryKernel::Table>{},
+                                                    QueryKernel::Shaders{segmentShaderOneBuffer(), segmentShaderEightBuffers(),
+                                                                         false, 1, 4},
+                                                    "the DAG");
+  const float m[3] = {float(medium.scattering), float(medium.absorption), float(medium.g)};
+  std::vector<uint32_t> words;
+  impl_->segments->run(from, to, {}, 1, words, m);
+  litFraction.resize(from.size());
+  inScattering.resize(from.size());
+  for (size_t i = 0; i < from.size(); ++i) {
+    std::memcpy(&litFraction[i], &words[4 * i], 8);
+    std::memcpy(&inScattering[i], &words[4 * i + 2], 4);
+  }
+}
 
 void GpuShadows::litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
                            std::vector<uint32_t>& out) {

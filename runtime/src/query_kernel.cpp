@@ -21,8 +21,10 @@ constexpr uint32_t kQueryDoubles = 6;
 // Queries per dispatch at most (48 MiB of queries): bounded by the binding limit too.
 constexpr uint64_t kMaxBatch = uint64_t(1) << 20;
 
+// The shaders' push constants; the segment shader also reads the medium.
 struct BatchConstants {
   uint32_t count, pcf, groupsX;
+  float medium[3];
 };
 
 }  // namespace
@@ -39,7 +41,11 @@ void checkQueryShape(size_t points, size_t normals, int pcf) {
 
 QueryKernel::QueryKernel(GpuDevice::Impl& device, const std::vector<uint32_t>& words, const GpuGrid& sun,
                          std::vector<Table> tables, const Shaders& shaders, const char* what)
-    : g(device), tables_(std::move(tables)), queryLights_(shaders.queryLights), firstWordBinding_(shaders.firstWordBinding) {
+    : g(device),
+      tables_(std::move(tables)),
+      queryLights_(shaders.queryLights),
+      answerWords_(shaders.answerWords),
+      firstWordBinding_(shaders.firstWordBinding) {
   try {
     upload(words, sun, what);
     createPipeline(shaders);
@@ -201,7 +207,7 @@ void QueryKernel::ensureCapacity(uint64_t n) {
   if (n <= capacity_) return;
   for (VulkanBuffer* b : {&queries_, &answers_, &lights_, &staging_}) g.destroy(*b);
   capacity_ = 0;
-  const VkDeviceSize queryBytes = n * kQueryDoubles * 8, answerBytes = n * 4, lightBytes = queryLights_ ? n * 4 : 0;
+  const VkDeviceSize queryBytes = n * kQueryDoubles * 8, answerBytes = n * 4 * answerWords_, lightBytes = queryLights_ ? n * 4 : 0;
   queries_ = g.createBuffer(queryBytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
   answers_ = g.createBuffer(answerBytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
   if (queryLights_)
@@ -216,9 +222,10 @@ void QueryKernel::ensureCapacity(uint64_t n) {
 }
 
 void QueryKernel::run(const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
-                      const std::vector<uint32_t>& lights, int pcf, std::vector<uint32_t>& out) {
+                      const std::vector<uint32_t>& lights, int pcf, std::vector<uint32_t>& out,
+                      const float medium[3]) {
   g.checkNotLost();
-  std::vector<uint32_t> result(points.size());
+  std::vector<uint32_t> result(points.size() * answerWords_);
   const uint64_t maxBatch = std::min<uint64_t>(kMaxBatch, g.bindingLimit / (kQueryDoubles * 8));
   ensureCapacity(std::min<uint64_t>(std::max<uint64_t>(points.size(), 1), maxBatch));
   double deviceNs = 0;
@@ -232,12 +239,13 @@ void QueryKernel::run(const std::vector<Vec3>& points, const std::vector<Vec3>& 
       row[0] = p.x, row[1] = p.y, row[2] = p.z, row[3] = nn.x, row[4] = nn.y, row[5] = nn.z;
     }
     const VkDeviceSize queryBytes = n * kQueryDoubles * 8, answerOffset = capacity_ * kQueryDoubles * 8,
-                       lightOffset = answerOffset + capacity_ * 4;
+                       lightOffset = answerOffset + capacity_ * 4 * answerWords_;
     if (queryLights_)
       std::memcpy(static_cast<uint8_t*>(staging_.mapped) + lightOffset, lights.data() + first, n * 4);
     const uint64_t groups = (n + kGroupSize - 1) / kGroupSize;
     const uint32_t maxX = g.properties.limits.maxComputeWorkGroupCount[0];
-    const BatchConstants constants{uint32_t(n), uint32_t(pcf), uint32_t(std::min<uint64_t>(groups, maxX))};
+    const BatchConstants constants{uint32_t(n), uint32_t(pcf), uint32_t(std::min<uint64_t>(groups, maxX)),
+                                   {medium ? medium[0] : 0.0f, medium ? medium[1] : 0.0f, medium ? medium[2] : 0.0f}};
     const uint32_t groupsY = uint32_t((groups + constants.groupsX - 1) / constants.groupsX);
     g.submitAndWait([&](VkCommandBuffer cmd) {
       VkBufferCopy in{0, 0, queryBytes};
@@ -264,14 +272,15 @@ void QueryKernel::run(const std::vector<Vec3>& points, const std::vector<Vec3>& 
       barrier.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
       g.vkd.vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &barrier, 0,
                                  nullptr, 0, nullptr);
-      VkBufferCopy back{0, answerOffset, n * 4};
+      VkBufferCopy back{0, answerOffset, n * 4 * answerWords_};
       g.vkd.vkCmdCopyBuffer(cmd, answers_.buffer, staging_.buffer, 1, &back);
       barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
       barrier.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
       g.vkd.vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &barrier, 0, nullptr, 0,
                                  nullptr);
     });
-    std::memcpy(result.data() + first, static_cast<const uint8_t*>(staging_.mapped) + answerOffset, n * 4);
+    std::memcpy(result.data() + first * answerWords_, static_cast<const uint8_t*>(staging_.mapped) + answerOffset,
+                n * 4 * answerWords_);
     if (timestamps_) {
       uint64_t ticks[2] = {0, 0};
       if (g.vkd.vkGetQueryPoolResults(g.device, timestamps_, 0, 2, sizeof ticks, ticks, 8,

@@ -39,6 +39,7 @@ class QueryKernel {
     SpirvCode oneBuffer, eightBuffers;
     bool queryLights;           // each query names a light (binding 11)
     uint32_t firstWordBinding;  // 1 (the sun's words), 15 (a light bundle's pool)
+    uint32_t answerWords = 1;   // per query: 1 (a lit texel count), 4 (a segment's)
   };
   /// `what` names the words in errors ("the DAG", "the light bundle").
   QueryKernel(GpuDevice::Impl& device, const std::vector<uint32_t>& words, const GpuGrid& sun,
@@ -47,10 +48,11 @@ class QueryKernel {
   QueryKernel(const QueryKernel&) = delete;
   QueryKernel& operator=(const QueryKernel&) = delete;
 
-  /// Lit texel counts for each query (point, normal, and with queryLights its light);
-  /// pcf and the counts already checked. DeviceLost when the device stops answering.
+  /// The answers' words for each query (point, normal, and with queryLights its light;
+  /// a segment's two ends), answerWords each; pcf and the counts already checked, the
+  /// medium for the segment shader. DeviceLost when the device stops answering.
   void run(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, const std::vector<uint32_t>& lights,
-           int pcf, std::vector<uint32_t>& out);
+           int pcf, std::vector<uint32_t>& out, const float medium[3] = nullptr);
   double lastDeviceNanoseconds() const { return lastNs_; }
   int wordBindings() const { return int(bindings_); }
 
@@ -70,6 +72,7 @@ class QueryKernel {
   std::vector<Table> tables_;
   std::vector<VulkanBuffer> tableBuffers_;
   bool queryLights_ = false;
+  uint32_t answerWords_ = 1;
   uint32_t firstWordBinding_ = 1;
   VulkanBuffer words_, sun_, queries_, answers_, lights_, staging_;
   uint32_t bindings_ = 1;

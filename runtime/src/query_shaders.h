@@ -1,6 +1,6 @@
 // The query shaders' SPIR-V, compiled at build time by glslc from cpvs_query.comp (an
-// artifact's lookups) and cpvs_light_query.comp (a light bundle's) and embedded. Private
-// to runtime.
+// artifact's lookups), cpvs_light_query.comp (a light bundle's) and cpvs_segment_query.comp
+// (segments through the sun's grid) and embedded. Private to runtime.
 #pragma once
 
 #include <cstddef>
@@ -20,5 +20,8 @@ SpirvCode queryShaderEightBuffers();
 /// A light bundle's lookups, its pool in one binding or split across up to 8.
 SpirvCode lightQueryShaderOneBuffer();
 SpirvCode lightQueryShaderEightBuffers();
+/// Segments through the sun's grid (cpvs_segment_query.comp).
+SpirvCode segmentShaderOneBuffer();
+SpirvCode segmentShaderEightBuffers();
 
 }  // namespace cpvs::runtime

@@ -147,6 +147,64 @@ void expectGpuMatchesCpu(const Baked& b, GpuShadows& gpu, uint64_t count) {
   }
 }
 
+// Segments through the sun's grid walked on the device: the lit fraction the CPU's to
+// the bit (segments inside the grid, through it from outside, beside and behind it, along
+// axes and through voxel corners), the in-scattered light the CPU's within float rounding.
+void expectGpuSegmentsMatchCpu(const Baked& b, GpuShadows& gpu, int count) {
+  const OrthoGrid& g = b.artifact->grid();
+  const double R = double(g.resolution());
+  std::mt19937_64 rng(uint64_t(g.log2Resolution) * 31);
+  std::uniform_real_distribution<double> unit(-0.2, 1.2);
+  std::vector<Vec3> from, to;
+  for (int i = 0; i < count; ++i) {
+    Vec3 a{unit(rng) * R, unit(rng) * R, unit(rng) * R}, e{unit(rng) * R, unit(rng) * R, unit(rng) * R};
+    if (i % 6 == 1) e.y = a.y;                                  // in a plane
+    if (i % 6 == 2) e.x = a.x, e.z = a.z;                       // along an axis
+    if (i % 6 == 3) a = {std::floor(a.x), std::floor(a.y), std::floor(a.z)}, e = a + Vec3{16, 16, 16};  // corners
+    if (i % 6 == 4) e = a;                                      // a point
+    from.push_back(g.worldFromVoxel(a));
+    to.push_back(g.worldFromVoxel(e));
+  }
+  const Medium medium{0.01, 0.004, 0.6};
+  std::vector<double> litFraction;
+  std::vector<float> inScattering;
+  gpu.segments(from, to, medium, litFraction, inScattering);
+  ASSERT_EQ(litFraction.size(), from.size());
+  const ShadowQuery& q = b.artifact->cpu();
+  uint64_t differ = 0, far = 0, partly = 0;
+  for (size_t i = 0; i < from.size(); ++i) {
+    const double want = q.litFraction(from[i], to[i]);
+    differ += litFraction[i] != want;
+    partly += want > 0.01 && want < 0.99;
+    const double scattered = q.inScattering(from[i], to[i], medium).inScattering;
+    far += std::abs(inScattering[i] - scattered) > 1e-4 * scattered + 1e-7;
+  }
+  EXPECT_EQ(differ, 0u) << from.size() << " segments";
+  EXPECT_EQ(far, 0u) << "in-scattering beyond float rounding";
+  EXPECT_GT(partly, from.size() / 10) << "the segments must cross shadows";
+}
+
+TEST(GpuSegments, SunShaftsAnswerAsTheCpu) {
+  const Baked b = bake("city", {0.4, -1, 0.25}, 12);
+  GpuShadows gpu(device(), b.artifact);
+  expectGpuSegmentsMatchCpu(b, gpu, 20000);
+  std::vector<double> lit;
+  std::vector<float> scattered;
+  try {
+    gpu.segments({Vec3{}}, {}, Medium{}, lit, scattered);
+    ADD_FAILURE() << "one start and no end accepted";
+  } catch (const RuntimeError& e) {
+    EXPECT_EQ(e.status(), Status::InvalidArgument);
+  }
+  try {
+    gpu.segments({Vec3{}}, {Vec3{}}, Medium{0.1, 0, 1.5}, lit, scattered);
+    ADD_FAILURE() << "g = 1.5 accepted";
+  } catch (const RuntimeError& e) {
+    EXPECT_EQ(e.status(), Status::InvalidArgument);
+  }
+  expectNoValidationMessages(device());
+}
+
 TEST(GpuLookups, ClosedCityAt16KAnswersAsTheCpu) {
   const Baked b = bake("city", {0.4, -1, 0.25}, 14);
   GpuShadows gpu(device(), b.artifact);
@@ -191,6 +249,7 @@ TEST(GpuLookups, WordsSplitAcrossBindingsAnswerTheSame) {
   EXPECT_GE(gpu.wordBindings(), 4);
   EXPECT_LE(gpu.wordBindings(), 8);
   expectGpuMatchesCpu(b, gpu, 50000);
+  expectGpuSegmentsMatchCpu(b, gpu, 5000);
   expectNoValidationMessages(*small);
   options.maxBindingBytes = bytes / 12;  // more than 8 bindings: a clear refusal
   auto tiny = GpuDevice::create(options);

@@ -112,11 +112,20 @@ std::vector<std::pair<double, double>> ShadowQuery::litStretches(const Vec3& a, 
   if (spot_) throw InputError("light along a segment is answered for the sun; a spot light's voxels are not straight");
   const double distance = length(b - a);
   std::vector<std::pair<double, double>> lit;
-  walkSegment(dag_, grid_.voxelFromWorld(a), grid_.voxelFromWorld(b), [&](const SegmentPiece& piece) {
+  walkSegment(dag_, mappedVoxel(mapping_, a), mappedVoxel(mapping_, b), [&](const SegmentPiece& piece) {
     if (piece.shadowed || piece.t1 <= piece.t0) return;
     const double u0 = piece.t0 * distance, u1 = piece.t1 * distance;
     if (!lit.empty() && lit.back().second == u0) lit.back().second = u1;
     else lit.emplace_back(u0, u1);
+  });
+  return lit;
+}
+
+double ShadowQuery::litFraction(const Vec3& a, const Vec3& b) const {
+  if (spot_) throw InputError("light along a segment is answered for the sun; a spot light's voxels are not straight");
+  double lit = 0;
+  walkSegment(dag_, mappedVoxel(mapping_, a), mappedVoxel(mapping_, b), [&](const SegmentPiece& piece) {
+    if (!piece.shadowed) lit += piece.t1 - piece.t0;
   });
   return lit;
 }

@@ -73,6 +73,10 @@ class ShadowQuery {
   /// it), found by walking the DAG a homogeneous block at a time (segment_walk.h). The sun
   /// only: InputError for a spot light, whose voxels a straight segment crosses on a curve.
   std::vector<std::pair<double, double>> litStretches(const Vec3& a, const Vec3& b) const;
+  /// The fraction of the segment that the sun reaches: the lit pieces' (t1 - t0) summed in
+  /// the walk's order, which cpvs_shadow.glsl's cpvsSunLitFraction sums alike (the same
+  /// double to the bit on a device whose double division rounds correctly).
+  double litFraction(const Vec3& a, const Vec3& b) const;
   /// Sun light scattered towards a by medium m along the segment from a to b (a view ray
   /// from the eye a to the surface b): medium.h's SegmentLight over litStretches.
   SegmentLight inScattering(const Vec3& a, const Vec3& b, const Medium& m) const;

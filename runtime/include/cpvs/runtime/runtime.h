@@ -17,6 +17,7 @@
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/query/bundle_query.h"
+#include "cpvs/query/medium.h"
 #include "cpvs/query/shadow_query.h"
 
 // Vulkan handles as the application has them, without including vulkan.h here.
@@ -182,6 +183,13 @@ class GpuShadows {
                  std::vector<uint32_t>& out);
   /// Device time of the lookups of the last litTexels call (GPU timestamps), ns.
   double lastDeviceNanoseconds() const;
+  /// Segments from[i] -> to[i] walked through the sun's grid on the device
+  /// (cpvs_shadow.glsl's cpvsSunSegment): each one's lit fraction, ShadowQuery::litFraction's
+  /// to the bit, and the sun light the medium scatters towards from[i] per unit of sun
+  /// irradiance (cpvsSunInScattering: ShadowQuery::inScattering in float). InvalidArgument
+  /// for unequal counts or a bad medium; DeviceLost when the device stops answering.
+  void segments(const std::vector<Vec3>& from, const std::vector<Vec3>& to, const Medium& medium,
+                std::vector<double>& litFraction, std::vector<float>& inScattering);
   int wordBindings() const;
   const ShadowArtifact& artifact() const;
 
