@@ -41,6 +41,9 @@ GpuShadows::GpuShadows(GpuDevice& device, std::shared_ptr<const ShadowArtifact> 
 GpuShadows::~GpuShadows() = default;
 
 double GpuShadows::lastDeviceNanoseconds() const { return impl_->kernel.lastDeviceNanoseconds(); }
+double GpuShadows::lastSegmentNanoseconds() const {
+  return impl_->segments ? impl_->segments->lastDeviceNanoseconds() : 0;
+}
 int GpuShadows::wordBindings() const { return impl_->kernel.wordBindings(); }
 const ShadowArtifact& GpuShadows::artifact() const { return *impl_->artifact; }
 

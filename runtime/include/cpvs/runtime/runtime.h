@@ -190,6 +190,8 @@ class GpuShadows {
   /// for unequal counts or a bad medium; DeviceLost when the device stops answering.
   void segments(const std::vector<Vec3>& from, const std::vector<Vec3>& to, const Medium& medium,
                 std::vector<double>& litFraction, std::vector<float>& inScattering);
+  /// Device time of the walks of the last segments call (GPU timestamps), ns.
+  double lastSegmentNanoseconds() const;
   int wordBindings() const;
   const ShadowArtifact& artifact() const;
 
