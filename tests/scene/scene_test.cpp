@@ -400,6 +400,18 @@ TEST(SceneImport, LinesOnlyHoldNoTriangles) {
   EXPECT_NE(msg.find("line_only.obj"), std::string::npos) << msg;
 }
 
+// assimp's RAW reader leaves a null child node per object: the node walk steps over it
+// (these two files crashed the importer with SIGSEGV). Debian's assimp-testmodels, which
+// deploy/setup.sh installs.
+TEST(SceneImport, NullChildNodesAreSteppedOver) {
+  for (const char* name : {"WithColor.raw", "WithTexture.raw"}) {
+    const std::string path = std::string("/usr/share/assimp/models/RAW/") + name;
+    ASSERT_TRUE(std::filesystem::exists(path)) << path << ": install assimp-testmodels (deploy/setup.sh)";
+    const Scene scene = openScene(path);
+    EXPECT_EQ(scene.indices.size(), 6u) << name;  // its two triangles
+  }
+}
+
 TEST(SceneImport, OnlyDegenerateTrianglesHoldNoTriangles) {
   TempDir dir;
   const std::string path = dir.write("flat.obj",

@@ -223,7 +223,7 @@ Scene loadScene(const std::string& path, SceneStats* stats, const ImportOptions&
       // A light is placed by the node of its name.
       for (unsigned l = 0; l < ai->mNumLights; ++l)
         if (ai->mLights[l] != nullptr && ai->mLights[l]->mName == node->mName) scene.lights.push_back(lightOf(*ai->mLights[l], world));
-      for (unsigned i = 0; i < node->mNumMeshes; ++i) {
+      for (unsigned i = 0; node->mMeshes != nullptr && i < node->mNumMeshes; ++i) {
         const unsigned meshIndex = node->mMeshes[i];
         if (meshIndex >= ai->mNumMeshes || ai->mMeshes[meshIndex] == nullptr)
           throw InputError(path + ": node '" + node->mName.C_Str() + "' references missing mesh " +
@@ -236,9 +236,11 @@ Scene loadScene(const std::string& path, SceneStats* stats, const ImportOptions&
       }
       // Children pushed in reverse so that they are visited in file order, which keeps
       // vertex order (and so the scene hash) independent of the stack discipline.
-      for (unsigned c = node->mNumChildren; c-- > 0;) {
+      // Some importers leave child slots empty (assimp's RAW reader: a null child per
+      // object without faces): nothing hangs there.
+      for (unsigned c = node->mChildren == nullptr ? 0 : node->mNumChildren; c-- > 0;) {
         const aiNode* child = node->mChildren[c];
-        stack.emplace_back(child, world * Mat4d::fromAssimp(child->mTransformation));
+        if (child != nullptr) stack.emplace_back(child, world * Mat4d::fromAssimp(child->mTransformation));
       }
     }
   }
