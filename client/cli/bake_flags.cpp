@@ -7,6 +7,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/base/parse.h"
+#include "cpvs/light/area_light.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/net/receiver_declaration.h"
 #include "cpvs/scene/boxes.h"
@@ -36,6 +37,10 @@ void addLightFlags(CLI::App* c, LightFlags& lights) {
                 "A spot light X,Y,Z:DX,DY,DZ:CONE[:RANGE] (position, axis, half-angle in degrees, reach; no range: "
                 "to the scene's far side); repeat for more. With local lights the file is a light bundle");
   c->add_option("--point", lights.points, "A point light X,Y,Z[:RANGE] (six 90-degree grids); repeat for more");
+  c->add_option("--area-light", lights.areas,
+                "An area light CX,CY,CZ:UX,UY,UZ:VX,VY,VZ[:K[:RES]]: a rectangle (centre, two edges; it shines "
+                "towards U x V) sampled by K virtual point lights (default 64), each a cube of RESxRESxRES grids "
+                "(default 128) whose soft visibility `query --soft` averages; repeat for more");
   c->add_option("--lights", lights.lightsFile,
                 "A lights file: JSON {\"lights\": [{\"kind\": \"LIGHT_SPOT\", \"name\": ..., \"position\": "
                 "{\"x\": ..}, \"direction\": .., \"coneDeg\": .., \"range\": .., \"colour\": .., \"intensity\": "
@@ -55,6 +60,14 @@ std::vector<Light> flagLights(const LightFlags& flags) {
   if (!flags.lightsFile.empty()) lights = net::readLightsFile(flags.lightsFile);
   for (const std::string& s : flags.spots) lights.push_back(parseSpotFlag(s));
   for (const std::string& s : flags.points) lights.push_back(parsePointFlag(s));
+  for (size_t k = 0; k < flags.areas.size(); ++k) {
+    AreaLight area = parseAreaLightFlag(flags.areas[k]);
+    area.name = "area " + std::to_string(k + 1);
+    area.seed = k + 1;
+    // The rectangle is checked here (its VPLs' positions with the scene's bounds later).
+    checkAreaLight(area, area.centre, area.centre, "--area-light " + std::to_string(k + 1));
+    for (Light& l : vplsOf(area, uint32_t(k + 1))) lights.push_back(std::move(l));
+  }
   return lights;
 }
 

@@ -28,15 +28,18 @@ void addSunFlags(CLI::App* c, SunFlags& sun);
 /// --spot, --point, --lights, --scene-lights, --footprint: local lights, baked into a
 /// light bundle (`bake`) or planned (`plan`).
 struct LightFlags {
-  std::vector<std::string> spots, points;
+  std::vector<std::string> spots, points, areas;
   std::string lightsFile;
   bool sceneLights = false;
   double footprint = 0;
-  bool given() const { return !spots.empty() || !points.empty() || !lightsFile.empty() || sceneLights; }
+  bool given() const {
+    return !spots.empty() || !points.empty() || !areas.empty() || !lightsFile.empty() || sceneLights;
+  }
 };
 void addLightFlags(CLI::App* c, LightFlags& lights);
-/// The lights of the lights file, --spot and --point, in that order, read before the
-/// scene is opened; InputError naming the flag for a malformed one, or a bad --footprint.
+/// The lights of the lights file, --spot and --point, then the VPLs of each --area-light
+/// (area lights 1, 2, ... in flag order, each seeded by its number), read before the scene
+/// is opened; InputError naming the flag for a malformed one, or a bad --footprint.
 std::vector<Light> flagLights(const LightFlags& flags);
 /// Those lights after the scene's own (--scene-lights; InputError naming `sceneSpec`
 /// when it has none).

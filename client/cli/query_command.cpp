@@ -23,7 +23,7 @@ namespace {
 struct QueryArgs {
   std::string file, point, normal, pointsCsv, segment, medium, light = "all";
   int pcf = 1;
-  bool gpu = false;
+  bool gpu = false, soft = false;
 };
 
 /// Reads "x,y,z" or "x,y,z,nx,ny,nz" per line; blank lines and lines starting with '#'
@@ -111,11 +111,39 @@ std::vector<size_t> lightsOf(const std::string& text, size_t count) {
   return {size_t(v[0])};
 }
 
+// Soft visibility of each area light of a bundle: a line per area light for one point, a
+// column per area light for many.
+int querySoft(const QueryArgs& a, const BundleQuery& q) {
+  if (q.areaCount() == 0) throw InputError("--soft: " + a.file + " holds no area light (bake one with --area-light)");
+  if (a.light != "all" || a.pcf != 1)
+    throw InputError("--soft answers every area light, interpolated bilinearly: no --light or --pcf");
+  if (!a.point.empty()) {
+    const Vec3 p = parseVec3(a.point, "--point");
+    const Vec3 n = a.normal.empty() ? Vec3{} : parseVec3(a.normal, "--normal");
+    for (size_t k = 0; k < q.areaCount(); ++k)
+      std::printf("area light %zu (%zu VPLs)  soft visibility %.4f\n", k + 1, q.vplsOf(k).size(), q.softVisibility(k, p, n));
+    return 0;
+  }
+  std::vector<Vec3> points, normals;
+  readPointsCsv(a.pointsCsv, points, normals);
+  std::printf("x,y,z");
+  for (size_t k = 0; k < q.areaCount(); ++k) std::printf(",area%zu", k + 1);
+  std::printf("\n");
+  for (size_t i = 0; i < points.size(); ++i) {
+    std::printf("%.9g,%.9g,%.9g", points[i].x, points[i].y, points[i].z);
+    for (size_t k = 0; k < q.areaCount(); ++k)
+      std::printf(",%.6g", q.softVisibility(k, points[i], normals.empty() ? Vec3{} : normals[i]));
+    std::printf("\n");
+  }
+  return 0;
+}
+
 // A light bundle: each light's visibility (0 outside its cone), a line per light for one
 // point, a column per light for many.
 int queryBundle(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
   if (a.gpu) throw InputError("--gpu: a light bundle is looked up on the CPU (the GPU takes sun artifacts)");
   const BundleQuery q(decodeBundle(bytes.data(), bytes.size(), a.file));
+  if (a.soft) return querySoft(a, q);
   const std::vector<size_t> lights = lightsOf(a.light, q.lightCount());
   if (!a.point.empty()) {
     const Vec3 p = parseVec3(a.point, "--point");
@@ -186,6 +214,7 @@ int runQuery(const QueryArgs& a) {
     throw InputError("--normal goes with --point; in --points files put the normal in columns 4-6");
   const std::vector<uint8_t> bytes = readFile(a.file);
   if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return queryBundle(a, bytes);
+  if (a.soft) throw InputError("--soft answers a light bundle's area lights; " + a.file + " has the sun only");
   if (a.light != "all") throw InputError("--light picks a light of a light bundle; " + a.file + " has the sun only");
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   const ReceiverNotice notice(art, a.file, a.pcf);
@@ -258,6 +287,9 @@ void addQueryCommand(CLI::App& app, int& status) {
   c->add_option("--medium", a->medium,
                 "SIGMA_S,SIGMA_A[,G] with --segment: a homogeneous medium (scattering and absorption per world unit, "
                 "Henyey-Greenstein g): prints the transmittance and the sun light scattered towards A");
+  c->add_flag("--soft", a->soft,
+              "A light bundle's area lights (bake --area-light): each one's soft visibility, the fraction of its light "
+              "that reaches the point (its VPLs averaged, each interpolated across its grid)");
   c->add_option("--light", a->light, "A light bundle's light: its index, or all (a line or a column each)")
       ->capture_default_str();
   c->add_option("--pcf", a->pcf, "Filter width in texels: 1, 3, 5, 7 or 9")

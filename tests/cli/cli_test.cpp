@@ -289,6 +289,31 @@ TEST_F(Cli, SegmentsAndFogReadTheGridInTheAir) {
   }
 }
 
+// An area light from the command line: its VPLs in the bundle (inspect names them), its
+// soft visibility (`query --soft`): lit in the open under it, 0 behind it; the refusals.
+TEST_F(Cli, AreaLightsAreBakedAsVplsAndAnswerSoftly) {
+  CliRun r = cpvs("bake city:3:5 --area-light 36,66,36:12,0,0:0,0,12:8:64 -q -o " + path("area.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = cpvs("inspect " + path("area.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("area 1 vpl 7"), std::string::npos) << r.out;
+  r = cpvs("query " + path("area.cpvs") + " --soft --point 36,60,36 --normal 0,-1,0");  // facing away: none
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("area light 1 (8 VPLs)  soft visibility 0.0000"), std::string::npos) << r.out;
+  r = cpvs("query " + path("area.cpvs") + " --soft --point 36,64,36 --normal 0,1,0");  // just under it, facing it
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("soft visibility 1.0000"), std::string::npos) << r.out;
+  for (const auto& [args, says] :
+       {std::pair{"bake city:3:5 --area-light 36,66,36:12,0,0:24,0,0 -o " + path("bad.cpvs"), std::string("no area")},
+        std::pair{"bake city:3:5 --area-light 36,66,36:12,0,0:0,0,12:0 -o " + path("bad.cpvs"), std::string("VPL count")},
+        std::pair{"query " + path("c.cpvs") + " --soft --point 1,2,3", std::string("has the sun only")},
+        std::pair{"query " + path("area.cpvs") + " --soft --pcf 3 --point 1,2,3", std::string("no --light or --pcf")}}) {
+    r = cpvs(args);
+    EXPECT_NE(r.status, 0) << args;
+    EXPECT_NE(r.out.find(says), std::string::npos) << args << ": " << r.out;
+  }
+}
+
 TEST_F(Cli, PlanSaysWhatABakeComputesAndTheBakeRecordsIt) {
   std::ofstream(path("lights.gltf")) << "{\"asset\": {\"version\": \"2.0\"}, \"extensionsUsed\": [\"KHR_lights_punctual\"], \"extensions\": {\"KHR_lights_punctual\": {\"lights\": [{\"type\": \"directional\", \"name\": \"sun\", \"color\": [1, 1, 1]}, {\"type\": \"point\", \"name\": \"lamp\"}, {\"type\": \"spot\", \"name\": \"torch\", \"spot\": {\"innerConeAngle\": 0.2, \"outerConeAngle\": 0.5}}]}}, \"scenes\": [{\"nodes\": [0, 1, 2, 3]}], \"scene\": 0, \"nodes\": [{\"mesh\": 0, \"name\": \"ground\"}, {\"name\": \"sunNode\", \"rotation\": [-0.7071068, 0, 0, 0.7071068], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 0}}}, {\"name\": \"lampNode\", \"translation\": [1, 2, 3], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 1}}}, {\"name\": \"torchNode\", \"translation\": [0, 5, 0], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 2}}}], \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}}]}], \"buffers\": [{\"byteLength\": 36, \"uri\": \"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAAAAAAAAAAAAAIA/AACAPwAAAAAAAAAA\"}], \"bufferViews\": [{\"buffer\": 0, \"byteLength\": 36}], \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 3, \"type\": \"VEC3\", \"min\": [0, 0, 0], \"max\": [1, 0, 1]}]}";
   CliRun r = cpvs("plan " + path("lights.gltf") + " --sun-dir 0,-1,0 -r 1K --json");

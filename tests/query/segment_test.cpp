@@ -20,12 +20,7 @@
 namespace cpvs {
 namespace {
 
-// Fails unless fn throws an InputError whose message holds `part`.
-template <class Fn>
-void expectInputError(Fn&& fn, const std::string& part) {
-  const std::string message = testing::inputErrorOf(fn);
-  EXPECT_NE(message.find(part), std::string::npos) << "got '" << message << "', expected it to say '" << part << "'";
-}
+using testing::expectInputError;
 
 struct Piece {
   double t0, t1;

@@ -76,4 +76,13 @@ int parseResolution(const std::string& text) {
   return k;
 }
 
+std::vector<std::string> splitAt(const std::string& text, char separator) {
+  std::vector<std::string> out(1);
+  for (char c : text) {
+    if (c == separator) out.emplace_back();
+    else out.back() += c;
+  }
+  return out;
+}
+
 }  // namespace cpvs

@@ -43,7 +43,8 @@ std::vector<uint8_t> encodeBundle(const LightBundle& b, bool zstd) {
   for (const BundleLight& bl : b.lights) {
     const Light& l = bl.light;
     w.put<uint8_t>(uint8_t(l.kind));
-    for (int i = 0; i < 7; ++i) w.put<uint8_t>(0);
+    w.put<uint16_t>(uint16_t(l.area));  // 0 before area lights: older bundles read as they were
+    for (int i = 0; i < 5; ++i) w.put<uint8_t>(0);
     w.putVec(l.position);
     w.putVec(l.direction);
     w.put(l.coneDeg);
@@ -94,8 +95,9 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
     Light& l = bl.light;
     const std::string label = "light " + std::to_string(i);
     const uint8_t kind = h.get<uint8_t>("light table");
+    l.area = h.get<uint16_t>("light table");
     bool reservedZero = true;
-    for (int k = 0; k < 7; ++k) reservedZero = h.get<uint8_t>("light table") == 0 && reservedZero;
+    for (int k = 0; k < 5; ++k) reservedZero = h.get<uint8_t>("light table") == 0 && reservedZero;
     if (kind > uint8_t(LightKind::Point) || !reservedZero) h.fail(label + " holds an unknown kind");
     l.kind = LightKind(kind);
     l.position = h.getVec("light table");
@@ -125,6 +127,13 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
     nextGrid += grids;
     b.lights.push_back(std::move(bl));
   }
+  // Area lights are numbered 1, 2, ... in their VPLs: none without one.
+  uint32_t areas = 0;
+  for (const BundleLight& bl : b.lights) areas = std::max<uint32_t>(areas, bl.light.area);
+  std::vector<uint8_t> hasVpl(size_t(areas) + 1, 0);
+  for (const BundleLight& bl : b.lights) hasVpl[bl.light.area] = 1;
+  for (uint32_t a = 1; a <= areas; ++a)
+    if (!hasVpl[a]) h.fail("area light " + std::to_string(a) + " has no VPL (the numbers must run from 1)");
   if (nextGrid != gridCount) h.fail("the lights have " + std::to_string(nextGrid) + " grids, the table " + std::to_string(gridCount));
   uint64_t slices = 0;
   for (uint32_t k = 0; k < gridCount; ++k) {

@@ -50,6 +50,8 @@ void checkLight(const Light& l, const Vec3& lo, const Vec3& hi, const std::strin
       fail("the cone's half-angle " + std::to_string(l.coneDeg) + " degrees is outside (0, " +
            std::to_string(int(kMaxConeDeg)) + "]");
   }
+  if (l.area != 0 && (l.kind != LightKind::Point || !isFinite(l.direction) || !(length(l.direction) > 0)))
+    fail("a VPL of an area light is a point light with the emitter's normal as its direction");
   if (!std::isfinite(l.range) || l.range < 0) fail("the range must be 0 (to the scene's far side) or positive");
   if (!std::isfinite(l.near) || l.near < 0) fail("near must be 0 (planned) or positive");
   if (l.near > 0 && l.range > 0 && !(l.near < l.range))
@@ -67,16 +69,6 @@ void checkLight(const Light& l, const Vec3& lo, const Vec3& hi, const std::strin
 
 namespace {
 
-// "A:B[:C...]" split at the colons.
-std::vector<std::string> fields(const std::string& text) {
-  std::vector<std::string> out(1);
-  for (char c : text) {
-    if (c == ':') out.emplace_back();
-    else out.back() += c;
-  }
-  return out;
-}
-
 double number(const std::string& text, const std::string& what) {
   const std::vector<double> v = parseNumbers(text, what);
   if (v.size() != 1) throw InputError(what + ": expected one number, got \"" + text + "\"");
@@ -86,7 +78,7 @@ double number(const std::string& text, const std::string& what) {
 }  // namespace
 
 Light parseSpotFlag(const std::string& text) {
-  const std::vector<std::string> f = fields(text);
+  const std::vector<std::string> f = splitAt(text, ':');
   if (f.size() < 3 || f.size() > 4)
     throw InputError("--spot \"" + text + "\": expected X,Y,Z:DX,DY,DZ:CONE[:RANGE] (position, axis, half-angle in degrees, reach)");
   Light l;
@@ -99,7 +91,7 @@ Light parseSpotFlag(const std::string& text) {
 }
 
 Light parsePointFlag(const std::string& text) {
-  const std::vector<std::string> f = fields(text);
+  const std::vector<std::string> f = splitAt(text, ':');
   if (f.empty() || f.size() > 2) throw InputError("--point \"" + text + "\": expected X,Y,Z[:RANGE] (position, reach)");
   Light l;
   l.kind = LightKind::Point;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "cpvs/light/area_light.h"
 
 namespace cpvs {
 
@@ -28,6 +29,23 @@ BundleQuery::BundleQuery(const LightBundle& bundle) : lights_(bundle.lights) {
     }
     reach_.push_back(r);
   }
+  for (size_t i = 0; i < lights_.size(); ++i)
+    if (const uint32_t a = lights_[i].light.area; a != 0) {
+      if (areaVpls_.size() < a) areaVpls_.resize(a);
+      areaVpls_[a - 1].push_back(uint32_t(i));
+    }
+}
+
+float BundleQuery::softVisibility(size_t area, const Vec3& p, const Vec3& n) const {
+  double sum = 0, lit = 0;
+  for (uint32_t i : areaVpls_.at(area)) {
+    const Light& l = lights_[i].light;
+    const double w = vplWeight(l.position, l.direction, p, n);
+    if (w == 0) continue;
+    sum += w;
+    lit += w * grids_[gridAt(i, p)].bilinearVisibility(p, n);
+  }
+  return sum > 0 ? float(lit / sum) : 0.0f;
 }
 
 double BundleQuery::reach(size_t light) const { return reach_.at(light); }

@@ -108,6 +108,22 @@ uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) cons
   return uint32_t(texels - shadowed);
 }
 
+float ShadowQuery::bilinearVisibility(const Vec3& p, const Vec3& n) const {
+  const double offset = normalOffsetVoxels(3);
+  const Vec3 c = spot_ ? spot_->offsetVoxel(p, n, offset) : mappedLookup(mapping_, p, n, offset);
+  if (std::isnan(c.x) || std::isnan(c.y) || std::isnan(c.z)) return 0;
+  const int64_t z = floorToVoxel(c.z);
+  // Texel centres are at k + 1/2: the four around the point and its place between them.
+  const double fx = c.x - 0.5, fy = c.y - 0.5;
+  const int64_t x0 = floorToVoxel(fx), y0 = floorToVoxel(fy);
+  const double wx = fx - double(x0), wy = fy - double(y0);
+  double lit = 0;
+  for (int dy = 0; dy < 2; ++dy)
+    for (int dx = 0; dx < 2; ++dx)
+      if (!voxelShadowed({x0 + dx, y0 + dy, z})) lit += (dx ? wx : 1 - wx) * (dy ? wy : 1 - wy);
+  return float(std::clamp(lit, 0.0, 1.0));
+}
+
 std::vector<std::pair<double, double>> ShadowQuery::litStretches(const Vec3& a, const Vec3& b) const {
   if (spot_) throw InputError("light along a segment is answered for the sun; a spot light's voxels are not straight");
   const double distance = length(b - a);

@@ -13,6 +13,9 @@ namespace cpvs {
 /// typo the caller should report); an empty text gives no items.
 std::vector<std::string> splitList(const std::string& text);
 
+/// "A:B[:C...]" split at every `separator`, nothing trimmed: "a::b" gives an empty field.
+std::vector<std::string> splitAt(const std::string& text, char separator);
+
 /// Comma-separated finite numbers ("1, 2.5,-3").
 std::vector<double> parseNumbers(const std::string& text, const std::string& what);
 

@@ -42,6 +42,9 @@ struct Light {
   /// Its fixture: the meshes (by node, mesh or material name, meshIsNamed) that cast no
   /// shadow of this light. The lamp's glass and housing would otherwise darken all it lights.
   std::vector<std::string> exclude;
+  /// A VPL of the bundle's area light number `area` (1-based, area_light.h): a point
+  /// light whose direction is the emitter's normal. 0: a light of its own.
+  uint32_t area = 0;
 };
 
 /// A point light's cube: face f looks along cubeFaceAxis(f), in the order +x, -x, +y, -y,

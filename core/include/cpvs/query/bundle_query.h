@@ -39,11 +39,23 @@ class BundleQuery {
     return grids_[gridAt(light, p)].litTexels(p, n, pcf);
   }
 
+  /// How many area lights the bundle holds (their VPLs are its lights whose `area` is set).
+  size_t areaCount() const { return areaVpls_.size(); }
+  /// The lights that are VPLs of area light a (0-based).
+  const std::vector<uint32_t>& vplsOf(size_t area) const { return areaVpls_.at(area); }
+  /// Soft visibility of area light a at p with normal n (zero: no receiver cosine): the
+  /// VPLs' bilinear visibilities (ShadowQuery::bilinearVisibility of the cube face p falls
+  /// in) averaged with the weights vplWeight gives them, sum w_i V_i / sum w_i; 0 where no
+  /// VPL reaches (behind the emitter, beyond its range). What fraction of the light the
+  /// emitter sends to p arrives.
+  float softVisibility(size_t area, const Vec3& p, const Vec3& n) const;
+
  private:
   std::vector<BundleLight> lights_;
   std::vector<ShadowQuery> grids_;
   std::vector<double> reach_;
   std::vector<uint32_t> gridLight_;
+  std::vector<std::vector<uint32_t>> areaVpls_;
 };
 
 }  // namespace cpvs

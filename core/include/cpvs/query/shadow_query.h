@@ -63,6 +63,13 @@ class ShadowQuery {
     return float(litTexels(p, n, pcf)) / float(pcf.texels());
   }
 
+  /// Visibility interpolated across the grid, never along depth (seed 002's rule: the
+  /// occluder's discontinuity lies along depth): the 2x2 texels around the lookup point
+  /// (offset as for a 3x3 filter) in its slice, each as voxelShadowed answers it, weighted
+  /// bilinearly by where the point falls between their centres. In [0, 1]; 0 where no
+  /// voxel answers (behind a spot light).
+  float bilinearVisibility(const Vec3& p, const Vec3& n) const;
+
   /// Many queries at once, multithreaded; normals may be empty (no offset). InputError
   /// for an invalid pcf or a normal count that is neither 0 nor the point count.
   void batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
