@@ -16,6 +16,7 @@
 #include "cpvs/query/bundle_query.h"
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/scene/source.h"
+#include "area_testing.h"
 #include "error_testing.h"
 
 namespace cpvs {
@@ -123,75 +124,32 @@ TEST_P(SoftShadows, AgreeWithExactVplsAndTheWholeEmitter) {
   ASSERT_EQ(q.vplsOf(0).size(), 64u);
 
   const RayScene rays(scene, area.centre);
-  const Vec3 ne = area.normal();
-  auto exactlySeen = [&](const Vec3& x, const Vec3& p, const Vec3& n) {
-    const Vec3 from = p + n * 1e-4;
-    const Vec3 d = x - from;
-    const double len = length(d);
-    return !rays.occluded(from, d / len, 0.0, len);
-  };
-  // Points on surfaces facing up, under the panel (within 30 units of its centre), that a
-  // camera can see: not the ground inside a building (the city's stand on it, their
-  // floors below it), whose voxels the bake may fill either way.
-  std::vector<SurfaceSample> points;
-  for (const SurfaceSample& s : sampleSurfaces(scene, rays, ClosedMode::Auto, {0, -1, 0}, 40000, 5)) {
-    const Vec3 d = s.point - area.centre;
-    const bool covered = rays.closedNesting(s.point + s.normal * 1e-4, {0, 1, 0}, 1e4, ClosedMode::Auto) > 0;
-    if (s.normal.y > 0.5 && std::abs(d.x) < 30 && std::abs(d.z) < 30 && !covered) points.push_back(s);
-    if (points.size() == 600) break;
-  }
+  // Surfaces facing the panel within 30 units of its centre across, that a camera can see.
+  const std::vector<SurfaceSample> points = testing::pointsUnderArea(scene, rays, area, 30, 600, 5);
   ASSERT_GE(points.size(), 300u);
   std::vector<double> voxelError, sampleError, wholeError, fewVplError;
   const std::vector<Light> few = vplsOf(panel(4, 7), 1);
-  const int m = 64;  // 64 x 64 stratified points on the panel: 4,096 rays
-  std::mt19937_64 rng(9);
-  std::uniform_real_distribution<double> unit(0, 1);
   uint64_t penumbra = 0;
-  for (const SurfaceSample& s : points) {
-    // K VPLs with exact rays, the same weights.
-    auto exactVpls = [&](const std::vector<Light>& set) {
-      double sum = 0, lit = 0;
-      for (const Light& l : set) {
-        const double w = vplWeight(l.position, l.direction, s.point, s.normal);
-        sum += w;
-        if (w > 0 && exactlySeen(l.position, s.point, s.normal)) lit += w;
-      }
-      return sum > 0 ? lit / sum : 0.0;
-    };
-    const double vplsExact = exactVpls(vpls);
-    double sum = 0, lit = 0;
-    for (int i = 0; i < m; ++i)
-      for (int j = 0; j < m; ++j) {
-        const Vec3 x = area.centre + area.edgeU * ((i + unit(rng)) / m - 0.5) + area.edgeV * ((j + unit(rng)) / m - 0.5);
-        const double w = vplWeight(x, ne, s.point, s.normal);
-        sum += w;
-        if (w > 0 && exactlySeen(x, s.point, s.normal)) lit += w;
-      }
-    const double truth = sum > 0 ? lit / sum : 0.0;
-    const double baked = q.softVisibility(0, s.point, s.normal);
+  for (size_t k = 0; k < points.size(); ++k) {
+    const Vec3 &p = points[k].point, &n = points[k].normal;
+    const double vplsExact = testing::exactVplVisibility(rays, vpls, p, n);
+    const double truth = testing::emitterVisibility(rays, area, p, n, 64, k);  // 4,096 rays
+    const double baked = q.softVisibility(0, p, n);
     voxelError.push_back(std::abs(baked - vplsExact));
     sampleError.push_back(std::abs(vplsExact - truth));
     wholeError.push_back(std::abs(baked - truth));
-    fewVplError.push_back(std::abs(exactVpls(few) - truth));
+    fewVplError.push_back(std::abs(testing::exactVplVisibility(rays, few, p, n) - truth));
     penumbra += truth > 0.05 && truth < 0.95;
   }
-  auto mean = [](std::vector<double> v) {
-    double s = 0;
-    for (double x : v) s += x;
-    return s / double(v.size());
-  };
-  auto p99 = [](std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[size_t(0.99 * double(v.size() - 1))];
-  };
+  using testing::meanOf, testing::p99Of;
   std::printf("%d^3: %zu points, %llu in penumbra: mean error baked %.4f (p99 %.4f), K VPLs exact %.4f (p99 %.4f), voxels %.4f\n",
-              1 << log2R, points.size(), static_cast<unsigned long long>(penumbra), mean(wholeError), p99(wholeError),
-              mean(sampleError), p99(sampleError), mean(voxelError));
+              1 << log2R, points.size(), static_cast<unsigned long long>(penumbra), meanOf(wholeError), p99Of(wholeError),
+              meanOf(sampleError), p99Of(sampleError), meanOf(voxelError));
   EXPECT_GT(penumbra, points.size() / 10) << "the points must see soft shadow";
-  EXPECT_LE(mean(wholeError), 0.02);
-  EXPECT_LE(p99(wholeError), p99Bound);
-  EXPECT_LE(mean(voxelError), 0.02);
-  EXPECT_LT(mean(sampleError), 0.5 * mean(fewVplError)) << "64 VPLs sample the emitter better than 4";
+  EXPECT_LE(meanOf(wholeError), 0.02);
+  EXPECT_LE(p99Of(wholeError), p99Bound);
+  EXPECT_LE(meanOf(voxelError), 0.02);
+  EXPECT_LT(meanOf(sampleError), 0.5 * meanOf(fewVplError)) << "64 VPLs sample the emitter better than 4";
 }
 
 INSTANTIATE_TEST_SUITE_P(Resolutions, SoftShadows, ::testing::Values(std::tuple{7, 0.2}, std::tuple{8, 0.1}));
