@@ -235,6 +235,10 @@ pb::JobStatus JobService::submitBundle(const pb::SubmitBakeRequest& request, con
         net::declarationOf(spec.options().receivers(), [&](const std::string& hash) { return scenes_.load(hash); });
     j.receiverHash = receiverHash(receivers);
     if (spec.scene_lights()) lights = withSceneLights(scene, std::move(lights), "scene_lights: the scene");
+    for (const Light& l : lights)
+      if (l.area != 0)
+        throw InputError("scene_lights: the scene's area lights are baked by `cpvs bake` for now (the farm does not "
+                         "carry area lights yet)");
     checkLightCount(lights.size());
     const double footprint = spec.footprint() > 0 ? spec.footprint() : defaultFootprint(scene);
     planned = planLights(scene, lights, footprint, j.options, closest, receivers);

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "cpvs/bake/bake_lights.h"
+#include "cpvs/light/area_light.h"
 #include "cpvs/scene/procedural_city.h"
 #include "cpvs/scene/import.h"
 #include "cpvs/scene/source.h"
@@ -510,6 +511,34 @@ TEST(SceneImport, GltfInstancesUnderNodeTransforms) {
 
 // The importer keeps each placed mesh's node, mesh and material names; a light whose
 // node also places a mesh (a lamp with its bulb) has that node as its fixture.
+// Blender's area lights (assimp-testmodels' BLEND/AreaLight_269.blend: 'Bar' and 'Foo',
+// beside a point light) come with their rectangles, whose U x V is where they shine; a
+// scene's area lights become VPLs numbered from 1, and given ones after them.
+TEST(SceneImport, AreaLightsKeepTheirRectangles) {
+  const std::string path = "/usr/share/assimp/models/BLEND/AreaLight_269.blend";
+  ASSERT_TRUE(std::filesystem::exists(path)) << path << ": install assimp-testmodels (deploy/setup.sh)";
+  const Scene scene = openScene(path);
+  int areas = 0;
+  for (const SceneLight& l : scene.lights) {
+    if (l.type != SceneLight::Type::Area) continue;
+    ++areas;
+    EXPECT_TRUE(sceneAreaLightHasSize(l)) << l.name;
+    const Vec3 n = cross(l.edgeU, l.edgeV);
+    EXPECT_GT(dot(normalize(n), l.direction), 0.999) << l.name << ": U x V along the light's direction";
+  }
+  EXPECT_EQ(areas, 2);
+  const std::vector<Light> vpls = sceneLights(scene);
+  size_t ofArea[3] = {0, 0, 0};
+  for (const Light& l : vpls) ofArea[std::min<uint32_t>(l.area, 2)] += 1;
+  EXPECT_EQ(ofArea[1], size_t(kDefaultVpls));
+  EXPECT_EQ(ofArea[2], size_t(kDefaultVpls));
+  EXPECT_EQ(ofArea[0], 1u);  // the point light 'Baz'
+  Light given = vpls.back();
+  given.area = 1;
+  const std::vector<Light> all = withSceneLights(scene, {given}, "--scene-lights");
+  EXPECT_EQ(all.back().area, 3u);
+}
+
 TEST(SceneImport, MeshesKeepTheirNamesAndALampsNodeIsItsFixture) {
   TempDir dir;
   Scene cube;

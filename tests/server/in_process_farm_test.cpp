@@ -420,7 +420,7 @@ TEST(InProcessFarm, ABadLightBundleIsRefusedWithWhatIsWrong) {
       {[](pb::BakeSpec& s) {
          for (int k = 0; k < 5000; ++k) *s.add_lights() = s.lights(0);
        }, "lights"},
-      {[](pb::BakeSpec& s) { s.set_scene_lights(true); }, "the scene holds no point or spot light"},
+      {[](pb::BakeSpec& s) { s.set_scene_lights(true); }, "the scene holds no point, spot or area light"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     pb::BakeSpec bad = lamp;

@@ -10,6 +10,7 @@
 #include <mutex>
 
 #include "cpvs/bake/bake.h"
+#include "cpvs/light/area_light.h"
 #include "cpvs/bake/bake_scene.h"
 #include "cpvs/bake/light_plan.h"
 #include "cpvs/base/error.h"
@@ -49,9 +50,31 @@ std::string lightPlanJson(const LightBundle& b, const std::vector<double>& close
   return out;
 }
 
+bool sceneAreaLightHasSize(const SceneLight& s) {
+  return isFinite(s.edgeU) && isFinite(s.edgeV) && length(cross(s.edgeU, s.edgeV)) > 0;
+}
+
 std::vector<Light> sceneLights(const Scene& scene) {
   std::vector<Light> out;
+  uint32_t areas = 0;
   for (const SceneLight& s : scene.lights) {
+    if (s.type == SceneLight::Type::Area) {
+      if (!sceneAreaLightHasSize(s)) continue;
+      AreaLight a;
+      a.name = validUtf8Prefix(s.name, kMaxLightNameBytes - 16);  // room for " vpl 1023"
+      a.centre = s.position;
+      a.edgeU = s.edgeU;
+      a.edgeV = s.edgeV;
+      a.seed = ++areas;
+      a.range = s.range;
+      if (isFinite(s.color) && (s.color.x > 0 || s.color.y > 0 || s.color.z > 0)) {
+        const double peak = std::max({s.color.x, s.color.y, s.color.z});
+        a.colour = s.color / peak;
+        a.intensity = peak;
+      }
+      for (Light& l : vplsOf(a, areas)) out.push_back(std::move(l));
+      continue;
+    }
     if (s.type != SceneLight::Type::Spot && s.type != SceneLight::Type::Point) continue;
     Light l;
     // A cone wider than one grid holds (COLLADA's, as assimp reads it, often is) is
@@ -89,7 +112,12 @@ std::vector<Light> sceneLights(const Scene& scene) {
 
 std::vector<Light> withSceneLights(const Scene& scene, std::vector<Light> given, const std::string& what) {
   std::vector<Light> lights = sceneLights(scene);
-  if (lights.empty()) throw InputError(what + " holds no point or spot light");
+  if (lights.empty()) throw InputError(what + " holds no point, spot or area light");
+  // The given area lights are numbered after the scene's.
+  uint32_t sceneAreas = 0;
+  for (const Light& l : lights) sceneAreas = std::max(sceneAreas, l.area);
+  for (Light& l : given)
+    if (l.area != 0) l.area += sceneAreas;
   lights.insert(lights.end(), std::make_move_iterator(given.begin()), std::make_move_iterator(given.end()));
   return lights;
 }

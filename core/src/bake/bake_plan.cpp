@@ -8,6 +8,8 @@
 
 #include "cpvs/base/text.h"
 #include "cpvs/bake/tile_plan.h"
+#include "cpvs/bake/bake_lights.h"
+#include "cpvs/light/area_light.h"
 
 namespace cpvs {
 
@@ -166,7 +168,10 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
         pl.reason = "not in a sun bake: bake the scene's point and spot lights into a light bundle with --scene-lights";
         break;
       case SceneLight::Type::Area:
-        pl.reason = "skipped: area lights are not baked (no soft shadows yet)";
+        pl.reason = sceneAreaLightHasSize(l)
+                        ? "not in a sun bake: bake it into a light bundle with --scene-lights (as " +
+                              std::to_string(kDefaultVpls) + " VPLs: soft shadows, query --soft)"
+                        : "skipped: the file gives the area light no size";
         break;
       case SceneLight::Type::Ambient:
         pl.reason = "skipped: an ambient light casts no shadow";

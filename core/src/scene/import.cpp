@@ -144,6 +144,17 @@ SceneLight lightOf(const aiLight& l, const Mat4d& world) {
   out.color = {l.mColorDiffuse.r, l.mColorDiffuse.g, l.mColorDiffuse.b};
   out.innerConeDeg = double(l.mAngleInnerCone) * 180.0 / M_PI;
   out.outerConeDeg = double(l.mAngleOuterCone) * 180.0 / M_PI;
+  if (l.mType == aiLightSource_AREA) {
+    // The rectangle: mSize.y along mUp, mSize.x across it, so that U x V is the light's
+    // direction; placed (scaled, turned) by the node as its position is.
+    const aiVector3D across = l.mDirection ^ l.mUp;
+    auto vector = [&](const aiVector3D& v, double size) {
+      const Vec3 w = world.transformPoint(v.x * size, v.y * size, v.z * size) - world.transformPoint(0, 0, 0);
+      return isFinite(w) ? w : Vec3{};
+    };
+    out.edgeU = vector(l.mUp, l.mSize.y);
+    out.edgeV = vector(across, l.mSize.x);
+  }
   return out;
 }
 

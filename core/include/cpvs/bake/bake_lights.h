@@ -59,17 +59,20 @@ const Scene& castersOf(const Scene& scene, const std::vector<std::string>& exclu
 /// bounding-box diagonal / 4096.
 double defaultFootprint(const Scene& scene);
 
-/// The scene file's point and spot lights (a spot light's cone is its outer one; the
-/// procedural city's are its street lamps), in the file's order; the others cast no
-/// shadow a bundle holds (directional: a sun bake; area, ambient: none). A spot light
+/// The scene file's point, spot and area lights (a spot light's cone is its outer one; the
+/// procedural city's are its street lamps; an area light with a size its kDefaultVpls
+/// VPLs, area_light.h, seeded by its number), in the file's order; the others cast no
+/// shadow a bundle holds (directional: a sun bake; ambient: none). A spot light
 /// whose cone is wider than kMaxConeDeg is baked as a point light (its axis and cone
 /// kept for shading). A light whose node also places meshes (glTF's lamp node with its
 /// bulb) has them as its fixture: `exclude` holds the node's name, unless a mesh or
 /// material of another node has that name too (none then: name it in a lights file).
 std::vector<Light> sceneLights(const Scene& scene);
+/// Whether a scene file's area light has a rectangle (assimp gives some without a size).
+bool sceneAreaLightHasSize(const SceneLight& light);
 
-/// The scene's own lights (sceneLights) first, then `given`: the order a bake, a plan and
-/// the farm list them in. A scene with none is an InputError that starts with `what`
+/// The scene's own lights (sceneLights) first, then `given`, whose area lights are
+/// numbered after the scene's: the order a bake, a plan and the farm list them in. A scene with none is an InputError that starts with `what`
 /// (the flag or field that asked for them, and the scene).
 std::vector<Light> withSceneLights(const Scene& scene, std::vector<Light> given, const std::string& what);
 

@@ -20,6 +20,7 @@ struct SceneLight {
   Vec3 color;
   double innerConeDeg = 0, outerConeDeg = 0;  // spot lights
   double range = 0;                           // how far it reaches; 0: not given
+  Vec3 edgeU, edgeV;  // an area light's rectangle around `position`, U x V along `direction` (zero: no size)
 };
 
 /// "directional", "point", "spot", "area", "ambient", "unknown".
