@@ -115,6 +115,7 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
 // `--spot`, `--point`, `--lights`: a light bundle.
 int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point totalStart) {
   checkNoSunWithLights(a.sun);
+  if (!a.options.media.empty()) throw InputError("--medium: media are read through a sun's grid, not a light bundle's");
   const BakeOptions opt = optionsOf(a.options);
   const ReceiverDeclaration receivers = receiversOf(a.options);
   if (a.pointerGrid < 0 || a.pointerGrid > kMaxGridLevels)
@@ -198,7 +199,7 @@ int runBake(const BakeArgs& a) {
   art.options = opt;
   art.sceneHash = sceneHash(scene);
   art.receiverHash = receiverHash(receivers);
-  art.plan = planJson(planBake(scene, ss, opt, receivers, prepared.raster(), prepared.receivers()));
+  art.plan = planJson(planBake(scene, ss, opt, receivers, prepared.raster(), prepared.receivers(), declaredMedia(a.options)));
   art.dag = bakeGrid(prepared, opt, &st, [&](const std::string& s, uint64_t d, uint64_t t) {
     return progress.update(s, d, t);
   });

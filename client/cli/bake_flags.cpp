@@ -8,6 +8,7 @@
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/light/area_light.h"
+#include "cpvs/query/medium.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/net/receiver_declaration.h"
 #include "cpvs/scene/boxes.h"
@@ -52,6 +53,15 @@ void addLightFlags(CLI::App* c, LightFlags& lights) {
   c->add_option("--footprint", lights.footprint,
                 "Local lights: the widest a texel may be at a light's far end, in scene units (picks each grid's "
                 "resolution, up to 8K; default: the scene's diagonal / 4096)");
+}
+
+std::vector<BakePlan::Medium> declaredMedia(const OptionFlags& flags) {
+  std::vector<BakePlan::Medium> out;
+  for (size_t k = 0; k < flags.media.size(); ++k) {
+    const Medium m = parseMedium(flags.media[k], "--medium");
+    out.push_back({"medium " + std::to_string(k + 1), "declared", m.scattering, m.absorption, m.g, false, ""});
+  }
+  return out;
 }
 
 std::vector<Light> flagLights(const LightFlags& flags) {
@@ -124,6 +134,10 @@ void addReceiverFlags(CLI::App* c, OptionFlags& o) {
   c->add_option("--ground-slope", o.groundSlope,
                 "With --ground-layer: the steepest surface that is walkable, degrees from level (Y up)")
       ->capture_default_str();
+  c->add_option("--medium", o.media,
+                "SIGMA_S,SIGMA_A[,G]: a participating medium (fog) the bake is for, per world unit: the plan says "
+                "whether its voxels answer light through it (query --segment, render --fog); nothing more is baked. "
+                "Repeat for more");
   c->add_option("--receiver-pcf", o.receiverPcf, "The widest PCF filter receivers' lookups use (1, 3, 5, 7, 9)")
       ->capture_default_str();
   c->add_option("--camera-region", o.cameraRegions,

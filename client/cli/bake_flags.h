@@ -2,6 +2,8 @@
 // and the bake options with the names of bake/options.h.
 #pragma once
 
+#include "cpvs/bake/bake_plan.h"
+
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -57,6 +59,7 @@ struct OptionFlags {
               renderer = optionName(BakeOptions{}.renderer);
   int tileSize = 1 << kDefaultLog2TileSize;
   std::string receivers = optionName(ReceiverKind::Everywhere);
+  std::vector<std::string> media;  // --medium SIGMA_S,SIGMA_A[,G]: what the plan offers light through
   std::vector<std::string> receiverBoxes, cameraRegions;
   int receiverPcf = kMaxPcfWidthOption;
   double viewDistance = 0;
@@ -66,6 +69,10 @@ struct OptionFlags {
   std::string groundLayer;  // "[FROM:]TO"
   double groundSlope = kDefaultGroundSlopeDeg;
 };
+/// The media --medium declares, as the plan takes them ("medium 1", ...); InputError for a
+/// bad one.
+std::vector<BakePlan::Medium> declaredMedia(const OptionFlags& flags);
+
 /// `tileHelp` says what the tile size means to this command.
 void addOptionFlags(CLI::App* c, OptionFlags& options, const std::string& tileHelp);
 /// --receivers, --receiver-box, --ground-layer, --ground-slope, --receiver-pcf,

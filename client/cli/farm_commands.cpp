@@ -383,6 +383,13 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volu
     buildSun(a, c, spec);
   }
   volumeMesh = applyOptionFlags(a.options, c, *spec.mutable_options());
+  for (const BakePlan::Medium& m : declaredMedia(a.options)) {
+    pb::Medium* p = spec.add_media();
+    p->set_name(m.name);
+    p->set_scattering(m.scattering);
+    p->set_absorption(m.absorption);
+    p->set_g(m.g);
+  }
 
   if (given("--priority")) spec.set_priority(a.priority);
   if (given("--name")) spec.set_name(a.name);

@@ -82,7 +82,7 @@ int runPlan(const PlanArgs& a) {
   const OrthoGrid grid = makeGrid(scene, frame, log2R);
   const RasterScene raster(scene, grid);
   const ReceiverSet reads(scene, grid, receivers);
-  const BakePlan plan = planBake(scene, stats, options, receivers, raster, reads);
+  const BakePlan plan = planBake(scene, stats, options, receivers, raster, reads, declaredMedia(a.options));
   if (!a.coveragePng.empty()) writeCoveragePng(a.coveragePng, scene, grid, options, receivers, plan);
   if (a.json)
     std::cout << planJson(plan) << "\n";

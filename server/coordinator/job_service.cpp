@@ -23,8 +23,30 @@
 #include "cpvs/net/convert.h"
 #include "cpvs/net/receiver_declaration.h"
 #include "cpvs/net/error_kind.h"
+#include "cpvs/query/medium.h"
 
 namespace cpvs::server {
+
+namespace {
+
+// The job's declared media, checked, as the plan takes them. InputError for a bad one.
+std::vector<BakePlan::Medium> mediaOf(const pb::BakeSpec& spec) {
+  std::vector<BakePlan::Medium> out;
+  for (int k = 0; k < spec.media_size(); ++k) {
+    const pb::Medium& m = spec.media(k);
+    const std::string label = "media[" + std::to_string(k) + "]";
+    if (m.name().size() > 256) throw InputError(label + ": the name is longer than 256 bytes");
+    try {
+      checkMedium({m.scattering(), m.absorption(), m.g()});
+    } catch (const InputError& e) {
+      throw InputError(label + ": " + e.what());
+    }
+    out.push_back({m.name(), "declared", m.scattering(), m.absorption(), m.g(), false, ""});
+  }
+  return out;
+}
+
+}  // namespace
 
 using net::ErrorKind;
 using net::FarmError;
@@ -103,14 +125,20 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   if (auto existing = knownRequest(request, access)) return *existing;
   if (spec.name().size() > 256) throw FarmError(ErrorKind::InvalidArgument, "name is longer than 256 characters");
   if (std::abs(spec.priority()) > 1000) throw FarmError(ErrorKind::InvalidArgument, "priority must be in -1000..1000");
-  if (net::isLightBundle(spec)) return submitBundle(request, access);
+  if (net::isLightBundle(spec)) {
+    if (spec.media_size() > 0)
+      throw FarmError(ErrorKind::InvalidArgument, "media are read through a sun's grid: a light bundle takes none");
+    return submitBundle(request, access);
+  }
   if (spec.has_pointer_grid() || spec.footprint() != 0)
     throw FarmError(ErrorKind::InvalidArgument, "pointer_grid and footprint are for light bundles (lights, scene_lights)");
   JobRecord j;
   LightFrame frame;
   BakeOptions options;
   int log2R = 0;
+  std::vector<BakePlan::Medium> media;
   try {
+    media = mediaOf(spec);
     frame = net::lightOf(spec);
     options = net::fromProto(spec.options());
     log2R = parseResolution(spec.resolution());
@@ -153,7 +181,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   {
     const RasterScene projected(scene, grid);
     const ReceiverSet reads(scene, grid, receivers);
-    bakePlan = planBake(scene, stats, options, receivers, projected, reads);
+    bakePlan = planBake(scene, stats, options, receivers, projected, reads, media);
     j.plan = planJson(bakePlan);
   }
   CPVS_CHECK(bakePlan.tileClasses.size() == j.tilesTotal);

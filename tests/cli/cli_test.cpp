@@ -279,6 +279,27 @@ TEST_F(Cli, SegmentsAndFogReadTheGridInTheAir) {
   r = cpvs("render " + path("c.cpvs") + " city:3 --size 64x40 --fog 0.02,0.005,0.6 -o " + path("fog.png"));
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_GT(fs::file_size(path("fog.png")), 0u);
+  // A medium declared with a bake: the plan offers light through it where the air is held.
+  r = cpvs("plan city:3 --sun-dir 0.3,-1,0.2 -r 256 --json --medium 0.02,0.005,0.6");
+  ASSERT_EQ(r.status, 0) << r.out;
+  json plan = parse(r);
+  ASSERT_EQ(plan["media"].size(), 1u) << r.out;
+  EXPECT_EQ(plan["media"][0]["source"], "declared");
+  EXPECT_EQ(plan["media"][0]["g"], 0.6);
+  EXPECT_TRUE(plan["media"][0]["offered"].get<bool>());
+  r = cpvs("plan city:3 --sun-dir 0.3,-1,0.2 -r 256 --json --medium 0.02,0.005 --receivers surfaces");
+  ASSERT_EQ(r.status, 0) << r.out;
+  plan = parse(r);
+  EXPECT_FALSE(plan["media"][0]["offered"].get<bool>());
+  EXPECT_NE(plan["media"][0]["reason"].get<std::string>().find("leave the air undefined"), std::string::npos);
+  r = cpvs("plan city:3 --sun-dir 0.3,-1,0.2 -r 256 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_TRUE(parse(r)["media"].empty()) << "no medium declared, none offered";
+  r = cpvs("bake city:3 --sun-dir 0.3,-1,0.2 -r 64 -q --medium 0.02,0.005 -o " + path("fog.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = cpvs("inspect --json " + path("fog.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("medium 1"), std::string::npos) << "the artifact records the declared medium: " << r.out;
   r = cpvs("bake city:3 --sun-dir 0.3,-1,0.2 -r 64 -q --receivers surfaces -o " + path("air.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;
   for (const std::string& command : {"query " + path("air.cpvs") + " --segment 0,60,0:40,0,40",

@@ -448,7 +448,7 @@ TEST(SceneImport, ObjCube) {
 /// members (each followed by a comma) to the file's object.
 std::string writeGltf(const TempDir& dir, const std::string& name, const std::vector<float>& positions,
                       const std::vector<uint16_t>& indices, const std::string& nodesJson,
-                      const std::string& topLevel = "") {
+                      const std::string& topLevel = "", int material = -1) {
   std::string bin(reinterpret_cast<const char*>(positions.data()), positions.size() * sizeof(float));
   const size_t indexOffset = bin.size();
   bin.append(reinterpret_cast<const char*>(indices.data()), indices.size() * sizeof(uint16_t));
@@ -465,7 +465,7 @@ std::string writeGltf(const TempDir& dir, const std::string& name, const std::ve
   "scene": 0,
   "scenes": [{"nodes": [0]}],
   "nodes": %s,
-  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4%s}]}],
   "buffers": [{"uri": "%s.bin", "byteLength": %zu}],
   "bufferViews": [
     {"buffer": 0, "byteOffset": 0, "byteLength": %zu, "target": 34962},
@@ -477,10 +477,31 @@ std::string writeGltf(const TempDir& dir, const std::string& name, const std::ve
     {"bufferView": 1, "componentType": 5123, "count": %zu, "type": "SCALAR"}
   ]
 })",
-                topLevel.c_str(), nodesJson.c_str(), name.c_str(), bin.size(), indexOffset, indexOffset,
+                topLevel.c_str(), nodesJson.c_str(),
+                material < 0 ? "" : (", \"material\": " + std::to_string(material)).c_str(), name.c_str(), bin.size(),
+                indexOffset, indexOffset,
                 indices.size() * sizeof(uint16_t), positions.size() / 3, lo[0], lo[1], lo[2], hi[0],
                 hi[1], hi[2], indices.size());
   return dir.write(name + ".gltf", json);
+}
+
+// A material with a volume (glTF KHR_materials_volume) is a participating medium the
+// scene declares, absorbing -ln(colour) / distance; one without a thickness is not.
+TEST(SceneImport, VolumeMaterialsAreMedia) {
+  TempDir dir;
+  const std::vector<float> positions{0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const std::vector<uint16_t> indices{0, 1, 2};
+  const std::string path = writeGltf(dir, "fog", positions, indices, R"([{"name": "tri", "mesh": 0}])", R"(
+  "extensionsUsed": ["KHR_materials_volume"],
+  "materials": [
+    {"name": "haze", "extensions": {"KHR_materials_volume":
+      {"thicknessFactor": 1.0, "attenuationDistance": 2.0, "attenuationColor": [0.5, 0.25, 1.0]}}},
+    {"name": "thin", "extensions": {"KHR_materials_volume": {"thicknessFactor": 0.0}}}
+  ],)", 0);
+  const Scene scene = loadScene(path);
+  ASSERT_EQ(scene.media.size(), 1u);
+  EXPECT_EQ(scene.media[0].material, "haze");
+  EXPECT_NEAR(scene.media[0].absorption, (std::log(2.0) + std::log(4.0)) / 2.0 / 3.0, 1e-6);
 }
 
 TEST(SceneImport, GltfInstancesUnderNodeTransforms) {

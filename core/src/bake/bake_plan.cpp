@@ -77,7 +77,7 @@ bool planCoverage(const std::string& json, uint64_t resolution, uint32_t& cells,
 }
 
 BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions& o, const ReceiverDeclaration& d,
-                  const RasterScene& raster, const ReceiverSet& reads) {
+                  const RasterScene& raster, const ReceiverSet& reads, std::vector<BakePlan::Medium> media) {
   const OrthoGrid& grid = raster.grid();
   BakePlan p;
   p.scene = scene.name;
@@ -183,6 +183,27 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
     p.lights.push_back(pl);
   }
 
+  for (const SceneMedium& m : scene.media) media.push_back({m.material, "KHR_materials_volume", 0, m.absorption, 0, false, ""});
+  for (BakePlan::Medium& m : media) {
+    switch (o.receivers) {
+      case ReceiverKind::Everywhere:
+        m.offered = true;
+        m.reason = "offered: light along segments through it (query --segment, render --fog) reads the sun's voxels in "
+                   "the air, which this bake holds everywhere";
+        break;
+      case ReceiverKind::Volume:
+      case ReceiverKind::Cameras:
+        m.offered = true;
+        m.reason = "offered inside the declared volume only: elsewhere the air is left undefined";
+        break;
+      default:
+        m.reason = std::string("not offered: receivers '") + optionName(o.receivers) +
+                   "' leave the air undefined (bake for receivers everywhere, or a volume holding the medium)";
+        break;
+    }
+  }
+  p.media = std::move(media);
+
   const bool closedUsed = o.closed == ClosedMode::On || (o.closed == ClosedMode::Auto && p.closedTriangles > 0);
   const uint64_t rendered = p.tiles - p.tilesUntouched - p.tilesUnread;
   auto pass = [&](const char* name, bool runs, std::string why) { p.passes.push_back({name, runs, std::move(why)}); };
@@ -240,7 +261,15 @@ std::string planJson(const BakePlan& p) {
       << ", \"position\": " << vecJson(l.light.position) << ", \"direction\": " << vecJson(l.light.direction)
       << ", \"baked\": " << (l.baked ? "true" : "false") << ", \"reason\": " << jsonString(l.reason) << "}";
   }
-  o << "], \"media\": [], \"passes\": [";
+  o << "], \"media\": [";
+  for (size_t i = 0; i < p.media.size(); ++i) {
+    const BakePlan::Medium& m = p.media[i];
+    o << (i ? ", " : "") << "{\"name\": " << jsonString(m.name) << ", \"source\": " << jsonString(m.source)
+      << ", \"scattering\": " << jsonNumber(m.scattering) << ", \"absorption\": " << jsonNumber(m.absorption)
+      << ", \"g\": " << jsonNumber(m.g) << ", \"offered\": " << (m.offered ? "true" : "false")
+      << ", \"reason\": " << jsonString(m.reason) << "}";
+  }
+  o << "], \"passes\": [";
   for (size_t i = 0; i < p.passes.size(); ++i)
     o << (i ? ", " : "") << "{\"name\": " << jsonString(p.passes[i].name) << ", \"runs\": " << (p.passes[i].runs ? "true" : "false")
       << ", \"why\": " << jsonString(p.passes[i].why) << "}";
@@ -277,7 +306,12 @@ std::string planText(const BakePlan& p) {
   o << "\n  lights in the file: " << (p.lights.empty() ? "none" : std::to_string(p.lights.size())) << "\n";
   for (const BakePlan::Light& l : p.lights)
     o << "    " << lightTypeName(l.light.type) << " '" << loggable(l.light.name) << "': " << l.reason << "\n";
-  o << "  participating media: none declared (no media pass exists)\n  passes:\n";
+  if (p.media.empty()) o << "  participating media: none declared (nothing to offer, nothing baked for one)\n";
+  else o << "  participating media: " << p.media.size() << " (nothing is baked for them)\n";
+  for (const BakePlan::Medium& m : p.media)
+    o << "    " << m.source << " '" << loggable(m.name) << "' (scattering " << m.scattering << ", absorption "
+      << m.absorption << ", g " << m.g << "): " << m.reason << "\n";
+  o << "  passes:\n";
   for (const BakePlan::Pass& s : p.passes) o << "    " << (s.runs ? "runs   " : "skipped") << "  " << s.name << ": " << s.why << "\n";
   return o.str();
 }

@@ -257,6 +257,24 @@ Scene loadScene(const std::string& path, SceneStats* stats, const ImportOptions&
   }
 
   if (scene.indices.empty()) throw InputError(path + ": holds no triangles");
+  // Materials with a volume (glTF KHR_materials_volume, thickness above 0): media.
+  for (unsigned m = 0; m < ai->mNumMaterials; ++m) {
+    const aiMaterial* mat = ai->mMaterials[m];
+    float thickness = 0;
+    if (mat == nullptr || mat->Get(AI_MATKEY_VOLUME_THICKNESS_FACTOR, thickness) != AI_SUCCESS || !(thickness > 0)) continue;
+    SceneMedium medium;
+    medium.material = mat->GetName().C_Str();
+    float distance = 0;
+    aiColor3D colour(1, 1, 1);
+    mat->Get(AI_MATKEY_VOLUME_ATTENUATION_COLOR, colour);
+    // glTF's default distance is infinite: no absorption.
+    if (mat->Get(AI_MATKEY_VOLUME_ATTENUATION_DISTANCE, distance) == AI_SUCCESS && distance > 0 && std::isfinite(distance)) {
+      double sum = 0;
+      for (float c : {colour.r, colour.g, colour.b}) sum += -std::log(std::clamp(double(c), 1e-6, 1.0)) / double(distance);
+      medium.absorption = sum / 3;
+    }
+    scene.media.push_back(std::move(medium));
+  }
 
   SceneStats s = finalizeScene(scene);
   if (scene.indices.empty()) throw InputError(path + ": holds no triangles (all have zero area)");

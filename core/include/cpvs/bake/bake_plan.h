@@ -61,6 +61,16 @@ struct BakePlan {
     std::string reason;
   };
   std::vector<Light> lights;
+  // Participating media: the job's (source "declared") and the scene's volumes (source
+  // "KHR_materials_volume"), and whether this bake's voxels answer light along segments
+  // through them. Nothing is baked for them: a sun's grid holds the air already.
+  struct Medium {
+    std::string name, source;
+    double scattering = 0, absorption = 0, g = 0;
+    bool offered = false;
+    std::string reason;
+  };
+  std::vector<Medium> media;
   struct Pass {
     std::string name;
     bool runs = false;
@@ -73,8 +83,11 @@ struct BakePlan {
 /// `options` for `receivers` (`reads`: their projection on that grid, as BakeScene holds
 /// both). Projects the receivers once more at min(R, 4096) to count the columns they
 /// reach (a fraction of a second on large scenes).
+/// `media`: the job's declared media (name, source and coefficients; the plan says whether
+/// they are offered), before the scene's own.
 BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions& options,
-                  const ReceiverDeclaration& receivers, const RasterScene& raster, const ReceiverSet& reads);
+                  const ReceiverDeclaration& receivers, const RasterScene& raster, const ReceiverSet& reads,
+                  std::vector<BakePlan::Medium> media = {});
 
 /// The plan as one JSON object (what artifacts record and `cpvs plan --json` prints); the
 /// scene's name is left out (a copy of the file bakes to the same bytes).

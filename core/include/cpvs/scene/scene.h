@@ -23,6 +23,13 @@ struct SceneLight {
   Vec3 edgeU, edgeV;  // an area light's rectangle around `position`, U x V along `direction` (zero: no size)
 };
 
+/// A participating medium the scene file declares: a material with a volume (glTF
+/// KHR_materials_volume), absorbing by its attenuation colour over its distance.
+struct SceneMedium {
+  std::string material;
+  double absorption = 0;  // per world unit, the mean of the channels' -ln(colour) / distance
+};
+
 /// "directional", "point", "spot", "area", "ambient", "unknown".
 const char* lightTypeName(SceneLight::Type type);
 
@@ -47,6 +54,7 @@ struct Scene {
   std::vector<uint8_t> closed;       // 1 per triangle, see above
   std::string name;                  // file name or generator name, for logs
   std::vector<SceneLight> lights;    // as the file holds them (not hashed: they cast no shadow)
+  std::vector<SceneMedium> media;    // likewise
   /// The file's meshes in triangle order, covering every triangle (hashed: a light leaves
   /// its fixture out by name); empty for generated scenes, whose triangles have no names.
   std::vector<SceneMesh> meshes;
