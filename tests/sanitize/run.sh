@@ -34,6 +34,7 @@ echo "sanitize: building ${#TESTS[@]} tests with ASan + UBSan into $out/"
 ninja -C "$out" -j "${CPVS_JOBS:-2}" "${TESTS[@]}"
 
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:strict_string_checks=1:detect_stack_use_after_return=1"
+export LSAN_OPTIONS="suppressions=$(pwd)/tests/sanitize/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 regex="^($(IFS='|'; echo "${TESTS[*]}"))\$"
 ctest --test-dir "$out" --output-on-failure -j 2 --timeout 900 -R "$regex"
