@@ -2,11 +2,12 @@
 // panel over the city, each a cube of RES^3 grids, for K = 1, 4, 16, 64, 256: bake seconds
 // (each VPL and the whole bundle), bundle bytes, soft-lookup nanoseconds, and the error of
 // the soft visibility against a Monte Carlo integral over the emitter (4,096 exact rays a
-// point), beside the error of the same K VPLs with exact rays (sampling alone). Prints the
-// CPU model. A program that prints, not a test.
+// point), beside the error of the same K VPLs with exact rays (sampling alone); each K with
+// the VPLs' cubes rolled (the default) and along the world's axes. Prints the CPU model. A program that prints, not a test.
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -39,7 +40,8 @@ void printUsage() {
       "  --scene SPEC         the scene (default city:3:5)\n"
       "  --area C:U:V         the panel: centre and two edges (default 36,66,36:12,0,0:0,0,12)\n"
       "  --resolutions LIST   the VPLs' grids (default 128)\n"
-      "  --points N           surface points under the panel for the error (default 600)\n"
+      "  --points N           surface points under the panel, within 2.5 panel sizes across, for the error\n"
+      "                       (default 600)\n"
       "  --threads N          bake threads (default: all)\n");
 }
 
@@ -70,17 +72,21 @@ int run(int argc, char** argv) {
       area.seed = 1;
       area.log2Resolution = log2R;
       const RayScene rays(s->scene, area.centre);
-      const std::vector<SurfaceSample> points = testing::pointsUnderArea(s->scene, rays, area, 30, size_t(a.points), 5);
+      // Points within 2.5 panel sizes across of its centre (30 units for the default).
+      const double radius = 2.5 * std::max(length(area.edgeU), length(area.edgeV));
+      const std::vector<SurfaceSample> points = testing::pointsUnderArea(s->scene, rays, area, radius, size_t(a.points), 5);
       std::vector<double> truth;
       for (size_t k = 0; k < points.size(); ++k)
         truth.push_back(testing::emitterVisibility(rays, area, points[k].point, points[k].normal, 64, k));
       std::printf("\n## %s, a %.3g x %.3g panel, VPL grids %s^3, %zu points under it\n\n", s->label.c_str(),
                   length(area.edgeU), length(area.edgeV), resolutionLabel(log2R).c_str(), points.size());
-      std::printf("| K | bake s | s / VPL | shared nodes | on a device | file (zstd) | soft lookup ns | mean error | p99 | "
+      std::printf("| K | cubes | bake s | s / VPL | shared nodes | on a device | file (zstd) | soft lookup ns | mean error | p99 | "
                   "K VPLs exact: mean | p99 |\n");
-      std::printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-      for (int k : a.counts) {
+      std::printf("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+      for (int k : a.counts)
+      for (bool roll : {true, false}) {
         area.vpls = uint32_t(k);
+        area.roll = roll;
         const std::vector<Light> vpls = vplsOf(area, 1);
         const auto start = std::chrono::steady_clock::now();
         const LightBundle bundle = bakeLights(s->scene, vpls, defaultFootprint(s->scene), BakeOptions{}, sceneHash(s->scene));
@@ -96,7 +102,7 @@ int run(int argc, char** argv) {
           baked.push_back(std::abs(soft[i] - truth[i]));
           exact.push_back(std::abs(testing::exactVplVisibility(rays, vpls, points[i].point, points[i].normal) - truth[i]));
         }
-        std::printf("| %d | %.2f | %.4f | %s | %s | %s | %.0f | %.4f | %.4f | %.4f | %.4f |\n", k, bake, bake / k,
+        std::printf("| %d | %s | %.2f | %.4f | %s | %s | %s | %.0f | %.4f | %.4f | %.4f | %.4f |\n", k, roll ? "rolled" : "world axes", bake, bake / k,
                     humanBytes(bundle.poolBytes).c_str(), humanBytes(bundle.pool->size() * 4).c_str(),
                     humanBytes(file.size()).c_str(), ns,
                     testing::meanOf(baked), testing::p99Of(baked), testing::meanOf(exact), testing::p99Of(exact));

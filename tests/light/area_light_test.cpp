@@ -67,6 +67,43 @@ TEST(AreaLight, VplsSampleTheRectangleEvenlyFromASeed) {
   EXPECT_DOUBLE_EQ(vplWeight({0, 2, 0}, {0, -1, 0}, {0, 0, 0}, {}), 0.25);
 }
 
+// Each VPL's cube is turned by its own seeded rotation: orthonormal, right-handed, a face
+// along the emitter's normal but for a sub-texel tilt, unlike its neighbours', the same
+// for a seed; face f looks along its own axes and the face a
+// direction falls in is the one whose axis it is nearest (the largest dot product).
+TEST(AreaLight, VplCubesAreRolledFromTheSeed) {
+  AreaLight a = panel(16, 7);
+  const std::vector<Light> v = vplsOf(a, 1);
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::array<Vec3, 3>& c = v[i].cube;
+    EXPECT_TRUE(isOrthonormalCube(c));
+    EXPECT_NEAR(dot(cross(c[0], c[1]), c[2]), 1.0, 1e-12) << "a rotation, not a mirror";
+    // Its -y face looks along the emitter's normal within a texel's angle either way (1/128 about two axes).
+    EXPECT_GT(dot(c[1], a.normal()), -1.0);
+    EXPECT_LT(dot(c[1], a.normal()), -std::cos(std::sqrt(2.0) / 128));
+    if (i > 0) EXPECT_NE(c[0], v[i - 1].cube[0]);
+    EXPECT_EQ(vplsOf(a, 1)[i].cube, c);
+    std::mt19937_64 rng(i);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int k = 0; k < 200; ++k) {
+      const Vec3 d{u(rng), u(rng), u(rng)};
+      const int face = cubeFace(d, c);
+      const LightFrame f = cubeFaceFrame(face, c);
+      for (int other = 0; other < 6; ++other) EXPECT_GE(dot(d, f.dir), dot(d, cubeFaceFrame(other, c).dir));
+      EXPECT_NEAR(dot(cross(f.u, f.v), f.dir), dot(cross(cubeFaceFrame(face, kAxisCube).u, cubeFaceFrame(face, kAxisCube).v),
+                                                 cubeFaceFrame(face, kAxisCube).dir), 1e-12);
+      EXPECT_EQ(cubeFace(d, kAxisCube), cubeFace(d));
+    }
+  }
+  a.roll = false;
+  for (const Light& l : vplsOf(a, 1)) EXPECT_EQ(l.cube, kAxisCube);
+  for (int face = 0; face < 6; ++face)
+    EXPECT_EQ(cubeFaceFrame(face, kAxisCube), LightFrame::fromDirection(cubeFaceAxis(face)));
+  // Ties between faces go to the first, as before.
+  EXPECT_EQ(cubeFace({1, 1, 0}, kAxisCube), 0);
+  EXPECT_EQ(cubeFace({0, 0, 0}, kAxisCube), 0);
+}
+
 TEST(AreaLight, BadAreaLightsAreRefused) {
   const Vec3 lo{0, 0, 0}, hi{60, 60, 60};
   AreaLight a = panel(64, 7);
@@ -100,21 +137,36 @@ TEST(AreaLight, TheBundleFileKeepsTheAreaNumbers) {
   ASSERT_EQ(q.areaCount(), 2u);
   EXPECT_EQ(q.vplsOf(0), (std::vector<uint32_t>{0, 1}));
   EXPECT_EQ(q.vplsOf(1), (std::vector<uint32_t>{2, 3, 4}));
+  // The rolled cubes come back from the grids' frames.
+  const LightBundle back = decodeBundle(bytes.data(), bytes.size(), "two.cpvs");
+  for (size_t i = 0; i < lights.size(); ++i) EXPECT_EQ(back.lights[i].light.cube, lights[i].cube) << i;
+  // Six grids that are not a cube's faces are refused.
+  LightBundle bent = bundle;
+  bent.grids[1] = bent.grids[3];
+  bytes = encodeBundle(bent, false);
+  expectInputError([&] { decodeBundle(bytes.data(), bytes.size(), "bent.cpvs"); }, "not a cube's faces");
   for (BundleLight& l : bundle.lights) l.light.area = 2;  // area 1 gone
   bytes = encodeBundle(bundle, false);
   expectInputError([&] { decodeBundle(bytes.data(), bytes.size(), "gap.cpvs"); }, "area light 1 has no VPL");
 }
 
 // Soft visibility on the city's roofs and streets under a 12 x 12 panel, K = 64 VPLs at
-// 128^3 (seed 002's resolution) and 256^3: against the same VPLs with exact rays, and
-// against the emitter itself by Monte Carlo. The bounds are the errors measured (the
-// worst 1 % are contact shadows beside walls, where a 128^3 grid's voxel is a unit wide).
-class SoftShadows : public ::testing::TestWithParam<std::tuple<int, double>> {};
+// 128^3 (seed 002's resolution) and 256^3, and on the city turned 30 degrees about its
+// centre (the panel with it: walls no VPL cube is aligned with): against the same VPLs
+// with exact rays, and against the emitter itself by Monte Carlo. The bounds are the
+// issue's targets (measured: p99 0.093 and 0.097 at 128^3, 0.055 at 256^3); the worst
+// 1 % are contact shadows beside walls, where a 128^3 grid's voxel is a unit wide.
+class SoftShadows : public ::testing::TestWithParam<std::tuple<int, double, double>> {};
 
 TEST_P(SoftShadows, AgreeWithExactVplsAndTheWholeEmitter) {
-  const auto [log2R, p99Bound] = GetParam();
-  const Scene scene = openScene("city:3:5");
-  const AreaLight area = panel(64, log2R);
+  const auto [log2R, degrees, p99Bound] = GetParam();
+  Scene scene = openScene("city:3:5");
+  AreaLight area = panel(64, log2R);
+  const double c = std::cos(degrees * M_PI / 180), s = std::sin(degrees * M_PI / 180);
+  auto turn = [&](const Vec3& v) { return Vec3{c * v.x - s * v.z, v.y, s * v.x + c * v.z}; };
+  for (Vec3& p : scene.positions) p = area.centre + turn(p - area.centre);
+  area.edgeU = turn(area.edgeU);
+  area.edgeV = turn(area.edgeV);
   const std::vector<Light> vpls = vplsOf(area, 1);
   const LightBundle bundle = bakeLights(scene, vpls, defaultFootprint(scene), BakeOptions{}, sceneHash(scene));
   // The bundle keeps the area numbers through its file.
@@ -128,7 +180,9 @@ TEST_P(SoftShadows, AgreeWithExactVplsAndTheWholeEmitter) {
   const std::vector<SurfaceSample> points = testing::pointsUnderArea(scene, rays, area, 30, 600, 5);
   ASSERT_GE(points.size(), 300u);
   std::vector<double> voxelError, sampleError, wholeError, fewVplError;
-  const std::vector<Light> few = vplsOf(panel(4, 7), 1);
+  AreaLight fourVpls = area;
+  fourVpls.vpls = 4;
+  const std::vector<Light> few = vplsOf(fourVpls, 1);
   uint64_t penumbra = 0;
   for (size_t k = 0; k < points.size(); ++k) {
     const Vec3 &p = points[k].point, &n = points[k].normal;
@@ -142,8 +196,8 @@ TEST_P(SoftShadows, AgreeWithExactVplsAndTheWholeEmitter) {
     penumbra += truth > 0.05 && truth < 0.95;
   }
   using testing::meanOf, testing::p99Of;
-  std::printf("%d^3: %zu points, %llu in penumbra: mean error baked %.4f (p99 %.4f), K VPLs exact %.4f (p99 %.4f), voxels %.4f\n",
-              1 << log2R, points.size(), static_cast<unsigned long long>(penumbra), meanOf(wholeError), p99Of(wholeError),
+  std::printf("%d^3, turned %g degrees: %zu points, %llu in penumbra: mean error baked %.4f (p99 %.4f), K VPLs exact %.4f (p99 %.4f), voxels %.4f\n",
+              1 << log2R, degrees, points.size(), static_cast<unsigned long long>(penumbra), meanOf(wholeError), p99Of(wholeError),
               meanOf(sampleError), p99Of(sampleError), meanOf(voxelError));
   EXPECT_GT(penumbra, points.size() / 10) << "the points must see soft shadow";
   EXPECT_LE(meanOf(wholeError), 0.02);
@@ -152,7 +206,8 @@ TEST_P(SoftShadows, AgreeWithExactVplsAndTheWholeEmitter) {
   EXPECT_LT(meanOf(sampleError), 0.5 * meanOf(fewVplError)) << "64 VPLs sample the emitter better than 4";
 }
 
-INSTANTIATE_TEST_SUITE_P(Resolutions, SoftShadows, ::testing::Values(std::tuple{7, 0.2}, std::tuple{8, 0.1}));
+INSTANTIATE_TEST_SUITE_P(Resolutions, SoftShadows,
+                         ::testing::Values(std::tuple{7, 0.0, 0.1}, std::tuple{7, 30.0, 0.1}, std::tuple{8, 0.0, 0.1}));
 
 }  // namespace
 }  // namespace cpvs

@@ -61,7 +61,7 @@ std::vector<LightGridPlan> planLightGrids(const Scene& scene, const Light& light
   if (light.kind == LightKind::Spot) {
     views.push_back({LightFrame::fromDirection(light.direction), std::tan(light.coneDeg * kDegrees)});
   } else {
-    for (int face = 0; face < 6; ++face) views.push_back({LightFrame::fromDirection(cubeFaceAxis(face)), 1.0});
+    for (int face = 0; face < 6; ++face) views.push_back({cubeFaceFrame(face, light.cube), 1.0});
   }
   std::vector<LightGridPlan> plans;
   for (const auto& [frame, tanHalf] : views) {

@@ -165,6 +165,18 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
     }
   }
 
+  // A point light's cube is its faces' axes (+x, +y, +z faces), a rolled VPL's turned.
+  for (size_t i = 0; i < b.lights.size(); ++i) {
+    BundleLight& bl = b.lights[i];
+    if (bl.light.kind != LightKind::Point) continue;
+    const auto dir = [&](int face) { return b.grids[bl.firstGrid + face].grid.frame().dir; };
+    bl.light.cube = {dir(0), dir(2), dir(4)};
+    bool opposite = true;
+    for (int axis = 0; axis < 3; ++axis) opposite = opposite && dir(2 * axis + 1) == withoutNegativeZeros(-dir(2 * axis));
+    if (!opposite || !isOrthonormalCube(bl.light.cube))
+      h.fail("light " + std::to_string(i) + "'s six grids are not a cube's faces");
+  }
+
   const bool zstd = (flags & kContainerZstd) != 0;
   std::vector<uint32_t> words = getWordSection(h, zstd, uint64_t(kPackedHeaderWords) * gridCount, "node pool");
   if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");

@@ -18,6 +18,34 @@ double radicalInverse(uint32_t i, uint32_t base) {
   return r;
 }
 
+// VPL i's cube: one face looking along the emitter's normal (where its light is
+// strongest and cos-weighted lookups gather, that face sees the receivers head on, as a
+// spot light would), turned about the normal by a seeded angle and tilted by a seeded
+// fraction of a texel about the other two axes, so that the VPLs' texels fall at unrelated
+// angles and sub-texel phases (seed 002's decorrelated frames). Only exact operations and
+// sqrt: every machine turns the cube alike.
+std::array<Vec3, 3> rolledCube(const Vec3& normal, int log2Resolution, SplitMix64& rng) {
+  const LightFrame f = LightFrame::fromDirection(normal);
+  double cx, cy, r2;  // a direction in the emitter's plane, uniform in angle
+  do {
+    cx = 2 * rng.uniform01() - 1;
+    cy = 2 * rng.uniform01() - 1;
+    r2 = cx * cx + cy * cy;
+  } while (!(r2 > 1e-6 && r2 <= 1));
+  const Vec3 a0 = normalize(f.u * cx + f.v * cy), a1 = -f.dir, a2 = cross(a0, a1);
+  // The tilt: a rotation by up to half a texel's angle (1/R radians at a face's centre)
+  // either way about a0 and a2, as the quaternion (1, jx, 0, jz), half-angles jx, jz.
+  const double half = 0.5 / double(uint64_t(1) << log2Resolution);
+  const double jx = (2 * rng.uniform01() - 1) * half, jz = (2 * rng.uniform01() - 1) * half;
+  const double inv = 1 / std::sqrt(1 + jx * jx + jz * jz);
+  const double w = inv, x = jx * inv, z = jz * inv;
+  // The rotation's columns in the cube's frame (a unit quaternion's matrix, y = 0).
+  const Vec3 c0{1 - 2 * z * z, 2 * w * z, 2 * x * z}, c1{-2 * w * z, 1 - 2 * (x * x + z * z), 2 * w * x},
+      c2{2 * x * z, -2 * w * x, 1 - 2 * x * x};
+  auto inCube = [&](const Vec3& c) { return withoutNegativeZeros(a0 * c.x + a1 * c.y + a2 * c.z); };
+  return {inCube(c0), inCube(c1), inCube(c2)};
+}
+
 }  // namespace
 
 void checkAreaLight(const AreaLight& a, const Vec3& lo, const Vec3& hi, const std::string& source) {
@@ -85,6 +113,10 @@ std::vector<Light> vplsOf(const AreaLight& a, uint32_t areaNumber) {
     l.intensity = a.intensity / double(a.vpls);
     l.log2Resolution = a.log2Resolution;
     l.area = areaNumber;
+    if (a.roll) {
+      SplitMix64 turn = SplitMix64::forItem(a.seed ^ 0x70117u, i);
+      l.cube = rolledCube(n, a.log2Resolution, turn);
+    }
     out.push_back(std::move(l));
   }
   return out;

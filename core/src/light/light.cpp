@@ -23,6 +23,26 @@ int cubeFace(const Vec3& d) {
   return d.z >= 0 ? 4 : 5;
 }
 
+int cubeFace(const Vec3& d, const std::array<Vec3, 3>& cube) {
+  return cubeFace({dot(d, cube[0]), dot(d, cube[1]), dot(d, cube[2])});
+}
+
+LightFrame cubeFaceFrame(int face, const std::array<Vec3, 3>& cube) {
+  const LightFrame axis = LightFrame::fromDirection(cubeFaceAxis(face));
+  if (cube == kAxisCube) return axis;
+  auto turn = [&](const Vec3& a) { return withoutNegativeZeros(cube[0] * a.x + cube[1] * a.y + cube[2] * a.z); };
+  return {turn(axis.dir), turn(axis.u), turn(axis.v)};
+}
+
+bool isOrthonormalCube(const std::array<Vec3, 3>& c) {
+  for (int i = 0; i < 3; ++i) {
+    if (!isFinite(c[i]) || !(std::abs(dot(c[i], c[i]) - 1) <= kUnitDirectionTolerance)) return false;
+    for (int j = 0; j < i; ++j)
+      if (!(std::abs(dot(c[i], c[j])) <= kUnitDirectionTolerance)) return false;
+  }
+  return true;
+}
+
 std::string lightLabel(const Light& light, size_t index) {
   return "light " + std::to_string(index) + (light.name.empty() ? "" : " (" + light.name + ")");
 }
@@ -52,6 +72,7 @@ void checkLight(const Light& l, const Vec3& lo, const Vec3& hi, const std::strin
   }
   if (l.area != 0 && (l.kind != LightKind::Point || !isFinite(l.direction) || !(length(l.direction) > 0)))
     fail("a VPL of an area light is a point light with the emitter's normal as its direction");
+  if (l.kind == LightKind::Point && !isOrthonormalCube(l.cube)) fail("the point light's cube axes are not orthonormal");
   if (!std::isfinite(l.range) || l.range < 0) fail("the range must be 0 (to the scene's far side) or positive");
   if (!std::isfinite(l.near) || l.near < 0) fail("near must be 0 (planned) or positive");
   if (l.near > 0 && l.range > 0 && !(l.near < l.range))

@@ -53,7 +53,7 @@ double BundleQuery::reach(size_t light) const { return reach_.at(light); }
 size_t BundleQuery::gridAt(size_t i, const Vec3& p) const {
   const BundleLight& l = lights_.at(i);
   if (l.light.kind == LightKind::Spot) return l.firstGrid;
-  return l.firstGrid + size_t(cubeFace(p - l.light.position));
+  return l.firstGrid + size_t(cubeFace(p - l.light.position, l.light.cube));
 }
 
 }  // namespace cpvs

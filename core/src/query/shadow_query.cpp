@@ -109,7 +109,7 @@ uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) cons
 }
 
 float ShadowQuery::bilinearVisibility(const Vec3& p, const Vec3& n) const {
-  const double offset = normalOffsetVoxels(3);
+  const double offset = kSoftOffsetVoxels;
   const Vec3 c = spot_ ? spot_->offsetVoxel(p, n, offset) : mappedLookup(mapping_, p, n, offset);
   if (std::isnan(c.x) || std::isnan(c.y) || std::isnan(c.z)) return 0;
   const int64_t z = floorToVoxel(c.z);

@@ -28,7 +28,12 @@ struct AreaLight {
   Vec3 centre, edgeU, edgeV;
   uint32_t vpls = kDefaultVpls;
   int log2Resolution = kDefaultVplLog2Resolution;
-  uint64_t seed = 0;         // of the VPLs' placement
+  uint64_t seed = 0;         // of the VPLs' placement and rolls
+  /// Each VPL's cube, one face along the emitter's normal, turned about it by a seeded
+  /// angle and tilted by a seeded fraction of a texel, so that the VPLs' texels fall at
+  /// unrelated angles and sub-texel phases and their voxel errors do not line up (seed
+  /// 002's decorrelated frames). Off: every cube along the world's axes.
+  bool roll = true;
   Vec3 colour{1, 1, 1};      // linear RGB, for shading only
   double intensity = 1;      // the whole emitter's, shared by its VPLs
   double range = 0;          // how far its light reaches; 0: the scene's far side
@@ -51,7 +56,7 @@ AreaLight parseAreaLightFlag(const std::string& text);
 /// sequence (bases 2 and 3) under a seeded Cranley-Patterson rotation, so that K VPLs
 /// sample the rectangle evenly and two seeds give uncorrelated sets; lifted off the
 /// emitter along its normal by a hair (1e-4 of its size), so that the emitter's own
-/// geometry does not shadow its light.
+/// geometry does not shadow its light; each one's cube rolled unless `roll` is off.
 std::vector<Light> vplsOf(const AreaLight& area, uint32_t areaNumber);
 
 /// How much VPL (or any point light) at x facing `emitterNormal` sends to point p with

@@ -3,12 +3,14 @@
 // What the planner turns into perspective grids (light_plan.h).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "cpvs/base/vec3.h"
+#include "cpvs/light/frame.h"
 
 namespace cpvs {
 
@@ -45,14 +47,31 @@ struct Light {
   /// A VPL of the bundle's area light number `area` (1-based, area_light.h): a point
   /// light whose direction is the emitter's normal. 0: a light of its own.
   uint32_t area = 0;
+  /// A point light's cube: its faces look along +-cube[0], +-cube[1], +-cube[2] (an
+  /// orthonormal basis). The world's axes unless rolled: an area light's VPLs each turn
+  /// theirs by a seeded rotation, so that their voxels' errors do not line up.
+  std::array<Vec3, 3> cube{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
 };
 
+/// The world's axes: a cube that is not rolled.
+constexpr std::array<Vec3, 3> kAxisCube{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+
 /// A point light's cube: face f looks along cubeFaceAxis(f), in the order +x, -x, +y, -y,
-/// +z, -z.
+/// +z, -z (of the cube's own axes, Light::cube).
 Vec3 cubeFaceAxis(int face);
 /// The face a direction from the light falls in: its largest axis (a tie goes to the
 /// first of them; on an edge of the cube both faces answer).
 int cubeFace(const Vec3& fromLight);
+/// The same in a cube turned to `cube`: the direction's components along its axes, each a
+/// dot product summed left to right as the GLSL include does (cpvsLightGrid), so that CPU
+/// and GPU pick the same face. With kAxisCube it is cubeFace(fromLight).
+int cubeFace(const Vec3& fromLight, const std::array<Vec3, 3>& cube);
+/// Face f's frame in a cube turned to `cube`: the world-axis face's frame
+/// (LightFrame::fromDirection(cubeFaceAxis(f))) rotated by it, so that the faces' squares
+/// meet edge to edge whatever the rotation.
+LightFrame cubeFaceFrame(int face, const std::array<Vec3, 3>& cube);
+/// Whether `cube` is an orthonormal basis within kUnitDirectionTolerance.
+bool isOrthonormalCube(const std::array<Vec3, 3>& cube);
 
 /// InputError naming `source` ("light 3 (lamp)") and what is wrong: a position that is
 /// not finite or lies outside the scene's bounds [lo, hi] grown by kLightBoundsMargin of

@@ -33,6 +33,16 @@ class PcfWidth {
 /// that every texel of the footprint clears the receiver.
 constexpr double normalOffsetVoxels(int pcf) { return 1.5 + 0.5 * (pcf - 1); }
 
+/// Normal offset, in voxels, of a soft lookup (ShadowQuery::bilinearVisibility): the least
+/// that clears the point's own voxel of a surface along the voxel axes. Not the 1.5 + ...
+/// of a hard lookup: a soft lookup averages K VPLs whose cubes are rolled
+/// (area_light.h), so the self-shadowing an oblique surface gets in one VPL's voxels is
+/// noise that averages out over the others, while the light an offset leaks past an
+/// occluder (contact shadows beside walls) is the same bias in every VPL. On the city
+/// under a panel, 64 VPLs at 128^3 (bench_area): p99 error 0.093 with 1 voxel, 0.112
+/// with 1.5, 0.187 with 2.5; below 1 self-shadowing raises the mean.
+constexpr double kSoftOffsetVoxels = 1.0;
+
 /// Integer voxel coordinates; may lie outside the grid.
 struct VoxelCoord {
   int64_t x = 0, y = 0, z = 0;

@@ -65,7 +65,7 @@ class ShadowQuery {
 
   /// Visibility interpolated across the grid, never along depth (seed 002's rule: the
   /// occluder's discontinuity lies along depth): the 2x2 texels around the lookup point
-  /// (offset as for a 3x3 filter) in its slice, each as voxelShadowed answers it, weighted
+  /// (offset by kSoftOffsetVoxels) in its slice, each as voxelShadowed answers it, weighted
   /// bilinearly by where the point falls between their centres. In [0, 1]; 0 where no
   /// voxel answers (behind a spot light).
   float bilinearVisibility(const Vec3& p, const Vec3& n) const;
