@@ -94,9 +94,31 @@ int renderBundle(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, 
     std::vector<uint32_t> which, lit;
     std::vector<Vec3> at, normals;
     tileLookups(hits, tiles, which, at, normals);
-    lights.litTexels(which, at, normals, a.pcf, lit);
-    std::vector<float> visibility(lit.size());
-    for (size_t i = 0; i < lit.size(); ++i) visibility[i] = float(lit[i]) / float(a.pcf * a.pcf);
+    // A VPL's lookup is its area light's soft visibility, once a pixel for all its VPLs.
+    std::vector<uint32_t> hardLights, softAreas;
+    std::vector<Vec3> hardAt, hardNormals, softAt, softNormals;
+    std::vector<int64_t> lookup(which.size());  // >= 0: a hard lookup's index, < 0: -1 - a soft one's
+    std::vector<int64_t> lastSoft(q.areaCount(), -1);
+    for (size_t i = 0; i < which.size(); ++i) {
+      const uint32_t area = q.light(which[i]).light.area;
+      if (area == 0) {
+        lookup[i] = int64_t(hardLights.size());
+        hardLights.push_back(which[i]), hardAt.push_back(at[i]), hardNormals.push_back(normals[i]);
+        continue;
+      }
+      int64_t& last = lastSoft[area - 1];
+      if (last < 0 || !(softAt[size_t(last)] == at[i]) || !(softNormals[size_t(last)] == normals[i])) {
+        last = int64_t(softAreas.size());
+        softAreas.push_back(area - 1), softAt.push_back(at[i]), softNormals.push_back(normals[i]);
+      }
+      lookup[i] = -1 - last;
+    }
+    std::vector<float> soft;
+    if (!hardLights.empty()) lights.litTexels(hardLights, hardAt, hardNormals, a.pcf, lit);
+    if (!softAreas.empty()) lights.softVisibility(softAreas, softAt, softNormals, soft);
+    std::vector<float> visibility(which.size());
+    for (size_t i = 0; i < which.size(); ++i)
+      visibility[i] = lookup[i] >= 0 ? float(lit[size_t(lookup[i])]) / float(a.pcf * a.pcf) : soft[size_t(-1 - lookup[i])];
     writeBoth(base, shadeLightTiles(hits, q, tiles, visibility));
     where = "lookups on " + device->name();
   } else {

@@ -14,12 +14,23 @@ namespace {
 constexpr float kAlbedo = 0.7f, kAmbient = 0.01f;
 constexpr double kDegrees = 3.14159265358979323846 / 180;
 
+// Light i's visibility at (p, n): its pcf lookup, or for a VPL its area light's soft
+// visibility, looked up once a pixel (`soft` holds each area's, NaN until asked).
+float visibilityOf(const BundleQuery& query, size_t i, const Vec3& p, const Vec3& n, int pcf, std::vector<float>& soft) {
+  const uint32_t area = query.light(i).light.area;
+  if (area == 0) return query.filtered(i, p, n, pcf);
+  float& v = soft.at(area - 1);
+  if (std::isnan(v)) v = query.softVisibility(area - 1, p, n);
+  return v;
+}
+
 // A pixel of the picture from the lights `each` visits.
 template <class EachLight>
 Rgb shadePixel(const BundleQuery& query, const SurfaceHit& s, int pcf, EachLight&& each) {
   Rgb sum{kAmbient, kAmbient, kAmbient};
+  std::vector<float> soft(query.areaCount(), std::nanf(""));
   each([&](size_t light) {
-    const Rgb r = lightRadiance(query, light, s.point, s.normal, pcf);
+    const Rgb r = lightRadiance(query, light, s.point, s.normal, visibilityOf(query, light, s.point, s.normal, pcf, soft));
     sum.r += r.r;
     sum.g += r.g;
     sum.b += r.b;
@@ -32,7 +43,8 @@ Rgb night() { return {0.004f, 0.005f, 0.012f}; }
 }  // namespace
 
 Rgb lightRadiance(const BundleQuery& query, size_t i, const Vec3& p, const Vec3& n, int pcf) {
-  return lightRadiance(query, i, p, n, query.filtered(i, p, n, pcf));
+  std::vector<float> soft(query.areaCount(), std::nanf(""));
+  return lightRadiance(query, i, p, n, visibilityOf(query, i, p, n, pcf, soft));
 }
 
 Rgb lightRadiance(const BundleQuery& query, size_t i, const Vec3& p, const Vec3& n, float vis) {
@@ -53,6 +65,8 @@ Rgb lightRadiance(const BundleQuery& query, size_t i, const Vec3& p, const Vec3&
     const double x = std::clamp((c - outer) / std::max(inner - outer, 1e-9), 0.0, 1.0);
     a *= x * x * (3 - 2 * x);
   }
+  // A VPL is a patch of its emitter: cosine-weighted about the emitter's normal.
+  if (l.area != 0) a *= std::max(0.0, -dot(query.emitterNormal(i), toLight) / d);
   const float k = float(vis * ndl * a * l.intensity);
   return {k * float(l.colour.x), k * float(l.colour.y), k * float(l.colour.z)};
 }

@@ -1,7 +1,8 @@
 // The runtime library's batch query of a light bundle: one invocation per query point,
 // the lookup of cpvs_shadow.glsl's cpvsLightLitTexels. Queries are 6 doubles (point,
 // normal; a zero normal: no offset) and the light's index; the answer is the lit texel
-// count of the pcf x pcf footprint of that light's grid.
+// count of the pcf x pcf footprint of that light's grid. With pcf 0, a soft lookup: the
+// light is an area light's first VPL and the answer the bits of cpvsSoftVisibility.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 
@@ -19,7 +20,7 @@ layout(set = 0, binding = 11, std430) readonly buffer QueryLights { uint queryLi
 
 layout(push_constant) uniform Batch {
   uint count;    // queries in this dispatch
-  uint pcf;      // odd filter width
+  uint pcf;      // odd filter width; 0: soft visibility
   uint groupsX;  // workgroups per row of the 2-D dispatch (maxComputeWorkGroupCount)
 };
 
@@ -29,5 +30,5 @@ void main() {
   const uint q = 6u * i;
   const dvec3 p = dvec3(queries[q], queries[q + 1u], queries[q + 2u]);
   const dvec3 n = dvec3(queries[q + 3u], queries[q + 4u], queries[q + 5u]);
-  answers[i] = cpvsLightLitTexels(queryLights[i], p, n, pcf);
+  answers[i] = pcf == 0u ? floatBitsToUint(cpvsSoftVisibility(queryLights[i], p, n)) : cpvsLightLitTexels(queryLights[i], p, n, pcf);
 }

@@ -19,12 +19,16 @@ namespace {
 
 // The shader's CpvsLight (std430: floats and uints at 4); its grids are GpuGrid records.
 struct GpuLight {
-  uint32_t kind, firstGrid, gridCount, reserved;
+  uint32_t kind, firstGrid, gridCount, area;
   float position[3], range;
   float direction[3], cosCone;
   float colour[3], intensity;
 };
 static_assert(sizeof(GpuLight) == 64, "cpvs_shadow.glsl's CpvsLight is 64 bytes");
+
+// cpvs_light_query.comp's pcf for a soft lookup: each query's light is an area light's
+// first VPL, its answer the float bits of cpvsSoftVisibility.
+constexpr int kSoftQuery = 0;
 
 // Bindings of cpvs_light_query.comp's tables (CPVS_LIGHT_BINDING 12), then its pool.
 constexpr uint32_t kLightTableBinding = 12, kLightWordBinding = 15;
@@ -50,7 +54,38 @@ void checkQueries(const LightArtifact& artifact, const std::vector<uint32_t>& li
                                                       std::to_string(artifact.lightCount()) + " lights");
 }
 
+// The first VPL of each area light asked for (what cpvsSoftVisibility takes); the areas
+// checked and the normals' count.
+std::vector<uint32_t> firstVplsOf(const LightArtifact& artifact, const std::vector<uint32_t>& areas,
+                                  const std::vector<Vec3>& points, const std::vector<Vec3>& normals) {
+  checkQueryShape(points.size(), normals.size(), 1);
+  if (areas.size() != points.size() && areas.size() != 1)
+    throw RuntimeError(Status::InvalidArgument,
+                       std::to_string(areas.size()) + " area lights for " + std::to_string(points.size()) + " points (one each, or one for all)");
+  const BundleQuery& q = artifact.cpu();
+  std::vector<uint32_t> first(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const uint32_t a = areas.size() == 1 ? areas[0] : areas[i];
+    if (a >= q.areaCount())
+      throw RuntimeError(Status::InvalidArgument,
+                         "area light " + std::to_string(a) + " of a bundle of " + std::to_string(q.areaCount()) + " area lights");
+    first[i] = q.vplsOf(a).front();
+  }
+  return first;
+}
+
 }  // namespace
+
+void cpuSoftVisibility(const LightArtifact& artifact, const std::vector<uint32_t>& areas,
+                       const std::vector<Vec3>& points, const std::vector<Vec3>& normals, std::vector<float>& out) {
+  firstVplsOf(artifact, areas, points, normals);
+  out.resize(points.size());
+  const BundleQuery& q = artifact.cpu();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 256), [&](const auto& range) {
+    for (size_t i = range.begin(); i != range.end(); ++i)
+      out[i] = q.softVisibility(areas.size() == 1 ? areas[0] : areas[i], points[i], normals.empty() ? Vec3{} : normals[i]);
+  });
+}
 
 void cpuLightLitTexels(const LightArtifact& artifact, const std::vector<uint32_t>& lights,
                        const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
@@ -76,7 +111,9 @@ std::vector<uint8_t> lightTableBytes(const LightBundle& bundle) {
     r.firstGrid = b.firstGrid, r.gridCount = b.gridCount;
     put(r.position, l.position);
     r.range = float(bundle.grids.at(b.firstGrid).grid.far());
-    put(r.direction, l.kind == LightKind::Point ? Vec3{} : normalize(l.direction));
+    r.area = l.area;
+    // A spot light's axis; a VPL's emitter normal (BundleQuery::emitterNormal).
+    put(r.direction, l.kind == LightKind::Point && l.area == 0 ? Vec3{} : normalize(l.direction));
     r.cosCone = l.kind == LightKind::Point ? -1.0f : float(std::cos(l.coneDeg * M_PI / 180));
     put(r.colour, l.colour);
     r.intensity = float(l.intensity);
@@ -145,6 +182,15 @@ void GpuLights::litTexels(const std::vector<uint32_t>& lights, const std::vector
     return;
   }
   impl_->kernel.run(points, normals, lights, pcf, out);
+}
+
+void GpuLights::softVisibility(const std::vector<uint32_t>& areas, const std::vector<Vec3>& points,
+                               const std::vector<Vec3>& normals, std::vector<float>& out) {
+  const std::vector<uint32_t> first = firstVplsOf(*impl_->artifact, areas, points, normals);
+  std::vector<uint32_t> bits;
+  impl_->kernel.run(points, normals, first, kSoftQuery, bits);
+  out.resize(bits.size());
+  for (size_t i = 0; i < bits.size(); ++i) out[i] = std::bit_cast<float>(bits[i]);
 }
 
 }  // namespace cpvs::runtime

@@ -81,7 +81,9 @@ TEST(AreaLight, VplCubesAreRolledFromTheSeed) {
     // Its -y face looks along the emitter's normal within a texel's angle either way (1/128 about two axes).
     EXPECT_GT(dot(c[1], a.normal()), -1.0);
     EXPECT_LT(dot(c[1], a.normal()), -std::cos(std::sqrt(2.0) / 128));
-    if (i > 0) EXPECT_NE(c[0], v[i - 1].cube[0]);
+    if (i > 0) {
+      EXPECT_NE(c[0], v[i - 1].cube[0]);
+    }
     EXPECT_EQ(vplsOf(a, 1)[i].cube, c);
     std::mt19937_64 rng(i);
     std::uniform_real_distribution<double> u(-1, 1);
@@ -145,6 +147,11 @@ TEST(AreaLight, TheBundleFileKeepsTheAreaNumbers) {
   bent.grids[1] = bent.grids[3];
   bytes = encodeBundle(bent, false);
   expectInputError([&] { decodeBundle(bytes.data(), bytes.size(), "bent.cpvs"); }, "not a cube's faces");
+  // An area light's VPLs are consecutive lights (a soft lookup walks them from the first).
+  LightBundle mixed = bundle;
+  mixed.lights[0].light.area = 2;  // 2, 1, 2, 2, 2
+  bytes = encodeBundle(mixed, false);
+  expectInputError([&] { decodeBundle(bytes.data(), bytes.size(), "mixed.cpvs"); }, "not consecutive");
   for (BundleLight& l : bundle.lights) l.light.area = 2;  // area 1 gone
   bytes = encodeBundle(bundle, false);
   expectInputError([&] { decodeBundle(bytes.data(), bytes.size(), "gap.cpvs"); }, "area light 1 has no VPL");

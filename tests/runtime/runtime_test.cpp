@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <bit>
 #include <random>
@@ -16,6 +17,7 @@
 #include "cpvs/bake/bake.h"
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/eval/surface_sampling.h"
+#include "cpvs/light/area_light.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/light/gpu_grid.h"
 #include "cpvs/raytrace/ray_scene.h"
@@ -24,6 +26,7 @@
 #define VK_NO_PROTOTYPES
 #include <vulkan/vulkan.h>
 #include "cpvs/scene/source.h"
+#include "area_testing.h"
 #include "scene_testing.h"
 
 namespace cpvs::runtime {
@@ -425,6 +428,79 @@ TEST(GpuLookups, CorruptAndMissingArtifactsAreClearErrors) {
   EXPECT_EQ(cpvsOpenShadows((::testing::TempDir() + "absent.cpvs").c_str(), nullptr, 0, &shadows), CPVS_ERROR_FILE);
   EXPECT_EQ(cpvsOpenShadows(nullptr, nullptr, 0, &shadows), CPVS_ERROR_INVALID_ARGUMENT);
   EXPECT_STREQ(cpvsGetStatusName(CPVS_ERROR_CORRUPT_ARTIFACT), "corrupt-artifact");
+}
+
+// Soft shadows on the device: a spot light, then two area lights (a panel over the city
+// shining down, 16 VPLs; one on a wall shining sideways, 8 VPLs; their cubes rolled), the
+// soft visibility of each at surface points under the panel and at random points with
+// zero, NaN and random normals, answered as BundleQuery::softVisibility to the bit.
+TEST(GpuLightLookups, SoftShadowsAnswerAsTheCpu) {
+  const Scene scene = openScene("city:3:5");
+  std::vector<Light> lights(1);
+  lights[0].position = {30, 50, 30};
+  lights[0].direction = {0.1, -1, 0.2};
+  lights[0].coneDeg = 40;
+  lights[0].log2Resolution = 6;
+  AreaLight panel;
+  panel.centre = {36, 66, 36};
+  panel.edgeU = {12, 0, 0};
+  panel.edgeV = {0, 0, 12};
+  panel.vpls = 16;
+  panel.log2Resolution = 6;
+  AreaLight wall = panel;
+  wall.centre = {-5, 20, 36};
+  wall.edgeU = {0, 6, 0};
+  wall.edgeV = {0, 0, 10};  // U x V = +x: into the city
+  wall.vpls = 8;
+  wall.seed = 3;
+  for (const Light& l : vplsOf(panel, 1)) lights.push_back(l);
+  for (const Light& l : vplsOf(wall, 2)) lights.push_back(l);
+  const auto artifact = std::make_shared<const LightArtifact>(bakeLights(scene, lights, 0, BakeOptions{}, sceneHash(scene)));
+  ASSERT_EQ(artifact->cpu().areaCount(), 2u);
+
+  std::vector<uint32_t> areas;
+  std::vector<Vec3> points, normals;
+  const RayScene rays(scene, panel.centre);
+  for (const SurfaceSample& s : testing::pointsUnderArea(scene, rays, panel, 30, 1500, 2)) {
+    points.push_back(s.point);
+    normals.push_back(s.normal);
+    areas.push_back(points.size() % 3 == 0 ? 1 : 0);
+  }
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> in(-10, 80);
+  std::normal_distribution<double> gauss;
+  for (int i = 0; i < 3000; ++i) {
+    points.push_back({in(rng), in(rng) * 0.8, in(rng)});
+    const uint64_t kind = rng() % 5;
+    normals.push_back(kind == 0 ? Vec3{} : kind == 1 ? Vec3{std::nan(""), 0, 1} : Vec3{gauss(rng), gauss(rng), gauss(rng)});
+    areas.push_back(uint32_t(rng() % 2));
+  }
+  GpuLights gpu(device(), artifact);
+  std::vector<float> onGpu, onCpu;
+  gpu.softVisibility(areas, points, normals, onGpu);
+  EXPECT_GT(gpu.lastDeviceNanoseconds(), 0) << "the device ran the lookups";
+  cpuSoftVisibility(*artifact, areas, points, normals, onCpu);
+  ASSERT_EQ(onGpu.size(), points.size());
+  uint64_t differ = 0, lit = 0, dark = 0, partly = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (std::bit_cast<uint32_t>(onGpu[i]) != std::bit_cast<uint32_t>(onCpu[i]) && ++differ <= 5)
+      ADD_FAILURE() << "area " << areas[i] << " at " << points[i].x << ", " << points[i].y << ", " << points[i].z
+                    << ": GPU " << onGpu[i] << ", CPU " << onCpu[i];
+    (onCpu[i] == 0 ? dark : onCpu[i] == 1 ? lit : partly) += 1;
+    EXPECT_EQ(onCpu[i], artifact->cpu().softVisibility(areas[i], points[i], normals[i]));
+  }
+  EXPECT_EQ(differ, 0u) << points.size() << " soft lookups";
+  EXPECT_GT(lit, points.size() / 20) << "the queries must see light";
+  EXPECT_GT(dark, points.size() / 20) << "and shadow";
+  EXPECT_GT(partly, points.size() / 20) << "and penumbrae";
+  // One area for every point, and refusals.
+  std::vector<float> one;
+  gpu.softVisibility({1}, points, normals, one);
+  cpuSoftVisibility(*artifact, std::vector<uint32_t>(points.size(), 1), points, normals, onCpu);
+  EXPECT_EQ(0, std::memcmp(one.data(), onCpu.data(), one.size() * sizeof(float)));
+  EXPECT_THROW(gpu.softVisibility({2}, points, normals, one), RuntimeError);
+  EXPECT_THROW(gpu.softVisibility({0, 1}, points, normals, one), RuntimeError);
+  expectNoValidationMessages(device());
 }
 
 // A light bundle on the device: two spot lights (one with its range short of the scene)

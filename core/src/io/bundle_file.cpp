@@ -134,6 +134,13 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
   for (const BundleLight& bl : b.lights) hasVpl[bl.light.area] = 1;
   for (uint32_t a = 1; a <= areas; ++a)
     if (!hasVpl[a]) h.fail("area light " + std::to_string(a) + " has no VPL (the numbers must run from 1)");
+  // And each one's VPLs are consecutive lights (a soft lookup walks them from the first).
+  std::vector<uint8_t> ended(size_t(areas) + 1, 0);
+  for (size_t i = 0; i < b.lights.size(); ++i) {
+    const uint32_t a = b.lights[i].light.area;
+    if (a != 0 && ended[a]) h.fail("area light " + std::to_string(a) + "'s VPLs are not consecutive lights");
+    if (i > 0 && b.lights[i - 1].light.area != a) ended[b.lights[i - 1].light.area] = 1;
+  }
   if (nextGrid != gridCount) h.fail("the lights have " + std::to_string(nextGrid) + " grids, the table " + std::to_string(gridCount));
   uint64_t slices = 0;
   for (uint32_t k = 0; k < gridCount; ++k) {

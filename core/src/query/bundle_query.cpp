@@ -29,6 +29,10 @@ BundleQuery::BundleQuery(const LightBundle& bundle) : lights_(bundle.lights) {
     }
     reach_.push_back(r);
   }
+  for (const BundleLight& l : lights_) {
+    const Vec3 d = l.light.kind == LightKind::Spot || l.light.area != 0 ? normalize(l.light.direction) : Vec3{};
+    emitterNormal_.push_back({double(float(d.x)), double(float(d.y)), double(float(d.z))});
+  }
   for (size_t i = 0; i < lights_.size(); ++i)
     if (const uint32_t a = lights_[i].light.area; a != 0) {
       if (areaVpls_.size() < a) areaVpls_.resize(a);
@@ -40,7 +44,7 @@ float BundleQuery::softVisibility(size_t area, const Vec3& p, const Vec3& n) con
   double sum = 0, lit = 0;
   for (uint32_t i : areaVpls_.at(area)) {
     const Light& l = lights_[i].light;
-    const double w = vplWeight(l.position, l.direction, p, n);
+    const double w = vplWeight(l.position, emitterNormal_[i], p, n);
     if (w == 0) continue;
     sum += w;
     lit += w * grids_[gridAt(i, p)].bilinearVisibility(p, n);

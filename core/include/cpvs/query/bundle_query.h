@@ -47,8 +47,13 @@ class BundleQuery {
   /// VPLs' bilinear visibilities (ShadowQuery::bilinearVisibility of the cube face p falls
   /// in) averaged with the weights vplWeight gives them, sum w_i V_i / sum w_i; 0 where no
   /// VPL reaches (behind the emitter, beyond its range). What fraction of the light the
-  /// emitter sends to p arrives.
+  /// emitter sends to p arrives. Each weight reads the emitter's normal as the GPU's
+  /// light table holds it (unit, in floats), so that cpvsSoftVisibility answers the same
+  /// to the bit.
   float softVisibility(size_t area, const Vec3& p, const Vec3& n) const;
+  /// Light i's emitter normal as a weight reads it: its direction, normalized, rounded
+  /// to floats (lightTableBytes's CpvsLight::direction).
+  const Vec3& emitterNormal(size_t i) const { return emitterNormal_.at(i); }
 
  private:
   std::vector<BundleLight> lights_;
@@ -56,6 +61,7 @@ class BundleQuery {
   std::vector<double> reach_;
   std::vector<uint32_t> gridLight_;
   std::vector<std::vector<uint32_t>> areaVpls_;
+  std::vector<Vec3> emitterNormal_;
 };
 
 }  // namespace cpvs

@@ -12,9 +12,11 @@
 
 namespace cpvs {
 
-/// Light i's radiance at a surface point, linear RGB: its visibility (PCF width `pcf`)
-/// times N.L, its colour and intensity, a spot light's cone (smooth from 3/4 of its
-/// half-angle to all of it) and a fall-off that reaches 0 at its reach.
+/// Light i's radiance at a surface point, linear RGB: its visibility (PCF width `pcf`; for
+/// a VPL its area light's soft visibility, BundleQuery::softVisibility) times N.L, its
+/// colour and intensity, a spot light's cone (smooth from 3/4 of its half-angle to all of
+/// it), a VPL's cosine about its emitter's normal, and a fall-off that reaches 0 at its
+/// reach.
 Rgb lightRadiance(const BundleQuery& query, size_t light, const Vec3& p, const Vec3& n, int pcf);
 /// The same with the visibility given (a GPU's lookup: lit texels / pcf²).
 Rgb lightRadiance(const BundleQuery& query, size_t light, const Vec3& p, const Vec3& n, float visibility);
@@ -22,7 +24,8 @@ Rgb lightRadiance(const BundleQuery& query, size_t light, const Vec3& p, const V
 /// The lights' sum per pixel over each tile's list (cullLights of the hits), in light
 /// order; a faint ambient term and albedo as the sun pictures; sky where nothing is hit.
 Image shadeLightTiles(const CameraHits& hits, const BundleQuery& query, const LightTiles& tiles, int pcf);
-/// The same with each lookup's visibility given, in the order tileLookups lists them.
+/// The same with each lookup's visibility given, in the order tileLookups lists them (a
+/// VPL's: its area light's soft visibility).
 Image shadeLightTiles(const CameraHits& hits, const BundleQuery& query, const LightTiles& tiles,
                       const std::vector<float>& visibility);
 /// The lookups shadeLightTiles makes: for every pixel that sees the scene, row by row,

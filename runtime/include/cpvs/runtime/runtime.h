@@ -99,6 +99,12 @@ void cpuLightLitTexels(const LightArtifact& artifact, const std::vector<uint32_t
                        const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
                        std::vector<uint32_t>& out);
 
+/// Soft visibility, on the CPU, of area light areas[i] (0-based; one per point, or one
+/// for all) at each (point, normal), as BundleQuery::softVisibility answers it, over all
+/// cores. InvalidArgument for an area index out of range.
+void cpuSoftVisibility(const LightArtifact& artifact, const std::vector<uint32_t>& areas,
+                       const std::vector<Vec3>& points, const std::vector<Vec3>& normals, std::vector<float>& out);
+
 /// Fetches the artifact of a finished farm job into `cacheDir`, where it is kept under
 /// its content hash (XXH3-128, 32 hex digits, ".cpvs"), and returns its path. A job
 /// fetched before is answered from the cache, after checking the file against its hash,
@@ -216,6 +222,10 @@ class GpuLights {
   /// as cpuLightLitTexels answers them. DeviceLost when the device stops answering.
   void litTexels(const std::vector<uint32_t>& lights, const std::vector<Vec3>& points,
                  const std::vector<Vec3>& normals, int pcf, std::vector<uint32_t>& out);
+  /// Soft visibility of area light areas[i] at each (point, normal) on the device
+  /// (cpvs_shadow.glsl's cpvsSoftVisibility), as cpuSoftVisibility answers it to the bit.
+  void softVisibility(const std::vector<uint32_t>& areas, const std::vector<Vec3>& points,
+                      const std::vector<Vec3>& normals, std::vector<float>& out);
   double lastDeviceNanoseconds() const;
   int wordBindings() const;
   const LightArtifact& artifact() const;
