@@ -54,6 +54,19 @@ void require(bool ok, const char* what) {
   if (!ok) throw RuntimeError(Status::InvalidArgument, what);
 }
 
+// A batch on the lights' device, else (none, or one lost with CPVS_FALLBACK_CPU, which
+// leaves the lights on the CPU from then on) on the CPU.
+template <class OnDevice, class OnCpu>
+void onDeviceOrCpu(CpvsLights lights, OnDevice&& onDevice, OnCpu&& onCpu) {
+  if (lights->gpu) try {
+      onDevice();
+    } catch (const RuntimeError& e) {
+      if (!lights->fallback || e.status() != Status::DeviceLost) throw;
+      lights->gpu.reset();
+    }
+  if (!lights->gpu) onCpu();
+}
+
 }  // namespace
 
 static_assert(int(Status::Internal) == CPVS_ERROR_INTERNAL && int(Status::FarmError) == CPVS_ERROR_FARM &&
@@ -217,15 +230,39 @@ CpvsStatus cpvsQueryLights(CpvsLights lights, size_t count, const uint32_t* ligh
     const std::vector<uint32_t> which(lightOfQuery, lightOfQuery + (count ? lightCount : 0));
     std::vector<uint32_t> out;
     if (count == 0) return;
-    if (lights->gpu) try {
-        lights->gpu->litTexels(which, p, n, pcf, out);
-      } catch (const RuntimeError& e) {
-        // With CPVS_FALLBACK_CPU a lost device leaves the lights on the CPU.
-        if (!lights->fallback || e.status() != Status::DeviceLost) throw;
-        lights->gpu.reset();
-      }
-    if (!lights->gpu) cpuLightLitTexels(*lights->artifact, which, p, n, pcf, out);
+    onDeviceOrCpu(lights, [&] { lights->gpu->litTexels(which, p, n, pcf, out); },
+                  [&] { cpuLightLitTexels(*lights->artifact, which, p, n, pcf, out); });
     std::memcpy(litTexels, out.data(), count * 4);
+  });
+}
+
+size_t cpvsGetAreaLightCount(CpvsLights lights) { return lights ? lights->artifact->cpu().areaCount() : 0; }
+
+CpvsStatus cpvsGetAreaLight(CpvsLights lights, size_t area, uint32_t* firstVpl, uint32_t* vplCount) {
+  return guarded([&] {
+    require(lights != nullptr && firstVpl != nullptr && vplCount != nullptr, "cpvsGetAreaLight: an argument is null");
+    require(area < lights->artifact->cpu().areaCount(), "cpvsGetAreaLight: no such area light");
+    const std::vector<uint32_t>& vpls = lights->artifact->cpu().vplsOf(area);
+    *firstVpl = vpls.front();
+    *vplCount = uint32_t(vpls.size());
+  });
+}
+
+CpvsStatus cpvsQuerySoftShadows(CpvsLights lights, size_t count, const uint32_t* areaOfQuery, size_t areaCount,
+                                const double* points, const double* normals, float* visibility) {
+  return guarded([&] {
+    require(lights != nullptr, "cpvsQuerySoftShadows: lights is null");
+    require(count == 0 || (points && visibility && areaOfQuery), "cpvsQuerySoftShadows: areaOfQuery, points or visibility is null");
+    require(areaCount == count || areaCount == 1, "cpvsQuerySoftShadows: areaCount must be count or 1");
+    std::vector<Vec3> p(count), n(normals ? count : 0);
+    for (size_t i = 0; i < count; ++i) p[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
+    for (size_t i = 0; i < n.size(); ++i) n[i] = {normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+    const std::vector<uint32_t> areas(areaOfQuery, areaOfQuery + (count ? areaCount : 0));
+    std::vector<float> out;
+    if (count == 0) return;
+    onDeviceOrCpu(lights, [&] { lights->gpu->softVisibility(areas, p, n, out); },
+                  [&] { cpuSoftVisibility(*lights->artifact, areas, p, n, out); });
+    std::memcpy(visibility, out.data(), count * sizeof(float));
   });
 }
 

@@ -501,6 +501,43 @@ TEST(GpuLightLookups, SoftShadowsAnswerAsTheCpu) {
   EXPECT_THROW(gpu.softVisibility({2}, points, normals, one), RuntimeError);
   EXPECT_THROW(gpu.softVisibility({0, 1}, points, normals, one), RuntimeError);
   expectNoValidationMessages(device());
+
+  // Through the C API, on a device and on the CPU: the area lights and the same answers.
+  const std::string file = ::testing::TempDir() + "gpu-soft.cpvs";
+  writeBundle(file, artifact->bundle(), true);
+  CpvsDeviceDesc desc{nullptr, 1, 0};
+  CpvsDevice cDevice = nullptr;
+  ASSERT_EQ(cpvsNewDevice(&desc, &cDevice), CPVS_OK) << cpvsGetLastError();
+  CpvsLights softOnDevice = nullptr, softOnCpu = nullptr;
+  ASSERT_EQ(cpvsOpenLights(file.c_str(), cDevice, 0, &softOnDevice), CPVS_OK) << cpvsGetLastError();
+  ASSERT_EQ(cpvsOpenLights(file.c_str(), nullptr, 0, &softOnCpu), CPVS_OK) << cpvsGetLastError();
+  ASSERT_EQ(cpvsGetAreaLightCount(softOnDevice), 2u);
+  uint32_t first = 0, count = 0;
+  ASSERT_EQ(cpvsGetAreaLight(softOnDevice, 1, &first, &count), CPVS_OK);
+  EXPECT_EQ(first, 17u);  // after the spot light and the panel's 16
+  EXPECT_EQ(count, 8u);
+  EXPECT_EQ(cpvsGetAreaLight(softOnDevice, 2, &first, &count), CPVS_ERROR_INVALID_ARGUMENT);
+  std::vector<double> flat, flatNormals;
+  for (size_t i = 0; i < points.size(); ++i) {
+    flat.insert(flat.end(), {points[i].x, points[i].y, points[i].z});
+    flatNormals.insert(flatNormals.end(), {normals[i].x, normals[i].y, normals[i].z});
+  }
+  std::vector<float> fromDevice(points.size()), fromCpu(points.size());
+  ASSERT_EQ(cpvsQuerySoftShadows(softOnDevice, points.size(), areas.data(), areas.size(), flat.data(), flatNormals.data(),
+                                 fromDevice.data()), CPVS_OK) << cpvsGetLastError();
+  ASSERT_EQ(cpvsQuerySoftShadows(softOnCpu, points.size(), areas.data(), areas.size(), flat.data(), flatNormals.data(),
+                                 fromCpu.data()), CPVS_OK) << cpvsGetLastError();
+  cpuSoftVisibility(*artifact, areas, points, normals, onCpu);
+  EXPECT_EQ(0, std::memcmp(fromDevice.data(), onCpu.data(), onCpu.size() * sizeof(float)));
+  EXPECT_EQ(0, std::memcmp(fromCpu.data(), onCpu.data(), onCpu.size() * sizeof(float)));
+  const uint32_t tooFar = 2;
+  EXPECT_EQ(cpvsQuerySoftShadows(softOnDevice, 1, &tooFar, 1, flat.data(), nullptr, fromDevice.data()), CPVS_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(cpvsGetLastError()).find("area light 2 of a bundle of 2"), std::string::npos) << cpvsGetLastError();
+  EXPECT_EQ(cpvsQuerySoftShadows(softOnDevice, 3, areas.data(), 2, flat.data(), nullptr, fromDevice.data()), CPVS_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(cpvsGetValidationMessageCount(cDevice), 0u);
+  cpvsReleaseLights(softOnDevice);
+  cpvsReleaseLights(softOnCpu);
+  cpvsReleaseDevice(cDevice);
 }
 
 // A light bundle on the device: two spot lights (one with its range short of the scene)

@@ -115,6 +115,20 @@ CpvsStatus cpvsGetLightInfo(CpvsLights lights, size_t light, CpvsLightInfo* info
 CpvsStatus cpvsQueryLights(CpvsLights lights, size_t count, const uint32_t* lightOfQuery, size_t lightCount,
                            const double* points, const double* normals, int pcf, uint32_t* litTexels);
 
+/* A bundle's area lights (cpvs bake --area-light), 0-based: how many, and area light
+ * a's VPLs, the lights firstVpl .. firstVpl + vplCount - 1 (cpvs_shadow.glsl's
+ * cpvsSoftVisibility takes firstVpl). */
+size_t cpvsGetAreaLightCount(CpvsLights lights);
+CpvsStatus cpvsGetAreaLight(CpvsLights lights, size_t area, uint32_t* firstVpl, uint32_t* vplCount);
+
+/* count queries, query i of area light areaOfQuery[i] (areaCount 1: areaOfQuery[0] for
+ * all; otherwise areaCount must be count): points and normals as cpvsQueryShadows (a
+ * null normals: no receiver cosine). visibility[i] receives its soft visibility in
+ * [0, 1], the VPLs' bilinear visibilities weighted by cos * cos / d^2, as the CPU
+ * reference answers to the bit. */
+CpvsStatus cpvsQuerySoftShadows(CpvsLights lights, size_t count, const uint32_t* areaOfQuery, size_t areaCount,
+                                const double* points, const double* normals, float* visibility);
+
 /* The buffers an engine's own shader binds for cpvs_shadow.glsl with CPVS_LIGHTS, as
  * bytes to upload: the shared pool's words (CpvsLightWords), CpvsLights, CpvsGrids
  * and CpvsSliceBoundaries. CpvsGrids begins with the log2 of the words per pool
