@@ -70,15 +70,21 @@ std::vector<Light> flagLights(const LightFlags& flags) {
   if (!flags.lightsFile.empty()) lights = net::readLightsFile(flags.lightsFile);
   for (const std::string& s : flags.spots) lights.push_back(parseSpotFlag(s));
   for (const std::string& s : flags.points) lights.push_back(parsePointFlag(s));
+  for (Light& l : vplsOf(flagAreaLights(flags))) lights.push_back(std::move(l));
+  return lights;
+}
+
+std::vector<AreaLight> flagAreaLights(const LightFlags& flags) {
+  std::vector<AreaLight> areas;
   for (size_t k = 0; k < flags.areas.size(); ++k) {
     AreaLight area = parseAreaLightFlag(flags.areas[k]);
     area.name = "area " + std::to_string(k + 1);
     area.seed = k + 1;
     // The rectangle is checked here (its VPLs' positions with the scene's bounds later).
     checkAreaLight(area, area.centre, area.centre, "--area-light " + std::to_string(k + 1));
-    for (Light& l : vplsOf(area, uint32_t(k + 1))) lights.push_back(std::move(l));
+    areas.push_back(std::move(area));
   }
-  return lights;
+  return areas;
 }
 
 std::vector<Light> withSceneLights(const LightFlags& flags, std::vector<Light> given, const Scene& scene,

@@ -15,6 +15,7 @@
 #include "cpvs/bake/receivers.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/light/frame.h"
+#include "cpvs/light/area_light.h"
 #include "cpvs/light/light.h"
 #include "cpvs/scene/scene.h"
 
@@ -43,6 +44,9 @@ void addLightFlags(CLI::App* c, LightFlags& lights);
 /// (area lights 1, 2, ... in flag order, each seeded by its number), read before the scene
 /// is opened; InputError naming the flag for a malformed one, or a bad --footprint.
 std::vector<Light> flagLights(const LightFlags& flags);
+/// The --area-light flags' area lights, "area k" seeded k (what flagLights expands into
+/// VPLs, and what `submit` sends the farm to expand alike).
+std::vector<AreaLight> flagAreaLights(const LightFlags& flags);
 /// Those lights after the scene's own (--scene-lights; InputError naming `sceneSpec`
 /// when it has none).
 std::vector<Light> withSceneLights(const LightFlags& flags, std::vector<Light> given, const Scene& scene,

@@ -353,11 +353,15 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volu
   }
 
   // Local lights: the flags replace the job file's lights (or add the scene's).
-  if (!a.lights.areas.empty())
-    throw InputError("--area-light is baked by `cpvs bake` for now: the farm's light list does not carry area lights yet");
-  if (!a.lights.spots.empty() || !a.lights.points.empty() || !a.lights.lightsFile.empty()) {
+  if (!a.lights.spots.empty() || !a.lights.points.empty() || !a.lights.lightsFile.empty() || !a.lights.areas.empty()) {
+    // The farm expands the area lights into their VPLs as `cpvs bake` does.
+    LightFlags own = a.lights;
+    own.areas.clear();
     spec.clear_lights();
-    for (const Light& l : flagLights(a.lights)) *spec.add_lights() = net::toProto(l);
+    spec.clear_area_lights();
+    if (!own.spots.empty() || !own.points.empty() || !own.lightsFile.empty())
+      for (const Light& l : flagLights(own)) *spec.add_lights() = net::toProto(l);
+    for (const AreaLight& area : flagAreaLights(a.lights)) *spec.add_area_lights() = net::toProto(area);
   }
   if (a.lights.sceneLights) spec.set_scene_lights(true);
   if (given("--footprint")) {

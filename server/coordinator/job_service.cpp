@@ -247,9 +247,11 @@ pb::JobStatus JobService::submitBundle(const pb::SubmitBakeRequest& request, con
                     "pointer_grid " + std::to_string(spec.pointer_grid()) + ": levels 0 to " + std::to_string(kMaxGridLevels));
   JobRecord j;
   std::vector<Light> lights;
+  std::vector<AreaLight> areas;
   try {
     j.options = net::fromProto(spec.options());
     lights = net::lightsOf(spec);
+    areas = net::areaLightsOf(spec);
     net::checkReceivers(spec.options().receivers());
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
@@ -262,11 +264,17 @@ pb::JobStatus JobService::submitBundle(const pb::SubmitBakeRequest& request, con
     const ReceiverDeclaration receivers =
         net::declarationOf(spec.options().receivers(), [&](const std::string& hash) { return scenes_.load(hash); });
     j.receiverHash = receiverHash(receivers);
+    // Area lights become their VPLs after the spec's lights, as `cpvs bake` orders them.
+    Vec3 lo, hi;
+    sceneBounds(scene, lo, hi);
+    for (size_t k = 0; k < areas.size(); ++k) checkAreaLight(areas[k], lo, hi, "area_lights[" + std::to_string(k) + "]");
+    if (lights.size() + uint64_t(areas.size()) * kMaxVpls > kMaxLights) {
+      size_t count = lights.size();
+      for (const AreaLight& a : areas) count += a.vpls;
+      checkLightCount(count);
+    }
+    for (Light& l : vplsOf(areas)) lights.push_back(std::move(l));
     if (spec.scene_lights()) lights = withSceneLights(scene, std::move(lights), "scene_lights: the scene");
-    for (const Light& l : lights)
-      if (l.area != 0)
-        throw InputError("scene_lights: the scene's area lights are baked by `cpvs bake` for now (the farm does not "
-                         "carry area lights yet)");
     checkLightCount(lights.size());
     const double footprint = spec.footprint() > 0 ? spec.footprint() : defaultFootprint(scene);
     planned = planLights(scene, lights, footprint, j.options, closest, receivers);

@@ -220,6 +220,20 @@ TEST_F(FarmTest, ALightBundleOnOneAndThreeWorkersGivesTheLocalBytes) {
   for (int w = 0; w < 3; ++w)
     EXPECT_NE(workers_[size_t(w)]->log().find("returned"), std::string::npos) << "worker " << w + 1;
 
+  // An area light: the farm expands it into the same VPLs (rolled cubes and all) beside a
+  // spot light, and the bundle is the local one.
+  const std::string panel = " --spot 30,55,30:0.2,-1,0.1:40 --footprint 0.5 --area-light 36,66,36:12,0,0:0,0,12:8:64 --tile-size 64";
+  ASSERT_EQ(runCli("bake " + path("city.obj") + panel + " -q -o " + path("panel-local.cpvs")).status, 0);
+  Ran area = runCli("submit --server " + address + " --token " + kClientToken + " " + path("city.obj") + panel +
+                    " --request-id panel --wait --json --out " + path("panel.cpvs"));
+  ASSERT_EQ(area.status, 0) << area.out;
+  j = json::parse(area.out.substr(area.out.find('{')));
+  EXPECT_EQ(j["lights"], 9);
+  EXPECT_EQ(bytesOf(path("panel.cpvs")), bytesOf(path("panel-local.cpvs")))
+      << runCli("inspect --json " + path("panel.cpvs")).out;
+  EXPECT_NE(runCli("query " + path("panel.cpvs") + " --soft --point 36,30,36 --normal 0,1,0").out.find("area light 1 (8 VPLs)"),
+            std::string::npos);
+
   // A generated city's street lamps travel as the job's lights (an uploaded OBJ carries
   // none): the farm's bundle is the local one but for the scene hash of the upload.
   const std::string lamps = " city:3:5 --scene-lights --tile-size 1024";

@@ -421,6 +421,26 @@ TEST(InProcessFarm, ABadLightBundleIsRefusedWithWhatIsWrong) {
          for (int k = 0; k < 5000; ++k) *s.add_lights() = s.lights(0);
        }, "lights"},
       {[](pb::BakeSpec& s) { s.set_scene_lights(true); }, "the scene holds no point, spot or area light"},
+      {[](pb::BakeSpec& s) { s.mutable_lights(0)->set_area(1); }, "lights[0]: an area number is the farm's"},
+      {[](pb::BakeSpec& s) {
+         pb::AreaLight* a = s.add_area_lights();
+         *a->mutable_centre() = net::toProto(Vec3{8, 20, 8});
+         *a->mutable_edge_u() = net::toProto(Vec3{1, 0, 0});
+         *a->mutable_edge_v() = net::toProto(Vec3{2, 0, 0});
+       }, "area_lights[0]: the edges are zero or parallel"},
+      {[](pb::BakeSpec& s) {
+         pb::AreaLight* a = s.add_area_lights();
+         *a->mutable_centre() = net::toProto(Vec3{800, 20, 8});
+         *a->mutable_edge_u() = net::toProto(Vec3{1, 0, 0});
+         *a->mutable_edge_v() = net::toProto(Vec3{0, 0, -1});
+       }, "area_lights[0]: the position"},
+      {[](pb::BakeSpec& s) {
+         pb::AreaLight* a = s.add_area_lights();
+         *a->mutable_centre() = net::toProto(Vec3{8, 20, 8});
+         *a->mutable_edge_u() = net::toProto(Vec3{1, 0, 0});
+         *a->mutable_edge_v() = net::toProto(Vec3{0, 0, -1});
+         a->set_resolution("2048");
+       }, "area_lights[0]: VPL resolution"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     pb::BakeSpec bad = lamp;

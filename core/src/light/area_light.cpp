@@ -122,6 +122,13 @@ std::vector<Light> vplsOf(const AreaLight& a, uint32_t areaNumber) {
   return out;
 }
 
+std::vector<Light> vplsOf(const std::vector<AreaLight>& areas) {
+  std::vector<Light> out;
+  for (size_t k = 0; k < areas.size(); ++k)
+    for (Light& l : vplsOf(areas[k], uint32_t(k + 1))) out.push_back(std::move(l));
+  return out;
+}
+
 double vplWeight(const Vec3& x, const Vec3& emitterNormal, const Vec3& p, const Vec3& n) {
   const Vec3 d = p - x;
   const double d2 = dot(d, d);

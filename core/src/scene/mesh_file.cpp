@@ -12,8 +12,9 @@ static_assert(std::endian::native == std::endian::little, "the scene mesh file i
 
 constexpr char kMagic[8] = {'C', 'P', 'V', 'S', 'M', 'E', 'S', 'H'};
 // 2: a light keeps its range; 3: the meshes' names (an older mesh is refused, and its
-// scene imported again).
-constexpr uint32_t kVersion = 3;
+// scene imported again); 4: each light's rectangle (an area light's edges) and the
+// volume media (version 3 is still read, without them).
+constexpr uint32_t kVersion = 4, kOldestVersion = 3;
 constexpr uint32_t kMaxNameBytes = 4096;
 
 struct Writer {
@@ -104,6 +105,13 @@ std::vector<uint8_t> encodeSceneMesh(const Scene& scene, const SceneStats& stats
     w.put(l.innerConeDeg);
     w.put(l.outerConeDeg);
     w.put(l.range);
+    w.vec(l.edgeU);
+    w.vec(l.edgeV);
+  }
+  w.put<uint64_t>(scene.media.size());
+  for (const SceneMedium& m : scene.media) {
+    w.text(m.material.substr(0, kMaxNameBytes));
+    w.put(m.absorption);
   }
   w.put<uint64_t>(scene.meshes.size());
   for (const SceneMesh& m : scene.meshes) {
@@ -125,8 +133,10 @@ Scene decodeSceneMesh(const uint8_t* data, size_t size, const std::string& sourc
   if (contentHash(data, size - sizeof stored) != stored) r.fail("its checksum does not match (damaged or cut short)");
   r.size = size - sizeof stored;
   r.pos = sizeof kMagic;
-  if (const uint32_t v = r.get<uint32_t>("header"); v != kVersion)
-    r.fail("format version " + std::to_string(v) + " (this build reads version " + std::to_string(kVersion) + ")");
+  const uint32_t version = r.get<uint32_t>("header");
+  if (version < kOldestVersion || version > kVersion)
+    r.fail("format version " + std::to_string(version) + " (this build reads versions " + std::to_string(kOldestVersion) +
+           " to " + std::to_string(kVersion) + ")");
   r.get<uint32_t>("header");
   SceneStats s;
   for (size_t* field : {&s.triangles, &s.degenerateDropped, &s.closedTriangles, &s.parts, &s.closedParts})
@@ -152,7 +162,8 @@ Scene decodeSceneMesh(const uint8_t* data, size_t size, const std::string& sourc
   scene.closed.assign(flags, flags + closed);
   for (uint8_t c : scene.closed)
     if (c > 1) r.fail("a closed flag of " + std::to_string(c));
-  scene.lights.resize(r.count(1 + 12 * 8 + 4, "lights"));
+  const bool edges = version >= 4;
+  scene.lights.resize(r.count(1 + (edges ? 18 : 12) * 8 + 4, "lights"));
   for (SceneLight& l : scene.lights) {
     l.name = r.text("light name");
     const uint8_t type = r.get<uint8_t>("lights");
@@ -164,6 +175,19 @@ Scene decodeSceneMesh(const uint8_t* data, size_t size, const std::string& sourc
     l.innerConeDeg = r.get<double>("lights");
     l.outerConeDeg = r.get<double>("lights");
     l.range = r.get<double>("lights");
+    if (edges) {
+      l.edgeU = r.vec("lights");
+      l.edgeV = r.vec("lights");
+      if (!isFinite(l.edgeU) || !isFinite(l.edgeV)) r.fail("a light's rectangle is not finite");
+    }
+  }
+  if (edges) {
+    scene.media.resize(r.count(4 + 8, "media"));
+    for (SceneMedium& m : scene.media) {
+      m.material = r.text("medium name");
+      m.absorption = r.get<double>("media");
+      if (!std::isfinite(m.absorption) || m.absorption < 0) r.fail("a medium's absorption is negative or not finite");
+    }
   }
   scene.meshes.resize(r.count(3 * 4 + 8, "meshes"));
   uint64_t next = 0;

@@ -59,6 +59,9 @@ AreaLight parseAreaLightFlag(const std::string& text);
 /// geometry does not shadow its light; each one's cube rolled unless `roll` is off.
 std::vector<Light> vplsOf(const AreaLight& area, uint32_t areaNumber);
 
+/// The VPLs of every one of `areas`, area light k numbered k + 1, in their order.
+std::vector<Light> vplsOf(const std::vector<AreaLight>& areas);
+
 /// How much VPL (or any point light) at x facing `emitterNormal` sends to point p with
 /// normal n (zero: no receiver cosine): cos at the emitter times cos at the receiver over
 /// the squared distance; 0 behind either. The weight of the VPL in a soft lookup.

@@ -8,6 +8,7 @@
 #include "cpvs/bake/options.h"
 #include "cpvs/light/frame.h"
 #include "cpvs/light/grid_spec.h"
+#include "cpvs/light/area_light.h"
 #include "cpvs/light/light.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
@@ -51,11 +52,20 @@ pb::GridSpec toProto(const GridSpec& g);
 /// readers check theirs.
 GridSpec gridSpecOf(const pb::GridSpec& g);
 
-/// Whether the spec asks for a light bundle (lights or scene_lights) rather than a sun.
+/// An area light of the contract and back (vpls 0 and resolution "": the defaults).
+pb::AreaLight toProto(const AreaLight& a);
+/// The spec's area lights, converted and checked for what needs no scene (checkAreaLight
+/// of the rectangle, the VPL count and resolution; the scene's bounds are the caller's).
+/// InputError naming "area_lights[i]".
+std::vector<AreaLight> areaLightsOf(const pb::BakeSpec& spec);
+
+/// Whether the spec asks for a light bundle (lights, area lights or scene_lights) rather
+/// than a sun.
 bool isLightBundle(const pb::BakeSpec& spec);
 /// The spec's own lights (not the scene's), converted and checked for what needs no
-/// scene: a known kind, a spot light with a direction, a resolution that parses, at most
-/// kMaxLights. InputError naming "lights[i]".
+/// scene: a known kind, a spot light with a direction, a resolution that parses, no area
+/// number (the farm numbers the VPLs of area_lights), at most kMaxLights. InputError
+/// naming "lights[i]".
 std::vector<Light> lightsOf(const pb::BakeSpec& spec);
 
 /// The light of a spec: a finite non-zero direction or a sun above the horizon.
