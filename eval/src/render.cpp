@@ -66,7 +66,35 @@ std::pair<double, double> boxSpan(const Vec3& from, const Vec3& dir, const Vec3&
   return {tIn, tOut};
 }
 
+// A view ray's stretch in the fog layer [t0, t1] (to its hit) and, within it, in the
+// scene's box [w0, w1] (empty: w0 >= w1), along eye + t dir.
+struct FogSpan {
+  double t0, t1, w0, w1;
+};
+FogSpan fogSpan(const Vec3& eye, const Vec3& dir, const SurfaceHit& s, const Vec3& lo, const Vec3& hi) {
+  const double inf = std::numeric_limits<double>::infinity();
+  auto [t0, t1] = boxSpan(eye, dir, {-inf, lo.y, -inf}, {inf, hi.y, inf});
+  if (s.hit) t1 = std::min(t1, dot(s.point - eye, dir));
+  const auto [b0, b1] = boxSpan(eye, dir, lo, hi);
+  return {t0, t1, std::max(t0, b0), std::min(t1, b1)};
+}
+
 }  // namespace
+
+void fogSegments(const CameraHits& hits, const Camera& camera, const Vec3& lo, const Vec3& hi, std::vector<Vec3>& from,
+                 std::vector<Vec3>& to) {
+  const CameraRays rays(camera, double(hits.width) / double(hits.height));
+  from.assign(hits.pixels.size(), rays.eye());
+  to.assign(hits.pixels.size(), rays.eye());
+  tbb::parallel_for(0, hits.height, [&](int y) {
+    for (int x = 0; x < hits.width; ++x) {
+      const size_t i = size_t(y) * size_t(hits.width) + size_t(x);
+      const Vec3 eye = rays.eye(), dir = rays.through((x + 0.5) / hits.width, (y + 0.5) / hits.height);
+      const FogSpan f = fogSpan(eye, dir, hits.pixels[i], lo, hi);
+      if (f.t0 < f.t1 && f.w0 < f.w1) from[i] = eye + dir * f.w0, to[i] = eye + dir * f.w1;
+    }
+  });
+}
 
 Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& camera, const ShadowQuery& query,
                   const Medium& medium, const Vec3& lo, const Vec3& hi) {
@@ -75,7 +103,6 @@ Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& came
   if (sigma == 0) return clear;  // nothing in the air
   const CameraRays rays(camera, double(hits.width) / double(hits.height));
   const Vec3 sunDir = query.grid().frame.dir;
-  const double inf = std::numeric_limits<double>::infinity();
   Image img(hits.width, hits.height);
   tbb::parallel_for(0, hits.height, [&](int y) {
     for (int x = 0; x < hits.width; ++x) {
@@ -85,14 +112,11 @@ Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& came
       const Vec3 eye = rays.eye(), dir = rays.through((x + 0.5) / hits.width, (y + 0.5) / hits.height);
       // The ray's stretch in the layer, then in the scene's box (which the grid covers):
       // past the box the sun reaches every point, in closed form.
-      auto [t0, t1] = boxSpan(eye, dir, {-inf, lo.y, -inf}, {inf, hi.y, inf});
-      if (s.hit) t1 = std::min(t1, dot(s.point - eye, dir));
+      const auto [t0, t1, w0, w1] = fogSpan(eye, dir, s, lo, hi);
       if (!(t0 < t1)) {
         img.at(x, y) = c;
         continue;
       }
-      const auto [b0, b1] = boxSpan(eye, dir, lo, hi);
-      const double w0 = std::max(t0, b0), w1 = std::min(t1, b1);
       double sun = 0;
       if (w0 < w1) sun += query.inScattering(eye + dir * w0, eye + dir * w1, medium).inScattering * std::exp(-sigma * (w0 - t0));
       // The lit rest of the layer before and after the box.

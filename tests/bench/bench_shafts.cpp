@@ -128,8 +128,21 @@ int run(int argc, char** argv) {
         sceneBounds(s->scene, lo, hi);
         const auto start = std::chrono::steady_clock::now();
         const Image fog = foggedImage(clear, hits, cam, q, a.medium, lo, hi);
-        std::printf("\nA %dx%d frame of fog (render --fog, the default camera): %.1f ms on the CPU\n\n", a.width, a.height,
+        std::printf("\nA %dx%d frame of fog (render --fog, the default camera): %.1f ms on the CPU", a.width, a.height,
                     secondsSince(start) * 1e3);
+        if (gpu) {
+          // The frame's segments through the grid on the device (the rest of the frame is
+          // shading a GPU does alongside).
+          std::vector<Vec3> from, to;
+          fogSegments(hits, cam, lo, hi, from, to);
+          std::vector<double> lit;
+          std::vector<float> scattered;
+          gpu->segments(from, to, a.medium, lit, scattered);  // warm
+          gpu->segments(from, to, a.medium, lit, scattered);
+          std::printf("; its %zu segments %.1f ms on %s", from.size(), gpu->lastSegmentNanoseconds() * 1e-6,
+                      device->name().c_str());
+        }
+        std::printf("\n\n");
       }
     }
   }

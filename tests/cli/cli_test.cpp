@@ -324,6 +324,11 @@ TEST_F(Cli, AreaLightsAreBakedAsVplsAndAnswerSoftly) {
   r = cpvs("query " + path("area.cpvs") + " --soft --point 36,64,36 --normal 0,1,0");  // just under it, facing it
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("soft visibility 1.0000"), std::string::npos) << r.out;
+  // Each VPL's grids checked as a point light's against exact rays: no mismatch away from
+  // a shadow boundary (verify's exit status).
+  r = cpvs("verify " + path("area.cpvs") + " city:3:5 -n 20000");
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("area 1 vpl 7"), std::string::npos) << r.out;
   // The picture shades with soft visibility; on a device (lavapipe) the same to the bit.
   r = cpvs("render " + path("area.cpvs") + " city:3:5 --size 96x64 -o " + path("soft-cpu"));
   ASSERT_EQ(r.status, 0) << r.out;

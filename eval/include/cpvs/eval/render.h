@@ -34,6 +34,11 @@ Image shadeHits(const CameraHits& hits, const std::vector<float>& visibility, co
 /// The sun's strength is shadeHits's.
 Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& camera, const ShadowQuery& query,
                   const Medium& medium, const Vec3& lo, const Vec3& hi);
+/// The segments foggedImage walks through the sun's grid: each pixel's view ray in the
+/// fog layer and the scene's box, from[i] to to[i] (from == to where it has none); what
+/// a device answers for the same frame (GpuShadows::segments, bench_shafts).
+void fogSegments(const CameraHits& hits, const Camera& camera, const Vec3& lo, const Vec3& hi, std::vector<Vec3>& from,
+                 std::vector<Vec3>& to);
 
 /// Where two visibilities disagree on a surface facing the sun: red where `a` is darker,
 /// blue where it is brighter, the scene in dim grey elsewhere. Counts the sunlit-facing
