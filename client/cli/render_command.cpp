@@ -182,10 +182,20 @@ int runRender(const RenderArgs& a) {
     Vec3 lo, hi;
     sceneBounds(scene, lo, hi);
     const auto start = std::chrono::steady_clock::now();
-    writeBoth(base, foggedImage(shadeHits(hits, vis, L), hits, cam, q, *fog, lo, hi));
+    std::vector<float> onDevice;
+    if (gpu) {
+      // The fog's segments walked on the device (float in-scattering: within rounding of
+      // the CPU's picture, not its bytes).
+      std::vector<Vec3> from, to;
+      std::vector<double> lit;
+      fogSegments(hits, cam, lo, hi, from, to);
+      gpu->segments(from, to, *fog, lit, onDevice);
+    }
+    writeBoth(base, foggedImage(shadeHits(hits, vis, L), hits, cam, q, *fog, lo, hi, gpu ? &onDevice : nullptr));
     std::printf("Wrote %s.png and %s.exr (CPVS shadows, PCF %d, looked up on %s; sun shafts through the fog "
-                "walked on the CPU in %.2f s)\n", base.c_str(), base.c_str(), a.pcf,
-                gpu ? gpu->deviceName().c_str() : "the CPU", secondsSince(start));
+                "walked on %s in %.2f s)\n", base.c_str(), base.c_str(), a.pcf,
+                gpu ? gpu->deviceName().c_str() : "the CPU", gpu ? gpu->deviceName().c_str() : "the CPU",
+                secondsSince(start));
   } else {
     writeBoth(base, shadeHits(hits, vis, L));
     std::printf("Wrote %s.png and %s.exr (CPVS shadows, PCF %d, looked up on %s)\n", base.c_str(), base.c_str(), a.pcf,
@@ -296,7 +306,7 @@ void addRenderCommand(CLI::App& app, int& status) {
   c->add_option("--fog", a->fog,
                  "SIGMA_S,SIGMA_A[,G]: the scene's box filled with a homogeneous medium (scattering and absorption per "
                  "world unit, Henyey-Greenstein g) that the sun lights where the baked voxels are lit: sun shafts. "
-                 "Needs a bake for receivers everywhere");
+                 "Needs a bake for receivers everywhere; with --gpu the fog is walked on the device too");
   c->add_flag("--reference", a->reference,
               "Also render exact ray-traced shadows (NAME-reference) and the difference (NAME-diff)");
   c->callback([a, &status] { status = runRender(*a); });

@@ -7,6 +7,7 @@
 #include <limits>
 #include <numbers>
 
+#include "cpvs/base/error.h"
 #include "cpvs/raytrace/visibility.h"
 
 namespace cpvs {
@@ -97,8 +98,9 @@ void fogSegments(const CameraHits& hits, const Camera& camera, const Vec3& lo, c
 }
 
 Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& camera, const ShadowQuery& query,
-                  const Medium& medium, const Vec3& lo, const Vec3& hi) {
+                  const Medium& medium, const Vec3& lo, const Vec3& hi, const std::vector<float>* boxInScattering) {
   checkMedium(medium);
+  CPVS_CHECK(!boxInScattering || boxInScattering->size() == hits.pixels.size());
   const double sigma = medium.extinction();
   if (sigma == 0) return clear;  // nothing in the air
   const CameraRays rays(camera, double(hits.width) / double(hits.height));
@@ -118,7 +120,11 @@ Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& came
         continue;
       }
       double sun = 0;
-      if (w0 < w1) sun += query.inScattering(eye + dir * w0, eye + dir * w1, medium).inScattering * std::exp(-sigma * (w0 - t0));
+      if (w0 < w1) {
+        const double box = boxInScattering ? double((*boxInScattering)[i])
+                                           : query.inScattering(eye + dir * w0, eye + dir * w1, medium).inScattering;
+        sun += box * std::exp(-sigma * (w0 - t0));
+      }
       // The lit rest of the layer before and after the box.
       const double phase = medium.scattering * henyeyGreenstein(medium.g, std::clamp(-dot(sunDir, dir), -1.0, 1.0));
       if (w0 < w1) {

@@ -49,14 +49,7 @@ const ShadowArtifact& GpuShadows::artifact() const { return *impl_->artifact; }
 
 void GpuShadows::segments(const std::vector<Vec3>& from, const std::vector<Vec3>& to, const Medium& medium,
                           std::vector<double>& litFraction, std::vector<float>& inScattering) {
-  if (from.size() != to.size())
-    throw RuntimeError(Status::InvalidArgument, std::to_string(from.size()) + " segment starts for " +
-                                                    std::to_string(to.size()) + " ends");
-  try {
-    checkMedium(medium);
-  } catch (const InputError& e) {
-    throw RuntimeError(Status::InvalidArgument, e.what());
-  }
+  checkSegmentShape(from.size(), to.size(), medium);
   if (!impl_->segments)
     impl_->segments = std::make_unique<QueryKernel>(impl_->device, impl_->artifact->packed().words(), impl_->sunGrid(),
                                                     std::vector<QueryKernel::Table>{},

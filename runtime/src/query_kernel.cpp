@@ -39,6 +39,16 @@ void checkQueryShape(size_t points, size_t normals, int pcf) {
     throw RuntimeError(Status::InvalidArgument, std::to_string(normals) + " normals for " + std::to_string(points) + " points");
 }
 
+void checkSegmentShape(size_t starts, size_t ends, const Medium& medium) {
+  if (starts != ends)
+    throw RuntimeError(Status::InvalidArgument, std::to_string(starts) + " segment starts for " + std::to_string(ends) + " ends");
+  try {
+    checkMedium(medium);
+  } catch (const InputError& e) {
+    throw RuntimeError(Status::InvalidArgument, e.what());
+  }
+}
+
 QueryKernel::QueryKernel(GpuDevice::Impl& device, const std::vector<uint32_t>& words, const GpuGrid& sun,
                          std::vector<Table> tables, const Shaders& shaders, const char* what)
     : g(device),

@@ -10,6 +10,7 @@
 
 #include "cpvs/base/vec3.h"
 #include "cpvs/light/gpu_grid.h"
+#include "cpvs/query/medium.h"
 #include "gpu_device_impl.h"
 #include "query_shaders.h"
 
@@ -27,6 +28,9 @@ static_assert(sizeof(SunBlock) == 224);
 /// InvalidArgument unless pcf is a valid filter width and there are no normals or one per
 /// point.
 void checkQueryShape(size_t points, size_t normals, int pcf);
+/// InvalidArgument unless there are as many segment ends as starts and the medium is
+/// valid (checkMedium).
+void checkSegmentShape(size_t starts, size_t ends, const Medium& medium);
 
 class QueryKernel {
  public:

@@ -9,6 +9,7 @@
 #include "cpvs/base/file.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/runtime/runtime.h"
+#include "query_kernel.h"
 
 namespace cpvs::runtime {
 
@@ -135,6 +136,24 @@ void ShadowLookups::visibility(const std::vector<Vec3>& points, const std::vecto
   out.resize(lit.size());
   const float texels = float(pcf * pcf);
   for (size_t i = 0; i < lit.size(); ++i) out[i] = float(lit[i]) / texels;
+}
+
+void ShadowLookups::segments(const std::vector<Vec3>& from, const std::vector<Vec3>& to, const Medium& medium,
+                             std::vector<double>& litFraction, std::vector<float>& inScattering) {
+  if (gpu_) {
+    gpu_->segments(from, to, medium, litFraction, inScattering);
+    return;
+  }
+  checkSegmentShape(from.size(), to.size(), medium);
+  litFraction.resize(from.size());
+  inScattering.resize(from.size());
+  const ShadowQuery& q = artifact_->cpu();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, from.size(), 256), [&](const auto& range) {
+    for (size_t i = range.begin(); i != range.end(); ++i) {
+      litFraction[i] = q.litFraction(from[i], to[i]);
+      inScattering[i] = float(q.inScattering(from[i], to[i], medium).inScattering);
+    }
+  });
 }
 
 }  // namespace cpvs::runtime

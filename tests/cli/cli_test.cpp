@@ -279,6 +279,17 @@ TEST_F(Cli, SegmentsAndFogReadTheGridInTheAir) {
   r = cpvs("render " + path("c.cpvs") + " city:3 --size 64x40 --fog 0.02,0.005,0.6 -o " + path("fog.png"));
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_GT(fs::file_size(path("fog.png")), 0u);
+  // The fog walked on a device (lavapipe): the same picture but for float rounding.
+  r = cpvs("render " + path("c.cpvs") + " city:3 --size 64x40 --gpu --fog 0.02,0.005,0.6 -o " + path("fog-gpu.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("sun shafts through the fog walked on llvmpipe"), std::string::npos) << r.out;
+  const Image fogCpu = readPng(path("fog.png")), fogGpu = readPng(path("fog-gpu.png"));
+  ASSERT_EQ(fogCpu.pixels.size(), fogGpu.pixels.size());
+  double worst = 0;
+  for (size_t i = 0; i < fogCpu.pixels.size(); ++i)
+    worst = std::max({worst, double(std::abs(fogCpu.pixels[i].r - fogGpu.pixels[i].r)),
+                      double(std::abs(fogCpu.pixels[i].b - fogGpu.pixels[i].b))});
+  EXPECT_LE(worst, 0.01) << "one 8-bit step or so";
   // A medium declared with a bake: the plan offers light through it where the air is held.
   r = cpvs("plan city:3 --sun-dir 0.3,-1,0.2 -r 256 --json --medium 0.02,0.005,0.6");
   ASSERT_EQ(r.status, 0) << r.out;

@@ -205,6 +205,22 @@ TEST(GpuSegments, SunShaftsAnswerAsTheCpu) {
   } catch (const RuntimeError& e) {
     EXPECT_EQ(e.status(), Status::InvalidArgument);
   }
+  // The front on the CPU: ShadowQuery's answers, the in-scattering in float; on the device
+  // the same lit fractions.
+  const std::vector<Vec3> from{{10, 30, 10}, {200, 5, 40}}, to{{300, 2, 250}, {20, 60, 300}};
+  const Medium fog{0.02, 0.005, 0.6};
+  ShadowLookups cpu(b.artifact, Backend::Cpu), onDevice(b.artifact, device(), Backend::Gpu);
+  cpu.segments(from, to, fog, lit, scattered);
+  ASSERT_EQ(lit.size(), 2u);
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(lit[i], b.artifact->cpu().litFraction(from[i], to[i]));
+    EXPECT_EQ(scattered[i], float(b.artifact->cpu().inScattering(from[i], to[i], fog).inScattering));
+  }
+  std::vector<double> litOnDevice;
+  std::vector<float> scatteredOnDevice;
+  onDevice.segments(from, to, fog, litOnDevice, scatteredOnDevice);
+  EXPECT_EQ(litOnDevice, lit);
+  EXPECT_THROW(cpu.segments({Vec3{}}, {}, fog, lit, scattered), RuntimeError);
   expectNoValidationMessages(device());
 }
 

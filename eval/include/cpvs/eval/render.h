@@ -31,9 +31,12 @@ Image shadeHits(const CameraHits& hits, const std::vector<float>& visibility, co
 /// plus a dim sky light scattered all along it. The medium is a layer of fog between the
 /// heights (Y) of the scene's box [lo, hi], without end across: past the box the sun
 /// reaches it everywhere (in closed form), and a ray that leaves the layer sees the sky.
-/// The sun's strength is shadeHits's.
+/// The sun's strength is shadeHits's. `boxInScattering`: each pixel's in-scattering on
+/// its fogSegments segment as a device answered it (ShadowLookups::segments); null:
+/// ShadowQuery::inScattering here.
 Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& camera, const ShadowQuery& query,
-                  const Medium& medium, const Vec3& lo, const Vec3& hi);
+                  const Medium& medium, const Vec3& lo, const Vec3& hi,
+                  const std::vector<float>* boxInScattering = nullptr);
 /// The segments foggedImage walks through the sun's grid: each pixel's view ray in the
 /// fog layer and the scene's box, from[i] to to[i] (from == to where it has none); what
 /// a device answers for the same frame (GpuShadows::segments, bench_shafts).

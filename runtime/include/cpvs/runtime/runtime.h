@@ -271,6 +271,10 @@ class ShadowLookups {
   void litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf, std::vector<uint32_t>& out);
   /// lit / pcf^2 (1 lit, 0 shadowed for pcf 1), as ShadowQuery::filtered.
   void visibility(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf, std::vector<float>& out);
+  /// Segments through the sun's grid (GpuShadows::segments), on the device or on the CPU
+  /// (ShadowQuery::litFraction and inScattering, the latter rounded to float).
+  void segments(const std::vector<Vec3>& from, const std::vector<Vec3>& to, const Medium& medium,
+                std::vector<double>& litFraction, std::vector<float>& inScattering);
   const ShadowArtifact& artifact() const { return *artifact_; }
   GpuDevice* device() const { return device_; }
 
