@@ -12,39 +12,57 @@
 
 namespace cpvs {
 
+TopTree verificationTree(const Scene& scene, const PsvLight& light) {
+  TopTreeOptions options;
+  options.frontFaceCulling = false;
+  return TopTree::build(scene, light, options);
+}
+
 VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
-                            uint64_t count, uint64_t seed) {
-  return verifySamples(query, closed, rays, sampleSurfaces(scene, rays, closed, query.grid().frame.dir, count, seed));
+                            uint64_t count, uint64_t seed, const ExactOracles& oracles) {
+  return verifySamples(query, closed, rays, sampleSurfaces(scene, rays, closed, query.grid().frame.dir, count, seed),
+                       oracles);
 }
 
 VerifyResult verifySpotArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
-                                uint64_t count, uint64_t seed, const std::vector<uint8_t>* sides) {
+                                uint64_t count, uint64_t seed, const std::vector<uint8_t>* sides,
+                                const ExactOracles& oracles) {
   CPVS_CHECK(query.spot());
   return verifySamples(query, closed, rays,
-                       sampleSpotSurfaces(scene, rays, closed, *query.spot(), query.tanCone(), count, seed, sides));
+                       sampleSpotSurfaces(scene, rays, closed, *query.spot(), query.tanCone(), count, seed, sides),
+                       oracles);
 }
 
 // tan 43.5°: a cube face's inscribed cone, 1.5 degrees inside its square's edges.
 constexpr double kFaceSampleTanCone = 0.9490;
 
 VerifyResult verifyBundleGrid(const BundleQuery& query, size_t grid, ClosedMode closed, const Scene& scene,
-                              const RayScene& rays, uint64_t count, uint64_t seed, const std::vector<uint8_t>* sides) {
+                              const RayScene& rays, uint64_t count, uint64_t seed, const std::vector<uint8_t>* sides,
+                              const ExactOracles& oracles) {
   const ShadowQuery& q = query.grid(grid);
   // A spot light's cone cuts its texels; a cube face's cone is wider than its square.
   if (query.light(query.lightOfGrid(grid)).light.kind == LightKind::Spot)
-    return verifySpotArtifact(q, closed, scene, rays, count, seed, sides);
+    return verifySpotArtifact(q, closed, scene, rays, count, seed, sides, oracles);
   return verifySamples(q, closed, rays,
-                       sampleSpotSurfaces(scene, rays, closed, *q.spot(), kFaceSampleTanCone, count, seed, sides));
+                       sampleSpotSurfaces(scene, rays, closed, *q.spot(), kFaceSampleTanCone, count, seed, sides),
+                       oracles);
 }
 
 VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const RayScene& rays,
-                           const std::vector<SurfaceSample>& samples) {
+                           const std::vector<SurfaceSample>& samples, const ExactOracles& oracles) {
   const LightGrid& g = query.lightGrid();
   const PerspectiveGrid* spot = query.spot();
+  CPVS_CHECK(oracles.psv || !oracles.psvOnly);
   auto toLight = [&](const Vec3& p) { return spot ? shadowRayTo(*spot, p) : shadowRayTo(query.grid(), p); };
-  auto exactlyLitAt = [&](const Vec3& p) {
+  auto embreeLit = [&](const Vec3& p) {
     return spot ? exactlyLit(rays, *spot, query.tanCone(), p) : exactlyLit(rays, query.grid(), p);
   };
+  auto psvLit = [&](const Vec3& p) {
+    if (spot && (!spot->insideCone(p, query.tanCone()) || !(spot->depthOf(p) < spot->far()))) return false;
+    return !oracles.psv->shadowed(p);
+  };
+  auto exactlyLitAt = [&](const Vec3& p) { return oracles.psvOnly ? psvLit(p) : embreeLit(p); };
+  const bool second = oracles.psv && !oracles.psvOnly;
   // "Within one voxel" of a shadow boundary: the exact visibility is not the same at
   // every point of the 3x3x3 voxel block around the query point, sampled at its corners
   // and mid-points (offsets of -1, -1/2, 0, 1/2, 1 voxel along u, v and the light).
@@ -56,6 +74,7 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
         if (a != 0 || b != 0 || c != 0) neighbours.push_back(Vec3{a, b, c});
 
   std::atomic<uint64_t> used{0}, inside{0}, lit{0}, near{0}, badNear{0}, badElse{0};
+  std::atomic<uint64_t> compared{0}, disagreeNear{0}, disagreeElse{0};
   std::mutex examplesMutex;
   VerifyResult result;
   tbb::parallel_for(size_t(0), samples.size(), [&](size_t i) {
@@ -93,6 +112,18 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
         isNear = rays.closedNesting(p, r.dir, r.length, closed) > 0;
       }
     near += isNear;
+    if (second) {
+      ++compared;
+      if (psvLit(q) != exact) {
+        if (isNear) {
+          ++disagreeNear;
+        } else {
+          ++disagreeElse;
+          std::lock_guard lock(examplesMutex);
+          if (result.disagreementExamples.size() < 16) result.disagreementExamples.push_back(s);
+        }
+      }
+    }
     if (cpvs == exact) return;
     if (isNear) {
       ++badNear;
@@ -108,6 +139,9 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
   result.nearBoundary = near;
   result.mismatchNearBoundary = badNear;
   result.mismatchElsewhere = badElse;
+  result.oraclesCompared = compared;
+  result.oraclesDisagreeNearBoundary = disagreeNear;
+  result.oraclesDisagreeElsewhere = disagreeElse;
   return result;
 }
 

@@ -43,13 +43,16 @@ class SpotBake : public ::testing::TestWithParam<LampCase> {
 TEST_P(SpotBake, LookupsEqualExactRaysAwayFromBoundaries) {
   const LampCase& c = GetParam();
   const RayScene rays(scene_, centre_);
+  const TopTree psv = verificationTree(scene_, PsvLight::point(grid_->position()));
   for (Renderer renderer : {Renderer::Raster, Renderer::Embree}) {
     SCOPED_TRACE(optionName(renderer));
     BakeOptions options;
     options.renderer = renderer;
     options.log2TileSize = c.log2R - 1;  // four tiles
     const ShadowQuery query(*grid_, c.tanCone, PackedDag(bake(options)));
-    const VerifyResult r = verifySpotArtifact(query, ClosedMode::Auto, scene_, rays, 6000, 11);
+    const VerifyResult r = verifySpotArtifact(query, ClosedMode::Auto, scene_, rays, 6000, 11, nullptr, {&psv});
+    EXPECT_EQ(r.oraclesCompared, r.samples);
+    EXPECT_EQ(r.oraclesDisagreeElsewhere, 0u) << "Embree and the TOP tree differ away from a boundary";
     EXPECT_GT(r.samples, 4000u) << "the cone must hold enough of the scene's surfaces";
     EXPECT_GT(r.exactlyLit, r.samples / 10) << "the lamp must light some of them";
     EXPECT_LT(r.exactlyLit, r.samples * 9 / 10) << "and leave some in shadow";

@@ -114,6 +114,23 @@ TEST_F(Cli, VerifyJsonContract) {
   EXPECT_GT(j["samples"].get<uint64_t>(), 4000u);
   EXPECT_EQ(j["mismatch_elsewhere"].get<double>(), 0.0);
   EXPECT_LT(j["mismatch_near_boundary"].get<double>(), 0.05);
+  // The TOP tree is the second oracle by default; it alone, or Embree alone, on request.
+  EXPECT_EQ(j["reference"], "both");
+  EXPECT_EQ(j["oracles_compared"].get<uint64_t>(), j["samples"].get<uint64_t>());
+  EXPECT_EQ(j["oracles_disagree_elsewhere_count"], 0);
+  for (const char* reference : {"psv", "embree"}) {
+    r = cpvs("verify --json -n 5000 --reference " + std::string(reference) + " " + path("c.cpvs") + " city:3");
+    ASSERT_EQ(r.status, 0) << r.out;
+    const json one = parse(r);
+    EXPECT_EQ(one["reference"], reference);
+    EXPECT_FALSE(one.contains("oracles_compared"));
+    EXPECT_EQ(one["samples"], j["samples"]);
+    EXPECT_EQ(one["mismatch_elsewhere_count"], 0);
+    EXPECT_EQ(one["mismatch_near_boundary_count"], j["mismatch_near_boundary_count"]) << reference;
+  }
+  r = cpvs("verify -n 100 --reference rays " + path("c.cpvs") + " city:3");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find("--reference"), std::string::npos) << r.out;
 }
 
 // A bake for declared receivers records them (bake and inspect show the same
@@ -783,6 +800,7 @@ TEST_F(Cli, LightBundlesBakeInspectQueryAndVerify) {
   const json v = parse(r);
   ASSERT_EQ(v["lights"].size(), 3u);
   EXPECT_EQ(v["mismatch_elsewhere_count"], 0);
+  EXPECT_EQ(v["oracles_disagree_elsewhere_count"], 0);
   for (const json& l : v["lights"]) {
     EXPECT_GT(l["samples"].get<uint64_t>(), 500u) << l;
     EXPECT_GT(l["lit"].get<uint64_t>(), 50u) << "each light lights some of the city: " << l;

@@ -40,7 +40,8 @@ Baked bakeAndVerify(const Scene& scene, const Vec3& dir, int log2R, uint64_t sam
   b.art.dag = bakeWith(scene, b.art.grid, b.art.options);
   b.art.sceneHash = sceneHash(scene);
   ShadowQuery q(b.art.grid, PackedDag(b.art.dag));
-  b.verify = verifyArtifact(q, b.art.options.closed, scene, rays, samples, 7);
+  const TopTree psv = verificationTree(scene, PsvLight::sun(b.art.grid.frame.dir));
+  b.verify = verifyArtifact(q, b.art.options.closed, scene, rays, samples, 7, {&psv});
   return b;
 }
 
@@ -48,6 +49,8 @@ Baked bakeAndVerify(const Scene& scene, const Vec3& dir, int log2R, uint64_t sam
   do {                                                                                                        \
     EXPECT_GT((b).verify.samples, 1000u) << what;                                                             \
     EXPECT_EQ((b).verify.mismatchElsewhere, 0u) << what;                                                      \
+    EXPECT_EQ((b).verify.oraclesCompared, (b).verify.samples) << what;                                        \
+    EXPECT_EQ((b).verify.oraclesDisagreeElsewhere, 0u) << what << ": Embree and the TOP tree differ";          \
     EXPECT_LT((b).verify.fractionNearBoundary(), 0.05) << what;                                               \
   } while (0)
 
@@ -223,8 +226,10 @@ TEST(HardCases, SelfIntersectingClosedMeshes) {
     RayScene rays(s, art.grid.origin);
     art.dag = bakeWith(s, art.grid, art.options);
     ShadowQuery q(art.grid, PackedDag(art.dag));
-    VerifyResult r = verifyArtifact(q, art.options.closed, s, rays, 8000, 3);
+    const TopTree psv = verificationTree(s, PsvLight::sun(art.grid.frame.dir));
+    VerifyResult r = verifyArtifact(q, art.options.closed, s, rays, 8000, 3, {&psv});
     EXPECT_EQ(r.mismatchElsewhere, 0u) << "exit " << int(exit);
+    EXPECT_EQ(r.oraclesDisagreeElsewhere, 0u) << "exit " << int(exit);
   }
 }
 

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "cpvs/psv/top_tree.h"
 #include "cpvs/query/bundle_query.h"
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/raytrace/ray_scene.h"
@@ -20,6 +21,12 @@ struct VerifyResult {
   uint64_t mismatchNearBoundary = 0;
   uint64_t mismatchElsewhere = 0;
   std::vector<SurfaceSample> elsewhereExamples;  // up to 16, for diagnosis
+  // The second oracle (ExactOracles::psv beside Embree): points it answered, and where
+  // the two exact answers differ, near a boundary or elsewhere (a bug in one of them).
+  uint64_t oraclesCompared = 0;
+  uint64_t oraclesDisagreeNearBoundary = 0;
+  uint64_t oraclesDisagreeElsewhere = 0;
+  std::vector<SurfaceSample> disagreementExamples;  // up to 16
 
   /// Adds another comparison's counts (and examples, up to 16).
   VerifyResult& operator+=(const VerifyResult& o) {
@@ -29,14 +36,32 @@ struct VerifyResult {
     nearBoundary += o.nearBoundary;
     mismatchNearBoundary += o.mismatchNearBoundary;
     mismatchElsewhere += o.mismatchElsewhere;
+    oraclesCompared += o.oraclesCompared;
+    oraclesDisagreeNearBoundary += o.oraclesDisagreeNearBoundary;
+    oraclesDisagreeElsewhere += o.oraclesDisagreeElsewhere;
     for (const SurfaceSample& e : o.elsewhereExamples)
       if (elsewhereExamples.size() < 16) elsewhereExamples.push_back(e);
+    for (const SurfaceSample& e : o.disagreementExamples)
+      if (disagreementExamples.size() < 16) disagreementExamples.push_back(e);
     return *this;
   }
 
   double fractionNearBoundary() const { return samples ? double(mismatchNearBoundary) / double(samples) : 0; }
   double fractionElsewhere() const { return samples ? double(mismatchElsewhere) / double(samples) : 0; }
 };
+
+/// The exact visibility a verification compares with: Embree's shadow rays; with `psv`
+/// (a TOP tree of the same light and scene) also the partitioned shadow volumes, a second
+/// oracle that shares no code with the first, or (psvOnly) those alone.
+struct ExactOracles {
+  const TopTree* psv = nullptr;
+  bool psvOnly = false;
+};
+
+/// A TOP tree of the scene for a light, as a verification's oracle: every triangle casts
+/// (no front-face culling), so that it answers as a shadow ray does at every point, the
+/// probes inside closed parts included.
+TopTree verificationTree(const Scene& scene, const PsvLight& light);
 
 /// Compares binary CPVS lookups with exact Embree shadow rays from the same offset points
 /// (the lookup's own normal offset). A point counts as near a shadow boundary when the
@@ -46,13 +71,14 @@ struct VerifyResult {
 /// geometry: the undefined voxels there may be resolved either way. Offset points inside
 /// closed geometry (where no lookup can come from) are skipped.
 VerifyResult verifyArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
-                            uint64_t count, uint64_t seed);
+                            uint64_t count, uint64_t seed, const ExactOracles& oracles = {});
 
 /// The same for a spot light's query, at surface points inside its cone
 /// (sampleSpotSurfaces): exact visibility is inside the cone and nothing on the segment to
 /// the light, "within one voxel" is in the spot grid's voxels.
 VerifyResult verifySpotArtifact(const ShadowQuery& query, ClosedMode closed, const Scene& scene, const RayScene& rays,
-                                uint64_t count, uint64_t seed, const std::vector<uint8_t>* sides = nullptr);
+                                uint64_t count, uint64_t seed, const std::vector<uint8_t>* sides = nullptr,
+                                const ExactOracles& oracles = {});
 
 /// The same for grid k of a light bundle: a spot light's as verifySpotArtifact; a point
 /// light's cube face at surface points inside the cone its square holds (less a margin of
@@ -61,11 +87,11 @@ VerifyResult verifySpotArtifact(const ShadowQuery& query, ClosedMode closed, con
 /// (sampleSpotSurfaces).
 VerifyResult verifyBundleGrid(const BundleQuery& query, size_t grid, ClosedMode closed, const Scene& scene,
                               const RayScene& rays, uint64_t count, uint64_t seed,
-                              const std::vector<uint8_t>* sides = nullptr);
+                              const std::vector<uint8_t>* sides = nullptr, const ExactOracles& oracles = {});
 
 /// The same comparison at given points (sampleReceivers: where a bake's declared
 /// receivers are, the only points a bake for them answers exactly).
 VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const RayScene& rays,
-                           const std::vector<SurfaceSample>& samples);
+                           const std::vector<SurfaceSample>& samples, const ExactOracles& oracles = {});
 
 }  // namespace cpvs
