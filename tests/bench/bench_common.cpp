@@ -40,6 +40,8 @@ std::optional<BenchScene> openBenchScene(const std::string& spec, const std::str
     path = testing::sharedScenesDir() + "/stanford-bunny/bunny.obj";
   } else if (spec == "teapots") {
     path = testing::sharedScenesDir() + "/assimp-testmodels/teapots.DAE";
+  } else if (spec == "engine") {
+    path = testing::sharedScenesDir() + "/assimp-testmodels/2CylinderEngine.glb";
   } else if (spec == "shouse") {
     path = testing::sharedScenesDir() + "/openarena/oa_shouse.obj";
   } else if (spec == "city" || spec.starts_with("city:") || spec == "landscape" || spec.starts_with("landscape:")) {
