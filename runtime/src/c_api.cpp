@@ -19,6 +19,7 @@ struct CpvsDevice_T {
 struct CpvsShadows_T {
   std::unique_ptr<ShadowLookups> lookups;
   std::vector<uint8_t> sun;  // cpvsGetShadowsBuffer's CpvsSun block
+  std::vector<uint8_t> casters;  // and its CpvsCasters, for the casters last set
 };
 
 struct CpvsLights_T {
@@ -165,6 +166,34 @@ CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* poi
   });
 }
 
+CpvsStatus cpvsSetDynamicCasters(CpvsShadows shadows, const CpvsCasterMesh* meshes, size_t meshCount, double normalOffset) {
+  return guarded([&] {
+    require(shadows != nullptr, "cpvsSetDynamicCasters: shadows is null");
+    require(meshCount == 0 || meshes != nullptr, "cpvsSetDynamicCasters: meshes is null");
+    if (meshCount == 0) {
+      shadows->lookups->setDynamicCasters(nullptr);
+      shadows->casters.clear();
+      return;
+    }
+    std::vector<CasterMesh> placed(meshCount);
+    for (size_t k = 0; k < meshCount; ++k) {
+      const CpvsCasterMesh& m = meshes[k];
+      require((m.vertexCount == 0 || m.positions) && (m.triangleCount == 0 || m.indices),
+              "cpvsSetDynamicCasters: a mesh's positions or indices are null");
+      CasterMesh& c = placed[k];
+      c.positions.resize(m.vertexCount);
+      for (size_t v = 0; v < m.vertexCount; ++v)
+        c.positions[v] = Vec3{m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]};
+      c.indices.assign(m.indices, m.indices + 3 * m.triangleCount);
+      if (m.closed) c.closed.assign(m.closed, m.closed + m.triangleCount);
+      std::copy(m.transform, m.transform + 12, c.transform.begin());
+    }
+    auto casters = std::make_shared<const DynamicCasters>(shadows->lookups->artifact(), placed, normalOffset);
+    shadows->lookups->setDynamicCasters(casters);
+    shadows->casters = casters->gpuBytes();
+  });
+}
+
 CpvsStatus cpvsGetShadowsBuffer(CpvsShadows shadows, CpvsShadowsBuffer which, const void** data, size_t* bytes) {
   return guarded([&] {
     require(shadows != nullptr && data != nullptr && bytes != nullptr, "cpvsGetShadowsBuffer: an argument is null");
@@ -172,6 +201,7 @@ CpvsStatus cpvsGetShadowsBuffer(CpvsShadows shadows, CpvsShadowsBuffer which, co
     switch (which) {
       case CPVS_SHADOWS_BUFFER_SUN: *data = shadows->sun.data(), *bytes = shadows->sun.size(); return;
       case CPVS_SHADOWS_BUFFER_WORDS: *data = words.data(), *bytes = words.size() * 4; return;
+      case CPVS_SHADOWS_BUFFER_CASTERS: *data = shadows->casters.data(), *bytes = shadows->casters.size(); return;
     }
     require(false, "cpvsGetShadowsBuffer: no such buffer");
   });

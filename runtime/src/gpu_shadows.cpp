@@ -15,6 +15,11 @@ struct GpuShadows::Impl {
   // Segments (sun shafts) have their own pipeline, made on first use: the words uploaded
   // a second time then, and never for a game that asks for none.
   std::unique_ptr<QueryKernel> segments;
+  // Lookups with dynamic casters (cpvs_caster_query.comp), made when casters are first
+  // set; their tree replaced each frame.
+  std::unique_ptr<QueryKernel> withCasters;
+  std::shared_ptr<const DynamicCasters> casters;
+  size_t casterOverflows = 0;
   Impl(GpuDevice::Impl& g, std::shared_ptr<const ShadowArtifact> a)
       : device(g),
         artifact(std::move(a)),
@@ -40,7 +45,9 @@ GpuShadows::GpuShadows(GpuDevice& device, std::shared_ptr<const ShadowArtifact> 
 
 GpuShadows::~GpuShadows() = default;
 
-double GpuShadows::lastDeviceNanoseconds() const { return impl_->kernel.lastDeviceNanoseconds(); }
+double GpuShadows::lastDeviceNanoseconds() const {
+  return (impl_->casters ? *impl_->withCasters : impl_->kernel).lastDeviceNanoseconds();
+}
 double GpuShadows::lastSegmentNanoseconds() const {
   return impl_->segments ? impl_->segments->lastDeviceNanoseconds() : 0;
 }
@@ -67,10 +74,41 @@ void GpuShadows::segments(const std::vector<Vec3>& from, const std::vector<Vec3>
   }
 }
 
+// cpvs_caster_query.comp's binding of the casters' tree (CPVS_CASTER_BINDING).
+constexpr uint32_t kCasterBinding = 12;
+
+void GpuShadows::setDynamicCasters(std::shared_ptr<const DynamicCasters> casters) {
+  Impl& m = *impl_;
+  if (casters) {
+    const std::vector<uint8_t> bytes = casters->gpuBytes();
+    if (!m.withCasters)
+      m.withCasters = std::make_unique<QueryKernel>(
+          m.device, m.artifact->packed().words(), m.sunGrid(), std::vector<QueryKernel::Table>{{kCasterBinding, bytes}},
+          QueryKernel::Shaders{casterShaderOneBuffer(), casterShaderEightBuffers(), false, 1}, "the DAG");
+    else
+      m.withCasters->replaceTable(kCasterBinding, bytes);
+  }
+  m.casters = std::move(casters);
+}
+
+size_t GpuShadows::lastCasterOverflows() const { return impl_->casterOverflows; }
+
 void GpuShadows::litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
                            std::vector<uint32_t>& out) {
   checkQueryShape(points.size(), normals.size(), pcf);
-  impl_->kernel.run(points, normals, {}, pcf, out);
+  Impl& m = *impl_;
+  m.casterOverflows = 0;
+  if (!m.casters) {
+    m.kernel.run(points, normals, {}, pcf, out);
+    return;
+  }
+  m.withCasters->run(points, normals, {}, pcf, out);
+  // Bit 31: the walk of the casters' tree needed a deeper stack than the shader's.
+  for (size_t i = 0; i < out.size(); ++i)
+    if (out[i] & 0x80000000u) {
+      ++m.casterOverflows;
+      out[i] = m.casters->shadowed(points[i], normals.empty() ? Vec3{} : normals[i]) ? 0 : out[i] & 0x7fffffffu;
+    }
 }
 
 }  // namespace cpvs::runtime

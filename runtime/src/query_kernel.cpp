@@ -201,6 +201,22 @@ void QueryKernel::createPipeline(const Shaders& shaders) {
   }
 }
 
+void QueryKernel::replaceTable(uint32_t binding, const std::vector<uint8_t>& bytes) {
+  g.checkNotLost();
+  size_t i = 0;
+  while (i < tables_.size() && tables_[i].binding != binding) ++i;
+  CPVS_CHECK(i < tables_.size());
+  if (bytes.size() > g.bindingLimit)
+    throw RuntimeError(Status::OutOfMemory, "a table of " + std::to_string(bytes.size()) +
+                                                " bytes exceeds the device's storage binding limit of " +
+                                                std::to_string(g.bindingLimit));
+  // Every run waits for its work, so nothing reads the old buffer now.
+  VulkanBuffer fresh = uploadToDevice(bytes.data(), bytes.size());
+  g.destroy(tableBuffers_[i]);
+  tableBuffers_[i] = fresh;
+  writeStorage(binding, fresh.buffer, 0, fresh.size);
+}
+
 void QueryKernel::writeDescriptor(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize offset,
                                   VkDeviceSize range) {
   VkDescriptorBufferInfo info{buffer, offset, range};

@@ -57,6 +57,9 @@ class QueryKernel {
   /// medium for the segment shader. DeviceLost when the device stops answering.
   void run(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, const std::vector<uint32_t>& lights,
            int pcf, std::vector<uint32_t>& out, const float medium[3] = nullptr);
+  /// Uploads new bytes for the table at `binding` (one of those given), for the runs that
+  /// follow: what changes per frame (the dynamic casters' tree).
+  void replaceTable(uint32_t binding, const std::vector<uint8_t>& bytes);
   double lastDeviceNanoseconds() const { return lastNs_; }
   int wordBindings() const { return int(bindings_); }
 

@@ -1,6 +1,7 @@
 // The query shaders' SPIR-V, compiled at build time by glslc from cpvs_query.comp (an
-// artifact's lookups), cpvs_light_query.comp (a light bundle's) and cpvs_segment_query.comp
-// (segments through the sun's grid) and embedded. Private to runtime.
+// artifact's lookups), cpvs_light_query.comp (a light bundle's), cpvs_segment_query.comp
+// (segments through the sun's grid) and cpvs_caster_query.comp (an artifact's lookups with
+// dynamic casters) and embedded. Private to runtime.
 #pragma once
 
 #include <cstddef>
@@ -23,5 +24,8 @@ SpirvCode lightQueryShaderEightBuffers();
 /// Segments through the sun's grid (cpvs_segment_query.comp).
 SpirvCode segmentShaderOneBuffer();
 SpirvCode segmentShaderEightBuffers();
+/// An artifact's lookups times its dynamic casters' shadow (cpvs_caster_query.comp).
+SpirvCode casterShaderOneBuffer();
+SpirvCode casterShaderEightBuffers();
 
 }  // namespace cpvs::runtime

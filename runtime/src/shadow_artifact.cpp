@@ -52,7 +52,7 @@ std::shared_ptr<const LightArtifact> LightArtifact::fromBytes(const std::vector<
 std::shared_ptr<const LightArtifact> LightArtifact::open(const std::string& path) { return openWith(path, fromBytes); }
 
 void cpuLitTexels(const ShadowArtifact& artifact, const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
-                  int pcf, std::vector<uint32_t>& out) {
+                  int pcf, std::vector<uint32_t>& out, const DynamicCasters* casters) {
   if (!normals.empty() && normals.size() != points.size())
     throw RuntimeError(Status::InvalidArgument, std::to_string(normals.size()) + " normals for " + std::to_string(points.size()) + " points");
   std::optional<PcfWidth> width;
@@ -64,8 +64,10 @@ void cpuLitTexels(const ShadowArtifact& artifact, const std::vector<Vec3>& point
   out.resize(points.size());
   const ShadowQuery& q = artifact.cpu();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 1024), [&](const auto& range) {
-    for (size_t i = range.begin(); i != range.end(); ++i)
-      out[i] = q.litTexels(points[i], normals.empty() ? Vec3{} : normals[i], *width);
+    for (size_t i = range.begin(); i != range.end(); ++i) {
+      const Vec3 n = normals.empty() ? Vec3{} : normals[i];
+      out[i] = casters && casters->shadowed(points[i], n) ? 0 : q.litTexels(points[i], n, *width);
+    }
   });
 }
 
@@ -126,7 +128,22 @@ void ShadowLookups::litTexels(const std::vector<Vec3>& points, const std::vector
       ownDevice_.reset();
     }
   }
-  cpuLitTexels(*artifact_, points, normals, pcf, out);
+  cpuLitTexels(*artifact_, points, normals, pcf, out, casters_.get());
+}
+
+void ShadowLookups::setDynamicCasters(std::shared_ptr<const DynamicCasters> casters) {
+  casters_ = std::move(casters);
+  if (gpu_) {
+    try {
+      gpu_->setDynamicCasters(casters_);
+    } catch (const RuntimeError& e) {
+      if (e.status() != Status::DeviceLost || backend_ != Backend::Auto) throw;
+      fallbackReason_ = e.what();
+      gpu_.reset();
+      device_ = nullptr;
+      ownDevice_.reset();
+    }
+  }
 }
 
 void ShadowLookups::visibility(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,

@@ -1,6 +1,7 @@
 // How an engine shades the sun and a light bundle's local lights in one lighting shader
 // with cpvs_shadow.glsl: both artifacts bound side by side in its own set, the sun's
-// words in one buffer and the bundle's pool split across two. Compiled by the test suite
+// words in one buffer and the bundle's pool split across two; the sun's light also
+// blocked by what moves (the dynamic casters' tree after them, binding 9). Compiled by the test suite
 // (glslc) so that the installed include keeps compiling outside the library's shaders.
 #version 450
 #extension GL_GOOGLE_include_directive : require
@@ -10,6 +11,7 @@
 #define CPVS_LIGHTS
 #define CPVS_LIGHT_BINDING 4
 #define CPVS_LIGHT_WORD_BUFFERS 2
+#define CPVS_CASTERS
 #include "cpvs_shadow.glsl"
 
 layout(location = 0) in vec3 worldPosition;
@@ -18,7 +20,7 @@ layout(location = 0) out vec4 color;
 
 void main() {
   const vec3 n = normalize(worldNormal);
-  vec3 c = vec3(0.9, 0.85, 0.7) * max(dot(n, vec3(0.3, 0.9, 0.2)), 0.0) * cpvsFiltered(worldPosition, worldNormal, 5u);
+  vec3 c = vec3(0.9, 0.85, 0.7) * max(dot(n, vec3(0.3, 0.9, 0.2)), 0.0) * cpvsFilteredWithCasters(worldPosition, worldNormal, 5u);
   for (uint i = 0u; i < cpvsLightCount(); ++i) {
     const CpvsLight l = cpvsLights[i];
     const vec3 toLight = vec3(l.position[0], l.position[1], l.position[2]) - worldPosition;

@@ -25,6 +25,7 @@
 #include "cpvs/runtime/runtime.h"
 #define VK_NO_PROTOTYPES
 #include <vulkan/vulkan.h>
+#include "cpvs/scene/boxes.h"
 #include "cpvs/scene/source.h"
 #include "area_testing.h"
 #include "scene_testing.h"
@@ -222,6 +223,181 @@ TEST(GpuSegments, SunShaftsAnswerAsTheCpu) {
   EXPECT_EQ(litOnDevice, lit);
   EXPECT_THROW(cpu.segments({Vec3{}}, {}, fog, lit, scattered), RuntimeError);
   expectNoValidationMessages(device());
+}
+
+// A box (closed), a tilted open sheet and a sliver fan over the city, placed for frame
+// `t` by rotating transforms: what moves in a game. The fan (slivers stacked and turned
+// about one axis, each crossing the others' frusta) is seed 003's unavoidable case, deep
+// enough to overflow the shader's stack somewhere when `fan` is set.
+std::vector<CasterMesh> movingCasters(const Baked& b, double t, bool fan) {
+  Vec3 lo, hi;
+  sceneBounds(b.scene, lo, hi);
+  const Vec3 size = hi - lo;
+  auto turned = [&](double angle, const Vec3& at) {
+    const double c = std::cos(angle), s = std::sin(angle);
+    return std::array<double, 12>{c, 0, s, at.x, 0, 1, 0, at.y, -s, 0, c, at.z};
+  };
+  std::vector<CasterMesh> meshes;
+  Scene box;
+  appendBox(box, Vec3{-0.05 * size.x, 0, -0.03 * size.z}, Vec3{0.05 * size.x, 0.08 * size.y, 0.03 * size.z});
+  finalizeScene(box);
+  meshes.push_back({box.positions, box.indices, box.closed,
+                    turned(0.7 * t, lo + Vec3{(0.3 + 0.1 * t) * size.x, 0.6 * size.y, 0.4 * size.z})});
+  CasterMesh sheet;
+  sheet.positions = {Vec3{0, 0, 0}, Vec3{0.2 * size.x, 0.05 * size.y, 0}, Vec3{0.2 * size.x, 0.1 * size.y, 0.15 * size.z},
+                     Vec3{0, 0.05 * size.y, 0.15 * size.z}};
+  sheet.indices = {0, 1, 2, 0, 2, 3};
+  sheet.transform = turned(-0.4 * t, lo + Vec3{0.55 * size.x, 0.7 * size.y, (0.5 - 0.05 * t) * size.z});
+  meshes.push_back(sheet);
+  if (fan) {
+    CasterMesh slivers;
+    const double r = 0.15 * std::min(size.x, size.z);
+    for (uint32_t i = 0; i < 1500; ++i) {
+      const double a = 2.399963 * i, h = 0.001 * size.y * i;
+      const Vec3 d{std::cos(a), 0, std::sin(a)}, side{-std::sin(a), 0, std::cos(a)};
+      slivers.positions.insert(slivers.positions.end(), {d * -r + Vec3{0, h, 0}, d * r + Vec3{0, h, 0}, side * 0.02 * r + Vec3{0, h, 0}});
+      slivers.indices.insert(slivers.indices.end(), {3 * i, 3 * i + 1, 3 * i + 2});
+    }
+    slivers.transform = turned(t, lo + Vec3{0.5 * size.x, 0.75 * size.y, 0.5 * size.z});
+    meshes.push_back(slivers);
+  }
+  return meshes;
+}
+
+// Queries for the casters: makeQueries' points, and points on the casters and in their
+// shadows (below them along the sun), where the answers change.
+void casterQueries(const Baked& b, const DynamicCasters& casters, const std::vector<CasterMesh>& meshes,
+                   std::vector<Vec3>& points, std::vector<Vec3>& normals) {
+  makeQueries(b, 30000, points, normals);
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> unit(0, 1);
+  const Vec3 dir = b.artifact->grid().frame.dir;
+  for (const CasterMesh& m : meshes)
+    for (int i = 0; i < 4000; ++i) {
+      const size_t t = rng() % (m.indices.size() / 3);
+      Vec3 c[3];
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 p = m.positions[m.indices[3 * t + k]];
+        const auto& x = m.transform;
+        c[k] = {x[0] * p.x + x[1] * p.y + x[2] * p.z + x[3], x[4] * p.x + x[5] * p.y + x[6] * p.z + x[7],
+                x[8] * p.x + x[9] * p.y + x[10] * p.z + x[11]};
+      }
+      const double u = unit(rng), v = unit(rng) * (1 - u);
+      const Vec3 on = c[0] + (c[1] - c[0]) * u + (c[2] - c[0]) * v;
+      Vec3 n = normalize(cross(c[1] - c[0], c[2] - c[0]));
+      if (dot(n, dir) > 0) n = -n;
+      points.push_back(on);
+      normals.push_back(n);
+      points.push_back(on + dir * (unit(rng) * 200 * casters.normalOffset()));
+      normals.push_back(Vec3{0, 1, 0});
+    }
+}
+
+TEST(GpuDynamicCasters, MovingCastersAnswerAsTheCpu) {
+  const Baked b = bake("city:4", {0.4, -1, 0.25}, 11);
+  GpuShadows gpu(device(), b.artifact);
+  uint64_t overflows = 0;
+  for (double t : {0.0, 1.0, 2.5}) {
+    const bool fan = t == 2.5;
+    const std::vector<CasterMesh> meshes = movingCasters(b, t, fan);
+    auto casters = std::make_shared<const DynamicCasters>(*b.artifact, meshes);
+    EXPECT_EQ(casters->normalOffset(), b.artifact->grid().texelSize());
+    EXPECT_GT(casters->tree().buildStats().culled, 0u) << "the box's faces towards the sun";
+    std::vector<Vec3> points, normals;
+    casterQueries(b, *casters, meshes, points, normals);
+    // The casters' answer is the TOP tree's brute force at the offset point.
+    uint64_t inShadow = 0;
+    for (size_t i = 0; i < points.size(); ++i) {
+      const Vec3 q = points[i] + normals[i] * casters->normalOffset();
+      const bool shadowed = casters->shadowed(points[i], normals[i]);
+      EXPECT_EQ(shadowed, casters->tree().inAnyFrustum(q)) << i;
+      inShadow += shadowed;
+    }
+    EXPECT_GT(inShadow, points.size() / 20) << "frame " << t;
+    gpu.setDynamicCasters(casters);
+    for (int pcf : {1, 5}) {
+      std::vector<uint32_t> onGpu, onCpu, baked;
+      gpu.litTexels(points, normals, pcf, onGpu);
+      overflows += gpu.lastCasterOverflows();
+      cpuLitTexels(*b.artifact, points, normals, pcf, onCpu, casters.get());
+      cpuLitTexels(*b.artifact, points, normals, pcf, baked);
+      EXPECT_EQ(mismatches(onGpu, onCpu), 0u) << "frame " << t << ", pcf " << pcf;
+      uint64_t changed = 0;
+      for (size_t i = 0; i < points.size(); ++i) changed += onCpu[i] != baked[i];
+      EXPECT_GT(changed, points.size() / 50) << "the casters must darken some of the baked light";
+    }
+    if (fan) {
+      EXPECT_GT(overflows, 0u) << "the fan's deep walks must overflow the shader's stack somewhere";
+    }
+  }
+  // No casters: the plain lookups again.
+  gpu.setDynamicCasters(nullptr);
+  std::vector<Vec3> points, normals;
+  makeQueries(b, 5000, points, normals);
+  std::vector<uint32_t> onGpu, onCpu;
+  gpu.litTexels(points, normals, 3, onGpu);
+  cpuLitTexels(*b.artifact, points, normals, 3, onCpu);
+  EXPECT_EQ(onGpu, onCpu);
+  // Bad meshes are refused.
+  std::vector<CasterMesh> bad = movingCasters(b, 0, false);
+  bad[1].indices.back() = 4;
+  EXPECT_THROW(DynamicCasters(*b.artifact, bad), RuntimeError);
+  bad = movingCasters(b, 0, false);
+  bad[0].transform[5] = std::nan("");
+  EXPECT_THROW(DynamicCasters(*b.artifact, bad), RuntimeError);
+  bad = movingCasters(b, 0, false);
+  bad[0].closed.pop_back();
+  EXPECT_THROW(DynamicCasters(*b.artifact, bad), RuntimeError);
+  expectNoValidationMessages(device());
+
+  // The C API: casters set on a device handle and a CPU one answer alike, and the buffer an
+  // engine binds is gpuBytes().
+  const std::vector<CasterMesh> meshes = movingCasters(b, 1.0, false);
+  std::vector<CpvsCasterMesh> c(meshes.size());
+  std::vector<std::vector<double>> positions(meshes.size());
+  for (size_t k = 0; k < meshes.size(); ++k) {
+    for (const Vec3& v : meshes[k].positions) positions[k].insert(positions[k].end(), {v.x, v.y, v.z});
+    c[k] = CpvsCasterMesh{positions[k].data(), meshes[k].positions.size(), meshes[k].indices.data(),
+                          meshes[k].indices.size() / 3, meshes[k].closed.empty() ? nullptr : meshes[k].closed.data(), {}};
+    std::copy(meshes[k].transform.begin(), meshes[k].transform.end(), c[k].transform);
+  }
+  CpvsDeviceDesc desc{nullptr, 1, 0};
+  CpvsDevice dev = nullptr;
+  ASSERT_EQ(cpvsNewDevice(&desc, &dev), CPVS_OK) << cpvsGetLastError();
+  CpvsShadows onDevice = nullptr, onCpuHandle = nullptr;
+  ASSERT_EQ(cpvsOpenShadows(b.file.c_str(), dev, 0, &onDevice), CPVS_OK) << cpvsGetLastError();
+  ASSERT_EQ(cpvsOpenShadows(b.file.c_str(), nullptr, 0, &onCpuHandle), CPVS_OK) << cpvsGetLastError();
+  const DynamicCasters reference(*b.artifact, meshes);
+  casterQueries(b, reference, meshes, points, normals);
+  std::vector<double> p, n;
+  for (size_t i = 0; i < points.size(); ++i) {
+    p.insert(p.end(), {points[i].x, points[i].y, points[i].z});
+    n.insert(n.end(), {normals[i].x, normals[i].y, normals[i].z});
+  }
+  std::vector<uint32_t> want, fromDevice(points.size()), fromCpu(points.size());
+  cpuLitTexels(*b.artifact, points, normals, 3, want, &reference);
+  for (CpvsShadows h : {onDevice, onCpuHandle}) {
+    ASSERT_EQ(cpvsSetDynamicCasters(h, c.data(), c.size(), -1), CPVS_OK) << cpvsGetLastError();
+    ASSERT_EQ(cpvsQueryShadows(h, points.size(), p.data(), n.data(), 3, (h == onDevice ? fromDevice : fromCpu).data()),
+              CPVS_OK);
+  }
+  EXPECT_EQ(fromDevice, want);
+  EXPECT_EQ(fromCpu, want);
+  const void* data = nullptr;
+  size_t bytes = 0;
+  ASSERT_EQ(cpvsGetShadowsBuffer(onDevice, CPVS_SHADOWS_BUFFER_CASTERS, &data, &bytes), CPVS_OK);
+  const std::vector<uint8_t> expected = reference.gpuBytes();
+  ASSERT_EQ(bytes, expected.size());
+  EXPECT_EQ(std::memcmp(data, expected.data(), bytes), 0);
+  c[0].indices = nullptr;
+  EXPECT_EQ(cpvsSetDynamicCasters(onDevice, c.data(), c.size(), -1), CPVS_ERROR_INVALID_ARGUMENT);
+  ASSERT_EQ(cpvsSetDynamicCasters(onDevice, nullptr, 0, -1), CPVS_OK);
+  ASSERT_EQ(cpvsGetShadowsBuffer(onDevice, CPVS_SHADOWS_BUFFER_CASTERS, &data, &bytes), CPVS_OK);
+  EXPECT_EQ(bytes, 0u);
+  cpvsReleaseShadows(onDevice);
+  cpvsReleaseShadows(onCpuHandle);
+  EXPECT_EQ(cpvsGetValidationMessageCount(dev), 0u);
+  cpvsReleaseDevice(dev);
 }
 
 TEST(GpuLookups, ClosedCityAt16KAnswersAsTheCpu) {

@@ -79,9 +79,28 @@ CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* poi
  * byte 208) and the packed words (CpvsWords). Valid while the CpvsShadows lives. */
 typedef enum CpvsShadowsBuffer {
   CPVS_SHADOWS_BUFFER_SUN = 0,
-  CPVS_SHADOWS_BUFFER_WORDS = 1
+  CPVS_SHADOWS_BUFFER_WORDS = 1,
+  CPVS_SHADOWS_BUFFER_CASTERS = 2 /* CpvsCasters (CPVS_CASTERS) of the casters last set; 0 bytes: none */
 } CpvsShadowsBuffer;
 CpvsStatus cpvsGetShadowsBuffer(CpvsShadows shadows, CpvsShadowsBuffer which, const void** data, size_t* bytes);
+
+/* --- dynamic casters: what moves (characters, vehicles, doors) casts exact sun shadows
+ * on the baked world and on itself, by partitioned shadow volumes (a TOP tree, seed 003) */
+typedef struct CpvsCasterMesh {
+  const double* positions; /* 3 doubles a vertex, in the mesh's own space */
+  size_t vertexCount;
+  const uint32_t* indices; /* 3 a triangle */
+  size_t triangleCount;
+  const uint8_t* closed;   /* NULL, or 1 a triangle: part of a closed, outward-facing mesh (its faces towards
+                              the sun are left out: the far side casts the same shadow) */
+  double transform[12];    /* where it is this frame: world = [M | t] (p, 1), row-major 3x4 */
+} CpvsCasterMesh;
+/* This frame's dynamic casters (meshCount 0: none). Their tree is built on the CPU and
+ * uploaded; every later cpvsQueryShadows answers the baked shadows times theirs: 0 lit
+ * texels where a caster shadows the point, asked normalOffset along its normal (< 0: one
+ * texel of the artifact's grid). On a device, the points whose walk needs more than the
+ * shader's 32-entry stack are answered on the CPU. */
+CpvsStatus cpvsSetDynamicCasters(CpvsShadows shadows, const CpvsCasterMesh* meshes, size_t meshCount, double normalOffset);
 
 /* --- local lights: a light bundle (.cpvs format 4, `cpvs bake --spot/--point/--lights`) */
 

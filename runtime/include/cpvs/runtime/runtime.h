@@ -6,6 +6,7 @@
 // this for engines with C plugin interfaces.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
@@ -16,6 +17,7 @@
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/light/ortho_grid.h"
+#include "cpvs/psv/top_tree.h"
 #include "cpvs/query/bundle_query.h"
 #include "cpvs/query/medium.h"
 #include "cpvs/query/shadow_query.h"
@@ -92,6 +94,45 @@ class LightArtifact {
   BundleQuery query_;
 };
 
+/// A mesh that moves (a character, a vehicle, a door), placed for one frame.
+struct CasterMesh {
+  std::vector<Vec3> positions;    // in its own space
+  std::vector<uint32_t> indices;  // 3 a triangle
+  /// Empty, or one flag a triangle: part of a closed, outward-facing mesh, whose faces
+  /// towards the light cast nothing that its far side does not (front-face culling).
+  std::vector<uint8_t> closed;
+  /// Where it is: world = [M | t] (p, 1), a row-major 3x4 affine transform.
+  std::array<double, 12> transform{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+};
+
+/// What moves in one frame, casting exact hard shadows from an artifact's sun onto the
+/// baked world and onto itself: the TOP tree of every placed mesh's shadow frusta
+/// (partitioned shadow volumes, seed 003), built on the CPU, and how far off its surface
+/// a receiver is asked (along its normal, against self-shadowing). Lookups with casters
+/// answer V = V_cpvs * V_casters: a point in a caster's shadow has no lit texel.
+class DynamicCasters {
+ public:
+  /// InvalidArgument for an index out of range, a closed flag count that is not the
+  /// triangles', a non-finite transform or offset. normalOffset < 0: one texel of the
+  /// artifact's grid.
+  DynamicCasters(const ShadowArtifact& artifact, const std::vector<CasterMesh>& meshes, double normalOffset = -1);
+
+  const TopTree& tree() const { return tree_; }
+  double normalOffset() const { return normalOffset_; }
+  size_t triangleCount() const { return triangles_; }
+  /// Whether the point, moved normalOffset along n, is in a caster's shadow.
+  bool shadowed(const Vec3& p, const Vec3& n) const;
+  /// The bytes cpvs_shadow.glsl's CpvsCasters binds (CPVS_CASTERS): a 64-byte header
+  /// (the origin and normal offset in doubles, the light, the query margins, the root)
+  /// and the tree's 32-byte nodes.
+  std::vector<uint8_t> gpuBytes() const;
+
+ private:
+  TopTree tree_;
+  double normalOffset_ = 0;
+  size_t triangles_ = 0;
+};
+
 /// Lit texel counts, on the CPU, of light lights[i] at each (point, normal), as
 /// BundleQuery answers them, over all cores. One light per point (or one for all);
 /// InvalidArgument for a light index out of range.
@@ -120,9 +161,10 @@ std::string fetchArtifact(const FarmAddress& farm, const std::string& jobId, con
                           bool* fromCache = nullptr);
 
 /// Lit texel counts, on the CPU, for each (point, normal): ShadowQuery::litTexels over all
-/// cores. normals empty (no offset) or one per point.
+/// cores. normals empty (no offset) or one per point. With casters, 0 where they shadow
+/// the point.
 void cpuLitTexels(const ShadowArtifact& artifact, const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
-                  int pcf, std::vector<uint32_t>& out);
+                  int pcf, std::vector<uint32_t>& out, const DynamicCasters* casters = nullptr);
 
 /// How a device is picked and set up.
 struct DeviceOptions {
@@ -183,10 +225,17 @@ class GpuShadows {
   GpuShadows(const GpuShadows&) = delete;
   GpuShadows& operator=(const GpuShadows&) = delete;
 
-  /// Lit texel counts of the pcf x pcf footprint, as cpuLitTexels answers them.
-  /// DeviceLost (and nothing in `out`) when the device stops answering.
+  /// Lit texel counts of the pcf x pcf footprint, as cpuLitTexels answers them (with the
+  /// dynamic casters set, if any). DeviceLost (and nothing in `out`) when the device stops
+  /// answering.
   void litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
                  std::vector<uint32_t>& out);
+  /// This frame's dynamic casters (null: none), uploaded for the following litTexels calls,
+  /// which then walk their tree on the device too (cpvs_shadow.glsl's cpvsCasterShadow, a
+  /// stack of 32); the points whose walk needs a deeper stack are answered on the CPU.
+  void setDynamicCasters(std::shared_ptr<const DynamicCasters> casters);
+  /// How many points of the last litTexels call the CPU answered for the casters.
+  size_t lastCasterOverflows() const;
   /// Device time of the lookups of the last litTexels call (GPU timestamps), ns.
   double lastDeviceNanoseconds() const;
   /// Segments from[i] -> to[i] walked through the sun's grid on the device
@@ -269,6 +318,8 @@ class ShadowLookups {
   /// Why the GPU is not used (empty when it is, or when the CPU was asked for).
   const std::string& fallbackReason() const { return fallbackReason_; }
   void litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf, std::vector<uint32_t>& out);
+  /// This frame's dynamic casters (null: none), in every later lookup.
+  void setDynamicCasters(std::shared_ptr<const DynamicCasters> casters);
   /// lit / pcf^2 (1 lit, 0 shadowed for pcf 1), as ShadowQuery::filtered.
   void visibility(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf, std::vector<float>& out);
   /// Segments through the sun's grid (GpuShadows::segments), on the device or on the CPU
@@ -286,6 +337,7 @@ class ShadowLookups {
   std::unique_ptr<GpuDevice> ownDevice_;  // the one made here, when none was given
   GpuDevice* device_ = nullptr;
   std::unique_ptr<GpuShadows> gpu_;
+  std::shared_ptr<const DynamicCasters> casters_;
   Backend backend_;
   std::string fallbackReason_;
 };
