@@ -3,6 +3,7 @@
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
 
+#include <functional>
 #include <optional>
 
 #include "cpvs/base/error.h"
@@ -113,37 +114,31 @@ std::string ShadowLookups::deviceName() const {
   return "CPU (" + std::to_string(tbb::info::default_concurrency()) + " threads)";
 }
 
+bool ShadowLookups::onDevice(const std::function<void()>& work) {
+  if (!gpu_) return false;
+  try {
+    work();
+    return true;
+  } catch (const RuntimeError& e) {
+    // A device that is lost stays lost: from here on the CPU answers, as Auto promised.
+    if (e.status() != Status::DeviceLost || backend_ != Backend::Auto) throw;
+    fallbackReason_ = e.what();
+    gpu_.reset();
+    device_ = nullptr;
+    ownDevice_.reset();
+    return false;
+  }
+}
+
 void ShadowLookups::litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
                               std::vector<uint32_t>& out) {
-  if (gpu_) {
-    try {
-      gpu_->litTexels(points, normals, pcf, out);
-      return;
-    } catch (const RuntimeError& e) {
-      // A device that is lost stays lost: from here on the CPU answers, as Auto promised.
-      if (e.status() != Status::DeviceLost || backend_ != Backend::Auto) throw;
-      fallbackReason_ = e.what();
-      gpu_.reset();
-      device_ = nullptr;
-      ownDevice_.reset();
-    }
-  }
+  if (onDevice([&] { gpu_->litTexels(points, normals, pcf, out); })) return;
   cpuLitTexels(*artifact_, points, normals, pcf, out, casters_.get());
 }
 
 void ShadowLookups::setDynamicCasters(std::shared_ptr<const DynamicCasters> casters) {
   casters_ = std::move(casters);
-  if (gpu_) {
-    try {
-      gpu_->setDynamicCasters(casters_);
-    } catch (const RuntimeError& e) {
-      if (e.status() != Status::DeviceLost || backend_ != Backend::Auto) throw;
-      fallbackReason_ = e.what();
-      gpu_.reset();
-      device_ = nullptr;
-      ownDevice_.reset();
-    }
-  }
+  onDevice([&] { gpu_->setDynamicCasters(casters_); });
 }
 
 void ShadowLookups::visibility(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -332,6 +333,9 @@ class ShadowLookups {
  private:
   /// Uploads to device_; on failure falls back to the CPU (Auto) or throws (Gpu).
   void upload();
+  /// Runs `work` on the device, if there is one: false when there is none, or when it was
+  /// lost now (Auto: the CPU answers from then on; Gpu: the error is thrown).
+  bool onDevice(const std::function<void()>& work);
 
   std::shared_ptr<const ShadowArtifact> artifact_;
   std::unique_ptr<GpuDevice> ownDevice_;  // the one made here, when none was given
