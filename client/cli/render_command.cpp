@@ -2,31 +2,110 @@
 // to exact ray-traced shadows and their difference.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <algorithm>
 #include <memory>
 #include <optional>
 
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/base/error.h"
+#include "cpvs/base/parse.h"
 #include "cpvs/base/progress.h"
 #include "cpvs/eval/light_render.h"
 #include "cpvs/eval/render.h"
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/query/light_tiles.h"
 #include "cpvs/runtime/runtime.h"
+#include "cpvs/scene/source.h"
 
 namespace cpvs::cli {
 
 namespace {
 
 struct RenderArgs {
-  std::string file, scene, camera, out, fog, size = "960x600";
-  int pcf = 3;
+  std::string file, scene, camera, out, fog, dynamic, size = "960x600";
+  int pcf = 3, frames = 1, delayMs = 120;
   bool reference = false, gpu = false;
 };
+
+// --dynamic MESH[:TRANSFORM]: a mesh that moves over the baked scene, and where it is.
+struct DynamicFlag {
+  std::string mesh;
+  std::vector<double> placement;  // empty, X,Y,Z[,SCALE[,YAW_DEG]] or a row-major 3x4 matrix
+};
+
+DynamicFlag parseDynamic(const std::string& text) {
+  DynamicFlag d{text, {}};
+  const size_t colon = text.rfind(':');
+  if (colon == std::string::npos) return d;
+  // The part after the last ':' is a placement when it is a list of numbers (a scene name
+  // like city:3 has one number and stays whole).
+  std::vector<double> numbers;
+  try {
+    numbers = parseNumbers(text.substr(colon + 1), "--dynamic");
+  } catch (const InputError&) {
+    return d;
+  }
+  if (numbers.size() < 3) return d;
+  if (numbers.size() > 5 && numbers.size() != 12)
+    throw InputError("--dynamic '" + text + "': a placement is X,Y,Z[,SCALE[,YAW_DEG]] or 12 numbers (a 3x4 matrix)");
+  for (double v : numbers)
+    if (!std::isfinite(v)) throw InputError("--dynamic '" + text + "': the placement is not finite");
+  if (numbers.size() >= 4 && !(numbers[3] > 0)) throw InputError("--dynamic '" + text + "': the scale must be positive");
+  d.mesh = text.substr(0, colon);
+  d.placement = std::move(numbers);
+  return d;
+}
+
+/// Where the caster is in frame k of n: the placement given (or, by default, 15 % of the
+/// scene's width, floating over its centre a tenth of its height above its top), turned and
+/// carried across a third of the scene over the frames.
+std::array<double, 12> casterTransform(const DynamicFlag& flag, const Scene& mesh, const Scene& scene, int k, int n) {
+  Vec3 mlo, mhi, lo, hi;
+  sceneBounds(mesh, mlo, mhi);
+  sceneBounds(scene, lo, hi);
+  std::array<double, 12> m{};
+  if (flag.placement.size() == 12) {
+    std::copy(flag.placement.begin(), flag.placement.end(), m.begin());
+    return m;
+  }
+  const Vec3 size = hi - lo, msize = mhi - mlo;
+  Vec3 at{0.5 * (lo.x + hi.x), hi.y + 0.1 * size.y, 0.5 * (lo.z + hi.z)};
+  double scale = 0.15 * std::max(size.x, size.z) / std::max({msize.x, msize.y, msize.z, 1e-300});
+  double yaw = 0;
+  if (!flag.placement.empty()) at = {flag.placement[0], flag.placement[1], flag.placement[2]};
+  if (flag.placement.size() >= 4) scale = flag.placement[3];
+  if (flag.placement.size() >= 5) yaw = flag.placement[4] * M_PI / 180;
+  const double f = n > 1 ? double(k) / double(n - 1) - 0.5 : 0;
+  at.x += f * size.x / 3;
+  yaw += f * M_PI;
+  // The mesh's base centre (its bounding box's bottom middle) goes to `at`.
+  const Vec3 base{0.5 * (mlo.x + mhi.x), mlo.y, 0.5 * (mlo.z + mhi.z)};
+  const double c = std::cos(yaw) * scale, s = std::sin(yaw) * scale;
+  m = {c, 0, s, 0, 0, scale, 0, 0, -s, 0, c, 0};
+  m[3] = at.x - (m[0] * base.x + m[1] * base.y + m[2] * base.z);
+  m[7] = at.y - (m[4] * base.x + m[5] * base.y + m[6] * base.z);
+  m[11] = at.z - (m[8] * base.x + m[9] * base.y + m[10] * base.z);
+  return m;
+}
+
+/// The scene with the caster placed in it: what the camera and the exact rays see.
+Scene withCaster(const Scene& scene, const runtime::CasterMesh& caster) {
+  Scene s = scene;
+  const uint32_t base = uint32_t(s.positions.size());
+  const auto& m = caster.transform;
+  for (const Vec3& p : caster.positions)
+    s.positions.push_back({m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
+                           m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]});
+  for (uint32_t i : caster.indices) s.indices.push_back(base + i);
+  for (size_t t = 0; t < caster.indices.size() / 3; ++t) s.closed.push_back(caster.closed.empty() ? 0 : caster.closed[t]);
+  s.meshes.clear();
+  return s;
+}
 
 // The visibility of every pixel that sees a surface, looked up on a Vulkan device.
 std::vector<float> gpuVisibility(const CameraHits& hits, runtime::ShadowLookups& lookups, int pcf) {
@@ -146,6 +225,67 @@ int renderBundle(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, 
   return 0;
 }
 
+// A caster that moves over the baked scene: each frame the scene with the caster placed
+// in it, seen by the camera, its pixels lit by the CPVS times the caster's TOP tree
+// (ShadowLookups with DynamicCasters); with --reference the same frame with exact rays.
+int renderDynamic(const RenderArgs& a, const Scene& scene, const OrthoGrid& grid,
+                  const std::shared_ptr<const runtime::ShadowArtifact>& artifact, runtime::ShadowLookups* gpu,
+                  const Camera& cam, int w, int h, const std::string& base) {
+  const DynamicFlag flag = parseDynamic(a.dynamic);
+  SceneStats stats;
+  const Scene mesh = openScene(flag.mesh, &stats);
+  if (mesh.triangleCount() == 0) throw InputError("--dynamic: " + flag.mesh + " has no triangles");
+  runtime::ShadowLookups cpu(artifact, runtime::Backend::Cpu);
+  runtime::ShadowLookups& lookups = gpu ? *gpu : cpu;
+  const Vec3 L = grid.frame.dir;
+  std::vector<Image> frames;
+  double build = 0;
+  size_t frusta = 0;
+  uint64_t compared = 0, differing = 0;
+  for (int k = 0; k < a.frames; ++k) {
+    const runtime::CasterMesh caster{mesh.positions, mesh.indices, mesh.closed,
+                                     casterTransform(flag, mesh, scene, k, a.frames)};
+    const auto start = std::chrono::steady_clock::now();
+    auto casters = std::make_shared<const runtime::DynamicCasters>(*artifact, std::vector<runtime::CasterMesh>{caster});
+    build += secondsSince(start);
+    frusta = casters->tree().frustumCount();
+    lookups.setDynamicCasters(casters);
+    const Scene placed = withCaster(scene, caster);
+    const RayScene rays(placed, grid.origin);
+    const CameraHits hits = traceCamera(placed, rays, cam, w, h);
+    const std::vector<float> vis = gpuVisibility(hits, lookups, a.pcf);
+    frames.push_back(shadeHits(hits, vis, L));
+    if (k == 0) {
+      writeBoth(base, frames.back());
+      if (a.reference) {
+        const std::vector<float> exact = exactVisibility(hits, rays, grid);
+        writeBoth(base + "-reference", shadeHits(hits, exact, L));
+        const std::vector<float> binary = a.pcf == 1 ? vis : gpuVisibility(hits, lookups, 1);
+        writeBoth(base + "-diff", differenceImage(hits, binary, exact, L, &compared, &differing));
+      }
+    }
+  }
+  std::printf("Wrote %s.png and %s.exr (CPVS shadows times a dynamic caster's, PCF %d, looked up on %s)\n", base.c_str(),
+              base.c_str(), a.pcf, lookups.deviceName().c_str());
+  std::printf("  caster: %s, %zu triangles, %zu shadow frusta; its TOP tree built in %.2f ms a frame\n", flag.mesh.c_str(),
+              mesh.triangleCount(), frusta, 1e3 * build / a.frames);
+  if (a.reference) {
+    std::printf("Wrote %s-reference.png/.exr (exact ray-traced shadows, the caster included) and %s-diff.png/.exr\n",
+                base.c_str(), base.c_str());
+    std::printf("  %llu of %llu sunward pixels differ (%.3f%%): red = darker than exact, blue = brighter\n",
+                static_cast<unsigned long long>(differing), static_cast<unsigned long long>(compared),
+                compared ? 100.0 * double(differing) / double(compared) : 0.0);
+  }
+  if (a.frames > 1) {
+    writeAnimatedPng(base + "-animation.png", frames, a.delayMs);
+    std::printf("Wrote %s-animation.png: %d frames of the caster crossing the scene, %d ms each\n", base.c_str(), a.frames,
+                a.delayMs);
+  }
+  std::printf("Camera: %.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", cam.eye.x, cam.eye.y, cam.eye.z, cam.target.x,
+              cam.target.y, cam.target.z, cam.fovDeg);
+  return 0;
+}
+
 int runRender(const RenderArgs& a) {
   int w = 0, h = 0;
   parseSize(a.size, w, h);
@@ -164,6 +304,8 @@ int runRender(const RenderArgs& a) {
     if (fog) throw InputError("--fog: the fog is lit by the sun; " + a.file + " is a light bundle");
     return renderBundle(a, bytes, w, h, base);
   }
+  if (!a.dynamic.empty() && fog) throw InputError("--dynamic and --fog: one at a time");
+  if (a.dynamic.empty() && a.frames != 1) throw InputError("--frames: the frames of a --dynamic caster's path");
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   if (fog) checkGridInTheAir(art, a.file, "--fog");
   Scene scene = openMatchingScene(a.scene, art);
@@ -175,6 +317,7 @@ int runRender(const RenderArgs& a) {
   std::unique_ptr<runtime::ShadowLookups> gpu;
   if (a.gpu) gpu = std::make_unique<runtime::ShadowLookups>(artifact, runtime::Backend::Gpu);
   Camera cam = a.camera.empty() ? defaultCamera(scene, L, double(w) / h) : Camera::parse(a.camera);
+  if (!a.dynamic.empty()) return renderDynamic(a, scene, grid, artifact, gpu.get(), cam, w, h, base);
   CameraHits hits = traceCamera(scene, rays, cam, w, h);
   auto lookup = [&](int pcf) { return gpu ? gpuVisibility(hits, *gpu, pcf) : cpvsVisibility(hits, q, pcf); };
   std::vector<float> vis = lookup(a.pcf);
@@ -307,6 +450,18 @@ void addRenderCommand(CLI::App& app, int& status) {
                  "SIGMA_S,SIGMA_A[,G]: the scene's box filled with a homogeneous medium (scattering and absorption per "
                  "world unit, Henyey-Greenstein g) that the sun lights where the baked voxels are lit: sun shafts. "
                  "Needs a bake for receivers everywhere; with --gpu the fog is walked on the device too");
+  c->add_option("--dynamic", a->dynamic,
+                "MESH[:X,Y,Z[,SCALE[,YAW_DEG]]] or MESH:M00,...,M23 (12 numbers): a mesh that moves over the baked "
+                "scene (a file or a generated scene) and where it stands (its base centre; default: over the scene's "
+                "centre, a tenth of its height above its top, 15 % of its width); its exact shadows come from a TOP tree (partitioned "
+                "shadow volumes) built each frame, times the baked ones");
+  c->add_option("--frames", a->frames, "With --dynamic: frames of the caster crossing the scene (more than 1: also "
+                                       "NAME-animation.png, an animated PNG)")
+      ->check(CLI::Range(1, 600))
+      ->capture_default_str();
+  c->add_option("--delay-ms", a->delayMs, "Milliseconds per frame of the animation")
+      ->check(CLI::Range(1, 65535))
+      ->capture_default_str();
   c->add_flag("--reference", a->reference,
               "Also render exact ray-traced shadows (NAME-reference) and the difference (NAME-diff)");
   c->callback([a, &status] { status = runRender(*a); });

@@ -511,6 +511,44 @@ TEST_F(Cli, RenderWritesPicturesAndReference) {
   EXPECT_GT(maxL, 0.3f);
 }
 
+// --dynamic: a mesh over the city casts its shadow through a TOP tree times the CPVS:
+// darker pixels than the bake alone, within a few pixels of exact rays, the same picture
+// on a device, an animation of --frames; bad placements refused.
+TEST_F(Cli, RenderWithADynamicCaster) {
+  const std::string duck = "/usr/share/assimp/models/Collada/duck.dae";
+  const std::string view = " city:3 --size 160x100 --camera 75,110,-20,38,55,40,45 ";
+  CliRun r = cpvs("render " + path("c.cpvs") + view + "--dynamic " + duck + " --reference --frames 3 -o " + path("duck.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* f : {"duck.png", "duck.exr", "duck-reference.png", "duck-diff.png", "duck-animation.png"})
+    EXPECT_TRUE(fs::exists(path(f))) << f;
+  EXPECT_NE(r.out.find("4212 triangles"), std::string::npos) << r.out;
+  const size_t at = r.out.find(" sunward pixels differ (");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  EXPECT_LT(std::stod(r.out.substr(at + 24)), 3.0) << "percent of pixels off exact rays: " << r.out;
+  r = cpvs("render " + path("c.cpvs") + view + "-o " + path("noduck.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const Image with = readPng(path("duck.png")), without = readPng(path("noduck.png"));
+  ASSERT_EQ(with.pixels.size(), without.pixels.size());
+  size_t darker = 0;
+  for (size_t i = 0; i < with.pixels.size(); ++i) darker += with.pixels[i].g < without.pixels[i].g - 0.05f;
+  EXPECT_GT(darker, 100u) << "the duck's shadow (and the duck) darken the picture";
+  r = cpvs("render " + path("c.cpvs") + view + "--gpu --dynamic " + duck + " --frames 3 -o " + path("duck-gpu.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  std::ifstream x(path("duck.png"), std::ios::binary), y(path("duck-gpu.png"), std::ios::binary);
+  const std::string a((std::istreambuf_iterator<char>(x)), {}), b((std::istreambuf_iterator<char>(y)), {});
+  EXPECT_EQ(a, b) << "the device's picture is the CPU's";
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
+           {"--dynamic " + duck + ":1,2,3,0", "the scale must be positive"},
+           {"--dynamic " + duck + ":1,2,3,4,5,6", "a placement is X,Y,Z"},
+           {"--frames 3", "--frames: the frames of a --dynamic"},
+           {"--dynamic " + duck + " --fog 0.02,0.01", "one at a time"},
+           {"--dynamic " + path("no-such-mesh.obj"), "no-such-mesh.obj"}}) {
+    r = cpvs("render " + path("c.cpvs") + view + args + " -o " + path("bad.png"));
+    EXPECT_NE(r.status, 0) << args;
+    EXPECT_NE(r.out.find(message), std::string::npos) << args << ": " << r.out;
+  }
+}
+
 // --gpu (lavapipe here): the same picture bytes and the same CSV as the CPU path; no
 // Vulkan loader: exit status 5 and a message that says what to do.
 TEST_F(Cli, GpuLookupsGiveTheSamePictureAndAnswers) {
