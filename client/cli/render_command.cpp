@@ -246,7 +246,10 @@ int renderDynamic(const RenderArgs& a, const Scene& scene, const OrthoGrid& grid
     const runtime::CasterMesh caster{mesh.positions, mesh.indices, mesh.closed,
                                      casterTransform(flag, mesh, scene, k, a.frames)};
     const auto start = std::chrono::steady_clock::now();
-    auto casters = std::make_shared<const runtime::DynamicCasters>(*artifact, std::vector<runtime::CasterMesh>{caster});
+    // With --gpu the frusta are inserted into their tree on the device.
+    auto casters = std::make_shared<const runtime::DynamicCasters>(
+        *artifact, std::vector<runtime::CasterMesh>{caster}, -1,
+        gpu ? runtime::DynamicCasters::Build::Device : runtime::DynamicCasters::Build::Cpu);
     build += secondsSince(start);
     frusta = casters->tree().frustumCount();
     lookups.setDynamicCasters(casters);

@@ -19,7 +19,8 @@ struct CpvsDevice_T {
 struct CpvsShadows_T {
   std::unique_ptr<ShadowLookups> lookups;
   std::vector<uint8_t> sun;  // cpvsGetShadowsBuffer's CpvsSun block
-  std::vector<uint8_t> casters;  // and its CpvsCasters, for the casters last set
+  std::shared_ptr<const DynamicCasters> casters;  // the casters last set
+  std::vector<uint8_t> casterBytes;  // cpvsGetShadowsBuffer's CpvsCasters for them, made when first asked
 };
 
 struct CpvsLights_T {
@@ -172,7 +173,8 @@ CpvsStatus cpvsSetDynamicCasters(CpvsShadows shadows, const CpvsCasterMesh* mesh
     require(meshCount == 0 || meshes != nullptr, "cpvsSetDynamicCasters: meshes is null");
     if (meshCount == 0) {
       shadows->lookups->setDynamicCasters(nullptr);
-      shadows->casters.clear();
+      shadows->casters.reset();
+      shadows->casterBytes.clear();
       return;
     }
     std::vector<CasterMesh> placed(meshCount);
@@ -188,9 +190,14 @@ CpvsStatus cpvsSetDynamicCasters(CpvsShadows shadows, const CpvsCasterMesh* mesh
       if (m.closed) c.closed.assign(m.closed, m.closed + m.triangleCount);
       std::copy(m.transform, m.transform + 12, c.transform.begin());
     }
-    auto casters = std::make_shared<const DynamicCasters>(shadows->lookups->artifact(), placed, normalOffset);
+    // On a device the frusta are inserted there (seed 003 §3.6); the CPU builds its own
+    // tree only if it is asked.
+    auto casters = std::make_shared<const DynamicCasters>(
+        shadows->lookups->artifact(), placed, normalOffset,
+        shadows->lookups->onGpu() ? DynamicCasters::Build::Device : DynamicCasters::Build::Cpu);
     shadows->lookups->setDynamicCasters(casters);
-    shadows->casters = casters->gpuBytes();
+    shadows->casters = casters;
+    shadows->casterBytes.clear();
   });
 }
 
@@ -201,7 +208,10 @@ CpvsStatus cpvsGetShadowsBuffer(CpvsShadows shadows, CpvsShadowsBuffer which, co
     switch (which) {
       case CPVS_SHADOWS_BUFFER_SUN: *data = shadows->sun.data(), *bytes = shadows->sun.size(); return;
       case CPVS_SHADOWS_BUFFER_WORDS: *data = words.data(), *bytes = words.size() * 4; return;
-      case CPVS_SHADOWS_BUFFER_CASTERS: *data = shadows->casters.data(), *bytes = shadows->casters.size(); return;
+      case CPVS_SHADOWS_BUFFER_CASTERS:
+        if (shadows->casters && shadows->casterBytes.empty()) shadows->casterBytes = shadows->casters->linkedGpuBytes();
+        *data = shadows->casterBytes.data(), *bytes = shadows->casterBytes.size();
+        return;
     }
     require(false, "cpvsGetShadowsBuffer: no such buffer");
   });

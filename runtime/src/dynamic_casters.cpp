@@ -35,7 +35,8 @@ Vec3 placed(const std::array<double, 12>& m, const Vec3& p) {
 
 }  // namespace
 
-DynamicCasters::DynamicCasters(const ShadowArtifact& artifact, const std::vector<CasterMesh>& meshes, double normalOffset) {
+DynamicCasters::DynamicCasters(const ShadowArtifact& artifact, const std::vector<CasterMesh>& meshes, double normalOffset,
+                               Build build) {
   const OrthoGrid& grid = artifact.grid();
   if (!std::isfinite(normalOffset))
     throw RuntimeError(Status::InvalidArgument, "the casters' normal offset is not finite");
@@ -84,30 +85,50 @@ DynamicCasters::DynamicCasters(const ShadowArtifact& artifact, const std::vector
       options.domainHi = max(options.domainHi, p);
     }
   try {
-    tree_ = TopTree::build(positions, indices, closed, PsvLight::sun(grid.frame.dir), options);
+    tree_ = build == Build::Cpu ? TopTree::build(positions, indices, closed, PsvLight::sun(grid.frame.dir), options)
+                                : TopTree::frusta(positions, indices, closed, PsvLight::sun(grid.frame.dir), options);
   } catch (const InputError& e) {
     throw RuntimeError(Status::InvalidArgument, e.what());
   }
 }
 
-bool DynamicCasters::shadowed(const Vec3& p, const Vec3& n) const {
-  const Vec3 q{p.x + n.x * normalOffset_, p.y + n.y * normalOffset_, p.z + n.z * normalOffset_};
-  return tree_.shadowed(q);
+const TopTree& DynamicCasters::linked() const {
+  if (tree_.linked()) return tree_;
+  std::call_once(linkOnce_, [this] {
+    auto copy = std::make_unique<TopTree>(tree_);
+    copy->link();
+    cpuTree_ = std::move(copy);
+  });
+  return *cpuTree_;
 }
 
-std::vector<uint8_t> DynamicCasters::gpuBytes() const {
+bool DynamicCasters::shadowed(const Vec3& p, const Vec3& n) const {
+  const Vec3 q{p.x + n.x * normalOffset_, p.y + n.y * normalOffset_, p.z + n.z * normalOffset_};
+  return linked().shadowed(q);
+}
+
+std::vector<uint8_t> DynamicCasters::cornerBytes() const {
+  const std::vector<double>& corners = tree_.corners();
+  std::vector<double> table{tree_.buildTolerance(), 0.0};
+  table.insert(table.end(), corners.begin(), corners.end());
+  std::vector<uint8_t> bytes(table.size() * sizeof(double));
+  std::memcpy(bytes.data(), table.data(), bytes.size());
+  return bytes;
+}
+
+std::vector<uint8_t> DynamicCasters::bytesOf(const TopTree& tree) const {
   CasterHeader h{};
-  const Vec3& o = tree_.origin();
+  const Vec3& o = tree.origin();
   h.origin[0] = o.x, h.origin[1] = o.y, h.origin[2] = o.z;
   h.normalOffset = normalOffset_;
-  const PsvLight& light = tree_.light();
+  const PsvLight& light = tree.light();
   const Vec3 l = light.directional ? light.vector : light.vector - o;
   h.light[0] = float(l.x), h.light[1] = float(l.y), h.light[2] = float(l.z);
   h.directional = light.directional ? 1.0f : 0.0f;
-  h.margin = float(tree_.queryMargin());
+  h.margin = float(tree.queryMargin());
   h.relativeMargin = float(kTopQueryMargin);
-  h.root = tree_.root();
-  const std::vector<TopNode>& nodes = tree_.nodes();
+  h.root = tree.root();
+  const std::vector<TopNode>& nodes = tree.nodes();
   std::vector<uint8_t> bytes(sizeof h + nodes.size() * sizeof(TopNode));
   std::memcpy(bytes.data(), &h, sizeof h);
   std::memcpy(bytes.data() + sizeof h, nodes.data(), nodes.size() * sizeof(TopNode));

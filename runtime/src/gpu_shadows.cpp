@@ -18,8 +18,12 @@ struct GpuShadows::Impl {
   // Lookups with dynamic casters (cpvs_caster_query.comp), made when casters are first
   // set; their tree replaced each frame.
   std::unique_ptr<QueryKernel> withCasters;
+  // Their trees inserted on the device (cpvs_caster_build.comp), made when first asked.
+  std::unique_ptr<QueryKernel> casterBuild;
   std::shared_ptr<const DynamicCasters> casters;
   size_t casterOverflows = 0;
+  double casterBuildNs = 0;
+  uint64_t casterBuildSteps = 0;
   Impl(GpuDevice::Impl& g, std::shared_ptr<const ShadowArtifact> a)
       : device(g),
         artifact(std::move(a)),
@@ -74,11 +78,14 @@ void GpuShadows::segments(const std::vector<Vec3>& from, const std::vector<Vec3>
   }
 }
 
-// cpvs_caster_query.comp's binding of the casters' tree (CPVS_CASTER_BINDING).
-constexpr uint32_t kCasterBinding = 12;
+// cpvs_caster_query.comp's binding of the casters' tree (CPVS_CASTER_BINDING), and
+// cpvs_caster_build.comp's of the corners it classifies with.
+constexpr uint32_t kCasterBinding = 12, kCornerBinding = 13;
 
 void GpuShadows::setDynamicCasters(std::shared_ptr<const DynamicCasters> casters) {
   Impl& m = *impl_;
+  m.casterBuildNs = 0;
+  m.casterBuildSteps = 0;
   if (casters) {
     const std::vector<uint8_t> bytes = casters->gpuBytes();
     if (!m.withCasters)
@@ -87,9 +94,32 @@ void GpuShadows::setDynamicCasters(std::shared_ptr<const DynamicCasters> casters
           QueryKernel::Shaders{casterShaderOneBuffer(), casterShaderEightBuffers(), false, 1}, "the DAG");
     else
       m.withCasters->replaceTable(kCasterBinding, bytes);
+    const TopTree& tree = casters->tree();
+    if (!tree.linked()) {
+      // Insert the frusta on the device, then hand the tree to the lookups' kernel.
+      const std::vector<uint8_t> corners = casters->cornerBytes();
+      if (!m.casterBuild)
+        m.casterBuild = std::make_unique<QueryKernel>(
+            m.device, std::vector<uint32_t>{0}, m.sunGrid(),
+            std::vector<QueryKernel::Table>{{kCasterBinding, bytes}, {kCornerBinding, corners}},
+            QueryKernel::Shaders{casterBuildShader(), casterBuildShader(), false, 1}, "the casters' tree");
+      else
+        m.casterBuild->replaceTable(kCasterBinding, bytes), m.casterBuild->replaceTable(kCornerBinding, corners);
+      // One query a frustum to insert, its rank for a point.
+      std::vector<Vec3> ranks;
+      for (size_t r = 1; r < tree.frustumCount(); ++r) ranks.push_back(Vec3{double(r), 0, 0});
+      std::vector<uint32_t> steps;
+      m.casterBuild->run(ranks, {}, {}, 1, steps);
+      m.casterBuildNs = m.casterBuild->lastDeviceNanoseconds();
+      for (uint32_t s : steps) m.casterBuildSteps += s;
+      m.withCasters->copyTable(kCasterBinding, *m.casterBuild);
+    }
   }
   m.casters = std::move(casters);
 }
+
+double GpuShadows::lastCasterBuildNanoseconds() const { return impl_->casterBuildNs; }
+uint64_t GpuShadows::lastCasterBuildSteps() const { return impl_->casterBuildSteps; }
 
 size_t GpuShadows::lastCasterOverflows() const { return impl_->casterOverflows; }
 

@@ -82,7 +82,9 @@ void QueryKernel::release() {
 }
 
 VulkanBuffer QueryKernel::uploadToDevice(const void* data, uint64_t bytes) {
-  VulkanBuffer target = g.createBuffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+  // A source of copies too: a table another kernel wrote (copyTable).
+  VulkanBuffer target = g.createBuffer(
+      bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
   VulkanBuffer stage{};
   try {
     stage = g.createBuffer(bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
@@ -201,11 +203,36 @@ void QueryKernel::createPipeline(const Shaders& shaders) {
   }
 }
 
-void QueryKernel::replaceTable(uint32_t binding, const std::vector<uint8_t>& bytes) {
-  g.checkNotLost();
+size_t QueryKernel::tableIndex(uint32_t binding) const {
   size_t i = 0;
   while (i < tables_.size() && tables_[i].binding != binding) ++i;
   CPVS_CHECK(i < tables_.size());
+  return i;
+}
+
+void QueryKernel::copyTable(uint32_t binding, const QueryKernel& from) {
+  g.checkNotLost();
+  const VulkanBuffer& source = from.tableBuffers_[from.tableIndex(binding)];
+  const size_t i = tableIndex(binding);
+  VulkanBuffer fresh = g.createBuffer(
+      source.size, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
+  try {
+    g.submitAndWait([&](VkCommandBuffer cmd) {
+      VkBufferCopy region{0, 0, source.size};
+      g.vkd.vkCmdCopyBuffer(cmd, source.buffer, fresh.buffer, 1, &region);
+    });
+  } catch (...) {
+    g.destroy(fresh);
+    throw;
+  }
+  g.destroy(tableBuffers_[i]);
+  tableBuffers_[i] = fresh;
+  writeStorage(binding, fresh.buffer, 0, fresh.size);
+}
+
+void QueryKernel::replaceTable(uint32_t binding, const std::vector<uint8_t>& bytes) {
+  g.checkNotLost();
+  const size_t i = tableIndex(binding);
   if (bytes.size() > g.bindingLimit)
     throw RuntimeError(Status::OutOfMemory, "a table of " + std::to_string(bytes.size()) +
                                                 " bytes exceeds the device's storage binding limit of " +

@@ -60,6 +60,9 @@ class QueryKernel {
   /// Uploads new bytes for the table at `binding` (one of those given), for the runs that
   /// follow: what changes per frame (the dynamic casters' tree).
   void replaceTable(uint32_t binding, const std::vector<uint8_t>& bytes);
+  /// The table at `binding` becomes a copy, on the device, of `from`'s table there (what
+  /// another kernel wrote into it).
+  void copyTable(uint32_t binding, const QueryKernel& from);
   double lastDeviceNanoseconds() const { return lastNs_; }
   int wordBindings() const { return int(bindings_); }
 
@@ -74,6 +77,7 @@ class QueryKernel {
     writeDescriptor(binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, buffer, offset, range);
   }
   VulkanBuffer uploadToDevice(const void* data, uint64_t bytes);
+  size_t tableIndex(uint32_t binding) const;
 
   GpuDevice::Impl& g;
   std::vector<Table> tables_;

@@ -1,7 +1,7 @@
 // The query shaders' SPIR-V, compiled at build time by glslc from cpvs_query.comp (an
 // artifact's lookups), cpvs_light_query.comp (a light bundle's), cpvs_segment_query.comp
-// (segments through the sun's grid) and cpvs_caster_query.comp (an artifact's lookups with
-// dynamic casters) and embedded. Private to runtime.
+// (segments through the sun's grid), cpvs_caster_query.comp (an artifact's lookups with
+// dynamic casters) and cpvs_caster_build.comp (their tree built on the device) and embedded. Private to runtime.
 #pragma once
 
 #include <cstddef>
@@ -27,5 +27,7 @@ SpirvCode segmentShaderEightBuffers();
 /// An artifact's lookups times its dynamic casters' shadow (cpvs_caster_query.comp).
 SpirvCode casterShaderOneBuffer();
 SpirvCode casterShaderEightBuffers();
+/// Dynamic casters' tree inserted on the device (cpvs_caster_build.comp); reads no words.
+SpirvCode casterBuildShader();
 
 }  // namespace cpvs::runtime

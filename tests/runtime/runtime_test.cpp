@@ -329,6 +329,20 @@ TEST(GpuDynamicCasters, MovingCastersAnswerAsTheCpu) {
     if (fan) {
       EXPECT_GT(overflows, 0u) << "the fan's deep walks must overflow the shader's stack somewhere";
     }
+    // The tree inserted on the device instead (its shape the device's order, its frusta
+    // the same): the same answers, and the CPU's own tree made when first asked.
+    auto inserted = std::make_shared<const DynamicCasters>(*b.artifact, meshes, -1, DynamicCasters::Build::Device);
+    EXPECT_FALSE(inserted->tree().linked());
+    EXPECT_EQ(inserted->tree().frustumCount(), casters->tree().frustumCount());
+    gpu.setDynamicCasters(inserted);
+    EXPECT_GT(gpu.lastCasterBuildSteps(), inserted->tree().frustumCount()) << "every frustum walked down";
+    EXPECT_GT(gpu.lastCasterBuildNanoseconds(), 0);
+    std::vector<uint32_t> onGpu, onCpu, fromItsOwn;
+    gpu.litTexels(points, normals, 1, onGpu);
+    cpuLitTexels(*b.artifact, points, normals, 1, onCpu, casters.get());
+    cpuLitTexels(*b.artifact, points, normals, 1, fromItsOwn, inserted.get());
+    EXPECT_EQ(mismatches(onGpu, onCpu), 0u) << "frame " << t << ", the tree built on the device";
+    EXPECT_EQ(mismatches(fromItsOwn, onCpu), 0u);
   }
   // No casters: the plain lookups again.
   gpu.setDynamicCasters(nullptr);

@@ -190,6 +190,13 @@ TopTree TopTree::build(const Scene& scene, const PsvLight& light, const TopTreeO
 
 TopTree TopTree::build(const std::vector<Vec3>& positions, const std::vector<uint32_t>& indices,
                        const std::vector<uint8_t>& closed, const PsvLight& light, const TopTreeOptions& options) {
+  TopTree tree = frusta(positions, indices, closed, light, options);
+  tree.link();
+  return tree;
+}
+
+TopTree TopTree::frusta(const std::vector<Vec3>& positions, const std::vector<uint32_t>& indices,
+                        const std::vector<uint8_t>& closed, const PsvLight& light, const TopTreeOptions& options) {
   if (indices.size() % 3 != 0) throw InputError("shadow volumes: the index count is not a multiple of 3");
   const size_t n = indices.size() / 3;
   if (!closed.empty() && closed.size() != n)
@@ -297,33 +304,55 @@ TopTree TopTree::build(const std::vector<Vec3>& positions, const std::vector<uin
   all.shrink_to_fit();
 
   tree.nodes_.assign(4 * frusta + 1, TopNode{{0, 0, 0, 0}, 0, 0, 0, 0});
-  for (size_t r = 0; r < frusta; ++r)
+  tree.corners_.resize(kTopCornerDoubles * frusta);
+  for (size_t r = 0; r < frusta; ++r) {
     for (int j = 0; j < 4; ++j) {
       TopNode& node = tree.nodes_[4 * r + 1 + j];
       std::copy(byRank[r].plane[j], byRank[r].plane[j] + 4, node.plane);
       if (j < 3) node.neg = uint32_t(4 * r + 2 + j);
     }
-  if (frusta > 0) {
-    Builder b{byRank, tree.nodes_, light.directional, lightRel, tree.buildTolerance_,
-              light.directional ? 0.0 : kTopBuildTolerance};
-    std::vector<uint32_t> ranks(frusta);
-    for (size_t r = 0; r < frusta; ++r) ranks[r] = uint32_t(r);
-    uint32_t root = 0;
-    b.tasks.run([&b, &ranks, &root] { b.place(std::move(ranks), &root, 0); });
-    b.tasks.wait();
-    CPVS_CHECK(root == 1);
-    tree.stats_.classified = b.classified;
-    tree.stats_.depth = b.depth;
+    double* c = &tree.corners_[kTopCornerDoubles * r];
+    for (int i = 0; i < 3; ++i) c[3 * i] = byRank[r].v[i].x, c[3 * i + 1] = byRank[r].v[i].y, c[3 * i + 2] = byRank[r].v[i].z;
+    c[9] = byRank[r].lightDistance;
   }
-  // Without the wedge test every inter child is walked: a bound no point exceeds (a sine
-  // of 1 for a point light, whose distances never exceed their distance to the light).
-  if (!options.wedges)
-    for (size_t i = 1; i < tree.nodes_.size(); ++i)
-      if (i % 4 != 0) tree.nodes_[i].wedge = light.directional ? std::numeric_limits<float>::infinity() : 1.0f;
+  tree.wedges_ = options.wedges;
+  tree.linked_ = frusta == 0;
   return tree;
 }
 
+void TopTree::link() {
+  if (linked_) return;
+  const size_t frusta = frustumCount();
+  std::vector<Caster> byRank(frusta);
+  for (size_t r = 0; r < frusta; ++r) {
+    Caster& c = byRank[r];
+    const double* k = &corners_[kTopCornerDoubles * r];
+    for (int i = 0; i < 3; ++i) c.v[i] = Vec3{k[3 * i], k[3 * i + 1], k[3 * i + 2]};
+    c.lightDistance = k[9];
+    for (int j = 0; j < 4; ++j) std::copy(nodes_[4 * r + 1 + j].plane, nodes_[4 * r + 1 + j].plane + 4, c.plane[j]);
+  }
+  const Vec3 lightRel = light_.directional ? Vec3{} : light_.vector - origin_;
+  Builder b{byRank, nodes_, light_.directional, lightRel, buildTolerance_, light_.directional ? 0.0 : kTopBuildTolerance};
+  std::vector<uint32_t> ranks(frusta);
+  for (size_t r = 0; r < frusta; ++r) ranks[r] = uint32_t(r);
+  uint32_t root = 0;
+  b.tasks.run([&b, &ranks, &root] { b.place(std::move(ranks), &root, 0); });
+  b.tasks.wait();
+  CPVS_CHECK(root == 1);
+  stats_.classified = b.classified;
+  stats_.depth = b.depth;
+  // Without the wedge test every inter child is walked: a bound no point exceeds (a sine
+  // of 1 for a point light, whose distances never exceed their distance to the light).
+  if (!wedges_)
+    for (size_t i = 1; i < nodes_.size(); ++i)
+      if (i % 4 != 0) nodes_[i].wedge = light_.directional ? std::numeric_limits<float>::infinity() : 1.0f;
+  corners_.clear();
+  corners_.shrink_to_fit();
+  linked_ = true;
+}
+
 TopAnswer TopTree::query(const Vec3& p, uint32_t stackLimit, TopQueryStats* stats) const {
+  CPVS_CHECK(linked_);
   TopQueryStats local;
   TopQueryStats& st = stats ? *stats : local;
   st = {};

@@ -90,8 +90,21 @@ class TopTree {
                        const std::vector<uint8_t>& closed, const PsvLight& light, const TopTreeOptions& options = {});
   /// The scene's triangles (its closed flags).
   static TopTree build(const Scene& scene, const PsvLight& light, const TopTreeOptions& options = {});
+  /// The frusta without the tree (for a device that inserts them itself, seed 003 §3.6):
+  /// every node's plane in its frustum's place, each frustum's chain of neg links from
+  /// its first plane to its capping plane, no other child and no wedge; corners() holds
+  /// what an insertion classifies with. link() makes it build()'s tree.
+  static TopTree frusta(const std::vector<Vec3>& positions, const std::vector<uint32_t>& indices,
+                        const std::vector<uint8_t>& closed, const PsvLight& light, const TopTreeOptions& options = {});
+  /// Inserts the frusta (build()'s tree, the same nodes); nothing when linked already.
+  void link();
+  bool linked() const { return linked_; }
+  /// Until linked: kTopCornerDoubles a frustum in rank order, its triangle's three
+  /// corners relative to the origin and, for a point light, the triangle's distance from it.
+  const std::vector<double>& corners() const { return corners_; }
 
-  /// Whether p is in some triangle's shadow (unbounded stack).
+  /// Whether p is in some triangle's shadow (unbounded stack). The tree must be linked,
+  /// as must query()'s.
   bool shadowed(const Vec3& p) const;
   /// The walk with a stack of `stackLimit` entries, as a GPU would: Overflow when it
   /// does not suffice (answer it with shadowed()).
@@ -122,14 +135,19 @@ class TopTree {
   static float distance(const TopNode& n, const float p[3]);
 
  private:
-  std::vector<TopNode> nodes_;
+  std::vector<TopNode> nodes_ = std::vector<TopNode>(1, TopNode{{0, 0, 0, 0}, 0, 0, 0, 0});  // index 0: the leaf
   std::vector<uint32_t> triangleOf_;
+  std::vector<double> corners_;  // until linked
+  bool linked_ = true, wedges_ = true;
   PsvLight light_;
   Vec3 origin_;
   float lightRel_[3] = {0, 0, 0};  // a point light relative to the origin
   double buildTolerance_ = 0, queryMargin_ = 0;
   TopBuildStats stats_;
 };
+
+/// Doubles a frustum in TopTree::corners().
+constexpr size_t kTopCornerDoubles = 10;
 
 /// Relative tolerances of the build (a vertex on a plane) and of the query's margins, as
 /// fractions of the domain's extent (and, for a point light, of the distance to it).

@@ -95,8 +95,9 @@ typedef struct CpvsCasterMesh {
                               the sun are left out: the far side casts the same shadow) */
   double transform[12];    /* where it is this frame: world = [M | t] (p, 1), row-major 3x4 */
 } CpvsCasterMesh;
-/* This frame's dynamic casters (meshCount 0: none). Their tree is built on the CPU and
- * uploaded; every later cpvsQueryShadows answers the baked shadows times theirs: 0 lit
+/* This frame's dynamic casters (meshCount 0: none). Their shadow frusta are made on the
+ * CPU and, on a device, inserted into their tree there (on the CPU otherwise); every
+ * later cpvsQueryShadows answers the baked shadows times theirs: 0 lit
  * texels where a caster shadows the point, asked normalOffset along its normal (< 0: one
  * texel of the artifact's grid). On a device, the points whose walk needs more than the
  * shader's 32-entry stack are answered on the CPU. */

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -113,11 +114,17 @@ struct CasterMesh {
 /// answer V = V_cpvs * V_casters: a point in a caster's shadow has no lit texel.
 class DynamicCasters {
  public:
+  /// Where the tree is built: on the CPU here, or (Device) only its frusta here and their
+  /// insertion by GpuShadows on its device (cpvs_caster_build.comp); the CPU then builds
+  /// its own the first time it answers (the same frusta, so the same answers).
+  enum class Build { Cpu, Device };
   /// InvalidArgument for an index out of range, a closed flag count that is not the
   /// triangles', a non-finite transform or offset. normalOffset < 0: one texel of the
   /// artifact's grid.
-  DynamicCasters(const ShadowArtifact& artifact, const std::vector<CasterMesh>& meshes, double normalOffset = -1);
+  DynamicCasters(const ShadowArtifact& artifact, const std::vector<CasterMesh>& meshes, double normalOffset = -1,
+                 Build build = Build::Cpu);
 
+  /// As built: linked (Build::Cpu) or its frusta alone (Build::Device).
   const TopTree& tree() const { return tree_; }
   double normalOffset() const { return normalOffset_; }
   size_t triangleCount() const { return triangles_; }
@@ -125,13 +132,24 @@ class DynamicCasters {
   bool shadowed(const Vec3& p, const Vec3& n) const;
   /// The bytes cpvs_shadow.glsl's CpvsCasters binds (CPVS_CASTERS): a 64-byte header
   /// (the origin and normal offset in doubles, the light, the query margins, the root)
-  /// and the tree's 32-byte nodes.
-  std::vector<uint8_t> gpuBytes() const;
+  /// and the tree's 32-byte nodes (for Build::Device, the frusta to insert).
+  std::vector<uint8_t> gpuBytes() const { return bytesOf(tree_); }
+  /// The same of a linked tree, what an engine's shader walks (for Build::Device, the
+  /// CPU's own, built now if it was not).
+  std::vector<uint8_t> linkedGpuBytes() const { return bytesOf(linked()); }
+  /// For Build::Device: what cpvs_caster_build.comp classifies with (the build's
+  /// tolerance, a reserved double, then TopTree::corners()).
+  std::vector<uint8_t> cornerBytes() const;
 
  private:
+  const TopTree& linked() const;
+  std::vector<uint8_t> bytesOf(const TopTree& tree) const;
+
   TopTree tree_;
   double normalOffset_ = 0;
   size_t triangles_ = 0;
+  mutable std::once_flag linkOnce_;
+  mutable std::unique_ptr<TopTree> cpuTree_;  // Build::Device: the CPU's own, made when first asked
 };
 
 /// Lit texel counts, on the CPU, of light lights[i] at each (point, normal), as
@@ -237,6 +255,10 @@ class GpuShadows {
   void setDynamicCasters(std::shared_ptr<const DynamicCasters> casters);
   /// How many points of the last litTexels call the CPU answered for the casters.
   size_t lastCasterOverflows() const;
+  /// Device time of the last tree inserted on the device (DynamicCasters::Build::Device),
+  /// ns, and the planes its invocations were classified against.
+  double lastCasterBuildNanoseconds() const;
+  uint64_t lastCasterBuildSteps() const;
   /// Device time of the lookups of the last litTexels call (GPU timestamps), ns.
   double lastDeviceNanoseconds() const;
   /// Segments from[i] -> to[i] walked through the sun's grid on the device
