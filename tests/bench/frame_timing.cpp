@@ -15,6 +15,7 @@ namespace {
 
 constexpr char kMagic[8] = {'C', 'P', 'V', 'S', 'F', 'R', 'M', '1'};
 constexpr char kPixelsMagic[8] = {'C', 'P', 'V', 'S', 'F', 'P', 'X', '1'};
+constexpr char kCastersMagic[8] = {'C', 'P', 'V', 'S', 'C', 'S', 'T', '1'};
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -176,6 +177,90 @@ void printTimingRows(const std::string& scene, const std::string& resolution, ui
                 gpu ? fixed("%.2f", dev * 1e6 / n).c_str() : "-", gpu ? fixed("%.0f", n / (dev * 1e3)).c_str() : "-",
                 gpu ? fixed("%.1f", median(wallMs)).c_str() : "-", fixed("%.1f", cpu).c_str(),
                 fixed("%.1f", cpu * 1e6 / n).c_str(), gpu ? fixed("%.2fx", cpu / dev).c_str() : "-", answers.c_str());
+    std::fflush(stdout);
+  }
+}
+
+void writeCasters(const std::string& path, const runtime::CasterMesh& m) {
+  std::ofstream out(path, std::ios::binary);
+  const uint64_t counts[2] = {m.positions.size(), m.indices.size() / 3};
+  out.write(kCastersMagic, 8);
+  out.write(reinterpret_cast<const char*>(counts), sizeof counts);
+  out.write(reinterpret_cast<const char*>(m.positions.data()), std::streamsize(m.positions.size() * sizeof(Vec3)));
+  out.write(reinterpret_cast<const char*>(m.indices.data()), std::streamsize(m.indices.size() * 4));
+  std::vector<uint8_t> closed = m.closed;
+  closed.resize(counts[1], 0);
+  out.write(reinterpret_cast<const char*>(closed.data()), std::streamsize(closed.size()));
+  out.write(reinterpret_cast<const char*>(m.transform.data()), sizeof(double) * 12);
+  if (!out) throw InputError(path + ": cannot be written");
+}
+
+runtime::CasterMesh readCasters(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[8];
+  uint64_t counts[2] = {0, 0};
+  if (!in.read(magic, 8) || std::memcmp(magic, kCastersMagic, 8) != 0 || !in.read(reinterpret_cast<char*>(counts), 16))
+    throw InputError(path + ": not a casters file");
+  if (counts[0] > (uint64_t(1) << 26) || counts[1] > (uint64_t(1) << 26)) throw InputError(path + ": too many vertices or triangles");
+  runtime::CasterMesh m;
+  m.positions.resize(counts[0]);
+  m.indices.resize(3 * counts[1]);
+  m.closed.resize(counts[1]);
+  in.read(reinterpret_cast<char*>(m.positions.data()), std::streamsize(m.positions.size() * sizeof(Vec3)));
+  in.read(reinterpret_cast<char*>(m.indices.data()), std::streamsize(m.indices.size() * 4));
+  in.read(reinterpret_cast<char*>(m.closed.data()), std::streamsize(m.closed.size()));
+  if (!in.read(reinterpret_cast<char*>(m.transform.data()), sizeof(double) * 12)) throw InputError(path + ": truncated");
+  return m;
+}
+
+void printCasterTimingHeader() {
+  std::printf("| frame | caster triangles | frusta | filter | CPU build ms | device build ms | device lookups ms | "
+              "device build + lookups ms | CPU lookups ms | CPU overflow answers | answers |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+}
+
+void printCasterTimingRows(const std::string& name, const std::shared_ptr<const runtime::ShadowArtifact>& artifact,
+                           const runtime::CasterMesh& mesh, const Frame& frame, runtime::GpuDevice* device, int repeat) {
+  using runtime::DynamicCasters;
+  std::unique_ptr<runtime::GpuShadows> gpu;
+  if (device) gpu = std::make_unique<runtime::GpuShadows>(*device, artifact);
+  const std::vector<runtime::CasterMesh> meshes{mesh};
+  std::vector<double> buildMs;
+  std::shared_ptr<const DynamicCasters> onCpu;
+  for (int r = 0; r < repeat; ++r) {
+    const auto t = std::chrono::steady_clock::now();
+    onCpu = std::make_shared<const DynamicCasters>(*artifact, meshes);
+    buildMs.push_back(millisecondsSince(t));
+  }
+  for (int pcf : {1, 9}) {
+    std::vector<uint32_t> want, got;
+    std::vector<double> cpuMs, devBuildMs, devMs;
+    for (int r = 0; r < repeat; ++r) {
+      const auto t = std::chrono::steady_clock::now();
+      runtime::cpuLitTexels(*artifact, frame.points, frame.normals, pcf, want, onCpu.get());
+      cpuMs.push_back(millisecondsSince(t));
+    }
+    std::string answers = "CPU only";
+    size_t overflows = 0;
+    if (gpu) {
+      for (int r = 0; r < repeat; ++r) {
+        auto frusta = std::make_shared<const DynamicCasters>(*artifact, meshes, -1, DynamicCasters::Build::Device);
+        gpu->setDynamicCasters(frusta);
+        gpu->litTexels(frame.points, frame.normals, pcf, got);
+        devBuildMs.push_back(gpu->lastCasterBuildNanoseconds() * 1e-6);
+        devMs.push_back(gpu->lastDeviceNanoseconds() * 1e-6);
+        overflows = gpu->lastCasterOverflows();
+      }
+      uint64_t differ = 0;
+      for (size_t i = 0; i < want.size(); ++i) differ += got[i] != want[i];
+      answers = differ == 0 ? "identical" : std::to_string(differ) + " differ";
+    }
+    const double build = median(devBuildMs), lookups = median(devMs);
+    std::printf("| %s | %zu | %zu | %s | %.1f | %s | %s | %s | %.1f | %s | %s |\n", name.c_str(), mesh.indices.size() / 3,
+                onCpu->tree().frustumCount(), pcf == 1 ? "binary" : "9x9 PCF", median(buildMs),
+                gpu ? fixed("%.3f", build).c_str() : "-", gpu ? fixed("%.3f", lookups).c_str() : "-",
+                gpu ? fixed("%.3f", build + lookups).c_str() : "-", median(cpuMs),
+                gpu ? std::to_string(overflows).c_str() : "-", answers.c_str());
     std::fflush(stdout);
   }
 }

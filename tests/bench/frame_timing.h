@@ -44,6 +44,12 @@ struct ManyLightQueries {
 };
 ManyLightQueries manyLightQueries(const BundleQuery& query, const ManyLightFrame& frame);
 
+/// A frame's dynamic casters, one mesh placed in the world: "CPVSCST1", the vertex and
+/// triangle counts (uint64), the positions (3 doubles each), the indices (uint32), the
+/// closed flags (a byte a triangle) and the transform (12 doubles).
+void writeCasters(const std::string& path, const runtime::CasterMesh& mesh);
+runtime::CasterMesh readCasters(const std::string& path);
+
 /// A device for the timing, with a line saying which (or why none: CPU figures only).
 std::unique_ptr<runtime::GpuDevice> openTimingDevice(const runtime::DeviceOptions& options);
 
@@ -55,6 +61,14 @@ void printTimingRows(const std::string& scene, const std::string& resolution, ui
                      const std::shared_ptr<const runtime::ShadowArtifact>& artifact, const Frame& frame,
                      runtime::GpuDevice* device, int repeat);
 void printTimingFooter();
+
+/// The same for an artifact's frame with dynamic casters: their tree built on the CPU
+/// (every core) and inserted on the device, then binary and 9x9 lookups times their
+/// shadow on the device and on the CPU; medians over `repeat` frames, each building the
+/// tree anew.
+void printCasterTimingHeader();
+void printCasterTimingRows(const std::string& name, const std::shared_ptr<const runtime::ShadowArtifact>& artifact,
+                           const runtime::CasterMesh& casters, const Frame& frame, runtime::GpuDevice* device, int repeat);
 
 /// The same for a light bundle's frame (one lookup per pixel and culled light): a table
 /// of its own, binary and 9x9 PCF rows, device and CPU medians over `repeat` frames.

@@ -1,7 +1,8 @@
 // The lookups of bench_gpu_query from files, for a machine with a GPU and nothing else:
 // every NAME.cpvs in DIR with its NAME.frame (bench_gpu_query --save DIR writes them),
-// and every light bundle NAME.lights with its many-light NAME.frame (bench_lights --save
-// DIR), timed on a Vulkan device and on the CPU. Links the runtime only (tests/gpu/device-check.sh
+// with dynamic casters NAME.casters where there are (bench_psv --save-casters), and every
+// light bundle NAME.lights with its many-light NAME.frame (bench_lights --save DIR), timed
+// on a Vulkan device and on the CPU. Links the runtime only (tests/gpu/device-check.sh
 // carries it with its libraries).
 //   gpu_frame_timing DIR [--device TEXT] [--repeat N]
 #include <algorithm>
@@ -59,6 +60,23 @@ int main(int argc, char** argv) {
                              device.get(), repeat);
     }
     if (!artifacts.empty()) bench::printTimingFooter();
+    // Dynamic casters over an artifact's frame: NAME.casters beside NAME.cpvs and NAME.frame
+    // (bench_psv --save-casters writes one).
+    bool casterHeader = false;
+    for (const auto& path : artifacts) {
+      std::filesystem::path casters = path, framePath = path;
+      casters.replace_extension(".casters");
+      framePath.replace_extension(".frame");
+      if (!std::filesystem::exists(casters)) continue;
+      if (!casterHeader) {
+        std::printf("\n## Dynamic casters per frame\n\n");
+        bench::printCasterTimingHeader();
+        casterHeader = true;
+      }
+      bench::printCasterTimingRows(path.stem().string(), runtime::ShadowArtifact::open(path.string()),
+                                   bench::readCasters(casters.string()), bench::readFrame(framePath.string()),
+                                   device.get(), repeat);
+    }
     if (!bundles.empty()) {
       std::printf("\n## Many lights per frame\n\n");
       bench::printLightTimingHeader();
