@@ -265,6 +265,28 @@ TEST(TopTree, AStripInOrderIsQuadraticAndRandomOrderIsNot) {
   }
 }
 
+// Randomized insertion is n log n: its work (triangle-plane tests) over n log2 n stays
+// flat from a small city to one sixteen times its size, and the tree's depth grows like
+// log n.
+TEST(TopTree, TheBuildIsNLogN) {
+  const PsvLight sun = PsvLight::sun(normalize(Vec3{0.35, -1, 0.25}));
+  double first = 0;
+  uint32_t firstDepth = 0;
+  for (int blocks : {6, 12, 24}) {
+    const TopTree tree = TopTree::build(makeProceduralCity(blocks, 1), sun);
+    const double n = double(tree.frustumCount());
+    const double work = double(tree.buildStats().classified) / (n * std::log2(n));
+    if (first == 0) {
+      first = work;
+      firstDepth = tree.buildStats().depth;
+      continue;
+    }
+    EXPECT_LT(work, 1.3 * first) << blocks << " blocks";
+    EXPECT_GT(work, first / 1.3) << blocks << " blocks";
+    EXPECT_LT(tree.buildStats().depth, firstDepth + 16) << blocks << " blocks";
+  }
+}
+
 TEST(TopTree, AgreesWithEmbreeAwayFromShadowBoundaries) {
   const Scene city = makeProceduralCity(3, 4);
   Vec3 lo, hi;
