@@ -28,6 +28,8 @@ struct CpvsLights_T {
   std::unique_ptr<GpuLights> gpu;  // null: the CPU answers
   bool fallback = false;
   std::vector<uint8_t> lights, grids, boundaries;  // cpvsGetLightBuffer's bytes
+  std::shared_ptr<const LightCasters> casters;     // the dynamic casters last set
+  std::vector<uint8_t> casterTrees, casterNodes;   // and their buffers
 };
 
 namespace {
@@ -67,6 +69,24 @@ void onDeviceOrCpu(CpvsLights lights, OnDevice&& onDevice, OnCpu&& onCpu) {
       lights->gpu.reset();
     }
   if (!lights->gpu) onCpu();
+}
+
+// The C meshes as the C++ API takes them.
+std::vector<CasterMesh> casterMeshesOf(const CpvsCasterMesh* meshes, size_t meshCount, const std::string& function) {
+  std::vector<CasterMesh> placed(meshCount);
+  for (size_t k = 0; k < meshCount; ++k) {
+    const CpvsCasterMesh& m = meshes[k];
+    require((m.vertexCount == 0 || m.positions) && (m.triangleCount == 0 || m.indices),
+            (function + ": a mesh's positions or indices are null").c_str());
+    CasterMesh& c = placed[k];
+    c.positions.resize(m.vertexCount);
+    for (size_t v = 0; v < m.vertexCount; ++v)
+      c.positions[v] = Vec3{m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]};
+    c.indices.assign(m.indices, m.indices + 3 * m.triangleCount);
+    if (m.closed) c.closed.assign(m.closed, m.closed + m.triangleCount);
+    std::copy(m.transform, m.transform + 12, c.transform.begin());
+  }
+  return placed;
 }
 
 }  // namespace
@@ -177,19 +197,7 @@ CpvsStatus cpvsSetDynamicCasters(CpvsShadows shadows, const CpvsCasterMesh* mesh
       shadows->casterBytes.clear();
       return;
     }
-    std::vector<CasterMesh> placed(meshCount);
-    for (size_t k = 0; k < meshCount; ++k) {
-      const CpvsCasterMesh& m = meshes[k];
-      require((m.vertexCount == 0 || m.positions) && (m.triangleCount == 0 || m.indices),
-              "cpvsSetDynamicCasters: a mesh's positions or indices are null");
-      CasterMesh& c = placed[k];
-      c.positions.resize(m.vertexCount);
-      for (size_t v = 0; v < m.vertexCount; ++v)
-        c.positions[v] = Vec3{m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]};
-      c.indices.assign(m.indices, m.indices + 3 * m.triangleCount);
-      if (m.closed) c.closed.assign(m.closed, m.closed + m.triangleCount);
-      std::copy(m.transform, m.transform + 12, c.transform.begin());
-    }
+    const std::vector<CasterMesh> placed = casterMeshesOf(meshes, meshCount, "cpvsSetDynamicCasters");
     // On a device the frusta are inserted there (seed 003 §3.6); the CPU builds its own
     // tree only if it is asked.
     auto casters = std::make_shared<const DynamicCasters>(
@@ -271,7 +279,7 @@ CpvsStatus cpvsQueryLights(CpvsLights lights, size_t count, const uint32_t* ligh
     std::vector<uint32_t> out;
     if (count == 0) return;
     onDeviceOrCpu(lights, [&] { lights->gpu->litTexels(which, p, n, pcf, out); },
-                  [&] { cpuLightLitTexels(*lights->artifact, which, p, n, pcf, out); });
+                  [&] { cpuLightLitTexels(*lights->artifact, which, p, n, pcf, out, lights->casters.get()); });
     std::memcpy(litTexels, out.data(), count * 4);
   });
 }
@@ -306,6 +314,21 @@ CpvsStatus cpvsQuerySoftShadows(CpvsLights lights, size_t count, const uint32_t*
   });
 }
 
+CpvsStatus cpvsSetLightCasters(CpvsLights lights, const CpvsCasterMesh* meshes, size_t meshCount, double normalOffset) {
+  return guarded([&] {
+    require(lights != nullptr, "cpvsSetLightCasters: lights is null");
+    require(meshCount == 0 || meshes != nullptr, "cpvsSetLightCasters: meshes is null");
+    std::shared_ptr<const LightCasters> casters;
+    if (meshCount > 0)
+      casters = std::make_shared<const LightCasters>(*lights->artifact,
+                                                     casterMeshesOf(meshes, meshCount, "cpvsSetLightCasters"), normalOffset);
+    onDeviceOrCpu(lights, [&] { lights->gpu->setDynamicCasters(casters); }, [] {});
+    lights->casterTrees = casters ? casters->headerBytes() : std::vector<uint8_t>{};
+    lights->casterNodes = casters ? casters->nodeBytes() : std::vector<uint8_t>{};
+    lights->casters = std::move(casters);
+  });
+}
+
 CpvsStatus cpvsGetLightBuffer(CpvsLights lights, CpvsLightBuffer which, const void** data, size_t* bytes) {
   return guarded([&] {
     require(lights != nullptr && data != nullptr && bytes != nullptr, "cpvsGetLightBuffer: an argument is null");
@@ -315,6 +338,8 @@ CpvsStatus cpvsGetLightBuffer(CpvsLights lights, CpvsLightBuffer which, const vo
       case CPVS_LIGHT_BUFFER_LIGHTS: *data = lights->lights.data(), *bytes = lights->lights.size(); return;
       case CPVS_LIGHT_BUFFER_GRIDS: *data = lights->grids.data(), *bytes = lights->grids.size(); return;
       case CPVS_LIGHT_BUFFER_BOUNDARIES: *data = lights->boundaries.data(), *bytes = lights->boundaries.size(); return;
+      case CPVS_LIGHT_BUFFER_CASTER_TREES: *data = lights->casterTrees.data(), *bytes = lights->casterTrees.size(); return;
+      case CPVS_LIGHT_BUFFER_CASTER_NODES: *data = lights->casterNodes.data(), *bytes = lights->casterNodes.size(); return;
     }
     require(false, "cpvsGetLightBuffer: no such buffer");
   });

@@ -30,8 +30,10 @@ static_assert(sizeof(GpuLight) == 64, "cpvs_shadow.glsl's CpvsLight is 64 bytes"
 // first VPL, its answer the float bits of cpvsSoftVisibility.
 constexpr int kSoftQuery = 0;
 
-// Bindings of cpvs_light_query.comp's tables (CPVS_LIGHT_BINDING 12), then its pool.
-constexpr uint32_t kLightTableBinding = 12, kLightWordBinding = 15;
+// Bindings of cpvs_light_query.comp's tables (CPVS_LIGHT_BINDING 12), then its pool, then
+// the dynamic casters' trees (CPVS_LIGHT_CASTER_BINDING 23: headers, then nodes).
+constexpr uint32_t kLightTableBinding = 12, kLightWordBinding = 15, kCasterTreeBinding = 23;
+
 
 template <class T>
 std::vector<uint8_t> bytesOf(const std::vector<T>& rows) {
@@ -89,7 +91,7 @@ void cpuSoftVisibility(const LightArtifact& artifact, const std::vector<uint32_t
 
 void cpuLightLitTexels(const LightArtifact& artifact, const std::vector<uint32_t>& lights,
                        const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
-                       std::vector<uint32_t>& out) {
+                       std::vector<uint32_t>& out, const LightCasters* casters) {
   checkQueries(artifact, lights, points, normals, pcf);
   const PcfWidth width(pcf);
   out.resize(points.size());
@@ -97,7 +99,8 @@ void cpuLightLitTexels(const LightArtifact& artifact, const std::vector<uint32_t
   tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 1024), [&](const auto& range) {
     for (size_t i = range.begin(); i != range.end(); ++i) {
       const uint32_t light = lights.size() == 1 ? lights[0] : lights[i];
-      out[i] = q.litTexels(light, points[i], normals.empty() ? Vec3{} : normals[i], width);
+      const Vec3 n = normals.empty() ? Vec3{} : normals[i];
+      out[i] = casters && casters->shadowed(light, points[i], n) ? 0 : q.litTexels(light, points[i], n, width);
     }
   });
 }
@@ -149,16 +152,24 @@ std::vector<uint8_t> sliceBoundaryBytes(const LightBundle& bundle) {
 }
 
 struct GpuLights::Impl {
+  GpuDevice::Impl& device;
   std::shared_ptr<const LightArtifact> artifact;
   QueryKernel kernel;
+  // Lookups with dynamic casters, made when casters are first set (the pool uploaded a
+  // second time then, and never for a game that sets none); their trees replaced each frame.
+  std::unique_ptr<QueryKernel> withCasters;
+  std::shared_ptr<const LightCasters> casters;
+  size_t casterOverflows = 0;
   Impl(GpuDevice::Impl& g, std::shared_ptr<const LightArtifact> a)
-      : artifact(std::move(a)),
-        kernel(g, *artifact->bundle().pool, GpuGrid{},
-               {{kLightTableBinding, lightTableBytes(artifact->bundle())},
-                {kLightTableBinding + 1,
-                 gridTableBytes(artifact->bundle(), uint32_t(std::countr_zero(g.bindingLimit / 4)))},
-                {kLightTableBinding + 2, sliceBoundaryBytes(artifact->bundle())}},
-               {lightQueryShaderOneBuffer(), lightQueryShaderEightBuffers(), true, kLightWordBinding}, "the light bundle") {}
+      : device(g),
+        artifact(std::move(a)),
+        kernel(g, *artifact->bundle().pool, GpuGrid{}, tables(), {lightQueryShaderOneBuffer(), lightQueryShaderEightBuffers(), true, kLightWordBinding},
+               "the light bundle") {}
+  std::vector<QueryKernel::Table> tables() const {
+    return {{kLightTableBinding, lightTableBytes(artifact->bundle())},
+            {kLightTableBinding + 1, gridTableBytes(artifact->bundle(), uint32_t(std::countr_zero(device.bindingLimit / 4)))},
+            {kLightTableBinding + 2, sliceBoundaryBytes(artifact->bundle())}};
+  }
 };
 
 GpuLights::GpuLights(GpuDevice& device, std::shared_ptr<const LightArtifact> artifact) {
@@ -169,19 +180,53 @@ GpuLights::GpuLights(GpuDevice& device, std::shared_ptr<const LightArtifact> art
 
 GpuLights::~GpuLights() = default;
 
-double GpuLights::lastDeviceNanoseconds() const { return impl_->kernel.lastDeviceNanoseconds(); }
+double GpuLights::lastDeviceNanoseconds() const {
+  return (impl_->casters ? *impl_->withCasters : impl_->kernel).lastDeviceNanoseconds();
+}
 int GpuLights::wordBindings() const { return impl_->kernel.wordBindings(); }
 const LightArtifact& GpuLights::artifact() const { return *impl_->artifact; }
 
+void GpuLights::setDynamicCasters(std::shared_ptr<const LightCasters> casters) {
+  Impl& m = *impl_;
+  if (casters) {
+    if (!m.withCasters) {
+      std::vector<QueryKernel::Table> tables = m.tables();
+      tables.push_back({kCasterTreeBinding, casters->headerBytes()});
+      tables.push_back({kCasterTreeBinding + 1, casters->nodeBytes()});
+      m.withCasters = std::make_unique<QueryKernel>(
+          m.device, *m.artifact->bundle().pool, GpuGrid{}, std::move(tables),
+          QueryKernel::Shaders{lightCasterShaderOneBuffer(), lightCasterShaderEightBuffers(), true, kLightWordBinding},
+          "the light bundle");
+    } else {
+      m.withCasters->replaceTable(kCasterTreeBinding, casters->headerBytes());
+      m.withCasters->replaceTable(kCasterTreeBinding + 1, casters->nodeBytes());
+    }
+  }
+  m.casters = std::move(casters);
+}
+
+size_t GpuLights::lastCasterOverflows() const { return impl_->casterOverflows; }
+
 void GpuLights::litTexels(const std::vector<uint32_t>& lights, const std::vector<Vec3>& points,
                           const std::vector<Vec3>& normals, int pcf, std::vector<uint32_t>& out) {
-  checkQueries(*impl_->artifact, lights, points, normals, pcf);
+  Impl& m = *impl_;
+  checkQueries(*m.artifact, lights, points, normals, pcf);
+  QueryKernel& kernel = m.casters ? *m.withCasters : m.kernel;
   if (lights.size() == 1 && points.size() != 1) {
     const std::vector<uint32_t> each(points.size(), lights[0]);
-    impl_->kernel.run(points, normals, each, pcf, out);
-    return;
+    kernel.run(points, normals, each, pcf, out);
+  } else {
+    kernel.run(points, normals, lights, pcf, out);
   }
-  impl_->kernel.run(points, normals, lights, pcf, out);
+  // Bit 31: the walk of that light's casters' tree needed a deeper stack than the shader's.
+  m.casterOverflows = 0;
+  if (!m.casters) return;
+  for (size_t i = 0; i < out.size(); ++i)
+    if (out[i] & 0x80000000u) {
+      ++m.casterOverflows;
+      const uint32_t light = lights.size() == 1 ? lights[0] : lights[i];
+      out[i] = m.casters->shadowed(light, points[i], normals.empty() ? Vec3{} : normals[i]) ? 0 : out[i] & 0x7fffffffu;
+    }
 }
 
 void GpuLights::softVisibility(const std::vector<uint32_t>& areas, const std::vector<Vec3>& points,

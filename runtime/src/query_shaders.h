@@ -27,6 +27,10 @@ SpirvCode segmentShaderEightBuffers();
 /// An artifact's lookups times its dynamic casters' shadow (cpvs_caster_query.comp).
 SpirvCode casterShaderOneBuffer();
 SpirvCode casterShaderEightBuffers();
+/// A light bundle's lookups times its dynamic casters' shadows (cpvs_light_query.comp
+/// with CPVS_QUERY_CASTERS).
+SpirvCode lightCasterShaderOneBuffer();
+SpirvCode lightCasterShaderEightBuffers();
 /// Dynamic casters' tree inserted on the device (cpvs_caster_build.comp); reads no words.
 SpirvCode casterBuildShader();
 

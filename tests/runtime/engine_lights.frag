@@ -1,7 +1,8 @@
 // How an engine shades the sun and a light bundle's local lights in one lighting shader
 // with cpvs_shadow.glsl: both artifacts bound side by side in its own set, the sun's
 // words in one buffer and the bundle's pool split across two; the sun's light also
-// blocked by what moves (the dynamic casters' tree after them, binding 9). Compiled by the test suite
+// and every lamp's blocked by what moves (the dynamic casters' trees after them: the
+// sun's at binding 9, the lamps' headers and nodes at 10 and 11). Compiled by the test suite
 // (glslc) so that the installed include keeps compiling outside the library's shaders.
 #version 450
 #extension GL_GOOGLE_include_directive : require
@@ -12,6 +13,7 @@
 #define CPVS_LIGHT_BINDING 4
 #define CPVS_LIGHT_WORD_BUFFERS 2
 #define CPVS_CASTERS
+#define CPVS_LIGHT_CASTERS
 #include "cpvs_shadow.glsl"
 
 layout(location = 0) in vec3 worldPosition;
@@ -28,7 +30,7 @@ void main() {
     if (d > l.range) continue;
     const vec3 w = toLight / d;
     if (dot(-w, vec3(l.direction[0], l.direction[1], l.direction[2])) < l.cosCone) continue;
-    const float v = cpvsLightVisibility(i, worldPosition, worldNormal, 9u);
+    const float v = cpvsLightVisibilityWithCasters(i, worldPosition, worldNormal, 9u);
     c += vec3(l.colour[0], l.colour[1], l.colour[2]) * (l.intensity * v * max(dot(n, w), 0.0) / max(d * d, 1.0));
   }
   color = vec4(c, 1.0);

@@ -225,6 +225,19 @@ TEST(GpuSegments, SunShaftsAnswerAsTheCpu) {
   expectNoValidationMessages(device());
 }
 
+// 1,500 slivers of radius r stacked `rise` apart and each turned by the golden angle about
+// one vertical axis: every one crosses the others' frusta (seed 003's unavoidable case).
+CasterMesh sliverFan(double r, double rise) {
+  CasterMesh fan;
+  for (uint32_t i = 0; i < 1500; ++i) {
+    const double a = 2.399963 * i, h = rise * i;
+    const Vec3 d{std::cos(a), 0, std::sin(a)}, side{-std::sin(a), 0, std::cos(a)};
+    fan.positions.insert(fan.positions.end(), {d * -r + Vec3{0, h, 0}, d * r + Vec3{0, h, 0}, side * 0.02 * r + Vec3{0, h, 0}});
+    fan.indices.insert(fan.indices.end(), {3 * i, 3 * i + 1, 3 * i + 2});
+  }
+  return fan;
+}
+
 // A box (closed), a tilted open sheet and a sliver fan over the city, placed for frame
 // `t` by rotating transforms: what moves in a game. The fan (slivers stacked and turned
 // about one axis, each crossing the others' frusta) is seed 003's unavoidable case, deep
@@ -250,14 +263,7 @@ std::vector<CasterMesh> movingCasters(const Baked& b, double t, bool fan) {
   sheet.transform = turned(-0.4 * t, lo + Vec3{0.55 * size.x, 0.7 * size.y, (0.5 - 0.05 * t) * size.z});
   meshes.push_back(sheet);
   if (fan) {
-    CasterMesh slivers;
-    const double r = 0.15 * std::min(size.x, size.z);
-    for (uint32_t i = 0; i < 1500; ++i) {
-      const double a = 2.399963 * i, h = 0.001 * size.y * i;
-      const Vec3 d{std::cos(a), 0, std::sin(a)}, side{-std::sin(a), 0, std::cos(a)};
-      slivers.positions.insert(slivers.positions.end(), {d * -r + Vec3{0, h, 0}, d * r + Vec3{0, h, 0}, side * 0.02 * r + Vec3{0, h, 0}});
-      slivers.indices.insert(slivers.indices.end(), {3 * i, 3 * i + 1, 3 * i + 2});
-    }
+    CasterMesh slivers = sliverFan(0.15 * std::min(size.x, size.z), 0.001 * size.y);
     slivers.transform = turned(t, lo + Vec3{0.5 * size.x, 0.75 * size.y, 0.5 * size.z});
     meshes.push_back(slivers);
   }
@@ -291,6 +297,19 @@ void casterQueries(const Baked& b, const DynamicCasters& casters, const std::vec
       points.push_back(on + dir * (unit(rng) * 200 * casters.normalOffset()));
       normals.push_back(Vec3{0, 1, 0});
     }
+}
+
+// The meshes as the C API takes them (their positions as doubles kept in `xyz`).
+std::vector<CpvsCasterMesh> cMeshesOf(const std::vector<CasterMesh>& meshes, std::vector<std::vector<double>>& xyz) {
+  std::vector<CpvsCasterMesh> c(meshes.size());
+  xyz.assign(meshes.size(), {});
+  for (size_t k = 0; k < meshes.size(); ++k) {
+    for (const Vec3& v : meshes[k].positions) xyz[k].insert(xyz[k].end(), {v.x, v.y, v.z});
+    c[k] = CpvsCasterMesh{xyz[k].data(), meshes[k].positions.size(), meshes[k].indices.data(), meshes[k].indices.size() / 3,
+                          meshes[k].closed.empty() ? nullptr : meshes[k].closed.data(), {}};
+    std::copy(meshes[k].transform.begin(), meshes[k].transform.end(), c[k].transform);
+  }
+  return c;
 }
 
 TEST(GpuDynamicCasters, MovingCastersAnswerAsTheCpu) {
@@ -367,14 +386,8 @@ TEST(GpuDynamicCasters, MovingCastersAnswerAsTheCpu) {
   // The C API: casters set on a device handle and a CPU one answer alike, and the buffer an
   // engine binds is gpuBytes().
   const std::vector<CasterMesh> meshes = movingCasters(b, 1.0, false);
-  std::vector<CpvsCasterMesh> c(meshes.size());
-  std::vector<std::vector<double>> positions(meshes.size());
-  for (size_t k = 0; k < meshes.size(); ++k) {
-    for (const Vec3& v : meshes[k].positions) positions[k].insert(positions[k].end(), {v.x, v.y, v.z});
-    c[k] = CpvsCasterMesh{positions[k].data(), meshes[k].positions.size(), meshes[k].indices.data(),
-                          meshes[k].indices.size() / 3, meshes[k].closed.empty() ? nullptr : meshes[k].closed.data(), {}};
-    std::copy(meshes[k].transform.begin(), meshes[k].transform.end(), c[k].transform);
-  }
+  std::vector<std::vector<double>> positions;
+  std::vector<CpvsCasterMesh> c = cMeshesOf(meshes, positions);
   CpvsDeviceDesc desc{nullptr, 1, 0};
   CpvsDevice dev = nullptr;
   ASSERT_EQ(cpvsNewDevice(&desc, &dev), CPVS_OK) << cpvsGetLastError();
@@ -746,17 +759,20 @@ TEST(GpuLightLookups, SoftShadowsAnswerAsTheCpu) {
   cpvsReleaseDevice(cDevice);
 }
 
-// A light bundle on the device: two spot lights (one with its range short of the scene)
-// and a point light's cube over a small city, answered as BundleQuery answers, bit for
-// bit, for every filter width: surface points in each cone with their normals; points
-// spread over each grid's voxels and beyond its sides, in front of near, beyond far and
-// behind the light, many exactly on a texel edge or a slice boundary (or a hair off
-// one), with zero, NaN, tiny and random normals.
-TEST(GpuLightLookups, ABundleAnswersAsTheCpu) {
-  const Scene scene = openScene("city:3");
-  Vec3 lo, hi;
-  sceneBounds(scene, lo, hi);
-  const Vec3 c = (lo + hi) * 0.5, e = hi - lo;
+// Up to `count` surface points in grid k's cone (sampleSpotSurfaces), with its light.
+void appendGridSurfaces(const Scene& scene, const RayScene& rays, const LightBundle& bundle, size_t k, uint64_t count,
+                        std::vector<uint32_t>& which, std::vector<Vec3>& points, std::vector<Vec3>& normals) {
+  const BundleGrid& g = bundle.grids[k];
+  for (const SurfaceSample& s : sampleSpotSurfaces(scene, rays, ClosedMode::Auto, g.grid, g.tanCone, count, k + 1)) {
+    which.push_back(g.light);
+    points.push_back(s.point);
+    normals.push_back(s.normal);
+  }
+}
+
+// Two spots (one with a short range) and a point light over the city's centre c, whose
+// extent is e.
+std::vector<Light> threeLamps(const Vec3& c, const Vec3& e) {
   std::vector<Light> lights(3);
   lights[0].name = "wide";
   lights[0].position = c + Vec3{-0.15 * e.x, 0.4 * e.y, 0.1 * e.z};
@@ -774,6 +790,124 @@ TEST(GpuLightLookups, ABundleAnswersAsTheCpu) {
   lights[2].position = c + Vec3{-0.05 * e.x, 0.25 * e.y, -0.1 * e.z};
   lights[2].range = 0.5 * length(e);
   lights[2].log2Resolution = 7;
+  return lights;
+}
+
+// Dynamic casters under a bundle's lights: a box and a sliver fan over the city, each
+// light's tree of point-light frusta answering as the brute force, the device as the CPU
+// (the fan's deep walks answered on the CPU), the lights out of the casters' reach with
+// no tree.
+TEST(GpuLightLookups, DynamicCastersShadowEachLight) {
+  const Scene scene = openScene("city:3");
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const Vec3 c = (lo + hi) * 0.5, e = hi - lo;
+  std::vector<Light> lights = threeLamps(c, e);
+  lights[1].name = "far away";  // beyond the casters' reach
+  lights[1].position = c + Vec3{0.45 * e.x, -0.3 * e.y, -0.45 * e.z};
+  lights[1].range = 0.15 * length(e);
+  const auto artifact = std::make_shared<const LightArtifact>(bakeLights(scene, lights, 0, BakeOptions{}, sceneHash(scene)));
+  const LightBundle& bundle = artifact->bundle();
+
+  // A box under the wide light, and a fan of slivers crossing each other's frusta under the bulb.
+  Scene box;
+  appendBox(box, Vec3{-0.04 * e.x, 0, -0.04 * e.z}, Vec3{0.04 * e.x, 0.03 * e.y, 0.04 * e.z});
+  finalizeScene(box);
+  std::vector<CasterMesh> meshes{{box.positions, box.indices, box.closed, {}}};
+  meshes[0].transform = {1, 0, 0, lights[0].position.x, 0, 1, 0, lights[0].position.y - 0.2 * e.y, 0, 0, 1,
+                         lights[0].position.z};
+  CasterMesh fan = sliverFan(0.05 * std::min(e.x, e.z), 0.0002 * e.y);
+  fan.transform = {1, 0, 0, lights[2].position.x, 0, 1, 0, lights[2].position.y - 0.15 * e.y, 0, 0, 1, lights[2].position.z};
+  meshes.push_back(fan);
+  auto casters = std::make_shared<const LightCasters>(*artifact, meshes);
+  EXPECT_NE(casters->tree(0), nullptr);
+  EXPECT_EQ(casters->tree(1), nullptr) << "the casters are beyond its range";
+  EXPECT_NE(casters->tree(2), nullptr);
+
+  std::vector<uint32_t> which;
+  std::vector<Vec3> points, normals;
+  const RayScene rays(scene, c);
+  for (size_t k = 0; k < bundle.grids.size(); ++k) appendGridSurfaces(scene, rays, bundle, k, 1500, which, points, normals);
+  uint64_t inShadow = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const TopTree* t = casters->tree(which[i]);
+    const bool shadowed = casters->shadowed(which[i], points[i], normals[i]);
+    EXPECT_EQ(shadowed, t && t->inAnyFrustum(points[i] + normals[i] * casters->normalOffset(which[i]))) << i;
+    inShadow += shadowed;
+  }
+  EXPECT_GT(inShadow, points.size() / 50);
+  GpuLights gpu(device(), artifact);
+  gpu.setDynamicCasters(casters);
+  for (int pcf : {1, 3}) {
+    std::vector<uint32_t> onGpu, onCpu, baked;
+    gpu.litTexels(which, points, normals, pcf, onGpu);
+    cpuLightLitTexels(*artifact, which, points, normals, pcf, onCpu, casters.get());
+    cpuLightLitTexels(*artifact, which, points, normals, pcf, baked);
+    EXPECT_EQ(mismatches(onGpu, onCpu), 0u) << "pcf " << pcf;
+    uint64_t changed = 0;
+    for (size_t i = 0; i < points.size(); ++i) changed += onCpu[i] != baked[i];
+    EXPECT_GT(changed, points.size() / 100) << "pcf " << pcf;
+  }
+  EXPECT_GT(gpu.lastCasterOverflows(), 0u) << "the fan's deep walks overflow the shader's stack somewhere";
+
+  // The C API: on a device and on the CPU alike, and the buffers an engine binds.
+  const std::string file = ::testing::TempDir() + "light-casters.cpvs";
+  writeBundle(file, bundle, true);
+  std::vector<std::vector<double>> xyz;
+  const std::vector<CpvsCasterMesh> cMeshes = cMeshesOf(meshes, xyz);
+  std::vector<double> p, n;
+  for (size_t i = 0; i < points.size(); ++i) {
+    p.insert(p.end(), {points[i].x, points[i].y, points[i].z});
+    n.insert(n.end(), {normals[i].x, normals[i].y, normals[i].z});
+  }
+  std::vector<uint32_t> want;
+  cpuLightLitTexels(*artifact, which, points, normals, 3, want, casters.get());
+  CpvsDeviceDesc desc{nullptr, 1, 0};
+  CpvsDevice cDevice = nullptr;
+  ASSERT_EQ(cpvsNewDevice(&desc, &cDevice), CPVS_OK) << cpvsGetLastError();
+  for (CpvsDevice d : {cDevice, CpvsDevice(nullptr)}) {
+    CpvsLights h = nullptr;
+    ASSERT_EQ(cpvsOpenLights(file.c_str(), d, 0, &h), CPVS_OK) << cpvsGetLastError();
+    ASSERT_EQ(cpvsSetLightCasters(h, cMeshes.data(), cMeshes.size(), -1), CPVS_OK) << cpvsGetLastError();
+    std::vector<uint32_t> got(points.size());
+    ASSERT_EQ(cpvsQueryLights(h, points.size(), which.data(), which.size(), p.data(), n.data(), 3, got.data()), CPVS_OK);
+    EXPECT_EQ(got, want) << (d ? "on a device" : "on the CPU");
+    const void* data = nullptr;
+    size_t bytes = 0;
+    ASSERT_EQ(cpvsGetLightBuffer(h, CPVS_LIGHT_BUFFER_CASTER_TREES, &data, &bytes), CPVS_OK);
+    EXPECT_EQ(bytes, 64 * bundle.lights.size());
+    ASSERT_EQ(cpvsGetLightBuffer(h, CPVS_LIGHT_BUFFER_CASTER_NODES, &data, &bytes), CPVS_OK);
+    EXPECT_EQ(bytes, 32 * (casters->tree(0)->nodes().size() + casters->tree(2)->nodes().size()));
+    ASSERT_EQ(cpvsSetLightCasters(h, nullptr, 0, -1), CPVS_OK);
+    ASSERT_EQ(cpvsQueryLights(h, points.size(), which.data(), which.size(), p.data(), n.data(), 3, got.data()), CPVS_OK);
+    std::vector<uint32_t> plain;
+    cpuLightLitTexels(*artifact, which, points, normals, 3, plain);
+    EXPECT_EQ(got, plain);
+    cpvsReleaseLights(h);
+  }
+  EXPECT_EQ(cpvsGetValidationMessageCount(cDevice), 0u);
+  cpvsReleaseDevice(cDevice);
+
+  gpu.setDynamicCasters(nullptr);
+  std::vector<uint32_t> onGpu, onCpu;
+  gpu.litTexels(which, points, normals, 3, onGpu);
+  cpuLightLitTexels(*artifact, which, points, normals, 3, onCpu);
+  EXPECT_EQ(onGpu, onCpu);
+  expectNoValidationMessages(device());
+}
+
+// A light bundle on the device: two spot lights (one with its range short of the scene)
+// and a point light's cube over a small city, answered as BundleQuery answers, bit for
+// bit, for every filter width: surface points in each cone with their normals; points
+// spread over each grid's voxels and beyond its sides, in front of near, beyond far and
+// behind the light, many exactly on a texel edge or a slice boundary (or a hair off
+// one), with zero, NaN, tiny and random normals.
+TEST(GpuLightLookups, ABundleAnswersAsTheCpu) {
+  const Scene scene = openScene("city:3");
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  const Vec3 c = (lo + hi) * 0.5, e = hi - lo;
+  const std::vector<Light> lights = threeLamps(c, e);
   const auto artifact = std::make_shared<const LightArtifact>(bakeLights(scene, lights, 0, BakeOptions{}, sceneHash(scene)));
   const LightBundle& bundle = artifact->bundle();
   ASSERT_EQ(bundle.grids.size(), 8u);
@@ -786,11 +920,7 @@ TEST(GpuLightLookups, ABundleAnswersAsTheCpu) {
   const RayScene rays(scene, c);
   for (size_t k = 0; k < bundle.grids.size(); ++k) {
     const BundleGrid& g = bundle.grids[k];
-    for (const SurfaceSample& s : sampleSpotSurfaces(scene, rays, ClosedMode::Auto, g.grid, g.tanCone, 600, k + 1)) {
-      which.push_back(g.light);
-      points.push_back(s.point);
-      normals.push_back(s.normal);
-    }
+    appendGridSurfaces(scene, rays, bundle, k, 600, which, points, normals);
     const double R = double(g.grid.resolution());
     const double hairs[] = {0, 1e-9, -1e-9};
     for (int i = 0; i < 900; ++i) {

@@ -158,9 +158,17 @@ typedef enum CpvsLightBuffer {
   CPVS_LIGHT_BUFFER_WORDS = 0,
   CPVS_LIGHT_BUFFER_LIGHTS = 1,
   CPVS_LIGHT_BUFFER_GRIDS = 2,
-  CPVS_LIGHT_BUFFER_BOUNDARIES = 3
+  CPVS_LIGHT_BUFFER_BOUNDARIES = 3,
+  CPVS_LIGHT_BUFFER_CASTER_TREES = 4, /* CpvsLightCasters (CPVS_LIGHT_CASTERS) of the casters last set; 0 bytes: none */
+  CPVS_LIGHT_BUFFER_CASTER_NODES = 5  /* CpvsLightCasterNodes */
 } CpvsLightBuffer;
 CpvsStatus cpvsGetLightBuffer(CpvsLights lights, CpvsLightBuffer which, const void** data, size_t* bytes);
+/* This frame's dynamic casters under the bundle's lights (meshCount 0: none), as
+ * cpvsSetDynamicCasters for the sun: a tree of each spot or point light whose range the
+ * casters enter, built on the CPU; every later cpvsQueryLights answers 0 lit texels where
+ * a caster shadows the point from that light (asked normalOffset along its normal; < 0:
+ * per light one texel of its grid at its range). Area lights' soft lookups ignore them. */
+CpvsStatus cpvsSetLightCasters(CpvsLights lights, const CpvsCasterMesh* meshes, size_t meshCount, double normalOffset);
 
 /* The message of this thread's last failure ("" when none). */
 const char* cpvsGetLastError(void);

@@ -152,12 +152,40 @@ class DynamicCasters {
   mutable std::unique_ptr<TopTree> cpuTree_;  // Build::Device: the CPU's own, made when first asked
 };
 
+/// What moves, casting exact hard shadows from a light bundle's lights: a TOP tree of
+/// point-light frusta for each spot or point light whose reach (its grids' far) the
+/// casters enter, built on the CPU; none for the others. An area light's VPLs get none:
+/// soft lookups do not see dynamic casters.
+class LightCasters {
+ public:
+  /// As DynamicCasters'; normalOffset < 0: for each light one texel of its first grid at
+  /// its far plane.
+  LightCasters(const LightArtifact& artifact, const std::vector<CasterMesh>& meshes, double normalOffset = -1);
+
+  /// Light i's tree, or null.
+  const TopTree* tree(size_t light) const { return trees_[light].get(); }
+  double normalOffset(size_t light) const { return offsets_[light]; }
+  size_t triangleCount() const { return triangles_; }
+  /// Whether the point, moved light's normal offset along n, is in a caster's shadow.
+  bool shadowed(size_t light, const Vec3& p, const Vec3& n) const;
+  /// cpvs_shadow.glsl's CpvsLightCasters (CPVS_LIGHT_CASTERS): a 64-byte header a light,
+  /// as CpvsCasters' with where its tree starts among the nodes (root 0: no tree), and
+  /// CpvsLightCasterNodes, every tree's nodes one after another.
+  std::vector<uint8_t> headerBytes() const;
+  std::vector<uint8_t> nodeBytes() const;
+
+ private:
+  std::vector<std::unique_ptr<TopTree>> trees_;
+  std::vector<double> offsets_;
+  size_t triangles_ = 0;
+};
+
 /// Lit texel counts, on the CPU, of light lights[i] at each (point, normal), as
 /// BundleQuery answers them, over all cores. One light per point (or one for all);
 /// InvalidArgument for a light index out of range.
 void cpuLightLitTexels(const LightArtifact& artifact, const std::vector<uint32_t>& lights,
                        const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
-                       std::vector<uint32_t>& out);
+                       std::vector<uint32_t>& out, const LightCasters* casters = nullptr);
 
 /// Soft visibility, on the CPU, of area light areas[i] (0-based; one per point, or one
 /// for all) at each (point, normal), as BundleQuery::softVisibility answers it, over all
@@ -294,6 +322,11 @@ class GpuLights {
   /// as cpuLightLitTexels answers them. DeviceLost when the device stops answering.
   void litTexels(const std::vector<uint32_t>& lights, const std::vector<Vec3>& points,
                  const std::vector<Vec3>& normals, int pcf, std::vector<uint32_t>& out);
+  /// This frame's dynamic casters (null: none), in every later litTexels: 0 where they
+  /// shadow the point from that light (the points whose walk overflows the shader's stack
+  /// are answered on the CPU).
+  void setDynamicCasters(std::shared_ptr<const LightCasters> casters);
+  size_t lastCasterOverflows() const;
   /// Soft visibility of area light areas[i] at each (point, normal) on the device
   /// (cpvs_shadow.glsl's cpvsSoftVisibility), as cpuSoftVisibility answers it to the bit.
   void softVisibility(const std::vector<uint32_t>& areas, const std::vector<Vec3>& points,
