@@ -141,7 +141,46 @@ TEST(TopTree, AnswersAsTheBruteForceOnTheCity) {
   }
 }
 
-/// Every triangle below a node's pos (neg) child lies in its closed positive (negative)
+/// Translucent casters: the walk multiplies the transmittance of every frustum holding a
+// point, as the brute force over every frustum does (up to float rounding: the orders
+// differ), and a bounded stack says when it does not suffice.
+TEST(TopTree, TransmittanceIsTheProductOverEveryFrustumHoldingThePoint) {
+  const Scene soup = randomSoup(1200, 21);
+  SplitMix64 rng(5);
+  std::vector<std::array<float, 3>> tint(soup.triangleCount());
+  for (auto& t : tint) t = {float(0.2 + 0.8 * rng.uniform01()), float(0.2 + 0.8 * rng.uniform01()), float(rng.uniform01())};
+  TopTreeOptions options;
+  options.frontFaceCulling = false;
+  for (const PsvLight& light : {PsvLight::sun(normalize(Vec3{0.3, -1, 0.45})), PsvLight::point(Vec3{0.5, 1.6, 0.4})}) {
+    TopTree tree = TopTree::build(soup, light, options);
+    tree.setTransmittance(tint);
+    size_t behindSeveral = 0, overflows = 0;
+    for (const Vec3& p : hardPoints(soup, light, 20000, 9)) {
+      std::array<double, 3> want{1, 1, 1};
+      const std::vector<uint32_t> holding = tree.frustaHolding(p);
+      for (uint32_t k : holding)
+        for (int c = 0; c < 3; ++c) want[c] *= tree.transmittance()[k][c];
+      behindSeveral += holding.size() >= 2;
+      const std::array<float, 3> got = tree.transmittanceAt(p);
+      for (int c = 0; c < 3; ++c) ASSERT_NEAR(got[c], want[c], 1e-6 * want[c] + 1e-30) << holding.size() << " frusta";
+      EXPECT_EQ(holding.empty(), !tree.shadowed(p));
+      std::array<float, 3> bounded;
+      if (tree.transmittanceAt(p, 5, bounded) == TopAnswer::Overflow) {
+        ++overflows;
+      } else {
+        EXPECT_EQ(bounded, got);
+      }
+    }
+    EXPECT_GT(behindSeveral, 1000u) << "points behind several casters";
+    EXPECT_GT(overflows, 0u) << "a stack of 5 does not hold every walk";
+  }
+  TopTree tree = TopTree::build(soup, PsvLight::sun(Vec3{0, -1, 0}), options);
+  EXPECT_THROW(tree.setTransmittance({}), InputError);
+  tint[3][1] = 1.5f;
+  EXPECT_THROW(tree.setTransmittance(tint), InputError);
+}
+
+// Every triangle below a node's pos (neg) child lies in its closed positive (negative)
 /// half-space within the build's tolerance, and its inter child's within the wedge.
 void checkSubtree(const TopTree& tree, const Scene& scene, uint32_t i, std::vector<uint32_t>& frusta) {
   if (i == 0) return;

@@ -351,7 +351,8 @@ void TopTree::link() {
   linked_ = true;
 }
 
-TopAnswer TopTree::query(const Vec3& p, uint32_t stackLimit, TopQueryStats* stats) const {
+template <class Inside>
+TopAnswer TopTree::walk(const Vec3& p, uint32_t stackLimit, TopQueryStats* stats, Inside&& inside) const {
   CPVS_CHECK(linked_);
   TopQueryStats local;
   TopQueryStats& st = stats ? *stats : local;
@@ -404,7 +405,8 @@ TopAnswer TopTree::query(const Vec3& p, uint32_t stackLimit, TopQueryStats* stat
       if (std::fabs(s) <= bound) ok &= push(node.inter);
       if (!ok) return TopAnswer::Overflow;
     } else {
-      if (!(entry & kOutside) && s < 0) return TopAnswer::Shadowed;
+      // p is in frustum i / 4 - 1: the shadow query stops there, the transmittance goes on.
+      if (!(entry & kOutside) && s < 0 && inside(i / 4 - 1)) return TopAnswer::Shadowed;
       bool ok = true;
       if (s < margin) ok &= push(node.neg);
       ok &= push(node.inter);
@@ -413,6 +415,37 @@ TopAnswer TopTree::query(const Vec3& p, uint32_t stackLimit, TopQueryStats* stat
     }
   }
   return TopAnswer::Lit;
+}
+
+TopAnswer TopTree::query(const Vec3& p, uint32_t stackLimit, TopQueryStats* stats) const {
+  return walk(p, stackLimit, stats, [](uint32_t) { return true; });
+}
+
+void TopTree::setTransmittance(const std::vector<std::array<float, 3>>& perTriangle) {
+  if (perTriangle.size() != stats_.triangles)
+    throw InputError("shadow volumes: " + std::to_string(perTriangle.size()) + " transmittances for " +
+                     std::to_string(stats_.triangles) + " triangles");
+  for (const auto& t : perTriangle)
+    for (float c : t)
+      if (!(c >= 0 && c <= 1)) throw InputError("shadow volumes: a transmittance outside [0, 1]");
+  transmittance_.resize(frustumCount());
+  for (size_t k = 0; k < frustumCount(); ++k) transmittance_[k] = perTriangle[triangleOf_[k]];
+}
+
+TopAnswer TopTree::transmittanceAt(const Vec3& p, uint32_t stackLimit, std::array<float, 3>& out,
+                                   TopQueryStats* stats) const {
+  CPVS_CHECK(transmittance_.size() == frustumCount());
+  out = {1, 1, 1};
+  return walk(p, stackLimit, stats, [&](uint32_t k) {
+    for (int c = 0; c < 3; ++c) out[c] *= transmittance_[k][c];
+    return false;
+  });
+}
+
+std::array<float, 3> TopTree::transmittanceAt(const Vec3& p) const {
+  std::array<float, 3> t;
+  transmittanceAt(p, std::numeric_limits<uint32_t>::max(), t);
+  return t;
 }
 
 bool TopTree::shadowed(const Vec3& p) const {

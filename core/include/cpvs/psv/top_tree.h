@@ -4,6 +4,7 @@
 // frame), and it is an exact oracle that shares no code with the ray tracer.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -109,6 +110,19 @@ class TopTree {
   /// The walk with a stack of `stackLimit` entries, as a GPU would: Overflow when it
   /// does not suffice (answer it with shadowed()).
   TopAnswer query(const Vec3& p, uint32_t stackLimit, TopQueryStats* stats = nullptr) const;
+  /// Translucent casters (glass, water, leaves on cards): each frustum's transmittance,
+  /// from one a caller's triangle (RGB, each in [0, 1]); InvalidArgument otherwise. Build
+  /// such a tree without front-face culling: light crosses both sides of a closed pane.
+  void setTransmittance(const std::vector<std::array<float, 3>>& perTriangle);
+  /// By frustum (rank), once set.
+  const std::vector<std::array<float, 3>>& transmittance() const { return transmittance_; }
+  /// The light reaching p through the translucent casters: the product of the
+  /// transmittance of every frustum holding p, per channel (1: none). The walk goes on past
+  /// a capping plane p is behind (seed 003 §3.4), in no particular order; the products
+  /// are the same up to float rounding. stackLimit and Overflow as query()'s.
+  TopAnswer transmittanceAt(const Vec3& p, uint32_t stackLimit, std::array<float, 3>& out,
+                            TopQueryStats* stats = nullptr) const;
+  std::array<float, 3> transmittanceAt(const Vec3& p) const;  // unbounded
   /// Brute force: p is inside one of the frusta by the same predicates.
   bool inAnyFrustum(const Vec3& p) const;
   /// Indices (into nodes' frusta) of every frustum holding p, by brute force.
@@ -135,9 +149,15 @@ class TopTree {
   static float distance(const TopNode& n, const float p[3]);
 
  private:
+  /// The walk of query() and transmittanceAt(): inside(k) is called for each frustum k
+  /// holding p and ends the walk (Shadowed) when it returns true.
+  template <class Inside>
+  TopAnswer walk(const Vec3& p, uint32_t stackLimit, TopQueryStats* stats, Inside&& inside) const;
+
   std::vector<TopNode> nodes_ = std::vector<TopNode>(1, TopNode{{0, 0, 0, 0}, 0, 0, 0, 0});  // index 0: the leaf
   std::vector<uint32_t> triangleOf_;
   std::vector<double> corners_;  // until linked
+  std::vector<std::array<float, 3>> transmittance_;  // by rank, when set
   bool linked_ = true, wedges_ = true;
   PsvLight light_;
   Vec3 origin_;
