@@ -97,10 +97,7 @@ std::array<double, 12> casterTransform(const DynamicFlag& flag, const Scene& mes
 Scene withCaster(const Scene& scene, const runtime::CasterMesh& caster) {
   Scene s = scene;
   const uint32_t base = uint32_t(s.positions.size());
-  const auto& m = caster.transform;
-  for (const Vec3& p : caster.positions)
-    s.positions.push_back({m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
-                           m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]});
+  for (const Vec3& p : caster.positions) s.positions.push_back(caster.place(p));
   for (uint32_t i : caster.indices) s.indices.push_back(base + i);
   for (size_t t = 0; t < caster.indices.size() / 3; ++t) s.closed.push_back(caster.closed.empty() ? 0 : caster.closed[t]);
   s.meshes.clear();

@@ -112,26 +112,22 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
         isNear = rays.closedNesting(p, r.dir, r.length, closed) > 0;
       }
     near += isNear;
+    // An answer that differs from the exact one: near a boundary, or elsewhere (kept as an example).
+    auto differs = [&](std::atomic<uint64_t>& atBoundary, std::atomic<uint64_t>& elsewhere,
+                       std::vector<SurfaceSample>& examples) {
+      if (isNear) {
+        ++atBoundary;
+        return;
+      }
+      ++elsewhere;
+      std::lock_guard lock(examplesMutex);
+      if (examples.size() < 16) examples.push_back(s);
+    };
     if (second) {
       ++compared;
-      if (psvLit(q) != exact) {
-        if (isNear) {
-          ++disagreeNear;
-        } else {
-          ++disagreeElse;
-          std::lock_guard lock(examplesMutex);
-          if (result.disagreementExamples.size() < 16) result.disagreementExamples.push_back(s);
-        }
-      }
+      if (psvLit(q) != exact) differs(disagreeNear, disagreeElse, result.disagreementExamples);
     }
-    if (cpvs == exact) return;
-    if (isNear) {
-      ++badNear;
-    } else {
-      ++badElse;
-      std::lock_guard lock(examplesMutex);
-      if (result.elsewhereExamples.size() < 16) result.elsewhereExamples.push_back(s);
-    }
+    if (cpvs != exact) differs(badNear, badElse, result.elsewhereExamples);
   });
   result.samples = used;
   result.insideClosed = inside;

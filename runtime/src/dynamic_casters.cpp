@@ -30,10 +30,6 @@ struct CasterHeader {
 };
 static_assert(sizeof(CasterHeader) == 64, "cpvs_shadow.glsl's CpvsCasters header is 64 bytes");
 
-Vec3 placed(const std::array<double, 12>& m, const Vec3& p) {
-  return {m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
-          m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]};
-}
 
 /// The meshes placed in the world as one triangle list, each checked.
 struct PlacedMeshes {
@@ -64,7 +60,7 @@ PlacedMeshes placeMeshes(const std::vector<CasterMesh>& meshes) {
     if (out.positions.size() + m.positions.size() > std::numeric_limits<uint32_t>::max())
       throw RuntimeError(Status::InvalidArgument, "the caster meshes have more than 2^32 positions");
     const uint32_t base = uint32_t(out.positions.size());
-    for (const Vec3& p : m.positions) out.positions.push_back(placed(m.transform, p));
+    for (const Vec3& p : m.positions) out.positions.push_back(m.place(p));
     for (uint32_t i : m.indices) out.indices.push_back(base + i);
     for (size_t t = 0; t < triangles; ++t) out.closed.push_back(m.closed.empty() ? 0 : m.closed[t]);
     anyClosed |= !m.closed.empty();

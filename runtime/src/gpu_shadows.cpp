@@ -103,8 +103,10 @@ void GpuShadows::setDynamicCasters(std::shared_ptr<const DynamicCasters> casters
             m.device, std::vector<uint32_t>{0}, m.sunGrid(),
             std::vector<QueryKernel::Table>{{kCasterBinding, bytes}, {kCornerBinding, corners}},
             QueryKernel::Shaders{casterBuildShader(), casterBuildShader(), false, 1}, "the casters' tree");
-      else
-        m.casterBuild->replaceTable(kCasterBinding, bytes), m.casterBuild->replaceTable(kCornerBinding, corners);
+      else {
+        m.casterBuild->replaceTable(kCasterBinding, bytes);
+        m.casterBuild->replaceTable(kCornerBinding, corners);
+      }
       // One query a frustum to insert, its rank for a point.
       std::vector<Vec3> ranks;
       for (size_t r = 1; r < tree.frustumCount(); ++r) ranks.push_back(Vec3{double(r), 0, 0});

@@ -282,12 +282,7 @@ void casterQueries(const Baked& b, const DynamicCasters& casters, const std::vec
     for (int i = 0; i < 4000; ++i) {
       const size_t t = rng() % (m.indices.size() / 3);
       Vec3 c[3];
-      for (int k = 0; k < 3; ++k) {
-        const Vec3 p = m.positions[m.indices[3 * t + k]];
-        const auto& x = m.transform;
-        c[k] = {x[0] * p.x + x[1] * p.y + x[2] * p.z + x[3], x[4] * p.x + x[5] * p.y + x[6] * p.z + x[7],
-                x[8] * p.x + x[9] * p.y + x[10] * p.z + x[11]};
-      }
+      for (int k = 0; k < 3; ++k) c[k] = m.place(m.positions[m.indices[3 * t + k]]);
       const double u = unit(rng), v = unit(rng) * (1 - u);
       const Vec3 on = c[0] + (c[1] - c[0]) * u + (c[2] - c[0]) * v;
       Vec3 n = normalize(cross(c[1] - c[0], c[2] - c[0]));

@@ -452,26 +452,26 @@ bool TopTree::shadowed(const Vec3& p) const {
   return query(p, std::numeric_limits<uint32_t>::max()) == TopAnswer::Shadowed;
 }
 
+bool TopTree::holds(size_t k, const float x[3]) const {
+  for (int j = 0; j < 4; ++j)
+    if (!(distance(nodes_[4 * k + 1 + j], x) < 0)) return false;
+  return true;
+}
+
 std::vector<uint32_t> TopTree::frustaHolding(const Vec3& p) const {
   float x[3];
   relative(p, x);
   std::vector<uint32_t> out;
-  for (size_t k = 0; k < frustumCount(); ++k) {
-    bool inside = true;
-    for (int j = 0; j < 4 && inside; ++j) inside = distance(nodes_[4 * k + 1 + j], x) < 0;
-    if (inside) out.push_back(uint32_t(k));
-  }
+  for (size_t k = 0; k < frustumCount(); ++k)
+    if (holds(k, x)) out.push_back(uint32_t(k));
   return out;
 }
 
 bool TopTree::inAnyFrustum(const Vec3& p) const {
   float x[3];
   relative(p, x);
-  for (size_t k = 0; k < frustumCount(); ++k) {
-    bool inside = true;
-    for (int j = 0; j < 4 && inside; ++j) inside = distance(nodes_[4 * k + 1 + j], x) < 0;
-    if (inside) return true;
-  }
+  for (size_t k = 0; k < frustumCount(); ++k)
+    if (holds(k, x)) return true;
   return false;
 }
 

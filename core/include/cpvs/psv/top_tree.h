@@ -153,6 +153,8 @@ class TopTree {
   /// holding p and ends the walk (Shadowed) when it returns true.
   template <class Inside>
   TopAnswer walk(const Vec3& p, uint32_t stackLimit, TopQueryStats* stats, Inside&& inside) const;
+  /// Whether frustum k holds the point x (relative): all four distances < 0.
+  bool holds(size_t k, const float x[3]) const;
 
   std::vector<TopNode> nodes_ = std::vector<TopNode>(1, TopNode{{0, 0, 0, 0}, 0, 0, 0, 0});  // index 0: the leaf
   std::vector<uint32_t> triangleOf_;

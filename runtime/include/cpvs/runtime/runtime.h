@@ -105,6 +105,13 @@ struct CasterMesh {
   std::vector<uint8_t> closed;
   /// Where it is: world = [M | t] (p, 1), a row-major 3x4 affine transform.
   std::array<double, 12> transform{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+
+  /// A point of its own space in the world.
+  Vec3 place(const Vec3& p) const {
+    const auto& m = transform;
+    return {m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
+            m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]};
+  }
 };
 
 /// What moves in one frame, casting exact hard shadows from an artifact's sun onto the
