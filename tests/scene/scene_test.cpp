@@ -347,6 +347,41 @@ TEST(SceneMeshes, WithoutMeshesLeavesOutExactlyTheNamedTriangles) {
   EXPECT_NE(sceneHash(unnamed), sceneHash(all));
 }
 
+// Translucent meshes: the opaque part is the scene without them (closed parts classified
+// again), the translucent casters are exactly their triangles with their transmittance,
+// and the hash takes a transmittance only where there is one.
+TEST(SceneMeshes, TranslucentMeshesAreSplitFromTheOpaquePart) {
+  Scene s;
+  appendCube(s, {0, 0, 0});       // the house
+  appendCube(s, {3, 0, 0}, 0.5);  // a glass box, one side of it tinted
+  s.meshes = {{"house", "walls", "brick", 0, 12}, {"box", "panes", "glass", 12, 10}, {"box", "lid", "metal", 22, 2}};
+  finalizeScene(s);
+  const Hash128 opaqueHash = sceneHash(s);
+  EXPECT_FALSE(hasTranslucentMeshes(s));
+  EXPECT_EQ(opaquePart(s).indices, s.indices);
+  EXPECT_EQ(translucentCasters(s).triangleCount(), 0u);
+
+  s.meshes[1].transmittance = {0.9f, 0.8f, 0.5f};
+  EXPECT_TRUE(hasTranslucentMeshes(s));
+  EXPECT_NE(sceneHash(s), opaqueHash) << "a scene with glass bakes otherwise";
+  const Scene opaque = opaquePart(s);
+  ASSERT_EQ(opaque.triangleCount(), 14u);
+  for (size_t t = 0; t < 12; ++t)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(opaque.vertex(t, c), s.vertex(t, c));
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(opaque.vertex(12, c), s.vertex(22, c)) << "the lid stays";
+  EXPECT_EQ(std::count(opaque.closed.begin(), opaque.closed.end(), 1), 12) << "the box cut open is open; the house is closed";
+  const TranslucentCasters glass = translucentCasters(s);
+  EXPECT_EQ(glass.meshes, 1u);
+  ASSERT_EQ(glass.triangleCount(), 10u);
+  for (size_t t = 0; t < 10; ++t) {
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(glass.positions[glass.indices[3 * t + c]], s.vertex(12 + t, c));
+    EXPECT_EQ(glass.transmittance[t], (std::array<float, 3>{0.9f, 0.8f, 0.5f}));
+  }
+  Scene other = s;
+  other.meshes[1].transmittance[2] = 0.25f;
+  EXPECT_NE(sceneHash(other), sceneHash(s));
+}
+
 TEST(SceneHash, HexIsHiThenLo) {
   const Hash128 h{0x0123456789abcdefull, 0xfedcba9876543210ull};
   EXPECT_EQ(h.hex(), "fedcba98765432100123456789abcdef");
@@ -502,6 +537,51 @@ TEST(SceneImport, VolumeMaterialsAreMedia) {
   ASSERT_EQ(scene.media.size(), 1u);
   EXPECT_EQ(scene.media[0].material, "haze");
   EXPECT_NEAR(scene.media[0].absorption, (std::log(2.0) + std::log(4.0)) / 2.0 / 3.0, 1e-6);
+}
+
+// A material's constant transmittance: glTF's transmission tinted by the base colour,
+// alpha by alphaMode (BLEND: the base colour's alpha, MASK: by the cutoff, OPAQUE: none),
+// an OBJ's dissolve `d`; no material, or an opaque one, lets nothing through.
+TEST(SceneImport, MaterialsGiveTheirTransmittance) {
+  TempDir dir;
+  const std::vector<float> positions{0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const std::vector<uint16_t> indices{0, 1, 2};
+  struct Case {
+    const char* name;
+    const char* material;
+    std::array<float, 3> expected;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"glass", R"({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.5, 0.25, 1.0]},
+                         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.8}}})",
+            {0.8f, 0.4f, 0.2f}},
+           {"veil", R"({"alphaMode": "BLEND", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 0.25]}})",
+            {0.75f, 0.75f, 0.75f}},
+           {"tinted", R"({"alphaMode": "BLEND", "pbrMetallicRoughness": {"baseColorFactor": [0.5, 1.0, 1.0, 0.5]},
+                          "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}})",
+            {0.75f, 1.0f, 1.0f}},
+           {"cutout", R"({"alphaMode": "MASK", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 0.25]}})",
+            {1.0f, 1.0f, 1.0f}},
+           {"kept", R"({"alphaMode": "MASK", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 0.75]}})",
+            {0.0f, 0.0f, 0.0f}},
+           {"solid", R"({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 0.25]}})", {0.0f, 0.0f, 0.0f}}}) {
+    const std::string path = writeGltf(dir, c.name, positions, indices, R"([{"name": "tri", "mesh": 0}])",
+                                       std::string(R"(
+  "extensionsUsed": ["KHR_materials_transmission"],
+  "materials": [)") + c.material + "],",
+                                       0);
+    const Scene scene = loadScene(path);
+    ASSERT_EQ(scene.meshes.size(), 1u);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(scene.meshes[0].transmittance[k], c.expected[k], 1e-6) << c.name << " channel " << k;
+  }
+  dir.write("pane.mtl", "newmtl pane\nKd 1 1 1\nd 0.4\nnewmtl wall\nKd 1 1 1\nd 1\n");
+  const Scene obj = loadScene(dir.write("pane.obj", "mtllib pane.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
+                                                     "o pane\nusemtl pane\nf 1 2 3\no wall\nusemtl wall\nf 1 2 4\n"));
+  ASSERT_EQ(obj.meshes.size(), 2u);
+  for (const SceneMesh& m : obj.meshes)
+    for (float t : m.transmittance) EXPECT_NEAR(t, m.material == "pane" ? 0.6f : 0.0f, 1e-6) << m.material;
+  const Scene none = loadScene(writeGltf(dir, "plain", positions, indices, R"([{"name": "tri", "mesh": 0}])"));
+  EXPECT_FALSE(hasTranslucentMeshes(none));
 }
 
 TEST(SceneImport, GltfInstancesUnderNodeTransforms) {

@@ -981,7 +981,8 @@ TEST(Hardening, R6_ASceneMeshFileRoundTripsAndDamageIsRefused) {
   scene.lights.push_back(SceneLight{"lamp", SceneLight::Type::Spot, {1, 2, 3}, {0, -1, 0}, {2, 1, 1}, 20, 30, 12.5, {}, {}});
   scene.media.push_back(SceneMedium{"fog", 0.25});
   const uint32_t half = uint32_t(scene.triangleCount() / 2);
-  scene.meshes = {{"city", "blocks", "stone", 0, half}, {"lampNode", "", "glass", half, uint32_t(scene.triangleCount()) - half}};
+  scene.meshes = {{"city", "blocks", "stone", 0, half, {0, 0, 0}},
+                  {"lampNode", "", "glass", half, uint32_t(scene.triangleCount()) - half, {0.75f, 0.5f, 0.25f}}};
   const std::vector<uint8_t> bytes = encodeSceneMesh(scene, stats);
   SceneStats back;
   const Scene decoded = decodeSceneMesh(bytes.data(), bytes.size(), "mesh", &back);
@@ -999,13 +1000,18 @@ TEST(Hardening, R6_ASceneMeshFileRoundTripsAndDamageIsRefused) {
   EXPECT_EQ(decoded.meshes[1].node, "lampNode");
   EXPECT_EQ(decoded.meshes[1].material, "glass");
   EXPECT_EQ(decoded.meshes[1].firstTriangle, half);
+  EXPECT_EQ(decoded.meshes[1].transmittance, (std::array<float, 3>{0.75f, 0.5f, 0.25f})) << "its glass stays glass";
+  EXPECT_FALSE(isTranslucent(decoded.meshes[0]));
   // Meshes that do not cover the triangles in order are refused, the checksum resealed.
-  for (int way = 0; way < 2; ++way) {
+  // So is a transmittance outside [0, 1].
+  for (int way = 0; way < 3; ++way) {
     Scene wrong = scene;
     if (way == 0) wrong.meshes[1].firstTriangle += 1;
-    else wrong.meshes[1].triangles -= 1;
+    else if (way == 1) wrong.meshes[1].triangles -= 1;
+    else wrong.meshes[1].transmittance[2] = std::nanf("");
     std::vector<uint8_t> b = encodeSceneMesh(wrong, stats);
-    EXPECT_NE(testing::inputErrorOf([&] { decodeSceneMesh(b.data(), b.size(), "mesh"); }).find(way ? "its meshes hold" : "a mesh starts"),
+    EXPECT_NE(testing::inputErrorOf([&] { decodeSceneMesh(b.data(), b.size(), "mesh"); })
+                  .find(std::array<const char*, 3>{"a mesh starts", "its meshes hold", "transmittance is outside"}[way]),
               std::string::npos);
   }
   for (size_t at : {size_t(0), size_t(9), size_t(60), bytes.size() / 2, bytes.size() - 1}) {

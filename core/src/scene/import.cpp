@@ -5,7 +5,9 @@
 // placed in millimetres) the float rounding of composed transforms becomes visible at
 // R = 2^18. Node matrices are converted to double and composed in double; every vertex
 // of every mesh instance is transformed once, in double.
+#include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -15,6 +17,7 @@
 #include <vector>
 
 #include <assimp/DefaultIOSystem.h>
+#include <assimp/GltfMaterial.h>
 #include <assimp/Importer.hpp>
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
@@ -87,8 +90,44 @@ std::string describeVertex(const aiMesh& mesh, unsigned meshIndex, unsigned vert
 /// Appends one instance of `mesh` under `world` to `scene`: every vertex (so that indices
 /// stay valid) and every face with exactly three indices. Throws InputError for a
 /// vertex that is not finite in world space.
+/// The constant transmittance of a material (seed 003 §3.4), per channel: the uncovered
+/// share 1 - alpha passes whole, the covered share alpha passes its transmission factor
+/// (glTF KHR_materials_transmission) tinted by the base colour. Alpha follows glTF's
+/// alphaMode where the file has one (OPAQUE: 1, MASK: 0 or 1 by the cutoff, BLEND: the
+/// base colour's alpha), otherwise the material's opacity where the format's is
+/// unambiguous (`readOpacity`: an OBJ's `d`, an IFC surface style's transparency). COLLADA
+/// and FBX files carry opacities their exporters invert (3ds Max's COLLADA writes
+/// `transparency 0` for opaque teapots): read there, whole scenes would cast nothing, so
+/// those formats bake opaque. Textures are not read: a card of leaves whose cut-out lives
+/// in a texture casts by its factors alone.
+std::array<float, 3> transmittanceOf(const aiMaterial* mat, bool readOpacity) {
+  std::array<float, 3> out{0, 0, 0};
+  if (mat == nullptr) return out;
+  aiColor4D base(1, 1, 1, 1);
+  if (mat->Get(AI_MATKEY_BASE_COLOR, base) != AI_SUCCESS) mat->Get(AI_MATKEY_COLOR_DIFFUSE, base);
+  auto unit = [](float v, float fallback) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : fallback; };
+  float alpha = 1;
+  aiString mode;
+  if (mat->Get(AI_MATKEY_GLTF_ALPHAMODE, mode) == AI_SUCCESS) {
+    const std::string m = mode.C_Str();
+    float cutoff = 0.5f;
+    mat->Get(AI_MATKEY_GLTF_ALPHACUTOFF, cutoff);
+    if (m == "BLEND") alpha = unit(base.a, 1);
+    else if (m == "MASK") alpha = unit(base.a, 1) < cutoff ? 0.0f : 1.0f;
+  } else if (readOpacity) {
+    float opacity = 1;
+    if (mat->Get(AI_MATKEY_OPACITY, opacity) == AI_SUCCESS) alpha = unit(opacity, 1);
+  }
+  float transmission = 0;
+  mat->Get(AI_MATKEY_TRANSMISSION_FACTOR, transmission);
+  transmission = unit(transmission, 0);
+  const float tint[3] = {unit(base.r, 1), unit(base.g, 1), unit(base.b, 1)};
+  for (int c = 0; c < 3; ++c) out[c] = unit((1 - alpha) + alpha * transmission * tint[c], 0);
+  return out;
+}
+
 void appendInstance(const std::string& path, const aiMesh& mesh, unsigned meshIndex, const Mat4d& world,
-                    const std::string& nodeName, const std::string& materialName, Scene& scene) {
+                    const std::string& nodeName, const aiMaterial* material, bool readOpacity, Scene& scene) {
   const size_t base = scene.positions.size();
   const size_t firstTriangle = scene.triangleCount();
   if (firstTriangle + mesh.mNumFaces > std::numeric_limits<uint32_t>::max())
@@ -123,8 +162,9 @@ void appendInstance(const std::string& path, const aiMesh& mesh, unsigned meshIn
       scene.indices.push_back(static_cast<uint32_t>(base + idx));
     }
   }
-  scene.meshes.push_back({nodeName, mesh.mName.C_Str(), materialName, uint32_t(firstTriangle),
-                          uint32_t(scene.triangleCount() - firstTriangle)});
+  scene.meshes.push_back({nodeName, mesh.mName.C_Str(), material ? material->GetName().C_Str() : "",
+                          uint32_t(firstTriangle), uint32_t(scene.triangleCount() - firstTriangle),
+                          transmittanceOf(material, readOpacity)});
 }
 
 SceneLight lightOf(const aiLight& l, const Mat4d& world) {
@@ -222,6 +262,9 @@ Scene loadScene(const std::string& path, SceneStats* stats, const ImportOptions&
 
   Scene scene;
   scene.name = std::filesystem::path(path).filename().string();
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+  const bool readOpacity = extension == ".obj" || extension == ".ifc";
 
   if (ai->mRootNode != nullptr) {
     // Explicit stack: CAD files nest deeply and a recursion depth set by the file is
@@ -240,10 +283,8 @@ Scene loadScene(const std::string& path, SceneStats* stats, const ImportOptions&
           throw InputError(path + ": node '" + node->mName.C_Str() + "' references missing mesh " +
                            std::to_string(meshIndex));
         const aiMesh& mesh = *ai->mMeshes[meshIndex];
-        std::string material;
-        if (mesh.mMaterialIndex < ai->mNumMaterials && ai->mMaterials[mesh.mMaterialIndex] != nullptr)
-          material = ai->mMaterials[mesh.mMaterialIndex]->GetName().C_Str();
-        appendInstance(path, mesh, meshIndex, world, node->mName.C_Str(), material, scene);
+        const aiMaterial* material = mesh.mMaterialIndex < ai->mNumMaterials ? ai->mMaterials[mesh.mMaterialIndex] : nullptr;
+        appendInstance(path, mesh, meshIndex, world, node->mName.C_Str(), material, readOpacity, scene);
       }
       // Children pushed in reverse so that they are visited in file order, which keeps
       // vertex order (and so the scene hash) independent of the stack discipline.

@@ -13,8 +13,9 @@ static_assert(std::endian::native == std::endian::little, "the scene mesh file i
 constexpr char kMagic[8] = {'C', 'P', 'V', 'S', 'M', 'E', 'S', 'H'};
 // 2: a light keeps its range; 3: the meshes' names (an older mesh is refused, and its
 // scene imported again); 4: each light's rectangle (an area light's edges) and the
-// volume media (version 3 is still read, without them).
-constexpr uint32_t kVersion = 4, kOldestVersion = 3;
+// volume media (version 3 is still read, without them); 5: each mesh's transmittance
+// (versions 3 and 4 are read as opaque).
+constexpr uint32_t kVersion = 5, kOldestVersion = 3;
 constexpr uint32_t kMaxNameBytes = 4096;
 
 struct Writer {
@@ -118,6 +119,7 @@ std::vector<uint8_t> encodeSceneMesh(const Scene& scene, const SceneStats& stats
     for (const std::string* name : {&m.node, &m.mesh, &m.material}) w.text(name->substr(0, kMaxNameBytes));
     w.put(m.firstTriangle);
     w.put(m.triangles);
+    for (float c : m.transmittance) w.put(c);
   }
   const Hash128 check = contentHash(w.bytes.data(), w.bytes.size());
   w.raw(&check, sizeof check);
@@ -189,12 +191,18 @@ Scene decodeSceneMesh(const uint8_t* data, size_t size, const std::string& sourc
       if (!std::isfinite(m.absorption) || m.absorption < 0) r.fail("a medium's absorption is negative or not finite");
     }
   }
-  scene.meshes.resize(r.count(3 * 4 + 8, "meshes"));
+  const bool transmittance = version >= 5;
+  scene.meshes.resize(r.count(3 * 4 + 8 + (transmittance ? 12 : 0), "meshes"));
   uint64_t next = 0;
   for (SceneMesh& m : scene.meshes) {
     for (std::string* name : {&m.node, &m.mesh, &m.material}) *name = r.text("mesh name");
     m.firstTriangle = r.get<uint32_t>("meshes");
     m.triangles = r.get<uint32_t>("meshes");
+    if (transmittance)
+      for (float& c : m.transmittance) {
+        c = r.get<float>("meshes");
+        if (!(c >= 0 && c <= 1)) r.fail("a mesh's transmittance is outside [0, 1]");
+      }
     if (m.firstTriangle != next) r.fail("a mesh starts at triangle " + std::to_string(m.firstTriangle) + ", not " + std::to_string(next));
     next += m.triangles;
   }

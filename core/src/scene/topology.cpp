@@ -292,6 +292,7 @@ Hash128 sceneHash(const Scene& scene) {
       XXH3_128bits_update(state, &size, sizeof size);
       XXH3_128bits_update(state, name->data(), name->size());
     }
+    if (isTranslucent(m)) XXH3_128bits_update(state, m.transmittance.data(), sizeof m.transmittance);
   }
   const XXH128_hash_t h = XXH3_128bits_digest(state);
   XXH3_freeState(state);
@@ -330,6 +331,46 @@ Scene withoutMeshes(const Scene& scene, const std::vector<std::string>& names, c
   compactVertices(out);
   SceneStats stats;
   classifyClosed(out, stats);
+  return out;
+}
+
+bool hasTranslucentMeshes(const Scene& scene) {
+  return std::any_of(scene.meshes.begin(), scene.meshes.end(), [](const SceneMesh& m) { return isTranslucent(m); });
+}
+
+Scene opaquePart(const Scene& scene) {
+  Scene out = scene;
+  if (!hasTranslucentMeshes(scene)) return out;
+  std::vector<uint8_t> keep(scene.triangleCount(), 1);
+  for (const SceneMesh& m : scene.meshes)
+    if (isTranslucent(m)) std::fill_n(keep.begin() + m.firstTriangle, m.triangles, uint8_t{0});
+  keepTriangles(out, [&](size_t t) { return keep[t] != 0; });
+  compactVertices(out);
+  SceneStats stats;
+  classifyClosed(out, stats);
+  return out;
+}
+
+TranslucentCasters translucentCasters(const Scene& scene) {
+  TranslucentCasters out;
+  constexpr uint32_t kUnused = ~uint32_t{0};
+  std::vector<uint32_t> remap;
+  for (const SceneMesh& m : scene.meshes) {
+    if (!isTranslucent(m) || m.triangles == 0) continue;
+    ++out.meshes;
+    if (remap.empty()) remap.assign(scene.positions.size(), kUnused);
+    for (size_t t = m.firstTriangle; t < size_t(m.firstTriangle) + m.triangles; ++t) {
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t v = scene.indices[3 * t + c];
+        if (remap[v] == kUnused) {
+          remap[v] = uint32_t(out.positions.size());
+          out.positions.push_back(scene.positions[v]);
+        }
+        out.indices.push_back(remap[v]);
+      }
+      out.transmittance.push_back(m.transmittance);
+    }
+  }
   return out;
 }
 

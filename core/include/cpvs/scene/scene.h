@@ -1,6 +1,7 @@
 // A scene: one triangle mesh in world space, flattened from whatever file it came from.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -41,7 +42,14 @@ constexpr size_t kMaxMeshNameBytes = 1024;
 struct SceneMesh {
   std::string node, mesh, material;
   uint32_t firstTriangle = 0, triangles = 0;
+  /// The light its material lets through, per channel (RGB, each in [0, 1]): all zero for
+  /// an opaque material. A translucent mesh (glass, water, leaves on cards) casts no hard
+  /// shadow: its constant transmittance darkens what lies behind it (seed 003 §3.4).
+  std::array<float, 3> transmittance{0, 0, 0};
 };
+
+/// Whether the mesh lets some light through (a channel of its transmittance above 0).
+inline bool isTranslucent(const SceneMesh& m) { return m.transmittance[0] > 0 || m.transmittance[1] > 0 || m.transmittance[2] > 0; }
 
 /// One flattened triangle mesh in world space (all node transforms applied).
 /// Positions stay in double precision; every triangle indexes `positions`.
@@ -84,8 +92,9 @@ struct SceneStats {
 SceneStats finalizeScene(Scene& scene);
 
 /// Content hash of the geometry (positions as used, triangle indices, the closed flags)
-/// and of the meshes' names and ranges: two scenes with the same hash bake to the same
-/// bytes.
+/// and of the meshes' names and ranges (and transmittance, for translucent meshes only,
+/// so that an opaque scene hashes as before they were read): two scenes with the same
+/// hash bake to the same bytes.
 Hash128 sceneHash(const Scene& scene);
 
 /// Whether mesh `m` answers to `name`: its node's, its mesh's or its material's name.
@@ -96,6 +105,26 @@ bool meshIsNamed(const SceneMesh& m, const std::string& name);
 /// what a light whose fixture those meshes are casts shadows with. InputError naming
 /// `source` for a name no mesh answers to, or one that leaves no triangle.
 Scene withoutMeshes(const Scene& scene, const std::vector<std::string>& names, const std::string& source);
+
+/// Whether some mesh of the scene is translucent (isTranslucent).
+bool hasTranslucentMeshes(const Scene& scene);
+
+/// The scene without its translucent meshes, its closed parts classified again: what casts
+/// hard shadows (the CPVS is baked from it). A copy of the scene when nothing is
+/// translucent; a scene of no triangle when everything is.
+Scene opaquePart(const Scene& scene);
+
+/// The translucent meshes' triangles alone, as given (closed flags as classified in the
+/// whole scene, unused: front-face culling is off for them), and each triangle's
+/// transmittance: what a TOP tree of translucent casters is built from.
+struct TranslucentCasters {
+  std::vector<Vec3> positions;
+  std::vector<uint32_t> indices;
+  std::vector<std::array<float, 3>> transmittance;  // one per triangle
+  size_t meshes = 0;                                // translucent meshes they came from
+  size_t triangleCount() const { return indices.size() / 3; }
+};
+TranslucentCasters translucentCasters(const Scene& scene);
 
 /// Axis-aligned bounds of the vertices referenced by triangles.
 void sceneBounds(const Scene& scene, Vec3& lo, Vec3& hi);
