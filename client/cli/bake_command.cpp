@@ -20,6 +20,7 @@
 #include "cpvs/base/parse.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/psv/translucent_tree.h"
 #include "cpvs/scene/source.h"
 
 namespace cpvs::cli {
@@ -204,6 +205,11 @@ int runBake(const BakeArgs& a) {
     return progress.update(s, d, t);
   });
   progress.finish();
+  if (hasTranslucentMeshes(scene)) {
+    start = std::chrono::steady_clock::now();
+    art.translucent = std::make_shared<const TopTree>(translucentTree(scene, PsvLight::sun(grid.frame.dir)));
+    st.add("translucent", secondsSince(start));
+  }
 
   start = std::chrono::steady_clock::now();
   auto bytes = encodeCpvs(art, a.zstd);

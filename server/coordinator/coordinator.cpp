@@ -23,7 +23,7 @@ Coordinator::Coordinator(CoordinatorConfig config)
               config_.maxPendingUploads),
       merges_(store_, artifacts_, feed_, [this](const std::string& jobId, const std::string& why) {
         jobs_.failJob(jobId, why);
-      }),
+      }, [this](const std::string& sceneHash) { return scenes_.load(sceneHash); }),
       jobs_(store_, scenes_, artifacts_, merges_, feed_,
             JobLimits{config_.minLog2Resolution, config_.maxLog2Resolution, config_.maxActiveJobs,
                       config_.maxActiveJobsPerClient, config_.maxTilesPerJob}),

@@ -10,16 +10,19 @@
 #include "cpvs/base/hash.h"
 #include "cpvs/base/progress.h"
 #include "cpvs/dag/packed_layout.h"
+#include "cpvs/psv/translucent_tree.h"
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/psv/translucent_tree.h"
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/v1/farm.pb.h"
 #include "coordinator/clock.h"
 
 namespace cpvs::server {
 
-MergeScheduler::MergeScheduler(FarmStore& store, ArtifactStore& artifacts, ChangeFeed& feed, FailJob failJob)
-    : store_(store), artifacts_(artifacts), feed_(feed), failJob_(std::move(failJob)) {}
+MergeScheduler::MergeScheduler(FarmStore& store, ArtifactStore& artifacts, ChangeFeed& feed, FailJob failJob,
+                               LoadScene loadScene)
+    : store_(store), artifacts_(artifacts), feed_(feed), failJob_(std::move(failJob)), loadScene_(std::move(loadScene)) {}
 
 void MergeScheduler::start() { thread_ = std::thread([this] { loop(); }); }
 
@@ -177,6 +180,23 @@ bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
       art.receiverHash = j.receiverHash;
       art.plan = j.plan;
       art.dag = std::move(dags.at(0));
+      // The plan records translucent meshes when there are some: only then is the scene read.
+      if (j.plan.find("\"translucent\"") != std::string::npos) {
+        try {
+          const auto treeStart = std::chrono::steady_clock::now();
+          const Scene scene = loadScene_(j.sceneHash);
+          if (hasTranslucentMeshes(scene))
+            art.translucent = std::make_shared<const TopTree>(translucentTree(scene, PsvLight::sun(art.grid.frame.dir)));
+          start = std::chrono::steady_clock::now();
+          try {
+            store_.addStageSeconds(j.id, {{"translucent", secondsSince(treeStart)}});
+          } catch (const StoreUnavailable&) {
+          }
+        } catch (const std::exception& e) {
+          failJob(j.id, std::string("cannot build its translucent casters' tree: ") + e.what());
+          return true;
+        }
+      }
       m.dagBytes = art.dag.bytes();
       m.file = encodeCpvs(art, true);
       try {

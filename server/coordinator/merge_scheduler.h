@@ -23,6 +23,7 @@
 #include "cpvs/dag/assemble_roots.h"
 #include "cpvs/dag/merge.h"
 #include "cpvs/dag/streaming_merger.h"
+#include "cpvs/scene/scene.h"
 #include "store/farm_store.h"
 
 namespace cpvs::server {
@@ -31,7 +32,10 @@ class MergeScheduler {
  public:
   /// `failJob` ends a job whose merge failed (a damaged tile file, a full disk).
   using FailJob = std::function<void(const std::string& jobId, const std::string& why)>;
-  MergeScheduler(FarmStore& store, ArtifactStore& artifacts, ChangeFeed& feed, FailJob failJob);
+  /// The imported scene of an upload (SceneStore::load): a sun artifact of a scene with
+  /// translucent meshes carries their TOP tree, built here once its DAG is merged.
+  using LoadScene = std::function<Scene(const std::string& sceneHash)>;
+  MergeScheduler(FarmStore& store, ArtifactStore& artifacts, ChangeFeed& feed, FailJob failJob, LoadScene loadScene);
   ~MergeScheduler() { stop(); }
 
   /// Starts the merge thread.
@@ -86,6 +90,7 @@ class MergeScheduler {
   ArtifactStore& artifacts_;
   ChangeFeed& feed_;
   FailJob failJob_;
+  LoadScene loadScene_;
 
   std::mutex mutex_;
   std::condition_variable wake_;

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the fuzz targets with clang (libFuzzer + ASan + UBSan) into build/fuzz and runs
 # each for SECONDS (default 15). Seeds: small .cpvs files made by the main build's `cpvs`
-# (the current format version) when it exists, and a version 1 file from tests/io/data. A crash or sanitizer report fails the run and leaves the
+# (the current format version, one with translucent casters) when it exists, and a version 1 file from tests/io/data. A crash or sanitizer report fails the run and leaves the
 # input in build/fuzz/artifacts/.
 #   bash tests/fuzz/run.sh 15      # the bounded run of the test suite
 #   bash tests/fuzz/run.sh 3600    # a longer run
@@ -28,6 +28,14 @@ if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-lamps-raw.cpvs" ]; then
   # A light bundle: a spot light and a point light's cube, small grids.
   "$cli" bake city:1 --spot 10,15,10:0.2,-1,0.1:40 --point 12,6,8:20 --footprint 2 --no-zstd -q \
     -o "$out/corpus-cpvs/seed-lamps-raw.cpvs" >/dev/null
+fi
+if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-glass-raw.cpvs" ]; then
+  # A sun artifact with translucent casters: two glass panes (an OBJ's dissolve) over a floor.
+  glass=$(mktemp -d)
+  printf 'newmtl glass\nd 0.4\nnewmtl floor\nd 1\n' >"$glass/glass.mtl"
+  printf 'mtllib glass.mtl\nv -4 0 -4\nv 4 0 -4\nv 4 0 4\nv -4 0 4\nv -2 2 -2\nv 2 2 -2\nv 2 2 2\nv -2 2 2\nv -1 3 -1\nv 3 3 -1\nv 3 3 3\nv -1 3 3\no floor\nusemtl floor\nf 1 3 2\nf 1 4 3\no panes\nusemtl glass\nf 5 7 6\nf 5 8 7\nf 9 11 10\nf 9 12 11\n' >"$glass/glass.obj"
+  "$cli" bake "$glass/glass.obj" --sun-dir 0.2,-1,0.1 -r 16 --no-zstd -q -o "$out/corpus-cpvs/seed-glass-raw.cpvs" >/dev/null
+  rm -rf "$glass"
 fi
 cp -n tests/io/data/city-256-v1.cpvs "$out/corpus-cpvs/seed-city256-v1.cpvs"
 for target in fuzz_cpvs_reader fuzz_scene_input; do

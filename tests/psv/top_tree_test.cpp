@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -178,6 +179,62 @@ TEST(TopTree, TransmittanceIsTheProductOverEveryFrustumHoldingThePoint) {
   EXPECT_THROW(tree.setTransmittance({}), InputError);
   tint[3][1] = 1.5f;
   EXPECT_THROW(tree.setTransmittance(tint), InputError);
+}
+
+// A tree as stored answers as the tree built, and nothing a walk could trip on is taken:
+// a child that points back or elsewhere than a frustum, a frustum with two parents or
+// none, a broken chain of planes, a non-finite plane, a negative wedge, a transmittance
+// outside [0, 1], a light or margin that is not finite.
+TEST(TopTree, ATreeAsStoredAnswersAsBuiltAndHostileNodesAreRefused) {
+  const Scene soup = randomSoup(600, 33);
+  TopTreeOptions options;
+  options.frontFaceCulling = false;
+  const PsvLight sun = PsvLight::sun(normalize(Vec3{0.3, -1, 0.45}));
+  TopTree built = TopTree::build(soup, sun, options);
+  std::vector<std::array<float, 3>> tint(soup.triangleCount(), {0.5f, 0.25f, 1.0f});
+  built.setTransmittance(tint);
+  auto stored = [&](std::vector<TopNode> nodes, std::vector<std::array<float, 3>> t) {
+    return TopTree::fromNodes(std::move(nodes), built.light(), built.origin(), built.buildTolerance(), built.queryMargin(), std::move(t));
+  };
+  const TopTree back = stored(built.nodes(), built.transmittance());
+  for (const Vec3& p : hardPoints(soup, sun, 20000, 4)) {
+    ASSERT_EQ(back.shadowed(p), built.shadowed(p));
+    ASSERT_EQ(back.transmittanceAt(p), built.transmittanceAt(p));
+  }
+  EXPECT_EQ(TopTree::fromNodes({TopNode{}}, sun, {}, 1, 1).root(), 0u) << "no frustum: every point lit";
+
+  using Mutation = std::function<void(std::vector<TopNode>&, std::vector<std::array<float, 3>>&)>;
+  const size_t last = built.nodes().size() - 1;
+  uint32_t withChild = 0;  // a capping plane with a child
+  for (uint32_t i = 4; i < last && !withChild; i += 4)
+    if (built.nodes()[i].pos) withChild = i;
+  ASSERT_NE(withChild, 0u);
+  const std::vector<std::pair<const char*, Mutation>> hostile{
+      {"a child before its parent", [&](auto& n, auto&) { n[withChild].pos = 1; }},
+      {"a child not a frustum", [&](auto& n, auto&) { n[withChild].pos += 1; }},
+      {"a child past the nodes", [&](auto& n, auto&) { n[withChild].pos = uint32_t(last + 4); }},
+      {"two parents", [&](auto& n, auto&) { n[1].inter = n[1].inter ? n[1].inter : n[1].pos, n[1].pos = n[1].inter; }},
+      {"a frustum hanging nowhere", [&](auto& n, auto&) { n[withChild].pos = 0; }},
+      {"a broken chain", [&](auto& n, auto&) { n[2].neg = 4; }},
+      {"a plane not finite", [&](auto& n, auto&) { n[7].plane[2] = std::numeric_limits<float>::quiet_NaN(); }},
+      {"a negative wedge", [&](auto& n, auto&) { n[6].wedge = -1; }},
+      {"the leaf with a child", [&](auto& n, auto&) { n[0].pos = 5; }},
+      {"nodes not 4 a frustum", [&](auto& n, auto&) { n.pop_back(); }},
+      {"a transmittance above 1", [&](auto&, auto& t) { t[3][0] = 1.25f; }},
+      {"a transmittance NaN", [&](auto&, auto& t) { t[3][2] = std::nanf(""); }},
+      {"transmittances missing", [&](auto&, auto& t) { t.pop_back(); }}};
+  for (const auto& [what, mutate] : hostile) {
+    std::vector<TopNode> nodes = built.nodes();
+    std::vector<std::array<float, 3>> t = built.transmittance();
+    mutate(nodes, t);
+    EXPECT_THROW(stored(std::move(nodes), std::move(t)), InputError) << what;
+  }
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(TopTree::fromNodes(built.nodes(), PsvLight::sun({0, inf, 0}), {}, 1, 1), InputError);
+  EXPECT_THROW(TopTree::fromNodes(built.nodes(), PsvLight::sun({0, -2, 0}), {}, 1, 1), InputError) << "not a unit direction";
+  EXPECT_THROW(TopTree::fromNodes(built.nodes(), sun, {inf, 0, 0}, 1, 1), InputError);
+  EXPECT_THROW(TopTree::fromNodes(built.nodes(), sun, {}, 0, 1), InputError);
+  EXPECT_THROW(TopTree::fromNodes(built.nodes(), sun, {}, 1, -inf), InputError);
 }
 
 // Every triangle below a node's pos (neg) child lies in its closed positive (negative)

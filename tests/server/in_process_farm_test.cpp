@@ -152,6 +152,39 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   }
 }
 
+// A scene with glass: the workers bake its opaque part, the coordinator builds the glass's
+// TOP tree once the DAG is merged, and the artifact is the local bake's to the byte.
+TEST(InProcessFarm, TranslucentCastersTravelInTheArtifactAsBakedLocally) {
+  TempDir dir("cpvs_in_process_glass");
+  const std::string glb = dir / "glass.glb";
+  testing::writeGlb(testing::glassCity(), glb);
+  InProcessFarm farm(dir / "data");
+  worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+  const client::FarmClient::UploadResult up = farm.client.uploadScene(glb);
+  pb::BakeSpec spec;
+  spec.set_scene_hash(up.sceneHash);
+  *spec.mutable_sun_direction() = net::toProto(Vec3{0.3, -1, 0.2});
+  spec.set_resolution("256");
+  spec.mutable_options()->set_tile_size(64);
+  const pb::JobStatus done = farm.client.watch(farm.client.submit("glass", spec).job_id());
+  tileWorker.stop();
+  workerThread.join();
+  ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
+  farm.client.download(done.job_id(), dir / "farm.cpvs");
+  const CpvsArtifact farmed = readCpvs(dir / "farm.cpvs");
+  ASSERT_TRUE(farmed.translucent) << "the glass's tree travels with the CPVS";
+  EXPECT_GT(farmed.translucent->frustumCount(), 12u);
+
+  const Scene loaded = loadScene(glb);
+  BakeOptions options;
+  options.log2TileSize = 6;
+  const CpvsArtifact local =
+      testing::localArtifact(loaded, makeGrid(loaded, LightFrame::fromDirection({0.3, -1, 0.2}), 8), options);
+  EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true));
+}
+
 // Tiles no triangle touches are never leased: the coordinator merges them as all lit, and
 // the job still gives the local bytes, with either renderer.
 TEST(InProcessFarm, UntouchedTilesAreNotLeasedAndBothRenderersGiveTheLocalBytes) {

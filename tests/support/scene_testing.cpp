@@ -1,6 +1,12 @@
 #include "scene_testing.h"
 
 #include "cpvs/bake/bake_plan.h"
+#include "cpvs/base/file.h"
+#include "cpvs/psv/translucent_tree.h"
+#include "cpvs/scene/boxes.h"
+
+#include <cstdio>
+#include <cstring>
 
 namespace cpvs::testing {
 
@@ -133,12 +139,98 @@ CpvsArtifact localArtifact(const Scene& scene, const OrthoGrid& grid, BakeOption
   a.receiverHash = receiverHash(receivers);
   a.plan = planJson(planBake(scene, stats, options, receivers, prepared.raster(), prepared.receivers()));
   a.dag = bakeGrid(prepared, options);
+  if (hasTranslucentMeshes(scene))
+    a.translucent = std::make_shared<const TopTree>(translucentTree(scene, PsvLight::sun(grid.frame.dir)));
   return a;
 }
 
 Dag bakeTileWith(const Scene& scene, const OrthoGrid& grid, uint64_t tileX, uint64_t tileY, const BakeOptions& options) {
   const BakeScene prepared(scene, grid, options.renderer);
   return bakeTile(prepared, tileX, tileY, options);
+}
+
+void writeGlb(const Scene& scene, const std::string& path) {
+  std::vector<SceneMesh> meshes = scene.meshes;
+  if (meshes.empty()) meshes.push_back({"all", "all", "", 0, uint32_t(scene.triangleCount()), {0, 0, 0}});
+  std::vector<uint8_t> bin;
+  auto append = [&bin](const void* p, size_t n) {
+    bin.insert(bin.end(), static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n);
+  };
+  float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+  for (const Vec3& p : scene.positions) {
+    const float f[3] = {float(p.x), float(p.y), float(p.z)};
+    append(f, sizeof f);
+    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], f[c]), hi[c] = std::max(hi[c], f[c]);
+  }
+  const size_t indexOffset = bin.size();
+  append(scene.indices.data(), scene.indices.size() * 4);
+  std::string nodes, gltfMeshes, materials, accessors, sceneNodes;
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                R"({"bufferView": 0, "componentType": 5126, "count": %zu, "type": "VEC3", "min": [%.9g, %.9g, %.9g], "max": [%.9g, %.9g, %.9g]})",
+                scene.positions.size(), lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
+  accessors = buf;
+  for (size_t m = 0; m < meshes.size(); ++m) {
+    const SceneMesh& mesh = meshes[m];
+    const std::string sep = m ? ", " : "";
+    std::snprintf(buf, sizeof buf, R"(, {"bufferView": 1, "byteOffset": %zu, "componentType": 5125, "count": %u, "type": "SCALAR"})",
+                  size_t(mesh.firstTriangle) * 12, mesh.triangles * 3);
+    accessors += buf;
+    gltfMeshes += sep + R"({"name": ")" + mesh.mesh + R"(", "primitives": [{"attributes": {"POSITION": 0}, "indices": )" +
+                  std::to_string(m + 1) + R"(, "material": )" + std::to_string(m) + "}]}";
+    if (isTranslucent(mesh)) {
+      std::snprintf(buf, sizeof buf,
+                    R"({"name": "%s", "pbrMetallicRoughness": {"baseColorFactor": [%.9g, %.9g, %.9g, 1]}, "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1}}})",
+                    mesh.material.c_str(), mesh.transmittance[0], mesh.transmittance[1], mesh.transmittance[2]);
+      materials += sep + buf;
+    } else {
+      materials += sep + R"({"name": ")" + mesh.material + R"("})";
+    }
+    nodes += sep + R"({"name": ")" + mesh.node + R"(", "mesh": )" + std::to_string(m) + "}";
+    sceneNodes += sep + std::to_string(m);
+  }
+  while (bin.size() % 4) bin.push_back(0);
+  std::string json = R"({"asset": {"version": "2.0"}, "extensionsUsed": ["KHR_materials_transmission"], "scene": 0, "scenes": [{"nodes": [)" +
+                     sceneNodes + R"(]}], "nodes": [)" + nodes + R"(], "meshes": [)" + gltfMeshes + R"(], "materials": [)" +
+                     materials + R"(], "buffers": [{"byteLength": )" + std::to_string(bin.size()) +
+                     R"(}], "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": )" + std::to_string(indexOffset) +
+                     R"(}, {"buffer": 0, "byteOffset": )" + std::to_string(indexOffset) + R"(, "byteLength": )" +
+                     std::to_string(scene.indices.size() * 4) + R"(}], "accessors": [)" + accessors + "]}";
+  while (json.size() % 4) json.push_back(' ');
+  std::vector<uint8_t> glb;
+  auto word = [&glb](uint32_t v) { for (int i = 0; i < 4; ++i) glb.push_back(uint8_t(v >> (8 * i))); };
+  word(0x46546C67);  // "glTF"
+  word(2);
+  word(uint32_t(12 + 8 + json.size() + 8 + bin.size()));
+  word(uint32_t(json.size()));
+  word(0x4E4F534A);  // "JSON"
+  glb.insert(glb.end(), json.begin(), json.end());
+  word(uint32_t(bin.size()));
+  word(0x004E4942);  // "BIN\0"
+  glb.insert(glb.end(), bin.begin(), bin.end());
+  writeFileAtomic(path, glb);
+}
+
+Scene glassCity() {
+  Scene s = openScene("city:2:3");
+  Vec3 lo, hi;
+  sceneBounds(s, lo, hi);
+  s.meshes = {{"city", "blocks", "stone", 0, uint32_t(s.triangleCount()), {0, 0, 0}}};
+  const Vec3 size = hi - lo;
+  auto at = [&](double x, double y, double z) { return Vec3{lo.x + x * size.x, lo.y + y * size.y, lo.z + z * size.z}; };
+  auto addMesh = [&s](const char* node, const char* material, std::array<float, 3> t, auto&& build) {
+    const uint32_t first = uint32_t(s.triangleCount());
+    build();
+    s.meshes.push_back({node, node, material, first, uint32_t(s.triangleCount()) - first, t});
+  };
+  // Panes facing up (counter-clockwise from above) and one facing down.
+  addMesh("pane", "green glass", {0.6f, 0.9f, 0.5f},
+          [&] { appendQuad(s, at(0.1, 0.8, 0.1), at(0.1, 0.8, 0.6), at(0.6, 0.8, 0.6), at(0.6, 0.8, 0.1)); });
+  addMesh("upper", "smoked glass", {0.5f, 0.5f, 0.5f},
+          [&] { appendQuad(s, at(0.3, 0.95, 0.3), at(0.9, 0.95, 0.3), at(0.9, 0.95, 0.9), at(0.3, 0.95, 0.9)); });
+  addMesh("box", "clear glass", {0.9f, 0.9f, 0.95f}, [&] { appendBox(s, at(0.7, 0.6, 0.05), at(0.85, 0.7, 0.2)); });
+  finalizeScene(s);
+  return s;
 }
 
 void appendQuad(Scene& s, Vec3 a, Vec3 b, Vec3 c, Vec3 d) {

@@ -71,6 +71,15 @@ Dag bakeWith(const Scene& scene, const OrthoGrid& grid, const BakeOptions& optio
 CpvsArtifact localArtifact(const Scene& scene, const OrthoGrid& grid, BakeOptions options,
                            const ReceiverDeclaration& receivers = {});
 
+/// Writes the scene as a self-contained binary glTF (.glb): a node and a mesh for each of
+/// its meshes (one for all when it has none), positions in float, each translucent mesh's
+/// material its transmittance exactly (a base colour of it, KHR_materials_transmission 1).
+void writeGlb(const Scene& scene, const std::string& path);
+
+/// A small city (city:2:3) with glass: two tinted panes in the air, one pane over
+/// another (light crosses both), and a closed glass box on a roof; finalized.
+Scene glassCity();
+
 /// Appends the quad a-b-c-d as two triangles, counter-clockwise seen from its front.
 void appendQuad(Scene& scene, Vec3 a, Vec3 b, Vec3 c, Vec3 d);
 

@@ -203,6 +203,11 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
     }
   }
   p.media = std::move(media);
+  for (const SceneMesh& m : scene.meshes)
+    if (isTranslucent(m)) {
+      ++p.translucentMeshes;
+      p.translucentTriangles += m.triangles;
+    }
 
   const bool closedUsed = o.closed == ClosedMode::On || (o.closed == ClosedMode::Auto && p.closedTriangles > 0);
   const uint64_t rendered = p.tiles - p.tilesUntouched - p.tilesUnread;
@@ -269,7 +274,10 @@ std::string planJson(const BakePlan& p) {
       << ", \"g\": " << jsonNumber(m.g) << ", \"offered\": " << (m.offered ? "true" : "false")
       << ", \"reason\": " << jsonString(m.reason) << "}";
   }
-  o << "], \"passes\": [";
+  o << "]";
+  if (p.translucentMeshes)
+    o << ", \"translucent\": {\"meshes\": " << p.translucentMeshes << ", \"triangles\": " << p.translucentTriangles << "}";
+  o << ", \"passes\": [";
   for (size_t i = 0; i < p.passes.size(); ++i)
     o << (i ? ", " : "") << "{\"name\": " << jsonString(p.passes[i].name) << ", \"runs\": " << (p.passes[i].runs ? "true" : "false")
       << ", \"why\": " << jsonString(p.passes[i].why) << "}";
@@ -311,6 +319,13 @@ std::string planText(const BakePlan& p) {
   for (const BakePlan::Medium& m : p.media)
     o << "    " << m.source << " '" << loggable(m.name) << "' (scattering " << m.scattering << ", absorption "
       << m.absorption << ", g " << m.g << "): " << m.reason << "\n";
+  if (p.translucentMeshes)
+    o << "  translucent casters: " << p.translucentMeshes << " meshes, " << p.translucentTriangles
+      << " triangles: left out of the CPVS; a TOP tree of their shadow frusta beside it darkens what lies behind them "
+         "by their transmittance (front-face culling off)\n";
+  else
+    o << "  translucent casters: none (no glTF transmission or alpha blend, no OBJ or IFC opacity below 1): nothing beside "
+         "the CPVS\n";
   o << "  passes:\n";
   for (const BakePlan::Pass& s : p.passes) o << "    " << (s.runs ? "runs   " : "skipped") << "  " << s.name << ": " << s.why << "\n";
   return o.str();

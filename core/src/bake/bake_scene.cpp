@@ -7,13 +7,17 @@
 #include "cpvs/bake/texel_slices.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/progress.h"
+#include "cpvs/scene/scene.h"
 
 namespace cpvs {
 
 BakeScene::BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer renderer, int threads,
                      const ReceiverDeclaration& receivers)
-    : renderer_(renderer), raster_(scene, grid), receivers_(scene, grid, receivers) {
-  if (renderer == Renderer::Embree) rays_ = std::make_unique<RayScene>(scene, grid.origin, threads);
+    : opaque_(hasTranslucentMeshes(scene) ? std::make_unique<const Scene>(opaquePart(scene)) : nullptr),
+      renderer_(renderer),
+      raster_(opaque_ ? *opaque_ : scene, grid),
+      receivers_(scene, grid, receivers) {
+  if (renderer == Renderer::Embree) rays_ = std::make_unique<RayScene>(opaque_ ? *opaque_ : scene, grid.origin, threads);
 }
 
 BakeScene::BakeScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone, Renderer renderer, int threads,

@@ -7,12 +7,19 @@
 #include "io/bake_fields.h"
 #include "io/container.h"
 #include "io/level_section.h"
+#include "io/top_section.h"
 
 #include <cmath>
 #include <cstring>
 #include <string>
 
 namespace cpvs {
+namespace {
+
+/// Flag bit: a translucent casters' section follows the DAG.
+constexpr uint32_t kCpvsTranslucent = 2;
+
+}  // namespace
 
 std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   const Dag& dag = a.dag;
@@ -20,7 +27,7 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   ByteWriter w;
   ContainerKind kind = kCpvsKind;
   kind.version = kCpvsFormatVersion;
-  beginContainer(w, kind, zstd ? kContainerZstd : 0);
+  beginContainer(w, kind, (zstd ? kContainerZstd : 0) | (a.translucent ? kCpvsTranslucent : 0));
   // The grid's description (GridSpec), its orthographic fields in their version 1 order.
   const GridSpec g = gridSpecOf(a.grid);
   w.putVec(g.frame.dir);
@@ -36,6 +43,7 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   putOptions(w, a.options, a.sceneHash);
   putReceiversAndPlan(w, a.options, a.receiverHash, a.plan);
   putWordSection(w, PackedDag(dag).words(), zstd);
+  if (a.translucent) writeTopTree(*a.translucent, zstd, w);
   return sealContainer(std::move(w));
 }
 
@@ -47,9 +55,10 @@ uint32_t cpvsFormatVersion(const uint8_t* data, size_t size, const std::string& 
 
 CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& source) {
   uint32_t flags = 0, version = 0;
-  ByteReader h = openContainer(data, size, source, kCpvsKind, kContainerZstd, flags, version);
+  ByteReader h = openContainer(data, size, source, kCpvsKind, kContainerZstd | kCpvsTranslucent, flags, version);
   if (version == kBundleFormatVersion)
     h.fail("a light bundle (format " + std::to_string(version) + "), not a sun artifact: read it as a bundle");
+  if ((flags & kCpvsTranslucent) && version < 3) h.fail("translucent casters in a format " + std::to_string(version) + " file");
 
   CpvsArtifact a;
   a.formatVersion = version;
@@ -78,6 +87,12 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
   const bool zstd = (flags & kContainerZstd) != 0;
   if (version >= 2) {
     std::vector<uint32_t> words = getWordSection(h, zstd, kPackedHeaderWords, "packed DAG");
+    if (flags & kCpvsTranslucent) {
+      TopTree tree = readTopTree(h, zstd);
+      if (!tree.light().directional || length(tree.light().vector - g.frame.dir) > 1e-9)
+        h.fail("its translucent casters' tree is for another light than its grid's sun");
+      a.translucent = std::make_shared<const TopTree>(std::move(tree));
+    }
     if (h.remaining() != 0) h.fail(std::to_string(h.remaining()) + " unexpected bytes after the payload");
     if (words[1] != uint32_t(g.log2Resolution))
       h.fail("the packed DAG is of resolution 2^" + std::to_string(words[1]) + ", the grid of 2^" + std::to_string(g.log2Resolution));

@@ -320,6 +320,64 @@ TopTree TopTree::frusta(const std::vector<Vec3>& positions, const std::vector<ui
   return tree;
 }
 
+TopTree TopTree::fromNodes(std::vector<TopNode> nodes, const PsvLight& light, const Vec3& origin, double buildTolerance,
+                           double queryMargin, std::vector<std::array<float, 3>> transmittance) {
+  auto fail = [](const std::string& why) { throw InputError("shadow volumes: " + why); };
+  if (nodes.empty() || (nodes.size() - 1) % 4 != 0 || nodes.size() > (uint64_t(1) << 31))
+    fail(std::to_string(nodes.size()) + " nodes, not 4 per frustum and the leaf");
+  if (!isFinite(light.vector) || (light.directional && std::fabs(length(light.vector) - 1) > 1e-9))
+    fail("the light's position or direction is not finite (or not a unit direction)");
+  if (!isFinite(origin)) fail("the origin is not finite");
+  if (!(buildTolerance > 0 && std::isfinite(buildTolerance) && queryMargin > 0 && std::isfinite(queryMargin)))
+    fail("the margins are not positive and finite");
+  const uint64_t size = nodes.size();
+  const TopNode& leaf = nodes[0];
+  if (leaf.pos != 0 || leaf.inter != 0 || leaf.neg != 0) fail("the leaf has children");
+  // Every frustum's first plane (4k + 1) but the root's is the child of exactly one node,
+  // and only of an earlier one: then a walk meets each node at most once.
+  std::vector<uint8_t> parents(size, 0);
+  auto child = [&](uint64_t i, uint32_t c) {
+    if (c == 0) return;
+    if (c % 4 != 1 || c <= i || c >= size) fail("node " + std::to_string(i) + " has child " + std::to_string(c) + ", not a later frustum");
+    if (parents[c]++ != 0) fail("frustum node " + std::to_string(c) + " has two parents");
+  };
+  for (uint64_t i = 1; i < size; ++i) {
+    const TopNode& n = nodes[i];
+    for (float f : n.plane)
+      if (!std::isfinite(f)) fail("node " + std::to_string(i) + "'s plane is not finite");
+    child(i, n.pos);
+    child(i, n.inter);
+    if (i % 4 != 0) {
+      if (n.neg != i + 1) fail("node " + std::to_string(i) + "'s neg child is not its frustum's next plane");
+      if (!(n.wedge >= 0)) fail("node " + std::to_string(i) + "'s wedge is negative");
+    } else {
+      child(i, n.neg);
+    }
+  }
+  for (uint64_t k = 5; k < size; k += 4)
+    if (parents[k] != 1) fail("frustum node " + std::to_string(k) + " hangs nowhere");
+  const size_t frusta = (size - 1) / 4;
+  if (!transmittance.empty()) {
+    if (transmittance.size() != frusta)
+      fail(std::to_string(transmittance.size()) + " transmittances for " + std::to_string(frusta) + " frusta");
+    for (const auto& t : transmittance)
+      for (float c : t)
+        if (!(c >= 0 && c <= 1)) fail("a transmittance outside [0, 1]");
+  }
+  TopTree tree;
+  tree.nodes_ = std::move(nodes);
+  tree.light_ = light;
+  tree.origin_ = origin;
+  tree.relative(light.vector, tree.lightRel_);
+  tree.buildTolerance_ = buildTolerance;
+  tree.queryMargin_ = queryMargin;
+  tree.transmittance_ = std::move(transmittance);
+  tree.triangleOf_.resize(frusta);
+  for (size_t k = 0; k < frusta; ++k) tree.triangleOf_[k] = uint32_t(k);
+  tree.stats_.triangles = tree.stats_.frusta = frusta;
+  return tree;
+}
+
 void TopTree::link() {
   if (linked_) return;
   const size_t frusta = frustumCount();

@@ -335,7 +335,7 @@ Scene withoutMeshes(const Scene& scene, const std::vector<std::string>& names, c
 }
 
 bool hasTranslucentMeshes(const Scene& scene) {
-  return std::any_of(scene.meshes.begin(), scene.meshes.end(), [](const SceneMesh& m) { return isTranslucent(m); });
+  return std::any_of(scene.meshes.begin(), scene.meshes.end(), [](const SceneMesh& m) { return m.triangles > 0 && isTranslucent(m); });
 }
 
 Scene opaquePart(const Scene& scene) {
@@ -345,6 +345,7 @@ Scene opaquePart(const Scene& scene) {
   for (const SceneMesh& m : scene.meshes)
     if (isTranslucent(m)) std::fill_n(keep.begin() + m.firstTriangle, m.triangles, uint8_t{0});
   keepTriangles(out, [&](size_t t) { return keep[t] != 0; });
+  std::erase_if(out.meshes, [](const SceneMesh& m) { return isTranslucent(m); });  // none of their triangles is left
   compactVertices(out);
   SceneStats stats;
   classifyClosed(out, stats);

@@ -71,6 +71,10 @@ struct BakePlan {
     std::string reason;
   };
   std::vector<Medium> media;
+  // Translucent meshes (isTranslucent): left out of the CPVS, their shadow frusta a TOP
+  // tree beside it (translucentTree). Recorded in the JSON only when there are some, so
+  // that an opaque scene's artifact keeps its bytes.
+  uint64_t translucentMeshes = 0, translucentTriangles = 0;
   struct Pass {
     std::string name;
     bool runs = false;

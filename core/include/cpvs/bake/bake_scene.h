@@ -19,7 +19,10 @@ struct Scene;
 
 /// The scene projected for the rasterizer (always: it also answers which tiles nothing
 /// touches), for the Embree renderer the BVH, and the declared receivers' reads.
-/// `threads` caps Embree's builder (0: all cores).
+/// `threads` caps Embree's builder (0: all cores). The sun's casters are the scene's
+/// opaque part (opaquePart): its translucent meshes darken the light through a TOP tree
+/// beside the CPVS instead (translucentTree), and still receive. A light's grid keeps
+/// every mesh as a caster.
 class BakeScene {
  public:
   BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer renderer, int threads = 0,
@@ -57,6 +60,7 @@ class BakeScene {
                    ColumnMasks& out, StageTimes& times) const;
 
  private:
+  std::unique_ptr<const Scene> opaque_;  // the sun's casters when some mesh is translucent
   Renderer renderer_;
   RasterScene raster_;
   ReceiverSet receivers_;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -10,6 +11,7 @@
 #include "cpvs/dag/dag.h"
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/light/ortho_grid.h"
+#include "cpvs/psv/top_tree.h"
 
 namespace cpvs {
 
@@ -40,6 +42,10 @@ struct CpvsArtifact {
   PackedDag packed;
   /// The format version the file was written in (decodeCpvs); encodeCpvs writes the current.
   uint32_t formatVersion = kCpvsFormatVersion;
+  /// The TOP tree of the scene's translucent casters for the sun (translucentTree), whose
+  /// transmittance multiplies the CPVS's answer; null when the scene has none (nor does
+  /// the file: opaque scenes keep their bytes).
+  std::shared_ptr<const TopTree> translucent;
 };
 
 /// Serializes an artifact. Layout (little-endian): a fixed header with magic "CPVS",
@@ -47,12 +53,14 @@ struct CpvsArtifact {
 /// PCF width, 6 reserved zero bytes, its hash), the plan (a byte count and UTF-8 JSON,
 /// at most kMaxPlanBytes); the word count of the packed DAG and its words
 /// (packed_layout.h: a header, the pointer grid, the nodes, the leaves), optionally
-/// zstd-compressed; an XXH3-64 checksum of everything before it. (Version 1 held the
+/// zstd-compressed; with flag 2, the translucent casters' TOP tree (io/top_section.h); an
+/// XXH3-64 checksum of everything before it. (Version 1 held the
 /// root, the level sizes and per level the 16-bit codes and 32-bit child indices.)
 std::vector<uint8_t> encodeCpvs(const CpvsArtifact& artifact, bool zstd);
 
 /// Parses and validates an artifact: every size against the data present, the checksum,
-/// every child code and index, before anything is trusted. Throws InputError naming
+/// every child code and index, the translucent casters' tree (TopTree::fromNodes), before
+/// anything is trusted. Throws InputError naming
 /// `source` and what is wrong for a truncated, corrupted or foreign file.
 CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& source);
 

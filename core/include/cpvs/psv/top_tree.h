@@ -97,6 +97,15 @@ class TopTree {
   /// what an insertion classifies with. link() makes it build()'s tree.
   static TopTree frusta(const std::vector<Vec3>& positions, const std::vector<uint32_t>& indices,
                         const std::vector<uint8_t>& closed, const PsvLight& light, const TopTreeOptions& options = {});
+  /// A linked tree as stored (an artifact's translucent casters): its nodes, light,
+  /// origin, margins and, when not empty, each frustum's transmittance. Nothing of it is
+  /// trusted: InputError unless it is a tree a walk cannot trip on (4F + 1 nodes, each
+  /// frustum's chain of planes in place, every other child the first plane of a later
+  /// frustum and every frustum but the first the child of exactly one node, finite
+  /// planes, wedges not negative), the light and origin finite, the margins positive, and
+  /// every transmittance in [0, 1].
+  static TopTree fromNodes(std::vector<TopNode> nodes, const PsvLight& light, const Vec3& origin, double buildTolerance,
+                           double queryMargin, std::vector<std::array<float, 3>> transmittance = {});
   /// Inserts the frusta (build()'s tree, the same nodes); nothing when linked already.
   void link();
   bool linked() const { return linked_; }

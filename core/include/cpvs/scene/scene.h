@@ -106,7 +106,7 @@ bool meshIsNamed(const SceneMesh& m, const std::string& name);
 /// `source` for a name no mesh answers to, or one that leaves no triangle.
 Scene withoutMeshes(const Scene& scene, const std::vector<std::string>& names, const std::string& source);
 
-/// Whether some mesh of the scene is translucent (isTranslucent).
+/// Whether some mesh of the scene with a triangle is translucent (isTranslucent).
 bool hasTranslucentMeshes(const Scene& scene);
 
 /// The scene without its translucent meshes, its closed parts classified again: what casts
