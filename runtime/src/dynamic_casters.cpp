@@ -1,5 +1,6 @@
 // Dynamic casters: the meshes of a frame placed in the world and their TOP tree for the
-// artifact's sun; the bytes cpvs_shadow.glsl's CpvsCasters reads. Compiled with
+// artifact's sun; the bytes cpvs_shadow.glsl's CpvsCasters reads; an artifact's translucent
+// casters, their bytes and their transmittance on the CPU. Compiled with
 // -ffp-contract=off: the offset point is the one the shader computes with `precise`.
 #include <tbb/parallel_for.h>
 
@@ -11,6 +12,7 @@
 
 #include "cpvs/base/error.h"
 #include "cpvs/runtime/runtime.h"
+#include "query_kernel.h"
 
 namespace cpvs::runtime {
 
@@ -168,6 +170,37 @@ std::vector<uint8_t> DynamicCasters::bytesOf(const TopTree& tree) const {
   return bytes;
 }
 
+
+std::vector<uint8_t> ShadowArtifact::translucentGpuBytes() const {
+  static const TopTree none;
+  const TopTree& tree = translucent_ ? *translucent_ : none;
+  const CasterHeader h = headerOf(tree, grid().texelSize(), 0);
+  std::vector<uint8_t> bytes;
+  append(bytes, &h, 1);
+  append(bytes, tree.nodes().data(), tree.nodes().size());
+  return bytes;
+}
+
+std::vector<uint8_t> ShadowArtifact::transmittanceGpuBytes() const {
+  std::vector<uint8_t> bytes;
+  if (translucent_) append(bytes, translucent_->transmittance().data(), translucent_->transmittance().size());
+  if (bytes.empty()) bytes.resize(12, 0);  // a binding is never empty
+  return bytes;
+}
+
+void cpuTransmittance(const ShadowArtifact& artifact, const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
+                      std::vector<std::array<float, 3>>& out) {
+  checkQueryShape(points.size(), normals.size(), 1);
+  out.assign(points.size(), {1, 1, 1});
+  const TopTree* tree = artifact.translucent();
+  if (!tree || tree->root() == 0) return;
+  const double d = artifact.grid().texelSize();
+  tbb::parallel_for(size_t(0), points.size(), [&](size_t i) {
+    const Vec3& p = points[i];
+    const Vec3 n = normals.empty() ? Vec3{} : normals[i];
+    out[i] = tree->transmittanceAt(Vec3{p.x + n.x * d, p.y + n.y * d, p.z + n.z * d});
+  });
+}
 
 LightCasters::LightCasters(const LightArtifact& artifact, const std::vector<CasterMesh>& meshes, double normalOffset) {
   checkOffset(normalOffset);

@@ -24,6 +24,9 @@ struct GpuShadows::Impl {
   size_t casterOverflows = 0;
   double casterBuildNs = 0;
   uint64_t casterBuildSteps = 0;
+  // The translucent casters' transmittance (cpvs_translucent_query.comp), made on first use.
+  std::unique_ptr<QueryKernel> translucent;
+  size_t translucentOverflows = 0;
   Impl(GpuDevice::Impl& g, std::shared_ptr<const ShadowArtifact> a)
       : device(g),
         artifact(std::move(a)),
@@ -124,6 +127,47 @@ double GpuShadows::lastCasterBuildNanoseconds() const { return impl_->casterBuil
 uint64_t GpuShadows::lastCasterBuildSteps() const { return impl_->casterBuildSteps; }
 
 size_t GpuShadows::lastCasterOverflows() const { return impl_->casterOverflows; }
+size_t GpuShadows::lastTranslucentOverflows() const { return impl_->translucentOverflows; }
+
+// cpvs_translucent_query.comp's bindings of the tree and of its transmittance.
+constexpr uint32_t kTranslucentBinding = 12, kTransmittanceBinding = 13;
+
+void GpuShadows::transmittance(const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
+                               std::vector<std::array<float, 3>>& out) {
+  checkQueryShape(points.size(), normals.size(), 1);
+  Impl& m = *impl_;
+  m.translucentOverflows = 0;
+  const ShadowArtifact& a = *m.artifact;
+  if (!a.translucent() || a.translucent()->root() == 0) {
+    out.assign(points.size(), {1, 1, 1});
+    return;
+  }
+  if (!m.translucent)
+    m.translucent = std::make_unique<QueryKernel>(
+        m.device, a.packed().words(), m.sunGrid(),
+        std::vector<QueryKernel::Table>{{kTranslucentBinding, a.translucentGpuBytes()},
+                                        {kTransmittanceBinding, a.transmittanceGpuBytes()}},
+        QueryKernel::Shaders{translucentShaderOneBuffer(), translucentShaderEightBuffers(), false, 1, 4}, "the DAG");
+  std::vector<uint32_t> words;
+  m.translucent->run(points, normals, {}, 1, words);
+  out.resize(points.size());
+  std::vector<size_t> overflows;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (words[4 * i] & 0x80000000u) overflows.push_back(i);
+    for (int c = 0; c < 3; ++c) std::memcpy(&out[i][c], &words[4 * i + 1 + c], 4);
+  }
+  // A walk deeper than the shader's stack: the CPU's answer, the same to the bit.
+  m.translucentOverflows = overflows.size();
+  if (overflows.empty()) return;
+  std::vector<Vec3> p, n;
+  for (size_t i : overflows) {
+    p.push_back(points[i]);
+    if (!normals.empty()) n.push_back(normals[i]);
+  }
+  std::vector<std::array<float, 3>> cpu;
+  cpuTransmittance(a, p, n, cpu);
+  for (size_t k = 0; k < overflows.size(); ++k) out[overflows[k]] = cpu[k];
+}
 
 void GpuShadows::litTexels(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,
                            std::vector<uint32_t>& out) {

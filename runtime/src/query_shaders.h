@@ -31,6 +31,9 @@ SpirvCode casterShaderEightBuffers();
 /// with CPVS_QUERY_CASTERS).
 SpirvCode lightCasterShaderOneBuffer();
 SpirvCode lightCasterShaderEightBuffers();
+/// The transmittance of an artifact's translucent casters (cpvs_translucent_query.comp).
+SpirvCode translucentShaderOneBuffer();
+SpirvCode translucentShaderEightBuffers();
 /// Dynamic casters' tree inserted on the device (cpvs_caster_build.comp); reads no words.
 SpirvCode casterBuildShader();
 

@@ -34,7 +34,7 @@ auto openWith(const std::string& path, Decode&& decode) {
 std::shared_ptr<const ShadowArtifact> ShadowArtifact::fromBytes(const std::vector<uint8_t>& bytes, const std::string& source) {
   try {
     CpvsArtifact a = decodeCpvs(bytes.data(), bytes.size(), source);
-    return std::make_shared<const ShadowArtifact>(ShadowQuery(a.grid, std::move(a.packed)));
+    return std::make_shared<const ShadowArtifact>(ShadowQuery(a.grid, std::move(a.packed)), std::move(a.translucent));
   } catch (const InputError& e) {
     throw RuntimeError(Status::CorruptArtifact, e.what());
   }

@@ -307,6 +307,49 @@ std::vector<CpvsCasterMesh> cMeshesOf(const std::vector<CasterMesh>& meshes, std
   return c;
 }
 
+// An artifact's translucent casters: the CPU's transmittance is the tree's at the point
+// moved one texel along its normal; the device's (cpvs_translucent_query.comp) is the
+// CPU's to the bit, deep walks answered by the CPU; an artifact without glass lets all
+// light through.
+TEST(GpuTranslucent, TransmittanceAnswersAsTheCpu) {
+  const Scene scene = testing::glassCity();
+  CpvsArtifact art = testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 9), {});
+  ASSERT_TRUE(art.translucent);
+  const auto artifact = ShadowArtifact::fromBytes(encodeCpvs(art, true), "glass.cpvs");
+  ASSERT_NE(artifact->translucent(), nullptr);
+  std::vector<Vec3> points, normals;
+  Vec3 lo, hi;
+  sceneBounds(scene, lo, hi);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int i = 0; i < 20000; ++i) {
+    points.push_back({lo.x + (hi.x - lo.x) * u(rng), lo.y + (hi.y - lo.y) * u(rng), lo.z + (hi.z - lo.z) * u(rng)});
+    normals.push_back(i % 2 ? Vec3{0, 1, 0} : normalize(Vec3{u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5}));
+  }
+  std::vector<std::array<float, 3>> onCpu, onGpu;
+  cpuTransmittance(*artifact, points, normals, onCpu);
+  const double d = artifact->grid().texelSize();
+  size_t darkened = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Vec3 q{points[i].x + normals[i].x * d, points[i].y + normals[i].y * d, points[i].z + normals[i].z * d};
+    ASSERT_EQ(onCpu[i], artifact->translucent()->transmittanceAt(q)) << i;
+    darkened += onCpu[i][0] < 1;
+  }
+  EXPECT_GT(darkened, points.size() / 20) << "points under the glass";
+  GpuShadows gpu(device(), artifact);
+  gpu.transmittance(points, normals, onGpu);
+  size_t differ = 0;
+  for (size_t i = 0; i < points.size(); ++i) differ += std::memcmp(onGpu[i].data(), onCpu[i].data(), 12) != 0;
+  EXPECT_EQ(differ, 0u) << gpu.lastTranslucentOverflows() << " answered by the CPU";
+  expectNoValidationMessages(device());
+
+  const auto opaque = ShadowArtifact::fromBytes(encodeCpvs(testing::localArtifact(opaquePart(scene), art.grid, {}), true), "o.cpvs");
+  EXPECT_EQ(opaque->translucent(), nullptr);
+  GpuShadows plain(device(), opaque);
+  plain.transmittance(points, normals, onGpu);
+  for (const auto& t : onGpu) ASSERT_EQ(t, (std::array<float, 3>{1, 1, 1}));
+}
+
 TEST(GpuDynamicCasters, MovingCastersAnswerAsTheCpu) {
   const Baked b = bake("city:4", {0.4, -1, 0.25}, 11);
   GpuShadows gpu(device(), b.artifact);

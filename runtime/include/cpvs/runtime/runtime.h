@@ -69,12 +69,31 @@ class ShadowArtifact {
   const OrthoGrid& grid() const { return query_.grid(); }
   const PackedDag& packed() const { return query_.dag(); }
   const ShadowQuery& cpu() const { return query_; }
+  /// The TOP tree of the scene's translucent casters the file carries (glass, water,
+  /// leaves on cards: left out of the CPVS), or null. The light reaching a receiver is
+  /// the CPVS's visibility times their transmittance (cpuTransmittance,
+  /// GpuShadows::transmittance).
+  const TopTree* translucent() const { return translucent_.get(); }
+  /// What cpvs_shadow.glsl's CpvsTranslucent binds (CPVS_TRANSLUCENT): a 64-byte header as
+  /// DynamicCasters::gpuBytes' (its normal offset one texel of the grid) and the tree's
+  /// nodes; and CpvsTransmittances, 3 floats a frustum. A tree of no frustum without one.
+  std::vector<uint8_t> translucentGpuBytes() const;
+  std::vector<uint8_t> transmittanceGpuBytes() const;
 
-  explicit ShadowArtifact(ShadowQuery query) : query_(std::move(query)) {}
+  explicit ShadowArtifact(ShadowQuery query, std::shared_ptr<const TopTree> translucent = nullptr)
+      : query_(std::move(query)), translucent_(std::move(translucent)) {}
 
  private:
   ShadowQuery query_;
+  std::shared_ptr<const TopTree> translucent_;
 };
+
+/// The sun's light reaching each (point, normal) through the artifact's translucent
+/// casters, per channel (1, 1, 1 where none is in the way, and everywhere for an artifact
+/// without them), on the CPU over all cores: TopTree::transmittanceAt at the point moved
+/// one texel of the grid along its normal (normals empty: not moved), as the shader moves it.
+void cpuTransmittance(const ShadowArtifact& artifact, const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
+                      std::vector<std::array<float, 3>>& out);
 
 /// A light bundle opened for lookups: its lights, their grids, the one pool of words they
 /// share (as the file holds it) and the CPU reference over them. Immutable.
@@ -290,6 +309,14 @@ class GpuShadows {
   void setDynamicCasters(std::shared_ptr<const DynamicCasters> casters);
   /// How many points of the last litTexels call the CPU answered for the casters.
   size_t lastCasterOverflows() const;
+  /// The light let through the artifact's translucent casters, as cpuTransmittance answers
+  /// it to the bit (cpvs_shadow.glsl's cpvsTranslucentTransmittance, a stack of 64; the
+  /// points whose walk needs more are answered on the CPU). DeviceLost when the device
+  /// stops answering.
+  void transmittance(const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
+                     std::vector<std::array<float, 3>>& out);
+  /// How many points of the last transmittance call the CPU answered.
+  size_t lastTranslucentOverflows() const;
   /// Device time of the last tree inserted on the device (DynamicCasters::Build::Device),
   /// ns, and the planes its invocations were classified against.
   double lastCasterBuildNanoseconds() const;
