@@ -88,10 +88,10 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
   std::printf("  receivers: %s\n", receiversText(art.options, art.receiverHash).c_str());
   std::printf("  tiles not rendered (no triangle, or no receiver's reads): %llu of %llu\n",
               static_cast<unsigned long long>(st.tilesSkipped), static_cast<unsigned long long>(tiles));
-  std::printf("\n  %-10s %10s\n", "stage", "seconds");
+  std::printf("\n  %-11s %10s\n", "stage", "seconds");
   for (const char* name : kStageNames)
-    if (auto it = st.seconds.find(name); it != st.seconds.end()) std::printf("  %-10s %10.3f\n", name, it->second);
-  std::printf("  %-10s %10.3f\n", "total", total);
+    if (auto it = st.seconds.find(name); it != st.seconds.end()) std::printf("  %-11s %10.3f\n", name, it->second);
+  std::printf("  %-11s %10.3f\n", "total", total);
   std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
   for (int l = -1; l < int(dag.levels.size()); ++l) {
     size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();

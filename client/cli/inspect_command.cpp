@@ -74,7 +74,10 @@ int runInspect(const InspectArgs& a) {
       << "},\n  \"receivers\": " << receiversJson(o, art.receiverHash)
       << ",\n  \"plan\": " << (art.plan.empty() ? std::string("null") : art.plan)
       << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"nodes\": " << dag.nodeCount()
-      << ",\n  \"shadow_map_bytes\": " << R * R * 2 << ",\n  \"levels\": [";
+      << ",\n  \"shadow_map_bytes\": " << R * R * 2;
+    if (const TopTree* t = art.translucent.get())
+      s << ",\n  \"translucent\": {\"frusta\": " << t->frustumCount() << ", \"bytes\": " << t->bytes() + 12 * t->frustumCount() << "}";
+    s << ",\n  \"levels\": [";
     for (int l = -1; l < int(dag.levels.size()); ++l) {
       size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
       s << (l < 0 ? "\n    " : ",\n    ") << "{\"size\": " << (l < 0 ? 1 : (1u << (l + 3))) << ", \"nodes\": " << n
@@ -104,6 +107,12 @@ int runInspect(const InspectArgs& a) {
   std::printf("\n  DAG %s; a 16-bit shadow map of %llu^2 is %s (%.1fx)\n", humanBytes(dag.bytes()).c_str(),
               static_cast<unsigned long long>(R), humanBytes(sm).c_str(),
               double(sm) / double(std::max<uint64_t>(1, dag.bytes())));
+  if (const TopTree* t = art.translucent.get())
+    std::printf("  translucent casters: a TOP tree of %zu frusta beside the DAG, %s (nodes and transmittance); "
+                "lookups multiply the light by it\n",
+                t->frustumCount(), humanBytes(t->bytes() + 12 * t->frustumCount()).c_str());
+  else
+    std::printf("  translucent casters: none\n");
   return 0;
 }
 
@@ -112,8 +121,8 @@ int runInspect(const InspectArgs& a) {
 void addInspectCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<InspectArgs>();
   CLI::App* c = app.add_subcommand(
-      "inspect", "Show the header, options, and nodes and bytes per level of a .cpvs file (a light bundle: its lights "
-                 "with their bytes)");
+      "inspect", "Show the header, options, and nodes and bytes per level of a .cpvs file, and its translucent "
+                 "casters' tree (a light bundle: its lights with their bytes)");
   c->add_option("file", a->file, ".cpvs file")->required();
   c->add_flag("--json", a->json, "Print as JSON");
   c->callback([a, &status] { status = runInspect(*a); });

@@ -218,7 +218,9 @@ int runQuery(const QueryArgs& a) {
   if (a.light != "all") throw InputError("--light picks a light of a light bundle; " + a.file + " has the sun only");
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   const ReceiverNotice notice(art, a.file, a.pcf);
-  auto artifact = std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, std::move(art.packed)));
+  auto artifact =
+      std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, std::move(art.packed)), std::move(art.translucent));
+  const bool translucent = artifact->translucent() != nullptr;
   const ShadowQuery& q = artifact->cpu();
   std::unique_ptr<runtime::ShadowLookups> gpu;
   if (a.gpu) {
@@ -229,6 +231,13 @@ int runQuery(const QueryArgs& a) {
     if (gpu) gpu->visibility(points, normals, a.pcf, out);
     else q.batch(points, normals, a.pcf, out);
   };
+  // The light let through the translucent casters (white without them).
+  auto transmittance = [&](const std::vector<Vec3>& points, const std::vector<Vec3>& normals) {
+    std::vector<std::array<float, 3>> t;
+    if (gpu) gpu->transmittance(points, normals, t);
+    else runtime::cpuTransmittance(*artifact, points, normals, t);
+    return t;
+  };
   if (!a.point.empty()) {
     Vec3 p = parseVec3(a.point, "--point");
     Vec3 n = a.normal.empty() ? Vec3{} : parseVec3(a.normal, "--normal");
@@ -238,6 +247,11 @@ int runQuery(const QueryArgs& a) {
     VoxelCoord v = q.voxelOf(p, n, a.pcf);
     std::printf("%s  visibility %.4g  (voxel %lld, %lld, %lld)\n", vis == 1.0f ? "lit" : (vis == 0.0f ? "shadowed" : "partly lit"),
                 vis, static_cast<long long>(v.x), static_cast<long long>(v.y), static_cast<long long>(v.z));
+    if (translucent) {
+      const std::array<float, 3> t = transmittance({p}, {n}).at(0);
+      std::printf("through translucent casters: transmittance %.4g %.4g %.4g  light %.4g %.4g %.4g\n", t[0], t[1], t[2],
+                  vis * t[0], vis * t[1], vis * t[2]);
+    }
     if (notice.needsNormal() && a.normal.empty())
       std::fprintf(stderr, "warning: a surface receiver is looked up with its --normal; this lookup has none\n");
     if (notice.outside(q, p, n, a.pcf))
@@ -249,9 +263,17 @@ int runQuery(const QueryArgs& a) {
   readPointsCsv(a.pointsCsv, points, normals);
   std::vector<float> out;
   lookup(points, normals, out);
-  std::printf("x,y,z,visibility\n");
-  for (size_t i = 0; i < points.size(); ++i)
-    std::printf("%.9g,%.9g,%.9g,%.6g\n", points[i].x, points[i].y, points[i].z, out[i]);
+  if (translucent) {
+    // The light through the translucent casters, per channel, besides the CPVS's visibility.
+    const std::vector<std::array<float, 3>> t = transmittance(points, normals);
+    std::printf("x,y,z,visibility,transmittance_r,transmittance_g,transmittance_b\n");
+    for (size_t i = 0; i < points.size(); ++i)
+      std::printf("%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,%.6g\n", points[i].x, points[i].y, points[i].z, out[i], t[i][0], t[i][1], t[i][2]);
+  } else {
+    std::printf("x,y,z,visibility\n");
+    for (size_t i = 0; i < points.size(); ++i)
+      std::printf("%.9g,%.9g,%.9g,%.6g\n", points[i].x, points[i].y, points[i].z, out[i]);
+  }
   if (notice.needsNormal()) {
     const size_t without = normals.empty() ? points.size() : size_t(std::count(normals.begin(), normals.end(), Vec3{}));
     if (without)

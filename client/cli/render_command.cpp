@@ -120,6 +120,25 @@ std::vector<float> gpuVisibility(const CameraHits& hits, runtime::ShadowLookups&
   return vis;
 }
 
+// The light let through the artifact's translucent casters at every pixel that sees a
+// surface (white elsewhere), on the device when there is one.
+std::vector<std::array<float, 3>> pixelTransmittance(const CameraHits& hits, const runtime::ShadowArtifact& artifact,
+                                                     runtime::ShadowLookups* gpu) {
+  std::vector<Vec3> points, normals;
+  std::vector<size_t> at;
+  for (size_t i = 0; i < hits.pixels.size(); ++i)
+    if (hits.pixels[i].hit) {
+      points.push_back(hits.pixels[i].point);
+      normals.push_back(hits.pixels[i].normal);
+      at.push_back(i);
+    }
+  std::vector<std::array<float, 3>> seen, out(hits.pixels.size(), {1, 1, 1});
+  if (gpu) gpu->transmittance(points, normals, seen);
+  else runtime::cpuTransmittance(artifact, points, normals, seen);
+  for (size_t k = 0; k < at.size(); ++k) out[at[k]] = seen[k];
+  return out;
+}
+
 void parseSize(const std::string& text, int& w, int& h) {
   size_t x = text.find('x');
   auto bad = [&] { return InputError("--size '" + text + "': expected WIDTHxHEIGHT, e.g. 960x600"); };
@@ -309,10 +328,18 @@ int runRender(const RenderArgs& a) {
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   if (fog) checkGridInTheAir(art, a.file, "--fog");
   Scene scene = openMatchingScene(a.scene, art);
+  // Translucent casters are not drawn (the camera sees through them); the light they let
+  // through tints what lies behind them.
+  const bool translucent = art.translucent != nullptr;
+  if (translucent) {
+    if (!a.dynamic.empty() || fog) throw InputError("--dynamic and --fog draw no light through translucent casters, and " + a.file + " has some: render it without them");
+    scene = opaquePart(scene);
+  }
   RayScene rays(scene, art.grid.origin);
   const Vec3 L = art.grid.frame.dir;
   const OrthoGrid grid = art.grid;
-  auto artifact = std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, std::move(art.packed)));
+  auto artifact =
+      std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, std::move(art.packed)), std::move(art.translucent));
   const ShadowQuery& q = artifact->cpu();
   std::unique_ptr<runtime::ShadowLookups> gpu;
   if (a.gpu) gpu = std::make_unique<runtime::ShadowLookups>(artifact, runtime::Backend::Gpu);
@@ -340,13 +367,18 @@ int runRender(const RenderArgs& a) {
                 gpu ? gpu->deviceName().c_str() : "the CPU", gpu ? gpu->deviceName().c_str() : "the CPU",
                 secondsSince(start));
   } else {
-    writeBoth(base, shadeHits(hits, vis, L));
-    std::printf("Wrote %s.png and %s.exr (CPVS shadows, PCF %d, looked up on %s)\n", base.c_str(), base.c_str(), a.pcf,
+    std::vector<std::array<float, 3>> tint;
+    if (translucent) tint = pixelTransmittance(hits, *artifact, gpu.get());
+    writeBoth(base, shadeHits(hits, vis, L, translucent ? &tint : nullptr));
+    std::printf("Wrote %s.png and %s.exr (CPVS shadows%s, PCF %d, looked up on %s)\n", base.c_str(), base.c_str(),
+                translucent ? " times the light through the translucent casters, which are not drawn" : "", a.pcf,
                 gpu ? gpu->deviceName().c_str() : "the CPU");
   }
   if (a.reference) {
     std::vector<float> exact = exactVisibility(hits, rays, grid);
-    writeBoth(base + "-reference", shadeHits(hits, exact, L));
+    std::vector<std::array<float, 3>> tint;
+    if (translucent) tint = pixelTransmittance(hits, *artifact, nullptr);
+    writeBoth(base + "-reference", shadeHits(hits, exact, L, translucent ? &tint : nullptr));
     // The difference compares binary lookups so that a filtered edge is not counted.
     std::vector<float> binary = a.pcf == 1 ? vis : lookup(1);
     uint64_t compared = 0, differing = 0;

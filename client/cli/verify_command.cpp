@@ -3,7 +3,9 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -16,6 +18,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/eval/verify.h"
 #include "cpvs/io/bundle_file.h"
+#include "cpvs/psv/translucent_tree.h"
 #include "cpvs/query/bundle_query.h"
 #include "cpvs/raytrace/ray_scene.h"
 
@@ -146,6 +149,44 @@ int verifyBundle(const VerifyArgs& a, const std::vector<uint8_t>& bytes) {
   return elsewhere == 0 && disagree == 0 ? 0 : 1;
 }
 
+// The translucent casters' tree of a sun artifact against the scene's: the same nodes and
+// transmittance as translucentTree builds, and its walk equal to the product over every
+// frustum holding the point (TopTree's brute force) at each sampled point.
+struct TranslucentCheck {
+  bool expected = false, stored = false, same = true;
+  size_t frusta = 0;
+  uint64_t points = 0, darkened = 0, differ = 0;
+};
+
+TranslucentCheck checkTranslucent(const CpvsArtifact& art, const Scene& scene, const std::vector<SurfaceSample>& samples) {
+  TranslucentCheck c;
+  c.expected = hasTranslucentMeshes(scene);
+  c.stored = art.translucent != nullptr;
+  if (!c.stored) return c;
+  const TopTree& t = *art.translucent;
+  c.frusta = t.frustumCount();
+  if (c.expected) {
+    const TopTree want = translucentTree(scene, PsvLight::sun(art.grid.frame.dir));
+    c.same = want.nodes().size() == t.nodes().size() &&
+             std::memcmp(want.nodes().data(), t.nodes().data(), t.bytes()) == 0 && want.transmittance() == t.transmittance() &&
+             want.origin() == t.origin();
+  }
+  for (const SurfaceSample& s : samples) {
+    const Vec3 p = s.point + s.normal * art.grid.texelSize();
+    std::array<float, 3> want{1, 1, 1};
+    for (uint32_t k : t.frustaHolding(p))
+      for (int ch = 0; ch < 3; ++ch) want[ch] *= t.transmittance()[k][ch];
+    const std::array<float, 3> got = t.transmittanceAt(p);
+    ++c.points;
+    c.darkened += got != std::array<float, 3>{1, 1, 1};
+    // The walk multiplies in its own order: equal up to float rounding.
+    bool close = true;
+    for (int ch = 0; ch < 3; ++ch) close &= std::fabs(got[ch] - want[ch]) <= 1e-6f;
+    c.differ += !close;
+  }
+  return c;
+}
+
 int runVerify(const VerifyArgs& a) {
   if (a.samples == 0) throw InputError("--samples must be at least 1");
   const std::vector<uint8_t> bytes = readFile(a.file);
@@ -153,12 +194,18 @@ int runVerify(const VerifyArgs& a) {
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   Scene scene = openMatchingScene(a.scene, art);
   const ReceiverDeclaration receivers = bakedReceivers(a, art.options, art.receiverHash);
-  RayScene rays(scene, art.grid.origin);
+  // Translucent meshes are not in the CPVS: its answers are held against the exact shadows
+  // of the opaque part, and the file's tree of them against the scene's.
+  const bool translucent = hasTranslucentMeshes(scene);
+  const Scene opaque = translucent ? opaquePart(scene) : Scene{};
+  const Scene& casters = translucent ? opaque : scene;
+  RayScene rays(casters, art.grid.origin);
   ShadowQuery q(art.grid, std::move(art.packed));
   const auto samples = sampleReceivers(scene, rays, art.options.closed, art.grid.frame.dir, receivers, a.samples, a.seed);
   std::optional<TopTree> tree;
-  const ExactOracles oracles = oraclesFor(a, scene, PsvLight::sun(art.grid.frame.dir), tree);
+  const ExactOracles oracles = oraclesFor(a, casters, PsvLight::sun(art.grid.frame.dir), tree);
   VerifyResult r = verifySamples(q, art.options.closed, rays, samples, oracles);
+  const TranslucentCheck glass = checkTranslucent(art, scene, samples);
   // Sampled cameras: how much of what an independent sample sees the bake left free.
   const bool sampledCameras =
       receivers.kind == ReceiverKind::Cameras && receivers.cameraVisibility == CameraVisibility::Sampled;
@@ -183,6 +230,10 @@ int runVerify(const VerifyArgs& a) {
       s << ",\n  \"oracles_compared\": " << r.oraclesCompared
         << ",\n  \"oracles_disagree_near_boundary_count\": " << r.oraclesDisagreeNearBoundary
         << ",\n  \"oracles_disagree_elsewhere_count\": " << r.oraclesDisagreeElsewhere;
+    if (glass.expected || glass.stored)
+      s << ",\n  \"translucent\": {\"frusta\": " << glass.frusta << ", \"tree_is_the_scenes\": " << (glass.same ? "true" : "false")
+        << ", \"points\": " << glass.points << ", \"points_under_glass\": " << glass.darkened
+        << ", \"walk_differs_from_brute_force\": " << glass.differ << "}";
     if (sampledCameras)
       s << ",\n  \"independent_camera_sample\": {\"positions\": " << independent.positions
         << ", \"rays\": " << independent.rays << ", \"hits\": " << independent.hits
@@ -211,10 +262,22 @@ int runVerify(const VerifyArgs& a) {
       std::printf("    mismatch at (%.9g, %.9g, %.9g) normal (%.4f, %.4f, %.4f)\n", e.point.x, e.point.y, e.point.z,
                   e.normal.x, e.normal.y, e.normal.z);
     printOracles(a, r);
+    if (glass.expected || glass.stored)
+      std::printf("  translucent casters: %s; at the %llu points (%llu under glass) the tree's walk %s the brute force "
+                  "over its %zu frusta\n",
+                  !glass.stored ? "the scene has some, the file carries no tree of them"
+                  : !glass.expected ? "the file carries a tree, the scene has none"
+                  : glass.same      ? "the file's tree is the scene's, node for node"
+                                    : "the file's tree is NOT the scene's",
+                  static_cast<unsigned long long>(glass.points), static_cast<unsigned long long>(glass.darkened),
+                  glass.differ ? ("differs from (" + std::to_string(glass.differ) + " points)").c_str() : "equals",
+                  glass.frusta);
   }
   // A mismatch away from every boundary is a wrong answer, not quantization; two exact
-  // oracles that differ there have a bug between them: fail.
-  return r.mismatchElsewhere == 0 && r.oraclesDisagreeElsewhere == 0 ? 0 : 1;
+  // oracles that differ there have a bug between them: fail. So does a translucent tree
+  // other than the scene's.
+  const bool glassOk = glass.expected == glass.stored && glass.same && glass.differ == 0;
+  return r.mismatchElsewhere == 0 && r.oraclesDisagreeElsewhere == 0 && glassOk ? 0 : 1;
 }
 
 }  // namespace

@@ -1,3 +1,5 @@
+#include <array>
+
 #include "cpvs/eval/render.h"
 
 #include <tbb/parallel_for.h>
@@ -142,7 +144,8 @@ Image foggedImage(const Image& clear, const CameraHits& hits, const Camera& came
   return img;
 }
 
-Image shadeHits(const CameraHits& hits, const std::vector<float>& visibility, const Vec3& lightDir) {
+Image shadeHits(const CameraHits& hits, const std::vector<float>& visibility, const Vec3& lightDir,
+                const std::vector<std::array<float, 3>>* transmittance) {
   Image img(hits.width, hits.height);
   for (int y = 0; y < hits.height; ++y)
     for (int x = 0; x < hits.width; ++x) {
@@ -153,8 +156,16 @@ Image shadeHits(const CameraHits& hits, const std::vector<float>& visibility, co
         continue;
       }
       float sun = float(std::max(0.0, -dot(s.normal, lightDir))) * visibility[i];
-      float l = kAlbedo * (ambient(s.normal) + 0.9f * sun);
-      img.at(x, y) = {l * 1.0f, l * 0.97f, l * 0.9f};  // slightly warm sunlight
+      if (!transmittance) {
+        float l = kAlbedo * (ambient(s.normal) + 0.9f * sun);
+        img.at(x, y) = {l * 1.0f, l * 0.97f, l * 0.9f};  // slightly warm sunlight
+        continue;
+      }
+      // The sun through translucent casters, tinted channel by channel.
+      const std::array<float, 3>& t = (*transmittance)[i];
+      const float a = ambient(s.normal);
+      img.at(x, y) = {kAlbedo * (a + 0.9f * sun * t[0]) * 1.0f, kAlbedo * (a + 0.9f * sun * t[1]) * 0.97f,
+                      kAlbedo * (a + 0.9f * sun * t[2]) * 0.9f};
     }
   return img;
 }

@@ -136,6 +136,12 @@ void ShadowLookups::litTexels(const std::vector<Vec3>& points, const std::vector
   cpuLitTexels(*artifact_, points, normals, pcf, out, casters_.get());
 }
 
+void ShadowLookups::transmittance(const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
+                                  std::vector<std::array<float, 3>>& out) {
+  if (onDevice([&] { gpu_->transmittance(points, normals, out); })) return;
+  cpuTransmittance(*artifact_, points, normals, out);
+}
+
 void ShadowLookups::setDynamicCasters(std::shared_ptr<const DynamicCasters> casters) {
   casters_ = std::move(casters);
   onDevice([&] { gpu_->setDynamicCasters(casters_); });

@@ -549,6 +549,58 @@ TEST_F(Cli, RenderWithADynamicCaster) {
   }
 }
 
+// Glass: the plan says it, bake stores the tree of the panes beside the CPVS, inspect shows
+// it, query answers the light through them (the device's to the bit), verify checks the
+// CPVS against the opaque part and the tree against the scene, and render tints the
+// shadows (the same picture on the device).
+TEST_F(Cli, TranslucentCastersFromBakeToPicture) {
+  const std::string glb = path("glass.glb");
+  testing::writeGlb(testing::glassCity(), glb);
+  CliRun r = cpvs("plan " + glb + " --sun-dir 0.3,-1,0.2 -r 512");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("translucent casters: 3 meshes, 16 triangles"), std::string::npos) << r.out;
+  r = cpvs("plan city:2 --sun-dir 0.3,-1,0.2 -r 512");
+  EXPECT_NE(r.out.find("translucent casters: none"), std::string::npos) << r.out;
+  r = cpvs("bake " + glb + " --sun-dir 0.3,-1,0.2 -r 512 -q -o " + path("glass.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = cpvs("inspect " + path("glass.cpvs"));
+  EXPECT_NE(r.out.find("translucent casters: a TOP tree of 16 frusta"), std::string::npos) << r.out;
+  r = cpvs("inspect " + path("glass.cpvs") + " --json");
+  EXPECT_EQ(nlohmann::json::parse(r.out)["translucent"]["frusta"], 16) << r.out;
+  // Points under the panes and the box (a 4 x 4 grid over the scene at mid height) on the CPU and the device.
+  std::string csv = "x,y,z,nx,ny,nz\n";
+  for (int i = 0; i < 16; ++i) csv += std::to_string(8 + 5 * (i % 4)) + ",2," + std::to_string(8 + 5 * (i / 4)) + ",0,1,0\n";
+  std::ofstream(path("under.csv")) << csv;
+  r = cpvs("query " + path("glass.cpvs") + " --points " + path("under.csv"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("x,y,z,visibility,transmittance_r,transmittance_g,transmittance_b"), std::string::npos) << r.out;
+  CliRun onGpu = cpvs("query " + path("glass.cpvs") + " --points " + path("under.csv") + " --gpu");
+  ASSERT_EQ(onGpu.status, 0) << onGpu.out;
+  EXPECT_NE(onGpu.out.find(r.out.substr(r.out.find("x,y,z"))), std::string::npos) << "the device's answers are the CPU's";
+  r = cpvs("verify " + path("glass.cpvs") + " " + glb + " -n 20000");
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("the file's tree is the scene's, node for node"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("walk equals the brute force"), std::string::npos) << r.out;
+  // An artifact of the scene without its glass is not the glass scene's.
+  r = cpvs("verify " + path("c.cpvs") + " " + glb);
+  EXPECT_NE(r.status, 0);
+  const std::string view = " --size 160x100 --camera 60,90,-30,20,0,20,50 ";
+  r = cpvs("render " + path("glass.cpvs") + " " + glb + view + "--reference -o " + path("glass.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("through the translucent casters"), std::string::npos) << r.out;
+  const Image picture = readPng(path("glass.png"));
+  size_t tinted = 0;  // the green pane lets more green than red or blue through
+  for (const Rgb& c : picture.pixels) tinted += c.g > c.r * 1.15f && c.g > c.b * 1.3f;
+  EXPECT_GT(tinted, 50u) << "green light under the green pane";
+  r = cpvs("render " + path("glass.cpvs") + " " + glb + view + "--gpu -o " + path("glass-gpu.png"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  std::ifstream x(path("glass.png"), std::ios::binary), y(path("glass-gpu.png"), std::ios::binary);
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(x)), {}), std::string((std::istreambuf_iterator<char>(y)), {}));
+  r = cpvs("render " + path("glass.cpvs") + " " + glb + view + "--fog 0.02,0.01 -o " + path("bad.png"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find("translucent casters"), std::string::npos) << r.out;
+}
+
 // --gpu (lavapipe here): the same picture bytes and the same CSV as the CPU path; no
 // Vulkan loader: exit status 5 and a message that says what to do.
 TEST_F(Cli, GpuLookupsGiveTheSamePictureAndAnswers) {

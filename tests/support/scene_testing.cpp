@@ -212,7 +212,7 @@ void writeGlb(const Scene& scene, const std::string& path) {
 }
 
 Scene glassCity() {
-  Scene s = openScene("city:2:3");
+  Scene s = openScene("city:3:5");
   Vec3 lo, hi;
   sceneBounds(s, lo, hi);
   s.meshes = {{"city", "blocks", "stone", 0, uint32_t(s.triangleCount()), {0, 0, 0}}};
@@ -225,10 +225,10 @@ Scene glassCity() {
   };
   // Panes facing up (counter-clockwise from above) and one facing down.
   addMesh("pane", "green glass", {0.6f, 0.9f, 0.5f},
-          [&] { appendQuad(s, at(0.1, 0.8, 0.1), at(0.1, 0.8, 0.6), at(0.6, 0.8, 0.6), at(0.6, 0.8, 0.1)); });
-  addMesh("upper", "smoked glass", {0.5f, 0.5f, 0.5f},
-          [&] { appendQuad(s, at(0.3, 0.95, 0.3), at(0.9, 0.95, 0.3), at(0.9, 0.95, 0.9), at(0.3, 0.95, 0.9)); });
-  addMesh("box", "clear glass", {0.9f, 0.9f, 0.95f}, [&] { appendBox(s, at(0.7, 0.6, 0.05), at(0.85, 0.7, 0.2)); });
+          [&] { appendQuad(s, at(0.1, 0.3, 0.1), at(0.1, 0.3, 0.6), at(0.6, 0.3, 0.6), at(0.6, 0.3, 0.1)); });
+  addMesh("upper", "amber glass", {0.9f, 0.6f, 0.3f},
+          [&] { appendQuad(s, at(0.3, 0.4, 0.3), at(0.9, 0.4, 0.3), at(0.9, 0.4, 0.9), at(0.3, 0.4, 0.9)); });
+  addMesh("box", "blue glass", {0.4f, 0.6f, 0.95f}, [&] { appendBox(s, at(0.65, 0.2, 0.05), at(0.95, 0.3, 0.25)); });
   finalizeScene(s);
   return s;
 }

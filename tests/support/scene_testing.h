@@ -76,8 +76,8 @@ CpvsArtifact localArtifact(const Scene& scene, const OrthoGrid& grid, BakeOption
 /// material its transmittance exactly (a base colour of it, KHR_materials_transmission 1).
 void writeGlb(const Scene& scene, const std::string& path);
 
-/// A small city (city:2:3) with glass: two tinted panes in the air, one pane over
-/// another (light crosses both), and a closed glass box on a roof; finalized.
+/// A small city (city:3:5) with glass: two tinted panes in the air, partly one over the
+/// other (light crosses both), and a closed glass box; finalized.
 Scene glassCity();
 
 /// Appends the quad a-b-c-d as two triangles, counter-clockwise seen from its front.

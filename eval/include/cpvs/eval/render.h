@@ -2,6 +2,7 @@
 // difference between the two: how a person checks a bake by eye. Cameras: camera.h.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -23,7 +24,10 @@ std::vector<float> exactVisibility(const CameraHits& hits, const RayScene& rays,
 
 /// Shades the hits: grey surfaces under sky light plus the sun times visibility; a sky
 /// gradient where nothing was hit. Linear values.
-Image shadeHits(const CameraHits& hits, const std::vector<float>& visibility, const Vec3& lightDir);
+/// `transmittance` (one per pixel, or null): the sun light let through translucent
+/// casters, multiplying the sun's term channel by channel.
+Image shadeHits(const CameraHits& hits, const std::vector<float>& visibility, const Vec3& lightDir,
+                const std::vector<std::array<float, 3>>* transmittance = nullptr);
 
 /// The picture seen through a homogeneous medium in the sun (sun shafts): each pixel's
 /// colour attenuated along its view ray, plus the sun light the medium scatters towards

@@ -412,6 +412,10 @@ class ShadowLookups {
   void setDynamicCasters(std::shared_ptr<const DynamicCasters> casters);
   /// lit / pcf^2 (1 lit, 0 shadowed for pcf 1), as ShadowQuery::filtered.
   void visibility(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf, std::vector<float>& out);
+  /// The light let through the artifact's translucent casters (GpuShadows::transmittance,
+  /// cpuTransmittance): multiply visibility by it.
+  void transmittance(const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
+                     std::vector<std::array<float, 3>>& out);
   /// Segments through the sun's grid (GpuShadows::segments), on the device or on the CPU
   /// (ShadowQuery::litFraction and inScattering, the latter rounded to float).
   void segments(const std::vector<Vec3>& from, const std::vector<Vec3>& to, const Medium& medium,
