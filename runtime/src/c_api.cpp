@@ -21,6 +21,7 @@ struct CpvsShadows_T {
   std::vector<uint8_t> sun;  // cpvsGetShadowsBuffer's CpvsSun block
   std::shared_ptr<const DynamicCasters> casters;  // the casters last set
   std::vector<uint8_t> casterBytes;  // cpvsGetShadowsBuffer's CpvsCasters for them, made when first asked
+  std::vector<uint8_t> translucent, transmittance;  // its CpvsTranslucent and CpvsTransmittances
 };
 
 struct CpvsLights_T {
@@ -187,6 +188,24 @@ CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* poi
   });
 }
 
+int cpvsShadowsHaveTranslucentCasters(CpvsShadows shadows) {
+  return shadows && shadows->lookups->artifact().translucent() ? 1 : 0;
+}
+
+CpvsStatus cpvsQueryTransmittance(CpvsShadows shadows, size_t count, const double* points, const double* normals,
+                                  float* rgb) {
+  return guarded([&] {
+    require(shadows != nullptr, "cpvsQueryTransmittance: shadows is null");
+    require(count == 0 || (points && rgb), "cpvsQueryTransmittance: points or rgb is null");
+    std::vector<Vec3> p(count), n(normals ? count : 0);
+    for (size_t i = 0; i < count; ++i) p[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
+    for (size_t i = 0; i < n.size(); ++i) n[i] = {normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+    std::vector<std::array<float, 3>> out;
+    shadows->lookups->transmittance(p, n, out);
+    if (count) std::memcpy(rgb, out.data(), count * 12);
+  });
+}
+
 CpvsStatus cpvsSetDynamicCasters(CpvsShadows shadows, const CpvsCasterMesh* meshes, size_t meshCount, double normalOffset) {
   return guarded([&] {
     require(shadows != nullptr, "cpvsSetDynamicCasters: shadows is null");
@@ -219,6 +238,14 @@ CpvsStatus cpvsGetShadowsBuffer(CpvsShadows shadows, CpvsShadowsBuffer which, co
       case CPVS_SHADOWS_BUFFER_CASTERS:
         if (shadows->casters && shadows->casterBytes.empty()) shadows->casterBytes = shadows->casters->linkedGpuBytes();
         *data = shadows->casterBytes.data(), *bytes = shadows->casterBytes.size();
+        return;
+      case CPVS_SHADOWS_BUFFER_TRANSLUCENT:
+        if (shadows->translucent.empty()) shadows->translucent = shadows->lookups->artifact().translucentGpuBytes();
+        *data = shadows->translucent.data(), *bytes = shadows->translucent.size();
+        return;
+      case CPVS_SHADOWS_BUFFER_TRANSMITTANCE:
+        if (shadows->transmittance.empty()) shadows->transmittance = shadows->lookups->artifact().transmittanceGpuBytes();
+        *data = shadows->transmittance.data(), *bytes = shadows->transmittance.size();
         return;
     }
     require(false, "cpvsGetShadowsBuffer: no such buffer");

@@ -343,6 +343,35 @@ TEST(GpuTranslucent, TransmittanceAnswersAsTheCpu) {
   EXPECT_EQ(differ, 0u) << gpu.lastTranslucentOverflows() << " answered by the CPU";
   expectNoValidationMessages(device());
 
+  // The C API: the same answers on a device and on the CPU, and the buffers an engine binds.
+  const std::string file = ::testing::TempDir() + "runtime-glass.cpvs";
+  writeCpvs(file, art, true);
+  CpvsDeviceDesc desc{};
+  CpvsDevice dev = nullptr;
+  ASSERT_EQ(cpvsNewDevice(&desc, &dev), CPVS_OK) << cpvsGetLastError();
+  std::vector<double> p, n;
+  for (size_t i = 0; i < points.size(); ++i) {
+    p.insert(p.end(), {points[i].x, points[i].y, points[i].z});
+    n.insert(n.end(), {normals[i].x, normals[i].y, normals[i].z});
+  }
+  for (CpvsDevice on : {dev, CpvsDevice(nullptr)}) {
+    CpvsShadows h = nullptr;
+    ASSERT_EQ(cpvsOpenShadows(file.c_str(), on, 0, &h), CPVS_OK) << cpvsGetLastError();
+    EXPECT_EQ(cpvsShadowsHaveTranslucentCasters(h), 1);
+    std::vector<float> rgb(3 * points.size());
+    ASSERT_EQ(cpvsQueryTransmittance(h, points.size(), p.data(), n.data(), rgb.data()), CPVS_OK) << cpvsGetLastError();
+    EXPECT_EQ(std::memcmp(rgb.data(), onCpu.data(), rgb.size() * 4), 0) << (on ? "device" : "CPU");
+    const void* data = nullptr;
+    size_t bytes = 0;
+    ASSERT_EQ(cpvsGetShadowsBuffer(h, CPVS_SHADOWS_BUFFER_TRANSLUCENT, &data, &bytes), CPVS_OK);
+    EXPECT_EQ(std::vector<uint8_t>(static_cast<const uint8_t*>(data), static_cast<const uint8_t*>(data) + bytes),
+              artifact->translucentGpuBytes());
+    ASSERT_EQ(cpvsGetShadowsBuffer(h, CPVS_SHADOWS_BUFFER_TRANSMITTANCE, &data, &bytes), CPVS_OK);
+    EXPECT_EQ(bytes, 12 * artifact->translucent()->frustumCount());
+    cpvsReleaseShadows(h);
+  }
+  cpvsReleaseDevice(dev);
+
   const auto opaque = ShadowArtifact::fromBytes(encodeCpvs(testing::localArtifact(opaquePart(scene), art.grid, {}), true), "o.cpvs");
   EXPECT_EQ(opaque->translucent(), nullptr);
   GpuShadows plain(device(), opaque);

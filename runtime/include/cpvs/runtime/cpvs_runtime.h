@@ -80,9 +80,24 @@ CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* poi
 typedef enum CpvsShadowsBuffer {
   CPVS_SHADOWS_BUFFER_SUN = 0,
   CPVS_SHADOWS_BUFFER_WORDS = 1,
-  CPVS_SHADOWS_BUFFER_CASTERS = 2 /* CpvsCasters (CPVS_CASTERS) of the casters last set; 0 bytes: none */
+  CPVS_SHADOWS_BUFFER_CASTERS = 2, /* CpvsCasters (CPVS_CASTERS) of the casters last set; 0 bytes: none */
+  CPVS_SHADOWS_BUFFER_TRANSLUCENT = 3,  /* CpvsTranslucent (CPVS_TRANSLUCENT): the artifact's translucent casters'
+                                           tree (its root 0 when it has none) */
+  CPVS_SHADOWS_BUFFER_TRANSMITTANCE = 4 /* CpvsTransmittances: their RGB transmittance, 3 floats a frustum */
 } CpvsShadowsBuffer;
 CpvsStatus cpvsGetShadowsBuffer(CpvsShadows shadows, CpvsShadowsBuffer which, const void** data, size_t* bytes);
+
+/* --- translucent casters: glass, water and leaves on cards the bake left out of the CPVS
+ * and stored beside it as a TOP tree (seed 003 §3.4) */
+
+/* 1 when the artifact carries translucent casters, 0 otherwise. */
+int cpvsShadowsHaveTranslucentCasters(CpvsShadows shadows);
+/* count queries as cpvsQueryShadows': rgb[3 i .. 3 i + 2] receives the sun light let
+ * through the translucent casters at point i moved one texel along its normal (1, 1, 1
+ * where none is in the way, and everywhere without them): multiply the visibility by it.
+ * On a device, deeper walks than its 64-entry stack are answered on the CPU. */
+CpvsStatus cpvsQueryTransmittance(CpvsShadows shadows, size_t count, const double* points, const double* normals,
+                                  float* rgb);
 
 /* --- dynamic casters: what moves (characters, vehicles, doors) casts exact sun shadows
  * on the baked world and on itself, by partitioned shadow volumes (a TOP tree, seed 003) */
