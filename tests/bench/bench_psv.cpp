@@ -30,6 +30,7 @@
 #include "cpvs/eval/camera.h"
 #include "cpvs/eval/surface_sampling.h"
 #include "cpvs/psv/top_tree.h"
+#include "cpvs/psv/translucent_tree.h"
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/runtime/runtime.h"
 #include "cpvs/scene/source.h"
@@ -45,6 +46,7 @@ struct Args : CommonArgs {
   std::vector<std::string> ablate{"city:51", "engine"};
   int points = 100000;
   std::string frameScene = "city", casters = "city:51", saveCasters, device;
+  std::vector<std::string> translucent{"glass-city", "haus"};
   int frameLog2R = 12, width = 1920, height = 1080, frameRepeat = 3;
 };
 
@@ -62,6 +64,9 @@ void printUsage() {
       "                     dynamic casters (default city:51, 101k triangles, flown over it at a third of its width);\n"
       "                     none: skip it\n"
       "  --device TEXT      the Vulkan device for it (default: the first; lavapipe here)\n"
+      "  --translucent LIST scenes with translucent casters, baked at 2K: their tree and the transmittance lookups\n"
+      "                     (default glass-city,haus: docs/scenes/glass-city.glb's city and the FZK house's 820\n"
+      "                     glass triangles; none: skip)\n"
       "  --save-casters F   write the frame scene's dynamic casters to F (gpu_frame_timing reads NAME.casters beside\n"
       "                     NAME.cpvs) and stop\n");
 }
@@ -197,6 +202,7 @@ int run(int argc, char** argv) {
     if (option == "--frame-scene") a.frameScene = value;
     else if (option == "--casters") a.casters = value;
     else if (option == "--save-casters") a.saveCasters = value;
+    else if (option == "--translucent") list(a.translucent);
     else if (option == "--device") a.device = value;
     else if (option == "--frame-resolution") a.frameLog2R = parseResolution(value);
     else if (option == "--frame") {
@@ -281,6 +287,76 @@ int run(int argc, char** argv) {
         std::fflush(stdout);
       }
     }
+  }
+  if (!a.translucent.empty() && a.translucent[0] != "none") {
+    runtime::DeviceOptions options;
+    options.select = a.device;
+    std::printf("\n## Translucent casters: the tree beside a 2K CPVS, and the light through it at %d surface points\n\n",
+                a.points);
+    std::unique_ptr<runtime::GpuDevice> device = openTimingDevice(options);
+    std::printf("\n| scene | triangles | translucent | frusta | tree bytes | build ms | CPU ns / lookup (all threads) | "
+                "device ns / lookup | x CPU | nodes visited | under glass | deeper than 64 |\n");
+    std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (const std::string& spec : a.translucent) {
+      std::optional<Scene> scene;
+      std::string label = spec;
+      if (spec == "glass-city") {
+        scene = testing::glassCity();
+      } else if (std::optional<BenchScene> s = openBenchScene(spec, "bench_psv", notes)) {
+        scene = std::move(s->scene);
+        label = s->label;
+      }
+      if (!scene) continue;
+      if (!hasTranslucentMeshes(*scene)) {
+        notes.push_back("translucent: " + label + " has no translucent mesh");
+        continue;
+      }
+      const OrthoGrid grid = makeGrid(*scene, LightFrame::fromDirection(a.sunDir), 11);
+      CpvsArtifact art = testing::localArtifact(*scene, grid, {});
+      auto start = std::chrono::steady_clock::now();
+      const TopTree tree = translucentTree(*scene, PsvLight::sun(grid.frame.dir));
+      const double buildMs = 1e3 * secondsSince(start);
+      auto artifact = std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, PackedDag(art.dag)), art.translucent);
+      std::vector<Vec3> points, normals;
+      const RayScene rays(*scene, grid.origin);
+      for (const SurfaceSample& p : sampleSurfaces(*scene, rays, ClosedMode::Auto, grid.frame.dir, uint64_t(a.points), 3)) {
+        points.push_back(p.point);
+        normals.push_back(p.normal);
+      }
+      std::vector<std::array<float, 3>> cpu, gpu;
+      runtime::cpuTransmittance(*artifact, points, normals, cpu);  // warm
+      start = std::chrono::steady_clock::now();
+      runtime::cpuTransmittance(*artifact, points, normals, cpu);
+      const double cpuNs = 1e9 * secondsSince(start) / double(points.size());
+      double deviceNs = 0;
+      size_t deeper = 0;
+      if (device) {
+        runtime::GpuShadows shadows(*device, artifact);
+        shadows.transmittance(points, normals, gpu);  // warm: the pipeline and its buffers
+        start = std::chrono::steady_clock::now();
+        shadows.transmittance(points, normals, gpu);
+        deviceNs = 1e9 * secondsSince(start) / double(points.size());
+        deeper = shadows.lastTranslucentOverflows();
+        if (gpu != cpu) notes.push_back("translucent: " + label + ": the device's transmittance is NOT the CPU's");
+      }
+      uint64_t visited = 0, under = 0;
+      for (size_t i = 0; i < points.size(); ++i) {
+        TopQueryStats st;
+        std::array<float, 3> t;
+        tree.transmittanceAt(points[i] + normals[i] * grid.texelSize(), std::numeric_limits<uint32_t>::max(), t, &st);
+        visited += st.visited;
+        under += t != std::array<float, 3>{1, 1, 1};
+      }
+      const TranslucentCasters glass = translucentCasters(*scene);
+      std::printf("| %s | %zu | %zu | %zu | %zu | %.2f | %.0f | %s | %s | %.1f | %.2f %% | %zu |\n", label.c_str(),
+                  scene->triangleCount(), glass.triangleCount(), tree.frustumCount(), tree.bytes() + 12 * tree.frustumCount(),
+                  buildMs, cpuNs, device ? std::to_string(int(deviceNs)).c_str() : "-",
+                  device ? times(ratio(deviceNs, cpuNs)).c_str() : "-", double(visited) / double(points.size()),
+                  100.0 * double(under) / double(points.size()), deeper);
+      std::fflush(stdout);
+    }
+    std::printf("\nDevice ns: wall time of GpuShadows::transmittance (upload, cpvs_translucent_query.comp, read back)\n"
+                "per point; a lavapipe device runs on the same CPU cores. Answers compared with the CPU's to the bit.\n");
   }
   if (a.frameScene != "none") {
     // The runtime: a frame of an artifact's lookups with dynamic casters over it.
