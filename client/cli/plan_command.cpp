@@ -66,8 +66,17 @@ int runLightPlan(const PlanArgs& a) {
   if (a.json)
     std::cout << "{\"footprint\": " << jsonNumber(footprint) << ", \"lights\": " << planned.lights.size()
               << ", \"plan\": " << lightPlanJson(planned, closest) << "}\n";
-  else
+  else {
     std::cout << lightPlanTable(planned, closest, footprint, receivers);
+    // Only the sun's artifact carries a translucent casters' tree: say what local lights do.
+    size_t meshes = 0, triangles = 0;
+    for (const SceneMesh& m : scene.meshes)
+      if (isTranslucent(m)) ++meshes, triangles += m.triangles;
+    if (meshes)
+      std::cout << "translucent casters: " << meshes << " meshes, " << triangles
+                << " triangles: local lights' grids bake them as opaque casters (only a sun bake keeps their "
+                   "transmittance, in a TOP tree beside its CPVS)\n";
+  }
   return 0;
 }
 
