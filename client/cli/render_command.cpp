@@ -334,6 +334,8 @@ int runRender(const RenderArgs& a) {
   if (translucent) {
     if (!a.dynamic.empty() || fog) throw InputError("--dynamic and --fog draw no light through translucent casters, and " + a.file + " has some: render it without them");
     scene = opaquePart(scene);
+    if (scene.triangleCount() == 0)
+      throw InputError(a.scene + " is translucent casters only: nothing to draw their light on");
   }
   RayScene rays(scene, art.grid.origin);
   const Vec3 L = art.grid.frame.dir;

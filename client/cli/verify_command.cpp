@@ -199,9 +199,13 @@ int runVerify(const VerifyArgs& a) {
   const bool translucent = hasTranslucentMeshes(scene);
   const Scene opaque = translucent ? opaquePart(scene) : Scene{};
   const Scene& casters = translucent ? opaque : scene;
+  // The receivers are sampled on the whole scene (glass receives too), by its own rays.
+  std::optional<RayScene> sceneRays;
+  if (translucent) sceneRays.emplace(scene, art.grid.origin);
   RayScene rays(casters, art.grid.origin);
   ShadowQuery q(art.grid, std::move(art.packed));
-  const auto samples = sampleReceivers(scene, rays, art.options.closed, art.grid.frame.dir, receivers, a.samples, a.seed);
+  const auto samples = sampleReceivers(scene, translucent ? *sceneRays : rays, art.options.closed, art.grid.frame.dir,
+                                       receivers, a.samples, a.seed);
   std::optional<TopTree> tree;
   const ExactOracles oracles = oraclesFor(a, casters, PsvLight::sun(art.grid.frame.dir), tree);
   VerifyResult r = verifySamples(q, art.options.closed, rays, samples, oracles);

@@ -599,6 +599,20 @@ TEST_F(Cli, TranslucentCastersFromBakeToPicture) {
   r = cpvs("render " + path("glass.cpvs") + " " + glb + view + "--fog 0.02,0.01 -o " + path("bad.png"));
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.out.find("translucent casters"), std::string::npos) << r.out;
+  // A scene of glass alone (an OBJ's dissolve): an all-lit CPVS, the light through the
+  // pane, verified; nothing to draw it on.
+  std::ofstream(path("pane.mtl")) << "newmtl glass\nd 0.5\n";
+  std::ofstream(path("pane.obj")) << "mtllib pane.mtl\nv -2 2 -2\nv 2 2 -2\nv 2 2 2\nv -2 2 2\nusemtl glass\nf 1 3 2\nf 1 4 3\n";
+  r = cpvs("bake " + path("pane.obj") + " --sun-dir 0.2,-1,0.1 -r 64 -q -o " + path("pane.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = cpvs("query " + path("pane.cpvs") + " --point 0,0,0");
+  EXPECT_NE(r.out.find("lit  visibility 1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("transmittance 0.5 0.5 0.5"), std::string::npos) << r.out;
+  r = cpvs("verify " + path("pane.cpvs") + " " + path("pane.obj") + " -n 2000");
+  EXPECT_EQ(r.status, 0) << r.out;
+  r = cpvs("render " + path("pane.cpvs") + " " + path("pane.obj") + " -o " + path("pane.png"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find("nothing to draw"), std::string::npos) << r.out;
 }
 
 // --gpu (lavapipe here): the same picture bytes and the same CSV as the CPU path; no
