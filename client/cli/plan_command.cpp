@@ -9,6 +9,7 @@
 #include "cli_util.h"
 #include "commands.h"
 #include "cpvs/bake/bake_plan.h"
+#include "cpvs/bake/bake_scene.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/eval/image.h"
 #include "cpvs/scene/source.h"
@@ -71,7 +72,7 @@ int runLightPlan(const PlanArgs& a) {
     // Only the sun's artifact carries a translucent casters' tree: say what local lights do.
     size_t meshes = 0, triangles = 0;
     for (const SceneMesh& m : scene.meshes)
-      if (isTranslucent(m)) ++meshes, triangles += m.triangles;
+      if (m.triangles > 0 && isTranslucent(m)) ++meshes, triangles += m.triangles;
     if (meshes)
       std::cout << "translucent casters: " << meshes << " meshes, " << triangles
                 << " triangles: local lights' grids bake them as opaque casters (only a sun bake keeps their "
@@ -89,7 +90,8 @@ int runPlan(const PlanArgs& a) {
   SceneStats stats;
   const Scene scene = openScene(a.scene, &stats);
   const OrthoGrid grid = makeGrid(scene, frame, log2R);
-  const RasterScene raster(scene, grid);
+  std::optional<Scene> opaque;
+  const RasterScene raster(sunCasters(scene, opaque), grid);
   const ReceiverSet reads(scene, grid, receivers);
   const BakePlan plan = planBake(scene, stats, options, receivers, raster, reads, declaredMedia(a.options));
   if (!a.coveragePng.empty()) writeCoveragePng(a.coveragePng, scene, grid, options, receivers, plan);

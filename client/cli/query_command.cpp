@@ -184,6 +184,9 @@ int querySegment(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
   if (!a.medium.empty()) medium = parseMedium(a.medium, "--medium");
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   checkGridInTheAir(art, a.file, "--segment");
+  if (art.translucent)
+    std::fprintf(stderr, "note: %s has translucent casters; along a segment their light counts as unblocked\n",
+                 a.file.c_str());
   const ShadowQuery q(art.grid, std::move(art.packed));
   const auto lit = q.litStretches(from, to);
   const double len = length(to - from);

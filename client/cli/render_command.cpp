@@ -425,13 +425,19 @@ int runSheet(const SheetArgs& a) {
   std::vector<Image> frames;
   for (size_t k = 0; k < files.size(); ++k) {
     CpvsArtifact art = readCpvs(files[k].string());
-    if (!scene) scene = openMatchingScene(a.scene, art);
+    if (!scene) {
+      // Translucent casters are not drawn; their light tints the versions that carry them.
+      scene = openMatchingScene(a.scene, art);
+      if (hasTranslucentMeshes(*scene)) scene = opaquePart(*scene);
+    }
     if (!cam) cam = a.camera.empty() ? defaultCamera(*scene, art.grid.frame.dir, double(w) / h) : Camera::parse(a.camera);
     const Vec3 L = art.grid.frame.dir;
     RayScene rays(*scene, art.grid.origin);
-    ShadowQuery q(art.grid, std::move(art.packed));
+    const runtime::ShadowArtifact artifact(ShadowQuery(art.grid, std::move(art.packed)), std::move(art.translucent));
     const CameraHits hits = traceCamera(*scene, rays, *cam, w, h);
-    const Image img = shadeHits(hits, cpvsVisibility(hits, q, a.pcf), L);
+    std::vector<std::array<float, 3>> tint;
+    if (artifact.translucent()) tint = pixelTransmittance(hits, artifact, nullptr);
+    const Image img = shadeHits(hits, cpvsVisibility(hits, artifact.cpu(), a.pcf), L, artifact.translucent() ? &tint : nullptr);
     if (!a.animation.empty()) frames.push_back(img);
     const int x0 = int(k % size_t(cols)) * w, y0 = int(k / size_t(cols)) * h;
     for (int y = 0; y < h; ++y)

@@ -31,6 +31,17 @@ auto openWith(const std::string& path, Decode&& decode) {
 
 }  // namespace
 
+ShadowArtifact::ShadowArtifact(ShadowQuery query, std::shared_ptr<const TopTree> translucent)
+    : query_(std::move(query)), translucent_(std::move(translucent)) {
+  if (!translucent_) return;
+  const TopTree& t = *translucent_;
+  if (!t.linked() || t.transmittance().size() != t.frustumCount() || !t.light().directional ||
+      length(t.light().vector - query_.grid().frame.dir) > 1e-9)
+    throw RuntimeError(Status::InvalidArgument,
+                       "translucent casters: a tree that is not linked, lacks a transmittance per frustum, or is not "
+                       "for the artifact's sun");
+}
+
 std::shared_ptr<const ShadowArtifact> ShadowArtifact::fromBytes(const std::vector<uint8_t>& bytes, const std::string& source) {
   try {
     CpvsArtifact a = decodeCpvs(bytes.data(), bytes.size(), source);

@@ -13,6 +13,7 @@
 #include "coordinator/clock.h"
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/bake/bake_plan.h"
+#include "cpvs/bake/bake_scene.h"
 #include "cpvs/bake/raster_scene.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
@@ -179,7 +180,8 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   // local bake's test, without building a renderer).
   BakePlan bakePlan;
   {
-    const RasterScene projected(scene, grid);
+    std::optional<Scene> opaque;
+    const RasterScene projected(sunCasters(scene, opaque), grid);
     const ReceiverSet reads(scene, grid, receivers);
     bakePlan = planBake(scene, stats, options, receivers, projected, reads, media);
     j.plan = planJson(bakePlan);

@@ -168,6 +168,29 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
 
 bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
   if (m.file.empty()) {
+    // A sun job's translucent casters (its plan records them when there are some: only then
+    // is the scene read), before its DAG is taken: a store that cannot answer now is asked
+    // again with nothing lost.
+    std::shared_ptr<const TopTree> translucent;
+    if (!j.isBundle() && j.plan.find("\"translucent\"") != std::string::npos) {
+      try {
+        const auto treeStart = std::chrono::steady_clock::now();
+        const Scene scene = loadScene_(j.sceneHash);
+        if (hasTranslucentMeshes(scene))
+          translucent = std::make_shared<const TopTree>(translucentTree(scene, PsvLight::sun(sunGridOf(j).frame.dir)));
+        try {
+          store_.addStageSeconds(j.id, {{"translucent", secondsSince(treeStart)}});
+        } catch (const StoreUnavailable&) {
+        }
+      } catch (const StoreUnavailable& e) {
+        spdlog::warn("job {}: cannot read its scene now ({}); trying again in 1 s, its tiles kept", j.id, e.what());
+        retryLater({Item::Kind::WriteArtifact, j.id, 0});
+        return false;
+      } catch (const std::exception& e) {
+        failJob(j.id, std::string("cannot build its translucent casters' tree: ") + e.what());
+        return true;
+      }
+    }
     auto start = std::chrono::steady_clock::now();
     std::vector<Dag> dags;
     for (GridMerge& g : m.grids) dags.push_back(std::move(*g.dag));
@@ -180,23 +203,7 @@ bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
       art.receiverHash = j.receiverHash;
       art.plan = j.plan;
       art.dag = std::move(dags.at(0));
-      // The plan records translucent meshes when there are some: only then is the scene read.
-      if (j.plan.find("\"translucent\"") != std::string::npos) {
-        try {
-          const auto treeStart = std::chrono::steady_clock::now();
-          const Scene scene = loadScene_(j.sceneHash);
-          if (hasTranslucentMeshes(scene))
-            art.translucent = std::make_shared<const TopTree>(translucentTree(scene, PsvLight::sun(art.grid.frame.dir)));
-          start = std::chrono::steady_clock::now();
-          try {
-            store_.addStageSeconds(j.id, {{"translucent", secondsSince(treeStart)}});
-          } catch (const StoreUnavailable&) {
-          }
-        } catch (const std::exception& e) {
-          failJob(j.id, std::string("cannot build its translucent casters' tree: ") + e.what());
-          return true;
-        }
-      }
+      art.translucent = std::move(translucent);
       m.dagBytes = art.dag.bytes();
       m.file = encodeCpvs(art, true);
       try {

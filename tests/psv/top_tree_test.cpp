@@ -181,6 +181,27 @@ TEST(TopTree, TransmittanceIsTheProductOverEveryFrustumHoldingThePoint) {
   EXPECT_THROW(tree.setTransmittance(tint), InputError);
 }
 
+// A product of transmittances below the least normal float is 0, as a device that flushes
+// subnormals makes it; a subnormal transmittance is refused.
+TEST(TopTree, TransmittanceNeverGoesSubnormal) {
+  Scene panes;
+  for (int k = 0; k < 3; ++k) {
+    const double y = 1 + k;
+    const uint32_t base = uint32_t(panes.positions.size());
+    for (const Vec3& p : {Vec3{-1, y, -1}, Vec3{-1, y, 1}, Vec3{1, y, 1}, Vec3{1, y, -1}}) panes.positions.push_back(p);
+    for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) panes.indices.push_back(base + i);
+  }
+  TopTreeOptions options;
+  options.frontFaceCulling = false;
+  TopTree tree = TopTree::build(panes.positions, panes.indices, {}, PsvLight::sun({0, -1, 0}), options);
+  tree.setTransmittance(std::vector<std::array<float, 3>>(6, {1e-15f, 1e-12f, 0.5f}));
+  const std::array<float, 3> t = tree.transmittanceAt({0.1, 0, 0.2});
+  EXPECT_EQ(t[0], 0.0f) << "1e-45 is subnormal";
+  EXPECT_GE(t[1], std::numeric_limits<float>::min()) << "1e-36 is a normal float";
+  EXPECT_EQ(t[2], 0.125f);
+  EXPECT_THROW(tree.setTransmittance(std::vector<std::array<float, 3>>(6, {1e-40f, 1, 1})), InputError);
+}
+
 // A tree as stored answers as the tree built, and nothing a walk could trip on is taken:
 // a child that points back or elsewhere than a frustum, a frustum with two parents or
 // none, a broken chain of planes, a non-finite plane, a negative wedge, a transmittance

@@ -2,7 +2,8 @@
 // with cpvs_shadow.glsl: both artifacts bound side by side in its own set, the sun's
 // words in one buffer and the bundle's pool split across two; the sun's light also
 // and every lamp's blocked by what moves (the dynamic casters' trees after them: the
-// sun's at binding 9, the lamps' headers and nodes at 10 and 11). Compiled by the test suite
+// sun's at binding 9, the lamps' headers and nodes at 10 and 11; the sun's translucent
+// casters' tree and transmittance at 12 and 13). Compiled by the test suite
 // (glslc) so that the installed include keeps compiling outside the library's shaders.
 #version 450
 #extension GL_GOOGLE_include_directive : require
@@ -14,6 +15,7 @@
 #define CPVS_LIGHT_WORD_BUFFERS 2
 #define CPVS_CASTERS
 #define CPVS_LIGHT_CASTERS
+#define CPVS_TRANSLUCENT
 #include "cpvs_shadow.glsl"
 
 layout(location = 0) in vec3 worldPosition;
@@ -23,6 +25,9 @@ layout(location = 0) out vec4 color;
 void main() {
   const vec3 n = normalize(worldNormal);
   vec3 c = vec3(0.9, 0.85, 0.7) * max(dot(n, vec3(0.3, 0.9, 0.2)), 0.0) * cpvsFilteredWithCasters(worldPosition, worldNormal, 5u);
+  vec3 throughGlass;
+  cpvsTranslucentTransmittance(dvec3(worldPosition), dvec3(worldNormal), throughGlass);
+  c *= throughGlass;
   for (uint i = 0u; i < cpvsLightCount(); ++i) {
     const CpvsLight l = cpvsLights[i];
     const vec3 toLight = vec3(l.position[0], l.position[1], l.position[2]) - worldPosition;

@@ -1,5 +1,7 @@
 #include "cpvs/bake/bake_plan.h"
 
+#include <optional>
+
 #include "cpvs/bake/camera_views.h"
 
 #include <algorithm>
@@ -82,17 +84,25 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
   BakePlan p;
   p.scene = scene.name;
   p.triangles = scene.triangleCount();
-  p.parts = stats.parts;
-  p.closedParts = stats.closedParts;
-  p.closedTriangles = stats.closedTriangles;
+  // Closed parts as the bake finds them: in the casters (the opaque part, classified again).
+  SceneStats opaqueStats;
+  std::optional<Scene> opaque;
+  if (hasTranslucentMeshes(scene)) opaque = opaquePart(scene, &opaqueStats);
+  const SceneStats& castStats = opaque ? opaqueStats : stats;
+  p.parts = castStats.parts;
+  p.closedParts = castStats.closedParts;
+  p.closedTriangles = castStats.closedTriangles;
   // The surfaces that receive (everywhere: not counted).
   const std::vector<uint8_t> sides = d.kind == ReceiverKind::Everywhere ? std::vector<uint8_t>(scene.triangleCount())
                                                                          : receivingSides(scene, d);
   double area = 0, closedArea = 0, walkableArea = 0, receivingArea = 0;
+  if (opaque)
+    for (size_t t = 0; t < opaque->triangleCount(); ++t)
+      if (opaque->closed[t]) closedArea += triangleArea(*opaque, t);
   for (size_t t = 0; t < scene.triangleCount(); ++t) {
     const double at = triangleArea(scene, t);
     area += at;
-    if (scene.closed[t]) closedArea += at;
+    if (!opaque && scene.closed[t]) closedArea += at;
     if (walkable(scene, d, t)) walkableArea += at, ++p.walkableTriangles;
     const int receiving = (sides[t] & 1) + (sides[t] >> 1 & 1);
     receivingArea += receiving * at;
@@ -204,7 +214,7 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
   }
   p.media = std::move(media);
   for (const SceneMesh& m : scene.meshes)
-    if (isTranslucent(m)) {
+    if (m.triangles > 0 && isTranslucent(m)) {
       ++p.translucentMeshes;
       p.translucentTriangles += m.triangles;
     }

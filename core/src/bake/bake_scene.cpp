@@ -11,12 +11,15 @@
 
 namespace cpvs {
 
+const Scene& sunCasters(const Scene& scene, std::optional<Scene>& storage) {
+  if (!hasTranslucentMeshes(scene)) return scene;
+  storage = opaquePart(scene);
+  return *storage;
+}
+
 BakeScene::BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer renderer, int threads,
                      const ReceiverDeclaration& receivers)
-    : opaque_(hasTranslucentMeshes(scene) ? std::make_unique<const Scene>(opaquePart(scene)) : nullptr),
-      renderer_(renderer),
-      raster_(opaque_ ? *opaque_ : scene, grid),
-      receivers_(scene, grid, receivers) {
+    : renderer_(renderer), raster_(sunCasters(scene, opaque_), grid), receivers_(scene, grid, receivers) {
   if (renderer == Renderer::Embree) rays_ = std::make_unique<RayScene>(opaque_ ? *opaque_ : scene, grid.origin, threads);
 }
 

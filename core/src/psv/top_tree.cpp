@@ -362,8 +362,10 @@ TopTree TopTree::fromNodes(std::vector<TopNode> nodes, const PsvLight& light, co
       fail(std::to_string(transmittance.size()) + " transmittances for " + std::to_string(frusta) + " frusta");
     for (const auto& t : transmittance)
       for (float c : t)
-        if (!(c >= 0 && c <= 1)) fail("a transmittance outside [0, 1]");
+        if (!(c >= 0 && c <= 1) || (c > 0 && c < kMinTransmittance)) fail("a transmittance outside [0, 1] or subnormal");
   }
+  if (!(float(queryMargin) >= std::numeric_limits<float>::min()))
+    fail("the query margin is subnormal in float");
   TopTree tree;
   tree.nodes_ = std::move(nodes);
   tree.light_ = light;
@@ -485,7 +487,8 @@ void TopTree::setTransmittance(const std::vector<std::array<float, 3>>& perTrian
                      std::to_string(stats_.triangles) + " triangles");
   for (const auto& t : perTriangle)
     for (float c : t)
-      if (!(c >= 0 && c <= 1)) throw InputError("shadow volumes: a transmittance outside [0, 1]");
+      if (!(c >= 0 && c <= 1) || (c > 0 && c < kMinTransmittance))
+        throw InputError("shadow volumes: a transmittance outside [0, 1] or subnormal");
   transmittance_.resize(frustumCount());
   for (size_t k = 0; k < frustumCount(); ++k) transmittance_[k] = perTriangle[triangleOf_[k]];
 }
@@ -495,7 +498,11 @@ TopAnswer TopTree::transmittanceAt(const Vec3& p, uint32_t stackLimit, std::arra
   CPVS_CHECK(transmittance_.size() == frustumCount());
   out = {1, 1, 1};
   return walk(p, stackLimit, stats, [&](uint32_t k) {
-    for (int c = 0; c < 3; ++c) out[c] *= transmittance_[k][c];
+    // A product below the least normal float is 0, as a device that flushes it makes it.
+    for (int c = 0; c < 3; ++c) {
+      out[c] *= transmittance_[k][c];
+      if (out[c] < kMinTransmittance) out[c] = 0;
+    }
     return false;
   });
 }

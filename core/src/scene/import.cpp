@@ -122,7 +122,10 @@ std::array<float, 3> transmittanceOf(const aiMaterial* mat, bool readOpacity) {
   mat->Get(AI_MATKEY_TRANSMISSION_FACTOR, transmission);
   transmission = unit(transmission, 0);
   const float tint[3] = {unit(base.r, 1), unit(base.g, 1), unit(base.b, 1)};
-  for (int c = 0; c < 3; ++c) out[c] = unit((1 - alpha) + alpha * transmission * tint[c], 0);
+  for (int c = 0; c < 3; ++c) {
+    out[c] = unit((1 - alpha) + alpha * transmission * tint[c], 0);
+    if (out[c] < kMinTransmittance) out[c] = 0;
+  }
   return out;
 }
 

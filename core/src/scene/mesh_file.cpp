@@ -13,9 +13,9 @@ static_assert(std::endian::native == std::endian::little, "the scene mesh file i
 constexpr char kMagic[8] = {'C', 'P', 'V', 'S', 'M', 'E', 'S', 'H'};
 // 2: a light keeps its range; 3: the meshes' names (an older mesh is refused, and its
 // scene imported again); 4: each light's rectangle (an area light's edges) and the
-// volume media (version 3 is still read, without them); 5: each mesh's transmittance
-// (versions 3 and 4 are read as opaque).
-constexpr uint32_t kVersion = 5, kOldestVersion = 3;
+// volume media; 5: each mesh's transmittance. An older file is refused, and its scene
+// imported again: read as opaque, its glass would cast as the workers' fresh import does not.
+constexpr uint32_t kVersion = 5, kOldestVersion = 5;
 constexpr uint32_t kMaxNameBytes = 4096;
 
 struct Writer {
@@ -164,8 +164,7 @@ Scene decodeSceneMesh(const uint8_t* data, size_t size, const std::string& sourc
   scene.closed.assign(flags, flags + closed);
   for (uint8_t c : scene.closed)
     if (c > 1) r.fail("a closed flag of " + std::to_string(c));
-  const bool edges = version >= 4;
-  scene.lights.resize(r.count(1 + (edges ? 18 : 12) * 8 + 4, "lights"));
+  scene.lights.resize(r.count(1 + 18 * 8 + 4, "lights"));
   for (SceneLight& l : scene.lights) {
     l.name = r.text("light name");
     const uint8_t type = r.get<uint8_t>("lights");
@@ -177,32 +176,26 @@ Scene decodeSceneMesh(const uint8_t* data, size_t size, const std::string& sourc
     l.innerConeDeg = r.get<double>("lights");
     l.outerConeDeg = r.get<double>("lights");
     l.range = r.get<double>("lights");
-    if (edges) {
-      l.edgeU = r.vec("lights");
-      l.edgeV = r.vec("lights");
-      if (!isFinite(l.edgeU) || !isFinite(l.edgeV)) r.fail("a light's rectangle is not finite");
-    }
+    l.edgeU = r.vec("lights");
+    l.edgeV = r.vec("lights");
+    if (!isFinite(l.edgeU) || !isFinite(l.edgeV)) r.fail("a light's rectangle is not finite");
   }
-  if (edges) {
-    scene.media.resize(r.count(4 + 8, "media"));
-    for (SceneMedium& m : scene.media) {
-      m.material = r.text("medium name");
-      m.absorption = r.get<double>("media");
-      if (!std::isfinite(m.absorption) || m.absorption < 0) r.fail("a medium's absorption is negative or not finite");
-    }
+  scene.media.resize(r.count(4 + 8, "media"));
+  for (SceneMedium& m : scene.media) {
+    m.material = r.text("medium name");
+    m.absorption = r.get<double>("media");
+    if (!std::isfinite(m.absorption) || m.absorption < 0) r.fail("a medium's absorption is negative or not finite");
   }
-  const bool transmittance = version >= 5;
-  scene.meshes.resize(r.count(3 * 4 + 8 + (transmittance ? 12 : 0), "meshes"));
+  scene.meshes.resize(r.count(3 * 4 + 8 + 12, "meshes"));
   uint64_t next = 0;
   for (SceneMesh& m : scene.meshes) {
     for (std::string* name : {&m.node, &m.mesh, &m.material}) *name = r.text("mesh name");
     m.firstTriangle = r.get<uint32_t>("meshes");
     m.triangles = r.get<uint32_t>("meshes");
-    if (transmittance)
-      for (float& c : m.transmittance) {
-        c = r.get<float>("meshes");
-        if (!(c >= 0 && c <= 1)) r.fail("a mesh's transmittance is outside [0, 1]");
-      }
+    for (float& c : m.transmittance) {
+      c = r.get<float>("meshes");
+      if (!(c >= 0 && c <= 1) || (c > 0 && c < kMinTransmittance)) r.fail("a mesh's transmittance is outside [0, 1] or subnormal");
+    }
     if (m.firstTriangle != next) r.fail("a mesh starts at triangle " + std::to_string(m.firstTriangle) + ", not " + std::to_string(next));
     next += m.triangles;
   }

@@ -338,17 +338,21 @@ bool hasTranslucentMeshes(const Scene& scene) {
   return std::any_of(scene.meshes.begin(), scene.meshes.end(), [](const SceneMesh& m) { return m.triangles > 0 && isTranslucent(m); });
 }
 
-Scene opaquePart(const Scene& scene) {
+Scene opaquePart(const Scene& scene, SceneStats* stats) {
   Scene out = scene;
-  if (!hasTranslucentMeshes(scene)) return out;
+  if (!hasTranslucentMeshes(scene)) {
+    if (stats) classifyClosed(out, *stats);
+    return out;
+  }
   std::vector<uint8_t> keep(scene.triangleCount(), 1);
   for (const SceneMesh& m : scene.meshes)
     if (isTranslucent(m)) std::fill_n(keep.begin() + m.firstTriangle, m.triangles, uint8_t{0});
   keepTriangles(out, [&](size_t t) { return keep[t] != 0; });
   std::erase_if(out.meshes, [](const SceneMesh& m) { return isTranslucent(m); });  // none of their triangles is left
   compactVertices(out);
-  SceneStats stats;
-  classifyClosed(out, stats);
+  SceneStats counted;
+  classifyClosed(out, counted);
+  if (stats) *stats = counted;
   return out;
 }
 

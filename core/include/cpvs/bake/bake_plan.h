@@ -84,8 +84,8 @@ struct BakePlan {
 };
 
 /// The plan of baking `scene` (with `stats` from its import) on `raster`'s grid with
-/// `options` for `receivers` (`reads`: their projection on that grid, as BakeScene holds
-/// both). Projects the receivers once more at min(R, 4096) to count the columns they
+/// `options` for `receivers` (`raster`: the sun's casters, sunCasters; `reads`: the
+/// receivers' projection on that grid; as BakeScene holds both). Projects the receivers once more at min(R, 4096) to count the columns they
 /// reach (a fraction of a second on large scenes).
 /// `media`: the job's declared media (name, source and coefficients; the plan says whether
 /// they are offered), before the scene's own.

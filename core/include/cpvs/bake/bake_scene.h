@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 
 #include "cpvs/bake/column_masks.h"
 #include "cpvs/bake/options.h"
@@ -12,10 +13,14 @@
 #include "cpvs/bake/stage_times.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/raytrace/ray_scene.h"
+#include "cpvs/scene/scene.h"
 
 namespace cpvs {
 
-struct Scene;
+/// What a sun bake casts shadows with: the scene without its translucent meshes
+/// (opaquePart, made in `storage`), or the scene itself when it has none. A plan of the
+/// bake projects it, as BakeScene does.
+const Scene& sunCasters(const Scene& scene, std::optional<Scene>& storage);
 
 /// The scene projected for the rasterizer (always: it also answers which tiles nothing
 /// touches), for the Embree renderer the BVH, and the declared receivers' reads.
@@ -60,7 +65,7 @@ class BakeScene {
                    ColumnMasks& out, StageTimes& times) const;
 
  private:
-  std::unique_ptr<const Scene> opaque_;  // the sun's casters when some mesh is translucent
+  std::optional<Scene> opaque_;  // the sun's casters when some mesh is translucent (sunCasters)
   Renderer renderer_;
   RasterScene raster_;
   ReceiverSet receivers_;

@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -47,6 +48,10 @@ struct SceneMesh {
   /// shadow: its constant transmittance darkens what lies behind it (seed 003 §3.4).
   std::array<float, 3> transmittance{0, 0, 0};
 };
+
+/// The least transmittance above 0: a smaller one is 0, as devices that flush subnormal
+/// floats would make it (the light through translucent casters is the same everywhere).
+constexpr float kMinTransmittance = std::numeric_limits<float>::min();
 
 /// Whether the mesh lets some light through (a channel of its transmittance above 0).
 inline bool isTranslucent(const SceneMesh& m) { return m.transmittance[0] > 0 || m.transmittance[1] > 0 || m.transmittance[2] > 0; }
@@ -109,10 +114,10 @@ Scene withoutMeshes(const Scene& scene, const std::vector<std::string>& names, c
 /// Whether some mesh of the scene with a triangle is translucent (isTranslucent).
 bool hasTranslucentMeshes(const Scene& scene);
 
-/// The scene without its translucent meshes, its closed parts classified again: what casts
-/// hard shadows (the CPVS is baked from it). A copy of the scene when nothing is
-/// translucent; a scene of no triangle when everything is.
-Scene opaquePart(const Scene& scene);
+/// The scene without its translucent meshes, its closed parts classified again (their
+/// counts in `stats`, when given): what casts hard shadows (the CPVS is baked from it). A
+/// copy of the scene when nothing is translucent; a scene of no triangle when everything is.
+Scene opaquePart(const Scene& scene, SceneStats* stats = nullptr);
 
 /// The translucent meshes' triangles alone, as given (closed flags as classified in the
 /// whole scene, unused: front-face culling is off for them), and each triangle's

@@ -80,8 +80,9 @@ class ShadowArtifact {
   std::vector<uint8_t> translucentGpuBytes() const;
   std::vector<uint8_t> transmittanceGpuBytes() const;
 
-  explicit ShadowArtifact(ShadowQuery query, std::shared_ptr<const TopTree> translucent = nullptr)
-      : query_(std::move(query)), translucent_(std::move(translucent)) {}
+  /// InvalidArgument for a translucent casters' tree that is not linked, has no
+  /// transmittance for each frustum, or is not for the grid's sun.
+  explicit ShadowArtifact(ShadowQuery query, std::shared_ptr<const TopTree> translucent = nullptr);
 
  private:
   ShadowQuery query_;
