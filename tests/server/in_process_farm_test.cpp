@@ -48,6 +48,15 @@ namespace pb = ::cpvs::v1;
 using testing::InProcessFarm;
 using testing::TempDir;
 
+// What `cpvs bake FILE` writes for the sun jobs these tests submit: (0.3, -1, 0.2), 256³,
+// 64² tiles. A farm's artifact of the same job is these bytes.
+CpvsArtifact localBakeOf(const std::string& file) {
+  const Scene scene = loadScene(file);
+  BakeOptions options;
+  options.log2TileSize = 6;
+  return testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8), options);
+}
+
 TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   TempDir dir("cpvs_in_process_farm");
   const std::string obj = dir / "city.obj";
@@ -136,12 +145,7 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   }
 
   // The same bake in this process, from the same file.
-  const Scene scene = loadScene(obj);
-  BakeOptions options;
-  options.log2TileSize = 6;
-  const CpvsArtifact local =
-      testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8), options);
-  EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true));
+  EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(localBakeOf(obj), true));
 
   // A refused call reaches the client as its kind, through the library.
   try {
@@ -185,11 +189,7 @@ TEST(InProcessFarm, TranslucentCastersTravelInTheArtifactAsBakedLocally) {
     ASSERT_TRUE(farmed.translucent) << "the glass's tree travels with the CPVS";
     EXPECT_EQ(farmed.translucent->frustumCount(), translucentCasters(scene).triangleCount());
 
-    const Scene loaded = loadScene(glb);
-    BakeOptions options;
-    options.log2TileSize = 6;
-    const CpvsArtifact local =
-        testing::localArtifact(loaded, makeGrid(loaded, LightFrame::fromDirection({0.3, -1, 0.2}), 8), options);
+    const CpvsArtifact local = localBakeOf(glb);
     EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true));
     if (name == "apart") {
       // The pane's tiles are touched by no opaque triangle: untouched in the plan, as the
@@ -199,7 +199,7 @@ TEST(InProcessFarm, TranslucentCastersTravelInTheArtifactAsBakedLocally) {
         const size_t at = plan.find("\"tiles\": {");
         return plan.substr(at, plan.find('}', at) - at);
       };
-      EXPECT_EQ(tiles(local.plan), tiles(testing::localArtifact(opaquePart(loaded), local.grid, options).plan));
+      EXPECT_EQ(tiles(local.plan), tiles(testing::localArtifact(opaquePart(loadScene(glb)), local.grid, local.options).plan));
     }
   }
   tileWorker.stop();
