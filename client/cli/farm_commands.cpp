@@ -5,6 +5,7 @@
 // 4 the farm could not be reached.
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -16,6 +17,7 @@
 #include <memory>
 #include <optional>
 #include <sstream>
+#include <thread>
 
 #include "bake_flags.h"
 #include "cli_util.h"
@@ -754,25 +756,48 @@ struct SubscribeArgs {
   ConnectionArgs conn;
   std::string track, out;
   uint64_t after = 0, count = 0;
+  double giveUpSeconds = 300;
   bool quiet = false;
 };
 
 int runSubscribe(const SubscribeArgs& a) {
+  if (!(a.giveUpSeconds >= 0)) throw InputError("--give-up must be 0 or more seconds");
   FarmClient client(connectionOf(a.conn));
   fs::create_directories(a.out);
-  uint64_t received = 0;
-  const uint64_t last = client.subscribe(a.track, a.after, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& bytes) {
+  uint64_t received = 0, after = a.after;
+  std::optional<std::chrono::steady_clock::time_point> lostSince;  // since when no version came
+  double pause = 0.25;
+  auto onVersion = [&](const pb::TrackVersion& v, const std::vector<uint8_t>& bytes) {
     char name[64];
     std::snprintf(name, sizeof name, "version-%06llu.cpvs", static_cast<unsigned long long>(v.sequence()));
     const std::string path = (fs::path(a.out) / name).string();
     writeFileAtomic(path, bytes);
     ++received;
+    after = v.sequence();
+    lostSince.reset();
+    pause = 0.25;
     note(a.quiet, "version " + std::to_string(v.sequence()) + " (keyframe " + std::to_string(v.keyframe()) +
                       (v.instant_unix_ms() ? ", " + formatUtcInstant(utcFromUnixMillis(v.instant_unix_ms())) : std::string()) +
                       ", " + humanBytes(bytes.size()) + ") -> " + path);
     return a.count == 0 || received < a.count;
-  });
-  note(a.quiet, "received " + std::to_string(received) + " version(s); resume after --after " + std::to_string(last));
+  };
+  // A lost connection (a coordinator restarting) is tried again with backoff, from the last
+  // version written: no version is missed or written twice.
+  while (true) {
+    try {
+      after = client.subscribe(a.track, after, onVersion);
+      break;
+    } catch (const FarmCallError& e) {
+      if (e.kind() != net::ErrorKind::Unavailable) throw;
+      if (!lostSince) lostSince = std::chrono::steady_clock::now();
+      if (secondsSince(*lostSince) > a.giveUpSeconds) throw;
+      note(a.quiet, std::string("connection lost (") + e.what() + "); trying again in " + std::to_string(int(pause * 1000)) +
+                        " ms, after version " + std::to_string(after));
+      std::this_thread::sleep_for(std::chrono::duration<double>(pause));
+      pause = std::min(pause * 2, 8.0);
+    }
+  }
+  note(a.quiet, "received " + std::to_string(received) + " version(s); resume after --after " + std::to_string(after));
   return 0;
 }
 
@@ -827,6 +852,10 @@ void addSubscribeCommand(CLI::App& app, int& status) {
   c->add_option("--out,-o", a->out, "Folder for version-NNNNNN.cpvs")->required();
   c->add_option("--after", a->after, "The last version already held (resume token; default 0: from the oldest kept)");
   c->add_option("--count", a->count, "Stop after this many versions (default: until the track ends)");
+  c->add_option("--give-up", a->giveUpSeconds,
+                "Seconds without the coordinator before giving up (exit 4); until then a lost connection is tried "
+                "again, backing off from 0.25 s to 8 s, from the last version written")
+      ->capture_default_str();
   c->add_flag("--quiet,-q", a->quiet, "Print nothing but errors");
   c->callback([a, &status] { runFarmCommand(status, [&] { return runSubscribe(*a); }); });
 }

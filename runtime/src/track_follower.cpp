@@ -50,6 +50,8 @@ struct TrackFollower::Impl {
         // No device: each version's lookups decide (the CPU for Auto, an error for Gpu).
       }
     }
+    int pauseMs = 125;
+    uint64_t receivedBefore = 0;
     while (!stopping) {
       try {
         client::FarmClient c(net::Connection{farm.address, farm.token, farm.caFile});
@@ -86,7 +88,17 @@ struct TrackFollower::Impl {
         std::lock_guard lock(mutex);
         error = e.what();
       }
-      for (int i = 0; i < 10 && !stopping; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      // Backing off: 0.25 s after a version arrived, doubling while none does, up to 8 s (a
+      // coordinator restarting is found within seconds, one that is gone is not hammered).
+      uint64_t now;
+      {
+        std::lock_guard lock(mutex);
+        now = received;
+      }
+      pauseMs = now != receivedBefore ? 250 : std::min(pauseMs * 2, 8000);
+      receivedBefore = now;
+      for (int waited = 0; waited < pauseMs && !stopping; waited += 50)
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
   }
 };

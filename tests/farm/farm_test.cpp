@@ -802,11 +802,12 @@ TEST_F(FarmTest, DiskFullForAWhileFailsNoJob) {
   EXPECT_TRUE(coordinator.running());
 }
 
-// A sun track across processes: a coordinator, two workers and a subscriber on loopback.
-// The subscriber receives the first version and leaves; the coordinator is killed and
-// restarted on its folder; the subscriber comes back with its token and receives exactly
-// the rest; every version is byte-identical to a local bake of its direction. A worker's
-// token may not subscribe.
+// A sun track across processes: a coordinator, two workers and subscribers on loopback.
+// One subscriber receives the first version and leaves, another stays; the coordinator is
+// killed and restarted on its folder; the first comes back with its token and receives
+// exactly the rest, the one that stayed reconnects by itself and receives them too; every
+// version is byte-identical to a local bake of its direction. A worker's token may not
+// subscribe.
 TEST_F(FarmTest, ATrackSurvivesACoordinatorRestartAndItsSubscriberResumes) {
   std::string address = startServer("s6");
   startWorker(address, "tw1", {"--threads", "1"});
@@ -818,16 +819,30 @@ TEST_F(FarmTest, ATrackSurvivesACoordinatorRestartAndItsSubscriberResumes) {
                        " --resolution 1024 --tile-size 128 --ahead 1 --json --directions '" + list + "'");
   ASSERT_EQ(created.status, 0) << created.out << servers_[0]->log();
   const std::string track = json::parse(created.out.substr(created.out.find('{')))["track"];
-  const std::string out = path("versions");
+  const std::string out = path("versions"), stayed = path("versions-live");
   const std::string follow = "subscribe --server " + address + " --token " + kClientToken + " " + track + " --out " + out;
+  ChildProcess live({CPVS_CLI, "subscribe", "--server", address, "--token", kClientToken, track, "--out", stayed},
+                    path("live-subscriber.log"));
   Ran first = runCli(follow + " --count 1");
   ASSERT_EQ(first.status, 0) << first.out;
   ASSERT_TRUE(fs::exists(out + "/version-000001.cpvs")) << first.out;
+  ASSERT_TRUE(live.waitForLog("version 1 ", 60)) << live.log();
+  const bool liveWhenKilled = live.running();
   EXPECT_EQ(servers_[0]->stop(SIGKILL), -SIGKILL);
   startServer("s6", address);  // the same folder and port; the workers reconnect
   Ran rest = runCli(follow + " --after 1");
   ASSERT_EQ(rest.status, 0) << rest.out << servers_[1]->log();
   EXPECT_NE(rest.out.find("received 2 version(s)"), std::string::npos) << rest.out;
+  EXPECT_EQ(live.wait(120), 0) << live.log();
+  EXPECT_NE(live.log().find("received 3 version(s)"), std::string::npos) << live.log();
+  if (liveWhenKilled) {
+    EXPECT_NE(live.log().find("connection lost"), std::string::npos) << live.log();
+  }
+  for (int k = 1; k <= 3; ++k) {
+    char name[32];
+    std::snprintf(name, sizeof name, "/version-%06d.cpvs", k);
+    EXPECT_EQ(bytesOf(stayed + name), bytesOf(out + name)) << "the subscriber that stayed, version " << k;
+  }
   for (size_t k = 0; k < dirs.size(); ++k) {
     // The keyframe's direction as the coordinator names its job: unit, rounded to 1e-9.
     const Vec3 u = dirs[k] / length(dirs[k]);
