@@ -11,7 +11,7 @@
 #include <thread>
 
 #include "coordinator/coordinator.h"
-#include "coordinator/scene_importer.h"
+#include "cpvs/scene/isolated_import.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
 #include "cpvs/base/parse.h"
@@ -37,8 +37,8 @@ std::string readText(const std::string& path, const char* what) {
 
 int main(int argc, char** argv) {
   // The coordinator runs itself in this mode to import an upload in a limited child
-  // process (coordinator/scene_importer.h); not for people.
-  if (argc == 3 && std::string(argv[1]) == "--import-scene") return cpvs::server::runImportHelper(argv[2]);
+  // process (cpvs/scene/isolated_import.h); not for people.
+  if (argc == 3 && std::string(argv[1]) == "--import-scene") return cpvs::runImportHelper(argv[2]);
   CLI::App app{"cpvs-server: the coordinator of a CPVS bake farm. Takes bake jobs, splits them into tiles, "
                "leases them to workers, merges their sub-DAGs as they arrive and serves the artifacts."};
   std::string listen = "127.0.0.1:7443", data, addressFile, tokensFile, tlsCert, tlsKey;

@@ -4,15 +4,48 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
+#include <filesystem>
+#include <string>
 
 #include "commands.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
 #include "cpvs/runtime/runtime.h"
+#include "cpvs/scene/isolated_import.h"
+
+namespace {
+
+// Every scene file is imported in a child process of this program, limited in memory and
+// time (CPVS_IMPORT_MEMORY_MB, CPVS_IMPORT_SECONDS): a file that crashes or hangs assimp
+// costs a clear error, never this process.
+void isolateImports() {
+  cpvs::ImportLimits limits;
+  std::error_code ec;
+  limits.helper = std::filesystem::read_symlink("/proc/self/exe", ec).string();
+  if (ec) return;  // no /proc: imported in this process
+  limits.selfContained = false;
+  auto positive = [](const char* name, double fallback) {
+    const char* text = std::getenv(name);
+    if (!text || !*text) return fallback;
+    char* end = nullptr;
+    const double v = std::strtod(text, &end);
+    if (*end != '\0' || !(v > 0)) throw cpvs::InputError(std::string(name) + "='" + text + "': a positive number");
+    return v;
+  };
+  limits.memoryBytes = uint64_t(positive("CPVS_IMPORT_MEMORY_MB", double(limits.memoryBytes >> 20))) << 20;
+  limits.seconds = positive("CPVS_IMPORT_SECONDS", limits.seconds);
+  cpvs::isolateSceneImports(limits);
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
+  // The import child (isolateImports); not for people.
+  if (argc >= 3 && std::string(argv[1]) == "--import-scene")
+    return cpvs::runImportHelper(argv[2], !(argc == 4 && std::string(argv[3]) == "--references"));
   CLI::App app{
       "cpvs: compact precomputed voxelized shadows.\n"
       "Bakes the sun's binary visibility of every voxel of a scene into a small DAG, and queries it.\n"
@@ -37,6 +70,7 @@ int main(int argc, char** argv) {
   cpvs::cli::addSubscribeCommand(app, status);
   spdlog::set_pattern("[%H:%M:%S] %v");
   try {
+    isolateImports();
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     // --help prints and exits 0; every malformed command line exits 2 like other bad input.

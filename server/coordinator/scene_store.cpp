@@ -12,7 +12,7 @@
 #include "cpvs/base/text.h"
 #include "cpvs/net/error_kind.h"
 #include "coordinator/failpoint.h"
-#include "coordinator/scene_importer.h"
+#include "cpvs/scene/isolated_import.h"
 #include "cpvs/scene/mesh_file.h"
 
 namespace cpvs::server {

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "coordinator/scene_importer.h"
+#include "cpvs/scene/isolated_import.h"
 #include "cpvs/scene/scene.h"
 #include "cpvs/v1/farm.pb.h"
 #include "store/farm_store.h"
@@ -34,7 +34,7 @@ class SceneStore {
   /// Appends data at `offset` (the bytes received so far).
   void appendUpload(const std::string& sceneHash, uint64_t offset, const std::string& data);
   /// Completes the upload when every byte is in: checks the hash, imports the scene
-  /// (isolated, see scene_importer.h) and keeps its mesh. Other uploads go on meanwhile;
+  /// (isolated, see cpvs/scene/isolated_import.h) and keeps its mesh. Other uploads go on meanwhile;
   /// a second caller for the same scene waits for this import.
   pb::UploadSceneReply endUpload(const std::string& sceneHash);
   /// The stored file of a complete scene; FarmError(NotFound) otherwise.

@@ -1,11 +1,13 @@
 // openScene: one name space for scenes, files and generated ones alike.
 #include <charconv>
+#include <optional>
 #include <string>
 
 #include "cpvs/scene/source.h"
 
 #include "cpvs/base/error.h"
 #include "cpvs/scene/import.h"
+#include "cpvs/scene/isolated_import.h"
 #include "cpvs/scene/procedural_city.h"
 #include "cpvs/scene/procedural_landscape.h"
 
@@ -21,12 +23,17 @@ int parseCityNumber(const std::string& spec, std::string_view part, const char* 
   return int(value);
 }
 
+// Set once by the program before any import (isolateSceneImports).
+std::optional<ImportLimits> isolation;
+
 }  // namespace
+
+void isolateSceneImports(const ImportLimits& limits) { isolation = limits; }
 
 Scene openScene(const std::string& spec, SceneStats* stats) {
   const bool city = spec == "city" || spec.starts_with("city:");
   const bool landscape = spec == "landscape" || spec.starts_with("landscape:");
-  if (!city && !landscape) return loadScene(spec, stats);
+  if (!city && !landscape) return isolation ? importIsolated(spec, *isolation, stats, nullptr) : loadScene(spec, stats);
   // NAME[:FIRST[:SEED]]: blocks for the city, cells a side for the landscape.
   int first = city ? 12 : 256;
   uint32_t seed = 1;

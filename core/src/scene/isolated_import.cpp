@@ -1,4 +1,4 @@
-#include "coordinator/scene_importer.h"
+#include "cpvs/scene/isolated_import.h"
 
 #include <fcntl.h>
 #include <poll.h>
@@ -21,7 +21,7 @@
 #include "cpvs/scene/import.h"
 #include "cpvs/scene/mesh_file.h"
 
-namespace cpvs::server {
+namespace cpvs {
 
 namespace {
 
@@ -49,7 +49,7 @@ Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneS
                      std::vector<uint8_t>* meshBytes) {
   if (limits.helper.empty()) {
     SceneStats s;
-    Scene scene = loadScene(path, &s, ImportOptions{true});
+    Scene scene = loadScene(path, &s, ImportOptions{limits.selfContained});
     if (meshBytes) *meshBytes = encodeSceneMesh(scene, s);
     if (stats) *stats = s;
     return scene;
@@ -61,9 +61,11 @@ Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneS
   Fd errRead{err[0]}, errWrite{err[1]};
   // Everything the child needs is made before fork: between fork and exec it may only
   // make system calls (the coordinator has many threads).
-  const std::string mode = "--import-scene";
+  const std::string mode = "--import-scene", references = "--references";
   std::vector<char*> argv{const_cast<char*>(limits.helper.c_str()), const_cast<char*>(mode.c_str()),
-                          const_cast<char*>(path.c_str()), nullptr};
+                          const_cast<char*>(path.c_str())};
+  if (!limits.selfContained) argv.push_back(const_cast<char*>(references.c_str()));
+  argv.push_back(nullptr);
   const rlim_t memory = rlim_t(limits.memoryBytes);
   const rlim_t cpu = rlim_t(limits.seconds) + 1;
   const pid_t pid = fork();
@@ -147,7 +149,7 @@ Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneS
   return scene;
 }
 
-int runImportHelper(const std::string& path) {
+int runImportHelper(const std::string& path, bool selfContained) {
   try {
     // CPVS_FAILPOINT=POINT or POINT:TEXT, the latter for a path holding TEXT only.
     if (const char* point = std::getenv("CPVS_FAILPOINT")) {
@@ -168,7 +170,7 @@ int runImportHelper(const std::string& path) {
       }
     }
     SceneStats stats;
-    const Scene scene = loadScene(path, &stats, ImportOptions{true});
+    const Scene scene = loadScene(path, &stats, ImportOptions{selfContained});
     const std::vector<uint8_t> mesh = encodeSceneMesh(scene, stats);
     std::cout.write(reinterpret_cast<const char*>(mesh.data()), std::streamsize(mesh.size()));
     std::cout.flush();
@@ -185,4 +187,4 @@ int runImportHelper(const std::string& path) {
   }
 }
 
-}  // namespace cpvs::server
+}  // namespace cpvs
