@@ -104,19 +104,26 @@ Scene withCaster(const Scene& scene, const runtime::CasterMesh& caster) {
   return s;
 }
 
-// The visibility of every pixel that sees a surface, looked up on a Vulkan device.
-std::vector<float> gpuVisibility(const CameraHits& hits, runtime::ShadowLookups& lookups, int pcf) {
+// The surfaces the camera's pixels see: their points and normals, and which pixel each is.
+struct SeenSurfaces {
   std::vector<Vec3> points, normals;
   std::vector<size_t> at;
-  for (size_t i = 0; i < hits.pixels.size(); ++i)
-    if (hits.pixels[i].hit) {
-      points.push_back(hits.pixels[i].point);
-      normals.push_back(hits.pixels[i].normal);
-      at.push_back(i);
-    }
+  explicit SeenSurfaces(const CameraHits& hits) {
+    for (size_t i = 0; i < hits.pixels.size(); ++i)
+      if (hits.pixels[i].hit) {
+        points.push_back(hits.pixels[i].point);
+        normals.push_back(hits.pixels[i].normal);
+        at.push_back(i);
+      }
+  }
+};
+
+// The visibility of every pixel that sees a surface, looked up on a Vulkan device.
+std::vector<float> gpuVisibility(const CameraHits& hits, runtime::ShadowLookups& lookups, int pcf) {
+  const SeenSurfaces seenBy(hits);
   std::vector<float> seen, vis(hits.pixels.size(), 1.0f);
-  lookups.visibility(points, normals, pcf, seen);
-  for (size_t k = 0; k < at.size(); ++k) vis[at[k]] = seen[k];
+  lookups.visibility(seenBy.points, seenBy.normals, pcf, seen);
+  for (size_t k = 0; k < seenBy.at.size(); ++k) vis[seenBy.at[k]] = seen[k];
   return vis;
 }
 
@@ -124,18 +131,11 @@ std::vector<float> gpuVisibility(const CameraHits& hits, runtime::ShadowLookups&
 // surface (white elsewhere), on the device when there is one.
 std::vector<std::array<float, 3>> pixelTransmittance(const CameraHits& hits, const runtime::ShadowArtifact& artifact,
                                                      runtime::ShadowLookups* gpu) {
-  std::vector<Vec3> points, normals;
-  std::vector<size_t> at;
-  for (size_t i = 0; i < hits.pixels.size(); ++i)
-    if (hits.pixels[i].hit) {
-      points.push_back(hits.pixels[i].point);
-      normals.push_back(hits.pixels[i].normal);
-      at.push_back(i);
-    }
+  const SeenSurfaces seenBy(hits);
   std::vector<std::array<float, 3>> seen, out(hits.pixels.size(), {1, 1, 1});
-  if (gpu) gpu->transmittance(points, normals, seen);
-  else runtime::cpuTransmittance(artifact, points, normals, seen);
-  for (size_t k = 0; k < at.size(); ++k) out[at[k]] = seen[k];
+  if (gpu) gpu->transmittance(seenBy.points, seenBy.normals, seen);
+  else runtime::cpuTransmittance(artifact, seenBy.points, seenBy.normals, seen);
+  for (size_t k = 0; k < seenBy.at.size(); ++k) out[seenBy.at[k]] = seen[k];
   return out;
 }
 

@@ -37,6 +37,13 @@ namespace {
 
 thread_local std::string lastError;
 
+/// `count` points of 3 doubles each (none for a null array).
+std::vector<Vec3> vec3s(const double* xyz, size_t count) {
+  std::vector<Vec3> out(count);
+  for (size_t i = 0; i < count; ++i) out[i] = {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]};
+  return out;
+}
+
 template <class F>
 CpvsStatus guarded(F&& f) {
   lastError.clear();
@@ -179,9 +186,7 @@ CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* poi
   return guarded([&] {
     require(shadows != nullptr, "cpvsQueryShadows: shadows is null");
     require(count == 0 || (points && litTexels), "cpvsQueryShadows: points or litTexels is null");
-    std::vector<Vec3> p(count), n(normals ? count : 0);
-    for (size_t i = 0; i < count; ++i) p[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
-    for (size_t i = 0; i < n.size(); ++i) n[i] = {normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+    const std::vector<Vec3> p = vec3s(points, count), n = vec3s(normals, normals ? count : 0);
     std::vector<uint32_t> out;
     shadows->lookups->litTexels(p, n, pcf, out);  // with CPVS_FALLBACK_CPU, the CPU after a loss
     if (count) std::memcpy(litTexels, out.data(), count * 4);
@@ -197,9 +202,7 @@ CpvsStatus cpvsQueryTransmittance(CpvsShadows shadows, size_t count, const doubl
   return guarded([&] {
     require(shadows != nullptr, "cpvsQueryTransmittance: shadows is null");
     require(count == 0 || (points && rgb), "cpvsQueryTransmittance: points or rgb is null");
-    std::vector<Vec3> p(count), n(normals ? count : 0);
-    for (size_t i = 0; i < count; ++i) p[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
-    for (size_t i = 0; i < n.size(); ++i) n[i] = {normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+    const std::vector<Vec3> p = vec3s(points, count), n = vec3s(normals, normals ? count : 0);
     std::vector<std::array<float, 3>> out;
     shadows->lookups->transmittance(p, n, out);
     if (count) std::memcpy(rgb, out.data(), count * 12);
@@ -299,9 +302,7 @@ CpvsStatus cpvsQueryLights(CpvsLights lights, size_t count, const uint32_t* ligh
     require(lights != nullptr, "cpvsQueryLights: lights is null");
     require(count == 0 || (points && litTexels && lightOfQuery), "cpvsQueryLights: lightOfQuery, points or litTexels is null");
     require(lightCount == count || lightCount == 1, "cpvsQueryLights: lightCount must be count or 1");
-    std::vector<Vec3> p(count), n(normals ? count : 0);
-    for (size_t i = 0; i < count; ++i) p[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
-    for (size_t i = 0; i < n.size(); ++i) n[i] = {normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+    const std::vector<Vec3> p = vec3s(points, count), n = vec3s(normals, normals ? count : 0);
     const std::vector<uint32_t> which(lightOfQuery, lightOfQuery + (count ? lightCount : 0));
     std::vector<uint32_t> out;
     if (count == 0) return;
@@ -329,9 +330,7 @@ CpvsStatus cpvsQuerySoftShadows(CpvsLights lights, size_t count, const uint32_t*
     require(lights != nullptr, "cpvsQuerySoftShadows: lights is null");
     require(count == 0 || (points && visibility && areaOfQuery), "cpvsQuerySoftShadows: areaOfQuery, points or visibility is null");
     require(areaCount == count || areaCount == 1, "cpvsQuerySoftShadows: areaCount must be count or 1");
-    std::vector<Vec3> p(count), n(normals ? count : 0);
-    for (size_t i = 0; i < count; ++i) p[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
-    for (size_t i = 0; i < n.size(); ++i) n[i] = {normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+    const std::vector<Vec3> p = vec3s(points, count), n = vec3s(normals, normals ? count : 0);
     const std::vector<uint32_t> areas(areaOfQuery, areaOfQuery + (count ? areaCount : 0));
     std::vector<float> out;
     if (count == 0) return;
