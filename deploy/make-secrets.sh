@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
-# Makes the farm's secrets: random bearer tokens for the three roles and, with --tls, a
+# Makes the farm's secrets: random bearer tokens for the four roles and, with --tls, a
 # test certificate authority and a server certificate signed by it.
 #
 #   bash deploy/make-secrets.sh [--dir DIR] [--tls NAME[,NAME...]] [--days N] [--force]
 #
 # Writes into DIR (default deploy/secrets/, which git ignores):
-#   tokens        the coordinator's --tokens file: lines "ROLE TOKEN" (client, worker, admin)
+#   tokens        the coordinator's --tokens file: lines "ROLE TOKEN" (client, worker, admin,
+#                 metrics: what Prometheus presents to the coordinator's and workers' metrics)
 #   worker.env    CPVS_TOKEN=<worker token>, for docker compose's env_file
-#   client.token  worker.token  admin.token   one token each (clients, plain worker processes)
+#   client.token  worker.token  admin.token  metrics.token   one token each
 #   with --tls:   ca.crt ca.key tls.crt tls.key  (the server certificate names every NAME:
 #                 DNS names, or IP addresses when NAME is one; coordinator, cpvs-coordinator
 #                 and localhost/127.0.0.1 are always added)
@@ -49,15 +50,17 @@ writable() {  # writable FILE: true when FILE may be (re)written
 }
 
 if writable "$dir/tokens"; then
-  client="$(token)"; worker="$(token)"; admin="$(token)"
+  client="$(token)"; worker="$(token)"; admin="$(token)"; metrics="$(token)"
   umask 077
-  printf 'client %s\nworker %s\nadmin %s\n' "$client" "$worker" "$admin" >"$dir/tokens"
+  printf 'client %s\nworker %s\nadmin %s\nmetrics %s\n' "$client" "$worker" "$admin" "$metrics" >"$dir/tokens"
   printf 'CPVS_TOKEN=%s\n' "$worker" >"$dir/worker.env"
   printf '%s\n' "$client" >"$dir/client.token"
   printf '%s\n' "$worker" >"$dir/worker.token"
   printf '%s\n' "$admin" >"$dir/admin.token"
-  chmod 0644 "$dir/tokens" "$dir/worker.env" "$dir/client.token" "$dir/worker.token" "$dir/admin.token"
-  echo "make-secrets: wrote $dir/tokens, worker.env, client.token, worker.token, admin.token"
+  printf '%s\n' "$metrics" >"$dir/metrics.token"
+  chmod 0644 "$dir/tokens" "$dir/worker.env" "$dir/client.token" "$dir/worker.token" "$dir/admin.token" \
+    "$dir/metrics.token"
+  echo "make-secrets: wrote $dir/tokens, worker.env, client.token, worker.token, admin.token, metrics.token"
 fi
 
 if [ -n "$tls_names" ]; then

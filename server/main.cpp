@@ -15,6 +15,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
 #include "cpvs/base/parse.h"
+#include "cpvs/metrics/endpoint.h"
 #include "cpvs/net/connection.h"
 #include "rpc/auth.h"
 #include "rpc/farm_server.h"
@@ -41,7 +42,7 @@ int main(int argc, char** argv) {
   if (argc == 3 && std::string(argv[1]) == "--import-scene") return cpvs::runImportHelper(argv[2]);
   CLI::App app{"cpvs-server: the coordinator of a CPVS bake farm. Takes bake jobs, splits them into tiles, "
                "leases them to workers, merges their sub-DAGs as they arrive and serves the artifacts."};
-  std::string listen = "127.0.0.1:7443", data, addressFile, tokensFile, tlsCert, tlsKey;
+  std::string listen = "127.0.0.1:7443", data, addressFile, tokensFile, tlsCert, tlsKey, metricsListen, metricsAddressFile;
   cpvs::server::CoordinatorConfig config;
   std::string maxResolution = "256K";
   double maxUploadMb = 4096;
@@ -58,6 +59,10 @@ int main(int argc, char** argv) {
                "Serve an address other than loopback without --tokens: anyone who reaches it may do anything");
   app.add_flag("--allow-plaintext-tokens", allowPlaintextTokens,
                "Take --tokens without TLS on an address other than loopback (a private network you trust)");
+  app.add_option("--metrics", metricsListen,
+                 "HOST:PORT to serve Prometheus metrics on (GET /metrics; port 0 picks one): HTTPS with --tls-*, and "
+                 "with --tokens only for metrics and admin tokens");
+  app.add_option("--metrics-address-file", metricsAddressFile, "Write the metrics HOST:PORT served to this file");
   app.add_option("--lease-seconds", config.leaseSeconds, "Tile lease length")->capture_default_str()->check(CLI::Range(1.0, 3600.0));
   app.add_option("--max-tile-seconds", config.maxTileSeconds,
                  "Longest a tile may be baked (renewals stop after it; a hung bake's tile goes to another worker)")
@@ -136,6 +141,14 @@ int main(int argc, char** argv) {
                              ": give --tls-cert and --tls-key (deploy/make-secrets.sh --tls HOST), or "
                              "--allow-plaintext-tokens on a private network you trust");
     if (!tokens.enabled()) spdlog::warn("no --tokens: every caller may do everything");
+    if (!metricsListen.empty() && !cpvs::net::isLoopbackAddress(metricsListen)) {
+      if (!tokens.enabled() && !insecureOpen)
+        throw cpvs::InputError("refusing to serve metrics on " + metricsListen +
+                               " without --tokens (a metrics token for Prometheus), or give --insecure-open");
+      if (tokens.enabled() && tlsCert.empty() && !allowPlaintextTokens)
+        throw cpvs::InputError("refusing to take tokens in plaintext on the metrics address " + metricsListen +
+                               ": give --tls-cert and --tls-key, or --allow-plaintext-tokens");
+    }
 
     std::shared_ptr<grpc::ServerCredentials> creds;
     if (tlsCert.empty()) {
@@ -154,10 +167,23 @@ int main(int argc, char** argv) {
       cpvs::writeFileAtomic(addressFile, std::vector<uint8_t>(text.begin(), text.end()));
     }
     spdlog::info("serving on {} ({}), data in {}", bound, tlsCert.empty() ? "plaintext" : "TLS", data);
+    std::unique_ptr<cpvs::metrics::Endpoint> metrics;
+    if (!metricsListen.empty()) {
+      cpvs::metrics::EndpointOptions options{metricsListen, tlsCert, tlsKey, {}};
+      if (tokens.enabled()) options.authorize = [&tokens](const std::string& token) { return tokens.readsMetrics(token); };
+      metrics = std::make_unique<cpvs::metrics::Endpoint>(options, coordinator.metrics().registry(),
+                                                          [&coordinator] { coordinator.refreshMetrics(); });
+      if (!metricsAddressFile.empty()) {
+        std::string text = metrics->address() + "\n";
+        cpvs::writeFileAtomic(metricsAddressFile, std::vector<uint8_t>(text.begin(), text.end()));
+      }
+      spdlog::info("metrics on {}://{}/metrics", tlsCert.empty() ? "http" : "https", metrics->address());
+    }
     std::signal(SIGTERM, onSignal);
     std::signal(SIGINT, onSignal);
     while (!gStop) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     spdlog::info("stopping");
+    metrics.reset();
     server.shutdown(5);
     coordinator.stop();
     return 0;

@@ -6,14 +6,20 @@
 
 #include <atomic>
 #include <cctype>
+#include <chrono>
+#include <fstream>
 #include <csignal>
 #include <cstdlib>
 #include <memory>
+#include <optional>
 #include <thread>
 
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
+#include "cpvs/base/file.h"
+#include "cpvs/metrics/endpoint.h"
+#include "cpvs/net/connection.h"
 #include "tile_worker.h"
 
 namespace {
@@ -22,15 +28,41 @@ cpvs::worker::TileWorker* gWorker = nullptr;
 std::atomic<int> gSignals{0};
 
 void onSignal(int) {
-  // First signal: finish the tiles in progress; second: release them and leave.
-  if (gWorker) (++gSignals == 1) ? gWorker->stop() : gWorker->abandon();
+  // First signal: finish the tiles in progress (the drain); second: give them back and
+  // leave (the drain watcher does that, outside the handler).
+  if (gWorker && ++gSignals == 1) gWorker->stop();
+}
+
+std::string trimmed(std::string s) {
+  // Tokens often come from files or secrets with a trailing newline.
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  return s;
+}
+
+// A comparison whose time does not say how much of a guess matched (only its length).
+bool sameToken(const std::string& a, const std::string& b) {
+  if (a.size() != b.size()) return false;
+  unsigned char diff = 0;
+  for (size_t i = 0; i < a.size(); ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i]);
+  return diff == 0;
+}
+
+std::string readToken(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw cpvs::InputError("cannot read the metrics token file " + path);
+  std::string token;
+  std::getline(in, token);
+  token = trimmed(token);
+  if (token.empty()) throw cpvs::InputError("the metrics token file " + path + " is empty");
+  return token;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"cpvs-worker: leases tiles from a CPVS bake farm coordinator, bakes their sub-DAGs and returns them. "
-               "SIGTERM once: finish the tiles in progress and stop; twice: release them and stop."};
+               "SIGTERM once: finish the tiles in progress and stop (the drain, at most --drain-seconds); twice, or "
+               "when the drain's time is up: give them back to the coordinator at once and stop."};
   cpvs::worker::WorkerConfig config;
   config.slots = 1;
   config.cacheDir = "/tmp/cpvs-worker-cache";
@@ -50,6 +82,22 @@ int main(int argc, char** argv) {
                  "Threads for all the slots' bakes together, for a worker sharing its machine (0 = all cores)")
       ->capture_default_str()
       ->check(CLI::Range(0, 4096));
+  std::string metricsListen, metricsTokenFile, metricsTlsCert, metricsTlsKey, metricsAddressFile;
+  double drainSeconds = 0;
+  bool metricsOpen = false;
+  app.add_option("--drain-seconds", drainSeconds,
+                 "After SIGTERM, how long tiles in progress may take before they are given back (0 = as long as "
+                 "they take); set it below the pod's termination grace period")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 86400.0));
+  app.add_option("--metrics", metricsListen, "HOST:PORT to serve Prometheus metrics on (GET /metrics; port 0 picks one)");
+  app.add_option("--metrics-token-file", metricsTokenFile,
+                 "File with the bearer token a scrape must present (the coordinator's metrics token)");
+  app.add_option("--metrics-tls-cert", metricsTlsCert, "PEM certificate chain: serve the metrics over HTTPS");
+  app.add_option("--metrics-tls-key", metricsTlsKey, "PEM private key of --metrics-tls-cert");
+  app.add_option("--metrics-address-file", metricsAddressFile, "Write the metrics HOST:PORT served to this file");
+  app.add_flag("--metrics-open", metricsOpen,
+               "Serve metrics on an address other than loopback without --metrics-token-file");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -57,21 +105,67 @@ int main(int argc, char** argv) {
   }
   if (config.server.token.empty())
     if (const char* t = std::getenv("CPVS_TOKEN")) config.server.token = t;
-  // Tokens often come from files or secrets with a trailing newline.
-  while (!config.server.token.empty() && std::isspace(static_cast<unsigned char>(config.server.token.back())))
-    config.server.token.pop_back();
+  config.server.token = trimmed(config.server.token);
   spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [worker] [%l] %v");
   std::unique_ptr<tbb::global_control> threadLimit;
   if (config.threads > 0)
     threadLimit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, config.threads);
   try {
     cpvs::worker::TileWorker worker(config);
+    std::unique_ptr<cpvs::metrics::Endpoint> metrics;
+    if (!metricsListen.empty()) {
+      cpvs::metrics::EndpointOptions options{metricsListen, metricsTlsCert, metricsTlsKey, {}};
+      if (!metricsTokenFile.empty()) {
+        options.authorize = [token = readToken(metricsTokenFile)](const std::string& presented) {
+          return sameToken(presented, token);
+        };
+      } else if (!cpvs::net::isLoopbackAddress(metricsListen) && !metricsOpen) {
+        throw cpvs::InputError("refusing to serve metrics on " + metricsListen +
+                               " without --metrics-token-file (or give --metrics-open)");
+      }
+      if (!metricsTokenFile.empty() && metricsTlsCert.empty() && !cpvs::net::isLoopbackAddress(metricsListen) &&
+          !config.server.allowPlaintextToken)
+        throw cpvs::InputError("refusing to take the metrics token in plaintext on " + metricsListen +
+                               ": give --metrics-tls-cert and --metrics-tls-key, or --allow-plaintext-token");
+      metrics = std::make_unique<cpvs::metrics::Endpoint>(options, worker.metrics().registry(),
+                                                          [&worker] { worker.metrics().refresh(); });
+      if (!metricsAddressFile.empty()) {
+        const std::string text = metrics->address() + "\n";
+        cpvs::writeFileAtomic(metricsAddressFile, std::vector<uint8_t>(text.begin(), text.end()));
+      }
+      spdlog::info("metrics on {}://{}/metrics", metricsTlsCert.empty() ? "http" : "https", metrics->address());
+    }
     gWorker = &worker;
     std::signal(SIGTERM, onSignal);
     std::signal(SIGINT, onSignal);
     spdlog::info("{} pulling tiles from {} with {} slot(s), {} thread(s)", config.workerId, config.server.address,
                  config.slots, config.threads > 0 ? std::to_string(config.threads) : std::string("all"));
+    // The drain's watcher: a second signal, or the drain's time up, gives the tiles in
+    // progress back and ends the process without waiting for their bakes.
+    std::atomic<bool> finished{false};
+    std::thread watcher([&] {
+      std::optional<std::chrono::steady_clock::time_point> drainEnds;
+      while (!finished) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        const int signals = gSignals;
+        if (signals == 0) continue;
+        if (!drainEnds) {
+          drainEnds = std::chrono::steady_clock::now() + std::chrono::milliseconds(int64_t(drainSeconds * 1000));
+          spdlog::info("draining: no new tiles; those in progress finish{}",
+                       drainSeconds > 0 ? " within " + std::to_string(int(drainSeconds)) + " s" : std::string());
+        }
+        if (signals >= 2 || (drainSeconds > 0 && std::chrono::steady_clock::now() >= *drainEnds)) {
+          const size_t n = worker.releaseInFlight();
+          spdlog::info("{}: gave {} tile(s) in progress back; stopping after {} tile(s)",
+                       signals >= 2 ? "second signal" : "drain time up", n, worker.tilesDone());
+          std::fflush(nullptr);
+          std::_Exit(0);
+        }
+      }
+    });
     worker.run();
+    finished = true;
+    watcher.join();
     spdlog::info("stopped after {} tile(s)", worker.tilesDone());
     return 0;
   } catch (const cpvs::InputError& e) {

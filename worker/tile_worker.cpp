@@ -49,7 +49,7 @@ void check(const grpc::Status& s, const char* rpc) {
 
 }  // namespace
 
-TileWorker::TileWorker(WorkerConfig config) : config_(std::move(config)) {
+TileWorker::TileWorker(WorkerConfig config) : config_(std::move(config)), metrics_(config_.slots) {
   channel_ = net::makeChannel(config_.server);
   stub_ = pb::Workers::NewStub(channel_);
   fs::create_directories(config_.cacheDir);
@@ -78,8 +78,23 @@ void TileWorker::slotLoop(int slot) {
         continue;
       }
       ++tilesStarted_;
+      {
+        std::lock_guard lock(inFlightMutex_);
+        inFlight_.emplace(lease.lease_id(), lease);
+      }
+      metrics_.slotBusy(+1);
+      struct Done {
+        TileWorker& w;
+        const std::string& leaseId;
+        ~Done() {
+          w.metrics_.slotBusy(-1);
+          std::lock_guard lock(w.inFlightMutex_);
+          w.inFlight_.erase(leaseId);
+        }
+      } done{*this, lease.lease_id()};
       bakeLeased(lease);
     } catch (const Unreachable& e) {
+      metrics_.unreachable();
       spdlog::warn("coordinator unreachable ({}); retrying in {} ms", e.what(), backoffMs);
       std::this_thread::sleep_for(std::chrono::milliseconds(backoffMs));
       backoffMs = std::min(backoffMs * 2, 10000);
@@ -89,6 +104,20 @@ void TileWorker::slotLoop(int slot) {
       backoffMs = std::min(backoffMs * 2, 10000);
     }
   }
+}
+
+size_t TileWorker::releaseInFlight() {
+  abandon();
+  std::map<std::string, pb::TileLease> leases;
+  {
+    std::lock_guard lock(inFlightMutex_);
+    leases.swap(inFlight_);  // their bakes, when they end, find them given back
+  }
+  for (const auto& [id, lease] : leases) {
+    release(lease, "worker stopping", pb::FAIL_INTERRUPTED);
+    metrics_.tileEnded("given_back");
+  }
+  return leases.size();
 }
 
 void TileWorker::bakeLeased(const pb::TileLease& lease) {
@@ -151,7 +180,15 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     times.add("encode", secondsSince(start));
     if (abandoning_) {
       stopRenewing();
-      release(lease, "worker stopping", pb::FAIL_INTERRUPTED);
+      bool held;
+      {
+        std::lock_guard lock(inFlightMutex_);
+        held = inFlight_.erase(lease.lease_id()) > 0;
+      }
+      if (held) {
+        release(lease, "worker stopping", pb::FAIL_INTERRUPTED);
+        metrics_.tileEnded("given_back");
+      }
       return;
     }
     // The lease is renewed while the result is sent, and sent again (a coordinator
@@ -159,18 +196,22 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     deliverResult(lease, encoded, times.seconds);
     stopRenewing();
     ++tilesDone_;
+    metrics_.tileEnded("returned", times.seconds);
     if (lost) spdlog::warn("tile {} of job {}: the lease was lost while baking", lease.tile_index(), lease.job_id());
   } catch (const Unreachable&) {
     if (renewer.joinable()) stopRenewing();
+    metrics_.tileEnded("lost");
     throw;
   } catch (const WorkerFault& e) {
     if (renewer.joinable()) stopRenewing();
     spdlog::error("tile {} of job {} given back: {}", lease.tile_index(), loggable(lease.job_id()), loggable(e.what(), 1000));
     release(lease, e.what(), e.kind);
+    metrics_.tileEnded("given_back");
   } catch (const std::exception& e) {
     if (renewer.joinable()) stopRenewing();
     spdlog::error("tile {} of job {} failed: {}", lease.tile_index(), loggable(lease.job_id()), loggable(e.what(), 1000));
     release(lease, e.what());
+    metrics_.tileEnded("failed");
   }
 }
 

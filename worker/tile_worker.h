@@ -13,6 +13,7 @@
 #include "cpvs/scene/source.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "cpvs/net/channel.h"
+#include "worker_metrics.h"
 
 namespace cpvs::worker {
 
@@ -35,7 +36,10 @@ class TileWorker {
   /// backoff when the coordinator is unreachable.
   void run();
   /// Graceful stop: no new leases; tiles in progress finish and are returned.
-  void stop() { stopping_ = true; }
+  void stop() {
+    stopping_ = true;
+    metrics_.draining();
+  }
   /// Hard stop: tiles in progress are abandoned and their leases released.
   void abandon() {
     stopping_ = true;
@@ -45,6 +49,11 @@ class TileWorker {
   /// Leases granted to this worker (a tile's completion is counted once its reply is
   /// read, which may be after the job it finished is done).
   uint64_t tilesLeased() const { return tilesStarted_; }
+  /// Gives the tiles in progress back now (interrupted: it costs them no attempt), while
+  /// their bakes still run: a stop that cannot wait for them (a drain's deadline). Returns
+  /// how many were given back; the process is expected to leave next.
+  size_t releaseInFlight();
+  WorkerMetrics& metrics() { return metrics_; }
 
  private:
   struct CachedScene {
@@ -79,6 +88,9 @@ class TileWorker {
   std::atomic<uint64_t> tilesDone_{0}, tilesStarted_{0};
   std::mutex cacheMutex_, fetchMutex_;
   std::map<std::string, std::shared_ptr<CachedScene>> cache_;
+  std::mutex inFlightMutex_;
+  std::map<std::string, pb::TileLease> inFlight_;  // by lease id
+  WorkerMetrics metrics_;
 };
 
 }  // namespace cpvs::worker

@@ -4,6 +4,8 @@
 
 #include <filesystem>
 
+#include "cpvs/net/convert.h"
+
 namespace cpvs::server {
 
 namespace fs = std::filesystem;
@@ -21,13 +23,13 @@ Coordinator::Coordinator(CoordinatorConfig config)
       artifacts_(config_.dataDir),
       scenes_(store_, config_.dataDir, config_.maxUploadBytes, config_.import, config_.maxConcurrentImports,
               config_.maxPendingUploads),
-      merges_(store_, artifacts_, feed_, [this](const std::string& jobId, const std::string& why) {
+      merges_(store_, artifacts_, feed_, metrics_, [this](const std::string& jobId, const std::string& why) {
         jobs_.failJob(jobId, why);
       }, [this](const std::string& sceneHash) { return scenes_.load(sceneHash); }),
       jobs_(store_, scenes_, artifacts_, merges_, feed_,
             JobLimits{config_.minLog2Resolution, config_.maxLog2Resolution, config_.maxActiveJobs,
                       config_.maxActiveJobsPerClient, config_.maxTilesPerJob}),
-      leases_(store_, scenes_, artifacts_, merges_, jobs_, feed_,
+      leases_(store_, scenes_, artifacts_, merges_, jobs_, feed_, metrics_,
               LeaseRules{config_.leaseSeconds, config_.maxAttempts, config_.maxTileSeconds, config_.quarantineSeconds}),
       tracks_(store_, jobs_, feed_),
       housekeeper_(store_, artifacts_, scenes_, config_.retention) {
@@ -59,6 +61,28 @@ Coordinator::Coordinator(CoordinatorConfig config)
 }
 
 Coordinator::~Coordinator() { stop(); }
+
+void Coordinator::refreshMetrics() {
+  FarmReadings r;
+  r.storeHealthy = healthy();
+  if (r.storeHealthy) {
+    // A store that does not answer keeps the last counts rather than holding the scrape.
+    const FarmStore::Census c = store_.census();
+    for (const auto& [state, count] : c.jobs) r.jobsByState[net::jobStateName(pb::JobState(int(state)))] = count;
+    r.tilesQueued = c.tilesQueued;
+    r.tilesLeased = c.tilesLeased;
+    r.artifactBytes = c.artifactBytes;
+  }
+  r.mergeBacklog = merges_.backlog();
+  std::error_code ec;
+  for (const char* suffix : {"", "-wal"}) {
+    const auto size = fs::file_size(databasePath(config_.dataDir) + suffix, ec);
+    if (!ec) r.storeBytes += size;
+  }
+  r.tracksActive = tracks_.activeTracks();
+  r.keyframeLag = tracks_.keyframeLag();
+  metrics_.set(r);
+}
 
 void Coordinator::stop() {
   if (stopped_) return;

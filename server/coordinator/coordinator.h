@@ -15,6 +15,7 @@
 #include "coordinator/artifact_store.h"
 #include "coordinator/change_feed.h"
 #include "coordinator/data_folder_lock.h"
+#include "coordinator/farm_metrics.h"
 #include "coordinator/housekeeper.h"
 #include "coordinator/job_service.h"
 #include "coordinator/lease_service.h"
@@ -64,6 +65,10 @@ class Coordinator {
   JobService& jobs() { return jobs_; }
   LeaseService& leases() { return leases_; }
   TrackService& tracks() { return tracks_; }
+  FarmMetrics& metrics() { return metrics_; }
+  /// Takes the readings a scrape reports (jobs and tiles by state, backlogs, the store's
+  /// size and health); the endpoint calls it before each scrape.
+  void refreshMetrics();
 
   /// A counter bumped on every job change; waitForChange blocks until it passes `seen`
   /// or the timeout ends, and returns the current value.
@@ -77,6 +82,7 @@ class Coordinator {
   DataFolderLock lock_;  // first: nothing is opened in a folder another server holds
   FarmStore store_;
   ChangeFeed feed_;
+  FarmMetrics metrics_;
   ArtifactStore artifacts_;
   SceneStore scenes_;
   MergeScheduler merges_;

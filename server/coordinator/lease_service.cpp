@@ -39,8 +39,15 @@ const char* failKindName(pb::FailKind kind) {
 }  // namespace
 
 LeaseService::LeaseService(FarmStore& store, SceneStore& scenes, ArtifactStore& artifacts, MergeScheduler& merges,
-                           JobService& jobs, ChangeFeed& feed, LeaseRules rules)
-    : store_(store), scenes_(scenes), artifacts_(artifacts), merges_(merges), jobs_(jobs), feed_(feed), rules_(rules) {}
+                           JobService& jobs, ChangeFeed& feed, FarmMetrics& metrics, LeaseRules rules)
+    : store_(store),
+      scenes_(scenes),
+      artifacts_(artifacts),
+      merges_(merges),
+      jobs_(jobs),
+      feed_(feed),
+      metrics_(metrics),
+      rules_(rules) {}
 
 void LeaseService::start() {
   // Workers could not renew while the coordinator was down: every lease still out gets a
@@ -108,6 +115,7 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   }
   out.set_deadline_unix_ms(deadline);
   out.set_lease_ms(uint32_t(deadline - now));
+  metrics_.leaseGranted();
   feed_.notify();
   return out;
 }
@@ -144,7 +152,14 @@ pb::RenewReply LeaseService::renew(const std::string& leaseId) {
 }
 
 bool LeaseService::completeTile(const std::string& leaseId, const std::string& encoded,
-                               const std::map<std::string, double>& stages) {
+                                const std::map<std::string, double>& stages) {
+  const bool taken = takeResult(leaseId, encoded, stages);
+  metrics_.tileReturned(taken, stages, encoded.size());
+  return taken;
+}
+
+bool LeaseService::takeResult(const std::string& leaseId, const std::string& encoded,
+                              const std::map<std::string, double>& stages) {
   auto l = store_.lease(leaseId);
   if (!l) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
   auto j = store_.job(l->jobId);
@@ -208,6 +223,7 @@ void LeaseService::failTile(const std::string& leaseId, const std::string& reaso
       if (!store_.requeueTile(leaseId, reason, false)) return;
       jobs_.failJob(l->jobId, "the coordinator's stored copy of scene " + j->sceneHash +
                                   " was damaged and is forgotten: submit the job again to upload the scene");
+      metrics_.tileFailed("scene");
       feed_.notify();
       return;
     }
@@ -216,6 +232,7 @@ void LeaseService::failTile(const std::string& leaseId, const std::string& reaso
   const bool counts = kind == pb::FAIL_TILE;
   const auto attempts = store_.requeueTile(leaseId, reason, counts);
   if (!attempts) return;  // no longer the tile's current lease: its tile is someone else's
+  metrics_.tileFailed(kind == pb::FAIL_TILE ? "tile" : kind == pb::FAIL_WORKER ? "worker" : "interrupted");
   // Worker ids and reasons are the workers' text: logged escaped (R26).
   spdlog::warn("tile {} of job {} given back by {} ({}, attempt {} counted): {}", l->tile, l->jobId,
                loggable(l->workerId), failKindName(kind), *attempts, loggable(reason));
@@ -296,7 +313,9 @@ void LeaseService::reaperLoop() {
           }
         }
       }
-      for (const auto& [jobId, tile, attempts] : store_.expireLeases(nowMs())) {
+      const auto expired = store_.expireLeases(nowMs());
+      metrics_.leasesExpired(expired.size());
+      for (const auto& [jobId, tile, attempts] : expired) {
         spdlog::warn("lease on tile {} of job {} expired (attempt {})", tile, jobId, attempts);
         if (attempts >= rules_.maxAttempts)
           jobs_.failJob(jobId, "tile " + std::to_string(tile) + ": lease expired " + std::to_string(attempts) + " times");

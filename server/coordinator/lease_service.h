@@ -12,6 +12,7 @@
 
 #include "coordinator/artifact_store.h"
 #include "coordinator/change_feed.h"
+#include "coordinator/farm_metrics.h"
 #include "coordinator/job_service.h"
 #include "coordinator/merge_scheduler.h"
 #include "coordinator/scene_store.h"
@@ -35,7 +36,7 @@ constexpr double kMaxQuarantineSeconds = 600;
 class LeaseService {
  public:
   LeaseService(FarmStore& store, SceneStore& scenes, ArtifactStore& artifacts, MergeScheduler& merges, JobService& jobs,
-               ChangeFeed& feed, LeaseRules rules);
+               ChangeFeed& feed, FarmMetrics& metrics, LeaseRules rules);
   ~LeaseService() { stop(); }
 
   /// Starts and stops the reaper thread, which returns expired leases to the queue.
@@ -58,6 +59,7 @@ class LeaseService {
 
  private:
   void reaperLoop();
+  bool takeResult(const std::string& leaseId, const std::string& encoded, const std::map<std::string, double>& stages);
   /// Notes a worker's failure (under workersMutex_) and quarantines it when due.
   void noteWorkerFailure(const std::string& workerId, bool quarantineNow);
 
@@ -67,6 +69,7 @@ class LeaseService {
   MergeScheduler& merges_;
   JobService& jobs_;
   ChangeFeed& feed_;
+  FarmMetrics& metrics_;
   LeaseRules rules_;
 
   std::mutex mutex_;

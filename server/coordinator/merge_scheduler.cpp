@@ -20,9 +20,14 @@
 
 namespace cpvs::server {
 
-MergeScheduler::MergeScheduler(FarmStore& store, ArtifactStore& artifacts, ChangeFeed& feed, FailJob failJob,
-                               LoadScene loadScene)
-    : store_(store), artifacts_(artifacts), feed_(feed), failJob_(std::move(failJob)), loadScene_(std::move(loadScene)) {}
+MergeScheduler::MergeScheduler(FarmStore& store, ArtifactStore& artifacts, ChangeFeed& feed, FarmMetrics& metrics,
+                               FailJob failJob, LoadScene loadScene)
+    : store_(store),
+      artifacts_(artifacts),
+      feed_(feed),
+      metrics_(metrics),
+      failJob_(std::move(failJob)),
+      loadScene_(std::move(loadScene)) {}
 
 void MergeScheduler::start() { thread_ = std::thread([this] { loop(); }); }
 
@@ -51,6 +56,11 @@ void MergeScheduler::retryLater(Item item) {
 void MergeScheduler::mergeTile(const std::string& jobId, uint64_t tile) { push({Item::Kind::MergeTile, jobId, tile}); }
 
 void MergeScheduler::removeTiles(const std::string& jobId) { push({Item::Kind::RemoveTiles, jobId, 0}); }
+
+size_t MergeScheduler::backlog() {
+  std::lock_guard lock(mutex_);
+  return queue_.size() + later_.size();
+}
 
 void MergeScheduler::failJob(const std::string& jobId, const std::string& why) {
   // The merge thread outlives any one failure (R9): a store that cannot record this one
@@ -158,8 +168,10 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
     g.dag = assembleRoots(*g.merger->finish(), j->options.hash, j->options.compress);
     g.merger.reset();
   }
+  const double seconds = secondsSince(start);
+  metrics_.tileMerged(seconds);
   try {
-    store_.addStageSeconds(jobId, {{"merge", secondsSince(start)}});
+    store_.addStageSeconds(jobId, {{"merge", seconds}});
   } catch (const StoreUnavailable&) {
     // Statistics only: the tile is merged, and must not be merged again.
   }
@@ -225,6 +237,7 @@ bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
       }
     }
   }
+  const auto writeStart = std::chrono::steady_clock::now();
   try {
     artifacts_.writeArtifact(j.id, m.file);
     failpoint("artifact-written");
@@ -243,6 +256,7 @@ bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
     return false;
   }
   // Only now that the artifact and its acknowledgement are durable.
+  metrics_.artifactWritten(m.file.size(), secondsSince(writeStart));
   artifacts_.removeTiles(j.id);
   spdlog::info("job {} done: {} bytes (file {}), peak merge memory {} bytes", j.id, m.dagBytes, m.file.size(), m.peak);
   feed_.notify();

@@ -20,6 +20,7 @@
 
 #include "coordinator/artifact_store.h"
 #include "coordinator/change_feed.h"
+#include "coordinator/farm_metrics.h"
 #include "cpvs/dag/assemble_roots.h"
 #include "cpvs/dag/merge.h"
 #include "cpvs/dag/streaming_merger.h"
@@ -35,7 +36,8 @@ class MergeScheduler {
   /// The imported scene of an upload (SceneStore::load): a sun artifact of a scene with
   /// translucent meshes carries their TOP tree, built here once its DAG is merged.
   using LoadScene = std::function<Scene(const std::string& sceneHash)>;
-  MergeScheduler(FarmStore& store, ArtifactStore& artifacts, ChangeFeed& feed, FailJob failJob, LoadScene loadScene);
+  MergeScheduler(FarmStore& store, ArtifactStore& artifacts, ChangeFeed& feed, FarmMetrics& metrics, FailJob failJob,
+                 LoadScene loadScene);
   ~MergeScheduler() { stop(); }
 
   /// Starts the merge thread.
@@ -48,6 +50,8 @@ class MergeScheduler {
   /// Removes an ended job's tile results, after any merge of them queued before, so that
   /// a merge never finds a file gone under it.
   void removeTiles(const std::string& jobId);
+  /// Tiles and artifacts waiting for the merge thread (queued or to be tried again).
+  size_t backlog();
 
  private:
   struct Item {
@@ -89,6 +93,7 @@ class MergeScheduler {
   FarmStore& store_;
   ArtifactStore& artifacts_;
   ChangeFeed& feed_;
+  FarmMetrics& metrics_;
   FailJob failJob_;
   LoadScene loadScene_;
 

@@ -231,7 +231,7 @@ std::optional<VersionRecord> TrackService::versionAfter(const std::string& track
   return store_.versionAfter(trackId, sequence);
 }
 
-void TrackService::advance(const TrackRecord& t) {
+uint64_t TrackService::advance(const TrackRecord& t) {
   pb::TrackSpec spec;
   spec.ParseFromString(t.spec);
   const uint64_t ahead = spec.keyframes_ahead() ? spec.keyframes_ahead() : 2;
@@ -311,19 +311,27 @@ void TrackService::advance(const TrackRecord& t) {
     changed = true;
   }
   if (changed) feed_.notify();
+  uint64_t lag = 0;
+  if (clockNow)
+    for (size_t i = published; i < pending.size(); ++i) lag += pending[i].keyframe <= *clockNow;
+  return lag;
 }
 
 void TrackService::tick() {
   std::lock_guard lock(tickMutex_);
+  uint64_t active = 0, lag = 0;
   for (const TrackRecord& t : store_.tracks(false)) {
+    ++active;
     try {
-      advance(t);
+      lag = std::max(lag, advance(t));
     } catch (const std::exception& e) {
       // A track that cannot advance now (its scene gone, the store failing) is retried on
       // the next pass; it does not stop the others.
       spdlog::error("track {}: {}", t.id, e.what());
     }
   }
+  activeTracks_ = active;
+  keyframeLag_ = lag;
 }
 
 void TrackService::start() {

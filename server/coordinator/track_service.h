@@ -8,6 +8,7 @@
 // or another, is the same job and is not baked again.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
@@ -57,11 +58,16 @@ class TrackService {
   /// least every 250 ms; tests may call it directly.
   void tick();
   void start();
+  /// As of the last pass: tracks active, and the most keyframes a clock track's clock has
+  /// reached that are not published yet (its subscribers show an older sun meanwhile).
+  uint64_t activeTracks() const { return activeTracks_; }
+  uint64_t keyframeLag() const { return keyframeLag_; }
   void stop();
 
  private:
   pb::TrackStatus toStatus(const TrackRecord& t) const;
-  void advance(const TrackRecord& t);
+  /// One track's pass; returns its keyframe lag (0 unless it follows a clock).
+  uint64_t advance(const TrackRecord& t);
   /// Submits keyframe `k`'s job; returns its id.
   std::string submitKeyframe(const pb::TrackSpec& spec, const Vec3& direction, const std::string& owner);
   /// The track, when `access` may see it: NotFound, PermissionDenied otherwise.
@@ -74,6 +80,7 @@ class TrackService {
   std::mutex tickMutex_;  // one pass at a time (the thread's, a test's, create's)
   std::thread thread_;
   bool stopping_ = false;
+  std::atomic<uint64_t> activeTracks_ = 0, keyframeLag_ = 0;
 };
 
 }  // namespace cpvs::server

@@ -79,6 +79,7 @@ const char* roleName(Role r) {
     case Role::Client: return "client";
     case Role::Worker: return "worker";
     case Role::Admin: return "admin";
+    case Role::Metrics: return "metrics";
   }
   return "?";
 }
@@ -107,7 +108,8 @@ TokenTable TokenTable::load(const std::string& path) {
     if (role == "client") r = Role::Client;
     else if (role == "worker") r = Role::Worker;
     else if (role == "admin") r = Role::Admin;
-    else throw InputError(where + ": unknown role '" + role + "' (client, worker or admin)");
+    else if (role == "metrics") r = Role::Metrics;
+    else throw InputError(where + ": unknown role '" + role + "' (client, worker, admin or metrics)");
     const std::string digest = digestOf(token);
     if (owner.empty()) owner = "token-" + hexOf(digest.substr(0, 6));
     if (!t.roles_.emplace(digest, TokenHolder{r, owner}).second) throw InputError(where + ": the token is listed twice");

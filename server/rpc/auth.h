@@ -1,5 +1,5 @@
 // Bearer tokens with roles: clients submit and download, workers lease and return tiles,
-// administrators may do both.
+// administrators may do both; a metrics token reads the Prometheus endpoint and nothing else.
 #pragma once
 
 #include "cpvs/base/error.h"
@@ -19,7 +19,7 @@ constexpr double kMinTokenBits = 128;
 /// few bits, too regular), or nothing when it may be used.
 std::optional<std::string> weaknessOf(const std::string& token);
 
-enum class Role { Client, Worker, Admin };
+enum class Role { Client, Worker, Admin, Metrics };
 
 const char* roleName(Role r);
 
@@ -33,7 +33,7 @@ class TokenTable {
  public:
   /// No tokens: every call is allowed (a farm on a trusted network, or tests).
   TokenTable() = default;
-  /// Reads "ROLE TOKEN [OWNER]" lines (ROLE: client, worker or admin; '#' starts a
+  /// Reads "ROLE TOKEN [OWNER]" lines (ROLE: client, worker, admin or metrics; '#' starts a
   /// comment). OWNER (1-64 of A-Z a-z 0-9 . _ -) names whose jobs a client token sees:
   /// tokens of one owner share their jobs and tracks; without it each token is its own
   /// owner (R28). Throws InputError naming the file and line for anything else.
@@ -52,6 +52,11 @@ class TokenTable {
   std::vector<std::string> digestsForTests() const;
   /// Whether `role` may call an RPC that needs `needed` (admin may call anything).
   static bool allows(Role role, Role needed) { return role == Role::Admin || role == needed; }
+  /// Whether a token may read the metrics endpoint (metrics and admin tokens may).
+  bool readsMetrics(const std::string& token) const {
+    const auto r = roleOf(token);
+    return r && (*r == Role::Metrics || *r == Role::Admin);
+  }
 
  private:
   std::map<std::string, TokenHolder> roles_;  // by SHA-256 digest (32 raw bytes)

@@ -144,21 +144,25 @@ grpc::Status FarmService::SubmitBake(grpc::ServerContext* ctx, const pb::SubmitB
   });
 }
 
-std::shared_ptr<void> FarmService::streamSlot() {
+std::shared_ptr<void> FarmService::streamSlot(const char* kind) {
   if (openStreams_.fetch_add(1) >= c_.config().maxWatches) {
     --openStreams_;
     throw FarmError(ErrorKind::ResourceExhausted, std::to_string(c_.config().maxWatches) +
                                                       " watches and subscriptions are open on this coordinator; try "
                                                       "again later");
   }
-  return std::shared_ptr<void>(nullptr, [this](void*) { --openStreams_; });
+  c_.metrics().streamsOpen(kind, +1);
+  return std::shared_ptr<void>(nullptr, [this, kind](void*) {
+    c_.metrics().streamsOpen(kind, -1);
+    --openStreams_;
+  });
 }
 
 grpc::Status FarmService::WatchJob(grpc::ServerContext* ctx, const pb::JobRef* req,
                                    grpc::ServerWriter<pb::JobStatus>* writer) {
   return guarded(ctx, tokens_, Role::Client, "WatchJob", [&](const Access& access) {
     c_.jobs().status(req->job_id(), access);  // another client's job is not followed
-    const auto slot = streamSlot();
+    const auto slot = streamSlot("watch");
     uint64_t seen = c_.waitForChange(~uint64_t(0), 0);
     for (;;) {
       // A message on every change, and at least once a second (elapsed time and ETA move,
@@ -222,7 +226,7 @@ grpc::Status FarmService::CancelTrack(grpc::ServerContext* ctx, const pb::TrackR
 grpc::Status FarmService::Subscribe(grpc::ServerContext* ctx, const pb::SubscribeRequest* req,
                                     grpc::ServerWriter<pb::VersionChunk>* writer) {
   return guarded(ctx, tokens_, Role::Client, "Subscribe", [&](const Access& access) {
-    const auto slot = streamSlot();
+    const auto slot = streamSlot("subscribe");
     const std::string& id = req->track_id();
     const pb::TrackStatus first = c_.tracks().status(id, access);  // NOT_FOUND, or another client's
     if (req->after_sequence() > first.latest_sequence())

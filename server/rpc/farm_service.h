@@ -30,9 +30,9 @@ class FarmService final : public pb::Farm::Service {
   grpc::Status Subscribe(grpc::ServerContext*, const pb::SubscribeRequest*, grpc::ServerWriter<pb::VersionChunk>*) override;
 
  private:
-  /// A slot for one long-lived stream (WatchJob, Subscribe), or nothing when
+  /// A slot for one long-lived stream of `kind` ("watch": WatchJob, "subscribe"), or nothing when
   /// CoordinatorConfig::maxWatches are open (R15): each holds a server thread.
-  std::shared_ptr<void> streamSlot();
+  std::shared_ptr<void> streamSlot(const char* kind);
 
   Coordinator& c_;
   const TokenTable& tokens_;

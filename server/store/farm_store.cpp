@@ -569,6 +569,21 @@ std::vector<std::string> FarmStore::pruneFinishedJobs(int64_t beforeMs, size_t l
   return ids;
 }
 
+FarmStore::Census FarmStore::census() {
+  std::lock_guard lock(mutex_);
+  Census c;
+  Statement j(db_, "SELECT state, COUNT(*), COALESCE(SUM(file_bytes), 0) FROM jobs GROUP BY state");
+  while (j.step()) {
+    const auto state = JobState(j.i64(0));
+    c.jobs[state] = uint64_t(j.i64(1));
+    if (state == JobState::Done) c.artifactBytes = uint64_t(j.i64(2));
+  }
+  Statement t(db_, "SELECT state, COUNT(*) FROM tiles WHERE state IN (0, 1) AND job_id IN "
+                   "(SELECT id FROM jobs WHERE state IN (1, 2, 3)) GROUP BY state");
+  while (t.step()) (t.i64(0) == int64_t(TileState::Queued) ? c.tilesQueued : c.tilesLeased) = uint64_t(t.i64(1));
+  return c;
+}
+
 size_t FarmStore::activeJobCount() {
   std::lock_guard lock(mutex_);
   Statement s(db_, "SELECT COUNT(*) FROM jobs WHERE state IN (1, 2, 3)");

@@ -163,6 +163,14 @@ class FarmStore {
   /// one transaction. Returns their ids, whose files the caller removes (R16, R25).
   std::vector<std::string> pruneFinishedJobs(int64_t beforeMs, size_t limit);
   size_t activeJobCount();
+  /// What the farm holds, for its metrics: jobs by state, tiles of unfinished jobs queued
+  /// and leased, and the bytes of finished artifacts. A few indexed counts.
+  struct Census {
+    std::map<JobState, uint64_t> jobs;
+    uint64_t tilesQueued = 0, tilesLeased = 0;
+    uint64_t artifactBytes = 0;
+  };
+  Census census();
   /// Of them, those of one owner.
   size_t activeJobCount(const std::string& owner);
   void setJobState(const std::string& id, JobState s, const std::string& error, int64_t nowMs);

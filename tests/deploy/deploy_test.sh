@@ -305,9 +305,92 @@ for name, h in hpas.items():
     t = h["spec"].get("scaleTargetRef") or {}
     if (t.get("kind"), t.get("name")) not in workloads:
         fail("HorizontalPodAutoscaler %s targets %s %s, which is not defined" % (name, t.get("kind"), t.get("name")))
-    if not any((m.get("resource") or {}).get("name") == "cpu" for m in h["spec"].get("metrics") or []):
-        fail("HorizontalPodAutoscaler %s has no cpu metric" % name)
-    ok("HorizontalPodAutoscaler %s: autoscaling/v2 on cpu, targets %s %s" % (name, t.get("kind"), t.get("name")))
+    external = [((m.get("external") or {}).get("metric") or {}).get("name") for m in h["spec"].get("metrics") or []
+                if m.get("type") == "External"]
+    if "cpvs_tiles_outstanding" not in external:
+        fail("HorizontalPodAutoscaler %s does not follow the outstanding tiles (External cpvs_tiles_outstanding)" % name)
+    if any(m.get("type") == "Resource" for m in h["spec"].get("metrics") or []):
+        fail("HorizontalPodAutoscaler %s also scales on a resource: a baking worker is always busy" % name)
+    ok("HorizontalPodAutoscaler %s: autoscaling/v2 on cpvs_tiles_outstanding, targets %s %s" % (name, t.get("kind"), t.get("name")))
+
+# --- monitoring: alerts, dashboard and the adapter's rule name only metrics that exist --
+# The metric families the programs register (prometheus-cpp's .Name("...")), with the
+# series a histogram adds; the dashboard, the alerts and the autoscaler must use no other.
+families, histograms = set(), set()
+for src in ("server/coordinator/farm_metrics.cpp", "worker/worker_metrics.cpp", "metrics/src/process.cpp"):
+    text = open(os.path.join(root, src), encoding="utf-8").read()
+    for m in re.finditer(r'Build(Counter|Gauge|Histogram)\(\)\s*\.Name\("([a-z_]+)"\)', text):
+        families.add(m.group(2))
+        if m.group(1) == "Histogram":
+            histograms.add(m.group(2))
+    for m in re.finditer(r'(?:gauge|counter)\(\w+, "([a-z_]+)"', text):
+        families.add(m.group(1))
+known = families | {h + s for h in histograms for s in ("_bucket", "_sum", "_count")} | {"up"}
+promql_words = {"sum", "by", "rate", "increase", "delta", "histogram_quantile", "max", "min", "avg", "count", "and",
+                "or", "unless", "le", "on", "without", "ignoring", "offset", "bool"}
+def metrics_of(expr):
+    expr = re.sub(r'\{[^}]*\}', '', expr)          # label matchers
+    expr = re.sub(r'\[[^\]]*\]', '', expr)         # ranges
+    expr = re.sub(r'\(([a-z_, ]+)\)', lambda m: "" if all(w.strip() in promql_words or not w.strip() or
+                                                         w.strip() in ("state", "event", "stage", "kind", "job", "outcome", "le")
+                                                         for w in m.group(1).split(",")) else m.group(0), expr)
+    return {w for w in re.findall(r'[a-z_][a-z0-9_]*', expr) if w not in promql_words and not w.startswith("__")}
+monitoring = os.path.join(deploy, "monitoring")
+if len(families) < 20:
+    fail("monitoring: found only %d metric families in the sources (%s)" % (len(families), ", ".join(sorted(families))))
+alerts_path = os.path.join(monitoring, "alerts.yaml")
+if not os.path.isfile(alerts_path):
+    fail("deploy/monitoring/alerts.yaml is missing")
+else:
+    rules = [r for g in yaml.safe_load(open(alerts_path, encoding="utf-8"))["groups"] for r in g["rules"]]
+    for r in rules:
+        where = "alert %s" % r.get("alert")
+        if not r.get("alert") or not r.get("expr"):
+            fail("deploy/monitoring/alerts.yaml: a rule without alert or expr")
+        if (r.get("labels") or {}).get("severity") not in ("warning", "critical"):
+            fail("%s: severity is not warning or critical" % where)
+        if not (r.get("annotations") or {}).get("summary") or not (r.get("annotations") or {}).get("description"):
+            fail("%s: no summary or description" % where)
+        unknown = metrics_of(str(r.get("expr"))) - known
+        if unknown:
+            fail("%s names metrics no program exports: %s" % (where, ", ".join(sorted(unknown))))
+    ok("deploy/monitoring/alerts.yaml: %d alerts on exported metrics" % len(rules))
+dashboard_path = os.path.join(monitoring, "grafana-dashboard.json")
+try:
+    import json
+    dashboard = json.load(open(dashboard_path, encoding="utf-8"))
+    exprs = [t["expr"] for p in dashboard["panels"] for t in p.get("targets") or []]
+    if not dashboard.get("uid") or not dashboard.get("title") or len(dashboard["panels"]) < 8:
+        fail("grafana-dashboard.json: no uid, title, or fewer than 8 panels")
+    used = set()
+    for p in dashboard["panels"]:
+        if not p.get("title") or not p.get("targets"):
+            fail("grafana-dashboard.json: panel %s has no title or no query" % p.get("id"))
+    for e in exprs:
+        used |= metrics_of(e)
+        unknown = metrics_of(e) - known
+        if unknown:
+            fail("grafana-dashboard.json: %r names metrics no program exports: %s" % (e, ", ".join(sorted(unknown))))
+    for must in ("cpvs_tiles_outstanding", "cpvs_leases_total", "cpvs_merge_backlog", "cpvs_track_keyframe_lag",
+                 "cpvs_store_bytes", "process_resident_memory_bytes", "process_open_fds"):
+        if must not in used:
+            fail("grafana-dashboard.json shows no %s" % must)
+    ok("deploy/monitoring/grafana-dashboard.json: %d panels, %d queries on exported metrics" % (len(dashboard["panels"]), len(exprs)))
+except (OSError, ValueError, KeyError) as e:
+    fail("deploy/monitoring/grafana-dashboard.json: %s" % e)
+adapter_path = os.path.join(monitoring, "prometheus-adapter-rules.yaml")
+if os.path.isfile(adapter_path):
+    served = {r["name"]["as"] for r in yaml.safe_load(open(adapter_path, encoding="utf-8"))["externalRules"]}
+    for name, h in hpas.items():
+        for m in h["spec"].get("metrics") or []:
+            metric = ((m.get("external") or {}).get("metric") or {}).get("name")
+            if m.get("type") == "External" and metric not in served:
+                fail("HorizontalPodAutoscaler %s follows %s, which the adapter's rules do not serve" % (name, metric))
+            if m.get("type") == "External" and metric not in families:
+                fail("HorizontalPodAutoscaler %s follows %s, which the coordinator does not export" % (name, metric))
+    ok("the HPA's external metric is served by deploy/monitoring/prometheus-adapter-rules.yaml")
+else:
+    fail("deploy/monitoring/prometheus-adapter-rules.yaml is missing")
 
 # --- Dockerfile ------------------------------------------------------------------------
 dockerfile = os.path.join(deploy, "Dockerfile")
@@ -395,15 +478,18 @@ if [ -f "$DEPLOY/make-secrets.sh" ]; then
   else
     roles="$(awk '{print $1}' "$tmp/s/tokens" | sort | tr '\n' ' ')"
     worker_token="$(awk '$1 == "worker" {print $2}' "$tmp/s/tokens")"
-    if [ "$roles" != "admin client worker " ] || [ "$(awk 'NF != 2' "$tmp/s/tokens")" != "" ]; then
-      fail "make-secrets.sh: tokens file is not three lines 'ROLE TOKEN' for admin, client, worker"
+    metrics_token="$(awk '$1 == "metrics" {print $2}' "$tmp/s/tokens")"
+    if [ "$roles" != "admin client metrics worker " ] || [ "$(awk 'NF != 2' "$tmp/s/tokens")" != "" ]; then
+      fail "make-secrets.sh: tokens file is not four lines 'ROLE TOKEN' for admin, client, metrics, worker"
     elif [ "$(cat "$tmp/s/worker.env")" != "CPVS_TOKEN=$worker_token" ] \
          || [ "$(cat "$tmp/s/worker.token")" != "$worker_token" ]; then
       fail "make-secrets.sh: worker.env/worker.token do not hold the tokens file's worker token"
-    elif [ "$(sort -u <(awk '{print $2}' "$tmp/s/tokens") | wc -l)" -ne 3 ]; then
-      fail "make-secrets.sh: the three tokens are not distinct"
+    elif [ "$(cat "$tmp/s/metrics.token")" != "$metrics_token" ]; then
+      fail "make-secrets.sh: metrics.token does not hold the tokens file's metrics token"
+    elif [ "$(sort -u <(awk '{print $2}' "$tmp/s/tokens") | wc -l)" -ne 4 ]; then
+      fail "make-secrets.sh: the four tokens are not distinct"
     else
-      ok "make-secrets.sh: tokens for admin, client, worker; worker.env matches"
+      ok "make-secrets.sh: tokens for admin, client, metrics, worker; worker.env and metrics.token match"
     fi
     if [ ${#tls_args[@]} -gt 0 ]; then
       if timeout "$LIMIT" openssl verify -CAfile "$tmp/s/ca.crt" "$tmp/s/tls.crt" >/dev/null 2>&1 \
@@ -490,6 +576,15 @@ for (kind, name), w in sorted(workloads.items()):
                 fail("%s: %s on port %s, which the container does not name" % (where, probe, port))
             if port is None and "exec" not in p:
                 fail("%s: %s checks nothing" % (where, probe))
+        if "metrics" not in ports:
+            fail("%s names no metrics port" % where)
+        args = c.get("args") or []
+        if "cpvs-worker" in args:
+            grace = w["spec"]["template"]["spec"].get("terminationGracePeriodSeconds", 30)
+            if "--drain-seconds" not in args:
+                fail("%s: no --drain-seconds (a SIGTERM would wait for the tile however long it takes)" % where)
+            elif float(args[args.index("--drain-seconds") + 1]) + 5 > grace:
+                fail("%s: --drain-seconds leaves under 5 s of the %s s grace period" % (where, grace))
 for d in docs:
     if d.get("kind") == "HorizontalPodAutoscaler":
         t = d["spec"].get("scaleTargetRef") or {}
