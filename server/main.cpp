@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <csignal>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -15,7 +16,9 @@
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
 #include "cpvs/base/parse.h"
+#include "cpvs/metrics/checks.h"
 #include "cpvs/metrics/endpoint.h"
+#include "cpvs/net/health.h"
 #include "cpvs/net/connection.h"
 #include "rpc/auth.h"
 #include "rpc/farm_server.h"
@@ -25,6 +28,39 @@ namespace {
 std::atomic<bool> gStop{false};
 
 void onSignal(int) { gStop = true; }
+
+// `cpvs-server --check`: whether the coordinator serving `listen` from `data` is ready, for
+// a readiness probe or a person: it answers on its port (over its TLS), its store takes
+// writes, its leases move, its data folder takes files and has room, its certificate is
+// valid. Prints a line a finding; 0 when nothing failed.
+int checkCoordinator(const std::string& listen, const std::string& data, const std::string& tlsCert,
+                     const std::string& ca, double minFreeMb) {
+  cpvs::metrics::Checks checks;
+  // The coordinator's own port, from this machine: a wildcard address is reached on loopback.
+  std::string host = listen.substr(0, listen.rfind(':'));
+  const std::string port = listen.substr(listen.rfind(':') + 1);
+  if (host == "0.0.0.0" || host.empty()) host = "127.0.0.1";
+  if (host == "[::]") host = "[::1]";
+  cpvs::net::Connection c{host + ":" + port, "", ""};
+  if (!tlsCert.empty()) {
+    c.caFile = ca.empty() ? tlsCert : ca;  // a self-signed certificate is its own root
+    c.tlsName = cpvs::metrics::certificateName(tlsCert);
+  }
+  const std::string store = cpvs::net::healthOf(c, "", 5);
+  checks.check(store == "SERVING", "the coordinator on " + c.address + (tlsCert.empty() ? "" : " (TLS)") +
+                                       (store == "SERVING" ? " answers; its job store takes writes"
+                                                           : " is not ready: " + store));
+  if (store == "SERVING" || store == "NOT_SERVING") {
+    const std::string leases = cpvs::net::healthOf(c, cpvs::server::kLeasesHealth, 5);
+    checks.check(leases == "SERVING", leases == "SERVING" ? "leases move (the reaper ran within 10 s)"
+                                                          : "leases do not move: " + leases);
+  }
+  checks.folderWritable(data);
+  checks.freeSpace(data, uint64_t(minFreeMb * 1024 * 1024));
+  if (!tlsCert.empty()) checks.certificate(tlsCert, "TLS");
+  if (!ca.empty()) checks.certificate(ca, "CA");
+  return checks.finish();
+}
 
 std::string readText(const std::string& path, const char* what) {
   std::ifstream in(path);
@@ -46,7 +82,9 @@ int main(int argc, char** argv) {
   cpvs::server::CoordinatorConfig config;
   std::string maxResolution = "256K";
   double maxUploadMb = 4096;
-  bool insecureOpen = false, allowPlaintextTokens = false;
+  bool insecureOpen = false, allowPlaintextTokens = false, check = false;
+  std::string checkCa;
+  double minFreeMb = 1024;
   double importMemoryMb = 8192;
   app.add_option("--listen", listen, "HOST:PORT to serve on; port 0 picks a free port")->capture_default_str();
   app.add_option("--data", data, "Folder for the job database, scenes, tile results and artifacts")->required();
@@ -63,6 +101,12 @@ int main(int argc, char** argv) {
                  "HOST:PORT to serve Prometheus metrics on (GET /metrics; port 0 picks one): HTTPS with --tls-*, and "
                  "with --tokens only for metrics and admin tokens");
   app.add_option("--metrics-address-file", metricsAddressFile, "Write the metrics HOST:PORT served to this file");
+  app.add_flag("--check", check,
+               "Check the coordinator this command line describes and exit (0 ready, 1 not): it answers on "
+               "--listen, its store takes writes, leases move, --data takes files and has --min-free-mb, "
+               "its certificate is valid. For readiness probes");
+  app.add_option("--ca", checkCa, "With --check and --tls-cert: the CA that signed it (default: the certificate itself)");
+  app.add_option("--min-free-mb", minFreeMb, "With --check: the least free space in --data")->capture_default_str();
   app.add_option("--lease-seconds", config.leaseSeconds, "Tile lease length")->capture_default_str()->check(CLI::Range(1.0, 3600.0));
   app.add_option("--max-tile-seconds", config.maxTileSeconds,
                  "Longest a tile may be baked (renewals stop after it; a hung bake's tile goes to another worker)")
@@ -112,6 +156,14 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%l] %v");
+  if (check) {
+    try {
+      return checkCoordinator(listen, data, tlsCert, checkCa, minFreeMb);
+    } catch (const std::exception& e) {
+      std::printf("FAIL:    %s\n", e.what());
+      return 1;
+    }
+  }
   try {
     // The file says that this run serves: one left by an earlier run must not say so
     // while this one starts (or fails to).

@@ -7,8 +7,10 @@
 #include <atomic>
 #include <cctype>
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <optional>
@@ -18,6 +20,7 @@
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
+#include "cpvs/metrics/checks.h"
 #include "cpvs/metrics/endpoint.h"
 #include "cpvs/net/connection.h"
 #include "tile_worker.h"
@@ -57,6 +60,30 @@ std::string readToken(const std::string& path) {
   return token;
 }
 
+// `cpvs-worker --check`: whether this machine's worker is alive and can work, for a
+// liveness probe or a person: the coordinator answered it within `maxSilence` seconds (its
+// cache's alive file), its cache takes files and has room, its certificates are valid.
+int checkWorker(const cpvs::worker::WorkerConfig& config, double maxSilence, double minFreeMb,
+                const std::string& metricsTlsCert) {
+  namespace fs = std::filesystem;
+  cpvs::metrics::Checks checks;
+  std::error_code ec;
+  const auto touched = fs::last_write_time(cpvs::worker::alivePath(config.cacheDir), ec);
+  if (ec) {
+    checks.check(false, "the coordinator has not answered this worker yet (no " +
+                            cpvs::worker::alivePath(config.cacheDir) + ")");
+  } else {
+    const double age = std::chrono::duration<double>(fs::file_time_type::clock::now() - touched).count();
+    checks.check(age <= maxSilence, "the coordinator answered this worker " + std::to_string(int(age)) +
+                                        " s ago (at most " + std::to_string(int(maxSilence)) + " s wanted)");
+  }
+  checks.folderWritable(config.cacheDir);
+  checks.freeSpace(config.cacheDir, uint64_t(minFreeMb * 1024 * 1024));
+  if (!config.server.caFile.empty()) checks.certificate(config.server.caFile, "CA");
+  if (!metricsTlsCert.empty()) checks.certificate(metricsTlsCert, "metrics TLS");
+  return checks.finish();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -69,7 +96,7 @@ int main(int argc, char** argv) {
   char host[256] = "worker";
   gethostname(host, sizeof host - 1);
   config.workerId = std::string(host) + ":" + std::to_string(getpid());
-  app.add_option("--server", config.server.address, "Coordinator HOST:PORT")->required();
+  app.add_option("--server", config.server.address, "Coordinator HOST:PORT (required but with --check)");
   app.add_option("--slots", config.slots, "Tiles baked at once")->capture_default_str()->check(CLI::Range(1, 256));
   app.add_option("--cache", config.cacheDir, "Folder for fetched scenes")->capture_default_str();
   app.add_option("--token", config.server.token, "Bearer token (default: $CPVS_TOKEN)");
@@ -84,7 +111,15 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 4096));
   std::string metricsListen, metricsTokenFile, metricsTlsCert, metricsTlsKey, metricsAddressFile;
   double drainSeconds = 0;
-  bool metricsOpen = false;
+  bool metricsOpen = false, check = false;
+  double maxSilence = 600, minFreeMb = 1024;
+  app.add_flag("--check", check,
+               "Check the worker this command line describes and exit (0 alive, 1 not): the coordinator answered it "
+               "within --max-silence, --cache takes files and has --min-free-mb, its certificates are valid. For "
+               "liveness probes");
+  app.add_option("--max-silence", maxSilence, "With --check: the most seconds since the coordinator last answered")
+      ->capture_default_str();
+  app.add_option("--min-free-mb", minFreeMb, "With --check: the least free space in --cache")->capture_default_str();
   app.add_option("--drain-seconds", drainSeconds,
                  "After SIGTERM, how long tiles in progress may take before they are given back (0 = as long as "
                  "they take); set it below the pod's termination grace period")
@@ -106,6 +141,11 @@ int main(int argc, char** argv) {
   if (config.server.token.empty())
     if (const char* t = std::getenv("CPVS_TOKEN")) config.server.token = t;
   config.server.token = trimmed(config.server.token);
+  if (check) return checkWorker(config, maxSilence, minFreeMb, metricsTlsCert);
+  if (config.server.address.empty()) {
+    std::fprintf(stderr, "--server is required\nRun with --help for more information.\n");
+    return 2;
+  }
   spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [worker] [%l] %v");
   std::unique_ptr<tbb::global_control> threadLimit;
   if (config.threads > 0)

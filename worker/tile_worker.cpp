@@ -53,6 +53,19 @@ TileWorker::TileWorker(WorkerConfig config) : config_(std::move(config)), metric
   channel_ = net::makeChannel(config_.server);
   stub_ = pb::Workers::NewStub(channel_);
   fs::create_directories(config_.cacheDir);
+  std::error_code ec;
+  fs::remove(alivePath(config_.cacheDir), ec);  // an earlier run's contact is not this one's
+}
+
+std::string alivePath(const std::string& cacheDir) { return (fs::path(cacheDir) / ".alive").string(); }
+
+void TileWorker::noteContact() {
+  // At most every 5 s: every slot's lease and renewal would otherwise touch it.
+  const int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
+                          std::chrono::steady_clock::now().time_since_epoch()).count();
+  int64_t last = lastContactMs_;
+  if (now - last < 5000 || !lastContactMs_.compare_exchange_strong(last, now)) return;
+  std::ofstream(alivePath(config_.cacheDir), std::ios::trunc) << "the coordinator answered\n";
 }
 
 void TileWorker::run() {
@@ -72,6 +85,7 @@ void TileWorker::slotLoop(int slot) {
       grpc::ClientContext ctx;
       net::prepare(ctx, config_.server, 10);
       check(stub_->LeaseTile(&ctx, req, &lease), "LeaseTile");
+      noteContact();
       backoffMs = 200;
       if (!lease.granted()) {
         std::this_thread::sleep_for(std::chrono::milliseconds(std::clamp<uint32_t>(lease.retry_after_ms(), 50, 5000)));
@@ -151,6 +165,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
       grpc::ClientContext ctx;
       net::prepare(ctx, config_.server, 10);
       if (stub_->RenewLease(&ctx, req, &reply).ok()) {
+        noteContact();
         if (!reply.valid()) {
           lost = true;  // expired or the job ended: the result will likely be declined
           return;

@@ -28,6 +28,10 @@ struct WorkerConfig {
   int threads = 0;         // threads per bake, Embree's and the DAG construction's (0 = all cores)
 };
 
+/// The file in the cache folder a worker touches (at most every 5 s) whenever the
+/// coordinator answers it, leasing or renewing: `cpvs-worker --check` reads its age.
+std::string alivePath(const std::string& cacheDir);
+
 class TileWorker {
  public:
   explicit TileWorker(WorkerConfig config);
@@ -63,6 +67,8 @@ class TileWorker {
   };
 
   void slotLoop(int slot);
+  /// The coordinator answered: touches alivePath (at most every 5 s).
+  void noteContact();
   /// Bakes and returns one leased tile; false when the coordinator is unreachable.
   void bakeLeased(const pb::TileLease& lease);
   /// The scene prepared for a lease's grid (a sun's or a light bundle's perspective one)
@@ -86,6 +92,7 @@ class TileWorker {
   std::unique_ptr<pb::Workers::Stub> stub_;
   std::atomic<bool> stopping_{false}, abandoning_{false};
   std::atomic<uint64_t> tilesDone_{0}, tilesStarted_{0};
+  std::atomic<int64_t> lastContactMs_{-5000};
   std::mutex cacheMutex_, fetchMutex_;
   std::map<std::string, std::shared_ptr<CachedScene>> cache_;
   std::mutex inFlightMutex_;

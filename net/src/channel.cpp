@@ -45,6 +45,7 @@ std::shared_ptr<grpc::Channel> makeChannel(const Connection& c) {
   // A channel of its own connections: one made anew after a silent partition must not
   // pick up the old channel's dead connection from gRPC's process-wide pool.
   args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  if (!c.tlsName.empty()) args.SetSslTargetNameOverride(c.tlsName);
   std::shared_ptr<grpc::ChannelCredentials> creds;
   if (c.caFile.empty()) {
     creds = grpc::InsecureChannelCredentials();

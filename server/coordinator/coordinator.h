@@ -61,6 +61,9 @@ class Coordinator {
   const CoordinatorConfig& config() const { return config_; }
   /// Whether the coordinator can take work now: its store answers within half a second.
   bool healthy() { return store_.responsive(500); }
+  /// Whether leases move: the reaper finished a round within the last 10 seconds (it runs
+  /// four a second; a wedged store or a stuck thread stops it).
+  bool leasesMoving() const { return leases_.secondsSinceReaperRound() < 10; }
   SceneStore& scenes() { return scenes_; }
   JobService& jobs() { return jobs_; }
   LeaseService& leases() { return leases_; }

@@ -27,6 +27,10 @@ namespace {
 /// against the steady one) before the coordinator counts itself paused (R10).
 constexpr int64_t kReaperTickMs = 250, kPauseMs = 1000;
 
+int64_t steadyMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
 const char* failKindName(pb::FailKind kind) {
   switch (kind) {
     case pb::FAIL_INTERRUPTED: return "interrupted";
@@ -53,8 +57,11 @@ void LeaseService::start() {
   // Workers could not renew while the coordinator was down: every lease still out gets a
   // whole lease length from now before the reaper may take it back (R10).
   store_.extendLeasesTo(nowMs() + int64_t(rules_.leaseSeconds * 1000));
+  lastRoundSteadyMs_ = steadyMs();
   reaper_ = std::thread([this] { reaperLoop(); });
 }
+
+double LeaseService::secondsSinceReaperRound() const { return double(steadyMs() - lastRoundSteadyMs_) / 1000.0; }
 
 void LeaseService::stop() {
   {
@@ -323,6 +330,7 @@ void LeaseService::reaperLoop() {
       }
       lastSteady = steadyNow;
       lastWall = wallNow;
+      lastRoundSteadyMs_ = steadyMs();
     } catch (const StoreUnavailable& e) {
       spdlog::warn("expiring leases waits for the store: {}", e.what());
     } catch (const std::exception& e) {

@@ -3,6 +3,7 @@
 // validated sub-DAG (the first result of a tile wins).
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <map>
@@ -54,6 +55,9 @@ class LeaseService {
   /// and FAIL_SCENE_DAMAGED quarantine the worker (the latter after the coordinator
   /// checked its stored copy of the scene); FAIL_INTERRUPTED costs nothing.
   void failTile(const std::string& leaseId, const std::string& reason, pb::FailKind kind = pb::FAIL_TILE);
+  /// Seconds since the reaper last finished a round (expired what was due, recorded
+  /// renewals): leases move while this stays near a quarter second.
+  double secondsSinceReaperRound() const;
   /// Whether a worker is kept from tiles now (and for how many more milliseconds).
   int64_t quarantinedForMs(const std::string& workerId);
 
@@ -76,6 +80,7 @@ class LeaseService {
   std::condition_variable wake_;  // the reaper's own: merges do not wake it
   bool stopping_ = false;
   std::thread reaper_;
+  std::atomic<int64_t> lastRoundSteadyMs_{0};
 
   // Failing workers, by id: in memory (a restart forgives them). Bounded: a worker's entry
   // goes when it completes a tile, and the whole map is cut when it grows past 10,000.

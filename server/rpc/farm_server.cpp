@@ -40,20 +40,29 @@ FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const
   server_ = builder.BuildAndStart();
   if (!server_ || port_ == 0) throw InputError("cannot listen on " + listen);
   // The standard health service says NOT_SERVING while the store cannot take a write
-  // (held busy, wedged), not SERVING whatever happens (R27).
+  // (held busy, wedged), not SERVING whatever happens (R27); its service "cpvs.leases"
+  // says whether leases move (the reaper's rounds), for `cpvs-server --check`.
+  server_->GetHealthCheckService()->SetServingStatus(kLeasesHealth, true);
   health_ = std::thread([this, &coordinator] {
-    bool serving = true;
+    bool serving = true, moving = true;
     std::unique_lock lock(healthMutex_);
     while (!healthStop_) {
       lock.unlock();
       const bool now = coordinator.healthy();
+      const bool movingNow = coordinator.leasesMoving();
       lock.lock();
       if (healthStop_) break;
+      const bool changed = now != serving || movingNow != moving;
       if (now != serving) {
         serving = now;
-        server_->GetHealthCheckService()->SetServingStatus(serving);
+        server_->GetHealthCheckService()->SetServingStatus(serving);  // every service's
         spdlog::warn("health: {}", serving ? "SERVING again" : "NOT_SERVING (the job store does not answer)");
       }
+      if (movingNow != moving) {
+        moving = movingNow;
+        spdlog::warn("health: leases {}", moving ? "move again" : "do not move (no reaper round for 10 s)");
+      }
+      if (changed) server_->GetHealthCheckService()->SetServingStatus(kLeasesHealth, moving);
       healthWake_.wait_for(lock, std::chrono::milliseconds(500), [&] { return healthStop_; });
     }
   });

@@ -18,6 +18,9 @@
 
 namespace cpvs::server {
 
+/// The health service's name for "leases move" (the whole server's "" is the store).
+constexpr const char* kLeasesHealth = "cpvs.leases";
+
 class FarmServer {
  public:
   /// Serves `coordinator` on `listen` (HOST:PORT; port 0 picks a free one) with `creds`

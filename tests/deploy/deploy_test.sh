@@ -276,11 +276,14 @@ else:
     if spec.get("serviceName") not in by_kind.get("Service", {}):
         fail("StatefulSet cpvs-coordinator: serviceName %s is no Service here" % spec.get("serviceName"))
     c = spec["template"]["spec"]["containers"][0]
-    rp = (c.get("readinessProbe") or {}).get("tcpSocket")
+    sp = (c.get("startupProbe") or {}).get("tcpSocket")
     ports = {p.get("name"): p.get("containerPort") for p in c.get("ports") or []}
-    if not rp or (ports.get(rp.get("port"), rp.get("port")) != 7443):
-        fail("StatefulSet cpvs-coordinator: no tcpSocket readiness probe on port 7443")
-    ok("StatefulSet cpvs-coordinator: volume claim template, governing Service, TCP readiness on 7443")
+    if not sp or (ports.get(sp.get("port"), sp.get("port")) != 7443):
+        fail("StatefulSet cpvs-coordinator: no tcpSocket startup probe on port 7443")
+    check = ((c.get("readinessProbe") or {}).get("exec") or {}).get("command") or []
+    if "--check" not in check or "127.0.0.1:7443" not in check:
+        fail("StatefulSet cpvs-coordinator: readiness is not `cpvs-server --check` on 127.0.0.1:7443")
+    ok("StatefulSet cpvs-coordinator: volume claim template, governing Service, TCP startup on 7443, ready by --check")
 
 services = by_kind.get("Service", {})
 svc = services.get("cpvs-coordinator")
@@ -576,6 +579,14 @@ for (kind, name), w in sorted(workloads.items()):
                 fail("%s: %s on port %s, which the container does not name" % (where, probe, port))
             if port is None and "exec" not in p:
                 fail("%s: %s checks nothing" % (where, probe))
+        # The probes that mean something: the coordinator ready by its --check, a worker
+        # alive by its own.
+        wanted = {"cpvs-coordinator": ("readinessProbe", "cpvs-server"), "cpvs-worker": ("livenessProbe", "cpvs-worker")}
+        if name in wanted:
+            probe, program = wanted[name]
+            command = ((c.get(probe) or {}).get("exec") or {}).get("command") or []
+            if command[:2] != [program, "--check"]:
+                fail("%s: %s is not `%s --check`" % (where, probe, program))
         if "metrics" not in ports:
             fail("%s names no metrics port" % where)
         args = c.get("args") or []

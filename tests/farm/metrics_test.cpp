@@ -5,6 +5,7 @@
 // as interrupted, at no cost to the tile's attempts.
 #include <gtest/gtest.h>
 
+#include <csignal>
 #include <filesystem>
 #include <chrono>
 #include <cmath>
@@ -14,6 +15,7 @@
 #include <sstream>
 #include <regex>
 #include <string>
+#include <thread>
 
 #include "cpvs/base/file.h"
 #include "cpvs/scene/obj_writer.h"
@@ -244,6 +246,14 @@ TEST_F(MetricsTest, MetricsOverTlsAndRefusedWhereTheyWouldLeak) {
   EXPECT_EQ(scrape(url, kMetricsToken).status, 0) << "a certificate from an unknown CA is not trusted";
   EXPECT_EQ(scrape("http://localhost:" + port + "/metrics", kMetricsToken).status != 200, true);
 
+  // The readiness check speaks the coordinator's TLS, trusting the farm's CA.
+  Ran check = testing::runShell("timeout 60 '" CPVS_SERVER "' --check --listen " + testing::waitForFile(path("tls.address"), 5) +
+                                " --data '" + path("tls.data") + "' --tls-cert '" + path("tls/tls.crt") + "' --ca '" +
+                                path("tls/ca.crt") + "' 2>&1");
+  EXPECT_EQ(check.status, 0) << check.out;
+  EXPECT_NE(check.out.find("(TLS) answers"), std::string::npos) << check.out;
+  EXPECT_NE(check.out.find("the TLS certificate"), std::string::npos) << check.out;
+
   // Tokens in plaintext beyond loopback, or an open endpoint there, are refused in words.
   Ran plain = testing::runShell("timeout 30 '" CPVS_SERVER "' --data '" + path("plain.data") + "' --tokens '" +
                                 path("tokens") + "' --metrics 0.0.0.0:0 2>&1");
@@ -257,6 +267,53 @@ TEST_F(MetricsTest, MetricsOverTlsAndRefusedWhereTheyWouldLeak) {
                               "' --metrics 127.0.0.1:99999 2>&1");
   EXPECT_EQ(bad.status, 2) << bad.out;
   EXPECT_NE(bad.out.find("no port number"), std::string::npos) << bad.out;
+}
+
+// Readiness that means something: `cpvs-server --check` and `cpvs-worker --check` pass on a
+// working farm and fail, naming why, on a coordinator that does not answer (stopped with
+// SIGSTOP), a folder without the room asked for, a worker the coordinator has not
+// answered, a certificate that is not one.
+TEST_F(MetricsTest, ChecksPassOnAWorkingFarmAndSayWhyNot) {
+  std::string metrics;
+  const std::string address = startServer("checked", metrics);
+  const std::string server = "timeout 60 '" CPVS_SERVER "' --check --listen " + address + " --data '" +
+                             path("checked.data") + "'";
+  Ran ready = testing::runShell(server + " 2>&1");
+  EXPECT_EQ(ready.status, 0) << ready.out;
+  EXPECT_NE(ready.out.find("its job store takes writes"), std::string::npos) << ready.out;
+  EXPECT_NE(ready.out.find("leases move"), std::string::npos) << ready.out;
+  Ran full = testing::runShell(server + " --min-free-mb 1000000000 2>&1");
+  EXPECT_EQ(full.status, 1) << full.out;
+  EXPECT_NE(full.out.find("FAIL:    " + path("checked.data") + " has"), std::string::npos) << full.out;
+  Ran notPem = testing::runShell(server + " --tls-cert '" + path("tokens") + "' 2>&1");
+  EXPECT_EQ(notPem.status, 1) << notPem.out;
+  EXPECT_NE(notPem.out.find("cannot be read as PEM"), std::string::npos) << notPem.out;
+
+  const std::string worker = "timeout 60 '" CPVS_WORKER "' --check --cache '" + path("checked-w.cache") + "'";
+  std::filesystem::create_directories(path("checked-w.cache"));
+  Ran unborn = testing::runShell(worker + " 2>&1");
+  EXPECT_EQ(unborn.status, 1) << unborn.out;
+  EXPECT_NE(unborn.out.find("has not answered this worker yet"), std::string::npos) << unborn.out;
+  ChildProcess& w = startWorker(address, "checked-w", {});
+  ASSERT_TRUE(w.waitForLog("pulling tiles", 30)) << w.log();
+  Ran alive;
+  for (int i = 0; i < 100 && (alive = testing::runShell(worker + " 2>&1")).status != 0; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(alive.status, 0) << alive.out;
+  EXPECT_NE(alive.out.find("takes a file"), std::string::npos) << alive.out;
+
+  // A coordinator that does not answer: not ready; and after its silence, the worker not alive.
+  ::kill(processes_[0]->pid(), SIGSTOP);
+  Ran stopped = testing::runShell(server + " 2>&1");
+  EXPECT_EQ(stopped.status, 1) << stopped.out;
+  EXPECT_NE(stopped.out.find("is not ready"), std::string::npos) << stopped.out;
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  Ran silent = testing::runShell(worker + " --max-silence 1 2>&1");
+  EXPECT_EQ(silent.status, 1) << silent.out;
+  EXPECT_NE(silent.out.find("FAIL:    the coordinator answered this worker"), std::string::npos) << silent.out;
+  ::kill(processes_[0]->pid(), SIGCONT);
+  Ran back = testing::runShell(server + " 2>&1");
+  EXPECT_EQ(back.status, 0) << back.out;
 }
 
 // A drain that cannot wait: SIGTERM with a short --drain-seconds gives the tile in

@@ -25,6 +25,7 @@
 #include "cpvs/base/text.h"
 #include "cpvs/net/channel.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/health.h"
 #include "cpvs/net/status.h"
 #include "cpvs/scene/mesh_file.h"
 #include "error_testing.h"
@@ -1145,29 +1146,6 @@ TEST(Hardening, R15_PendingUploadsHaveAQuota) {
   EXPECT_EQ(parts, 1u);
 }
 
-/// What the standard health service answers for the whole server: "SERVING",
-/// "NOT_SERVING", or the call's error.
-std::string healthOf(const std::string& address) {
-  grpc::GenericStub stub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
-  grpc::ClientContext ctx;
-  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
-  grpc::Slice nothing(std::string{});  // HealthCheckRequest{service: ""} is empty
-  grpc::ByteBuffer request(&nothing, 1), response;
-  std::promise<grpc::Status> done;
-  stub.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request, &response,
-                 [&](grpc::Status s) { done.set_value(s); });
-  const grpc::Status s = done.get_future().get();
-  if (!s.ok()) return net::describe(s);
-  std::vector<grpc::Slice> slices;
-  response.Dump(&slices);
-  std::string bytes;
-  for (const auto& slice : slices) bytes.append(reinterpret_cast<const char*>(slice.begin()), slice.size());
-  // HealthCheckResponse{status = 1 (SERVING) or 2 (NOT_SERVING)}: field 1, a varint.
-  if (bytes == std::string("\x08\x01", 2)) return "SERVING";
-  if (bytes == std::string("\x08\x02", 2)) return "NOT_SERVING";
-  return "unexpected answer of " + std::to_string(bytes.size()) + " bytes";
-}
-
 // R15: one client could take every one of the farm's unfinished-job places, and every
 // other client was refused. A client (an owner) holds at most its share.
 TEST(Hardening, R15_OneClientCannotTakeEveryJobPlace) {
@@ -1207,21 +1185,26 @@ TEST(Hardening, R15_OneClientCannotTakeEveryJobPlace) {
 TEST(Hardening, R27_HealthIsNotServingWhileTheStoreIsHeldBusy) {
   TempDir dir("cpvs_r27");
   InProcessFarm farm(dir / "data");
-  EXPECT_EQ(healthOf(farm.server.address()), "SERVING");
+  const net::Connection c{farm.server.address(), "", ""};
+  EXPECT_EQ(net::healthOf(c), "SERVING");
+  EXPECT_EQ(net::healthOf(c, server::kLeasesHealth), "SERVING");
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open((dir / "data/farm.sqlite").c_str(), &db), SQLITE_OK);
   ASSERT_EQ(sqlite3_exec(db, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);  // holds the write lock
-  auto waitFor = [&](const std::string& want) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  auto waitFor = [&](const std::string& service, const std::string& want, int seconds) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(seconds);
     std::string got;
-    while ((got = healthOf(farm.server.address())) != want && std::chrono::steady_clock::now() < end)
+    while ((got = net::healthOf(c, service)) != want && std::chrono::steady_clock::now() < end)
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     return got;
   };
-  EXPECT_EQ(waitFor("NOT_SERVING"), "NOT_SERVING");
+  EXPECT_EQ(waitFor("", "NOT_SERVING", 10), "NOT_SERVING");
+  // The reaper's rounds fail against the held store: after 10 s leases count as stuck.
+  EXPECT_EQ(waitFor(server::kLeasesHealth, "NOT_SERVING", 20), "NOT_SERVING");
   sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
   sqlite3_close(db);
-  EXPECT_EQ(waitFor("SERVING"), "SERVING");
+  EXPECT_EQ(waitFor("", "SERVING", 10), "SERVING");
+  EXPECT_EQ(waitFor(server::kLeasesHealth, "SERVING", 10), "SERVING");
 }
 
 int64_t epochMs() {

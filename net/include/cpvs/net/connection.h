@@ -13,6 +13,9 @@ struct Connection {
   // Send the token in plaintext to an address that is not this machine's (a private
   // network the operator trusts). Without it a token goes over TLS or to loopback only.
   bool allowPlaintextToken = false;
+  // The name the server's certificate must hold when it is not the address's host (a
+  // coordinator checking itself on 127.0.0.1 with a certificate for its public name).
+  std::string tlsName;
 };
 
 /// Whether HOST:PORT names this machine only: localhost, 127.0.0.0/8, ::1, or a Unix socket.
