@@ -89,7 +89,7 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
     out.set_retry_after_ms(500);
     return out;
   }
-  auto j = store_.job(l->jobId);
+  auto j = store_.job(l->jobId, false);
   out.set_granted(true);
   out.set_lease_id(l->leaseId);
   out.set_job_id(l->jobId);
@@ -169,7 +169,7 @@ bool LeaseService::takeResult(const std::string& leaseId, const std::string& enc
                               const std::map<std::string, double>& stages) {
   auto l = store_.lease(leaseId);
   if (!l) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
-  auto j = store_.job(l->jobId);
+  auto j = store_.job(l->jobId, false);
   if (!j || isFinal(j->state)) return false;
   const BakeOptions& options = j->options;
   std::string source = "tile " + std::to_string(l->tile) + " of job " + l->jobId;
@@ -210,8 +210,7 @@ bool LeaseService::takeResult(const std::string& leaseId, const std::string& enc
     workers_.erase(l->workerId);  // a worker that delivers is forgiven its failures
   }
   store_.addStageSeconds(l->jobId, stages);
-  auto after = store_.job(l->jobId);
-  if (after && after->tilesDone == after->tilesTotal) store_.setJobState(l->jobId, JobState::Merging, "", nowMs());
+  if (store_.outstandingTiles(l->jobId) == 0) store_.setJobState(l->jobId, JobState::Merging, "", nowMs());
   merges_.mergeTile(l->jobId, l->tile);
   feed_.notify();
   return true;

@@ -131,7 +131,7 @@ void MergeScheduler::loop() {
 }
 
 void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
-  auto j = store_.job(jobId);
+  auto j = store_.job(jobId, false);
   if (!j || isFinal(j->state)) {
     merges_.erase(jobId);
     return;

@@ -360,6 +360,8 @@ FarmStore::FarmStore(const std::string& path) {
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
       "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, failed_by TEXT, PRIMARY KEY(job_id, idx))");
   exec("CREATE INDEX IF NOT EXISTS tiles_by_state ON tiles(state, job_id)");
+  // A job's next queued tile in tile order, without walking the tiles done before it.
+  exec("CREATE INDEX IF NOT EXISTS tiles_by_job_state ON tiles(job_id, state, idx)");
   exec("CREATE INDEX IF NOT EXISTS jobs_by_created ON jobs(created_ms, id)");
   exec("CREATE INDEX IF NOT EXISTS jobs_by_finished ON jobs(state, finished_ms)");
   exec(
@@ -470,17 +472,29 @@ void FarmStore::deleteScene(const std::string& hash) {
   s.run();
 }
 
-std::optional<JobRecord> FarmStore::job(const std::string& id) {
+std::optional<JobRecord> FarmStore::job(const std::string& id, bool withCounts) {
   std::lock_guard lock(mutex_);
   Statement s(db_, (std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?").c_str());
   s.text(1, id);
   if (!s.step()) return std::nullopt;
   JobRecord j = readJob(s);
-  fillJobCounts(j);
+  fillJobCounts(j, withCounts);
   return j;
 }
 
-void FarmStore::fillJobCounts(JobRecord& j) {
+uint64_t FarmStore::outstandingTiles(const std::string& jobId) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT COUNT(*) FROM tiles WHERE state IN (0, 1) AND job_id = ?");
+  s.text(1, jobId);
+  s.step();
+  return uint64_t(s.i64(0));
+}
+
+void FarmStore::fillJobCounts(JobRecord& j, bool withCounts) {
+  Statement g(db_, (std::string("SELECT ") + kGridColumns + " FROM job_grids WHERE job_id = ? ORDER BY grid").c_str());
+  g.text(1, j.id);
+  while (g.step()) j.grids.push_back(readGrid(g));
+  if (!withCounts) return;
   Statement d(db_, "SELECT COUNT(*), COALESCE(SUM(state = 4), 0), COALESCE(SUM(state = 5), 0) FROM tiles "
                    "WHERE job_id = ? AND state IN (2, 4, 5)");
   d.text(1, j.id);
@@ -488,9 +502,6 @@ void FarmStore::fillJobCounts(JobRecord& j) {
   j.tilesDone = uint64_t(d.i64(0));
   j.tilesUntouched = uint64_t(d.i64(1));
   j.tilesUnread = uint64_t(d.i64(2));
-  Statement g(db_, (std::string("SELECT ") + kGridColumns + " FROM job_grids WHERE job_id = ? ORDER BY grid").c_str());
-  g.text(1, j.id);
-  while (g.step()) j.grids.push_back(readGrid(g));
   Statement st(db_, "SELECT stage, seconds FROM job_stages WHERE job_id = ?");
   st.text(1, j.id);
   while (st.step()) j.stages[st.str(0)] = st.f64(1);

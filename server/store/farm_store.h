@@ -145,7 +145,11 @@ class FarmStore {
   std::vector<std::string> pruneUnusedScenes(int64_t beforeMs, size_t limit);
 
   // Jobs.
-  std::optional<JobRecord> job(const std::string& id);
+  /// A job with its grids; `withCounts` adds its tile counts and stage seconds, which read
+  /// every tile of the job: the lease and merge paths, once a tile, go without.
+  std::optional<JobRecord> job(const std::string& id, bool withCounts = true);
+  /// Tiles of the job still queued or leased (an index range, however large the job).
+  uint64_t outstandingTiles(const std::string& jobId);
   std::optional<JobRecord> jobByRequest(const std::string& requestId);
   /// Inserts the job and its tiles, all queued.
   /// The job and its tiles, each in its state of `states` (one per tile: Queued, Untouched
@@ -240,8 +244,9 @@ class FarmStore {
 
  private:
   void exec(const char* sql);
-  /// Fills the tile counts and stage seconds of a job read from its row (under mutex_).
-  void fillJobCounts(JobRecord& j);
+  /// Fills the grids of a job read from its row and, `withCounts`, its tile counts and
+  /// stage seconds (under mutex_).
+  void fillJobCounts(JobRecord& j, bool withCounts = true);
   sqlite3* db_ = nullptr;
   std::timed_mutex mutex_;
 };
