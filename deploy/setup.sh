@@ -12,7 +12,7 @@ PACKAGES=(
   libhwy-dev
   libvulkan-dev glslc mesa-vulkan-drivers vulkan-validationlayers
   liberfa-dev libssl-dev openssl strace
-  prometheus-cpp-dev
+  prometheus-cpp-dev libseccomp-dev
 )
 
 # kubectl renders the Kubernetes manifests in the tests (`kubectl kustomize`, offline):

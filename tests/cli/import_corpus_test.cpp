@@ -64,7 +64,8 @@ TEST(ImportCorpus, EveryTestModelPlansOrGetsAClearError) {
 
 // The importer's failures, made on purpose in the child (CPVS_FAILPOINT): a crash, a hang
 // past CPVS_IMPORT_SECONDS and a memory hog past CPVS_IMPORT_MEMORY_MB each give a clear
-// error and exit 2; the same file plans without them.
+// error and exit 2; the same file plans without them; an importer that tries to escape
+// (a socket, a file, a process, a program) is refused each.
 TEST(ImportCorpus, AnImporterThatCrashesHangsOrHogsCostsAClearError) {
   const std::string file = std::string(kModels) + "/OBJ/box.obj";
   ASSERT_TRUE(fs::exists(file));
@@ -77,6 +78,14 @@ TEST(ImportCorpus, AnImporterThatCrashesHangsOrHogsCostsAClearError) {
     EXPECT_EQ(r.status, 2) << environment << ": " << r.out;
     EXPECT_NE(r.out.find(says), std::string::npos) << environment << ": " << r.out;
   }
+  // Code run by a hostile file inside the importer is in the sandbox: no socket, no file
+  // made, no process, no program.
+  const testing::CommandResult escape = plan(file, "CPVS_FAILPOINT=import-escape");
+  EXPECT_NE(escape.status, 0) << escape.out;
+  EXPECT_NE(escape.out.find("escape: socket refused, file refused, fork refused, exec refused"), std::string::npos)
+      << escape.out;
+  for (const auto& entry : fs::directory_iterator("/tmp"))
+    EXPECT_EQ(entry.path().filename().string().rfind("cpvs-import-escape-", 0), std::string::npos) << entry.path();
   const testing::CommandResult bad = plan(file, "CPVS_IMPORT_SECONDS=-1");
   EXPECT_EQ(bad.status, 2);
   EXPECT_NE(bad.out.find("CPVS_IMPORT_SECONDS"), std::string::npos) << bad.out;

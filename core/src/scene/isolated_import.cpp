@@ -1,9 +1,12 @@
 #include "cpvs/scene/isolated_import.h"
 
+#include "import_sandbox.h"
+
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
 #include <sys/resource.h>
+#include <sys/socket.h>
 #include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -150,6 +153,11 @@ Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneS
 }
 
 int runImportHelper(const std::string& path, bool selfContained) {
+  // Before the file is touched: whatever the importer does with it happens in the filter.
+  if (const std::string why = enterImportSandbox(); !why.empty()) {
+    std::cerr << "cannot enter the import sandbox: " << why << "\n";
+    return 3;
+  }
   try {
     // CPVS_FAILPOINT=POINT or POINT:TEXT, the latter for a path holding TEXT only.
     if (const char* point = std::getenv("CPVS_FAILPOINT")) {
@@ -159,6 +167,23 @@ int runImportHelper(const std::string& path, bool selfContained) {
         p.resize(std::min(p.size(), colon));
       }
       if (p == "import-crash") raise(SIGSEGV);
+      if (p == "import-escape") {
+        // What a hostile file could try once it runs code in the importer: each refused.
+        std::string tried;
+        const int s = socket(AF_INET, SOCK_STREAM, 0);
+        tried += s < 0 ? "socket refused" : "socket made";
+        const std::string made = "/tmp/cpvs-import-escape-" + std::to_string(getpid());
+        const int f = open(made.c_str(), O_WRONLY | O_CREAT, 0600);
+        tried += f < 0 ? ", file refused" : ", file made";
+        const pid_t child = fork();
+        if (child == 0) _exit(0);
+        tried += child < 0 ? ", fork refused" : ", fork made";
+        char* const argv[] = {const_cast<char*>("/bin/true"), nullptr};
+        execv(argv[0], argv);
+        tried += ", exec refused";
+        std::cerr << "escape: " << tried << "\n";
+        return 4;
+      }
       if (p == "import-hang")
         for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
       if (p == "import-hog") {
