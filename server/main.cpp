@@ -107,6 +107,15 @@ int main(int argc, char** argv) {
                "its certificate is valid. For readiness probes");
   app.add_option("--ca", checkCa, "With --check and --tls-cert: the CA that signed it (default: the certificate itself)");
   app.add_option("--min-free-mb", minFreeMb, "With --check: the least free space in --data")->capture_default_str();
+  cpvs::server::AuthLimits authLimits;
+  app.add_option("--auth-failure-limit", authLimits.limit,
+                 "Failed authentications of one address within a minute before it is refused for "
+                 "--auth-lockout-seconds (0: no limit)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000000));
+  app.add_option("--auth-lockout-seconds", authLimits.lockoutSeconds, "How long an address is refused after that")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 86400.0));
   app.add_option("--lease-seconds", config.leaseSeconds, "Tile lease length")->capture_default_str()->check(CLI::Range(1.0, 3600.0));
   app.add_option("--max-tile-seconds", config.maxTileSeconds,
                  "Longest a tile may be baked (renewals stop after it; a hung bake's tile goes to another worker)")
@@ -212,7 +221,7 @@ int main(int argc, char** argv) {
     }
 
     cpvs::server::Coordinator coordinator(config);
-    cpvs::server::FarmServer server(coordinator, tokens, listen, creds);
+    cpvs::server::FarmServer server(coordinator, tokens, listen, creds, authLimits);
     const std::string bound = server.address();
     if (!addressFile.empty()) {
       std::string text = bound + "\n";

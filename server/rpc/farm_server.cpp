@@ -12,8 +12,8 @@
 namespace cpvs::server {
 
 FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const std::string& listen,
-                       std::shared_ptr<grpc::ServerCredentials> creds)
-    : farm_(coordinator, tokens), workers_(coordinator, tokens) {
+                       std::shared_ptr<grpc::ServerCredentials> creds, AuthLimits authLimits)
+    : gate_(tokens, authLimits), farm_(coordinator, gate_), workers_(coordinator, gate_) {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::ServerBuilder builder;
   builder.AddListeningPort(listen, creds ? creds : grpc::InsecureServerCredentials(), &port_);

@@ -26,7 +26,7 @@ class FarmServer {
   /// Serves `coordinator` on `listen` (HOST:PORT; port 0 picks a free one) with `creds`
   /// (plaintext when null). InputError when it cannot listen there.
   FarmServer(Coordinator& coordinator, const TokenTable& tokens, const std::string& listen,
-             std::shared_ptr<grpc::ServerCredentials> creds = nullptr);
+             std::shared_ptr<grpc::ServerCredentials> creds = nullptr, AuthLimits authLimits = {});
   ~FarmServer();
   FarmServer(const FarmServer&) = delete;
   FarmServer& operator=(const FarmServer&) = delete;
@@ -39,6 +39,7 @@ class FarmServer {
   void shutdown(double graceSeconds = 5);
 
  private:
+  Gatekeeper gate_;
   FarmService farm_;
   WorkerService workers_;
   std::unique_ptr<grpc::Server> server_;

@@ -22,35 +22,12 @@ namespace {
 /// Largest sub-DAG a worker may send (a 4K tile of a dense scene is tens of MB).
 constexpr uint64_t kMaxTileResultBytes = uint64_t(2) << 30;
 
-/// Checks the caller's bearer token against the role an RPC needs, and says in `access`
-/// which jobs and tracks the caller may see (R28).
-grpc::Status authorize(const grpc::ServerContext* ctx, const TokenTable& tokens, Role needed, Access* access) {
-  *access = Access::all();
-  if (!tokens.enabled()) return grpc::Status::OK;
-  const auto& md = ctx->client_metadata();
-  auto it = md.find("authorization");
-  if (it == md.end()) return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no bearer token");
-  std::string value(it->second.data(), it->second.size());
-  const std::string prefix = "Bearer ";
-  if (value.rfind(prefix, 0) != 0)
-    return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "authorization is not a bearer token");
-  const std::string token = value.substr(prefix.size());
-  const auto holder = tokens.holderOf(token);  // one digest and one lookup per call
-  if (!holder) return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "unknown token");
-  const Role role = holder->role;
-  *access = Access{holder->owner, role == Role::Admin};
-  if (!TokenTable::allows(role, needed))
-    return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
-                        std::string("a ") + roleName(role) + " token cannot call this (needs " + roleName(needed) + ")");
-  return grpc::Status::OK;
-}
-
 /// Runs `body` after authorization, turning every error into a status: the server keeps
 /// serving whatever a request holds.
 template <class F>
-grpc::Status guarded(const grpc::ServerContext* ctx, const TokenTable& tokens, Role needed, const char* rpc, F&& body) {
+grpc::Status guarded(const grpc::ServerContext* ctx, Gatekeeper& gate, Role needed, const char* rpc, F&& body) {
   Access access;
-  grpc::Status auth = authorize(ctx, tokens, needed, &access);
+  grpc::Status auth = gate.admit(ctx, needed, &access);
   if (!auth.ok()) return auth;
   try {
     if constexpr (std::is_invocable_v<F, const Access&>)
@@ -103,7 +80,7 @@ grpc::Status streamFile(const std::string& path, uint64_t offset, grpc::ServerWr
 // --- Farm -------------------------------------------------------------------------------
 
 grpc::Status FarmService::GetUploadStatus(grpc::ServerContext* ctx, const pb::SceneRef* req, pb::UploadStatus* out) {
-  return guarded(ctx, tokens_, Role::Client, "GetUploadStatus", [&] {
+  return guarded(ctx, gate_, Role::Client, "GetUploadStatus", [&] {
     *out = c_.scenes().uploadStatus(req->scene_hash());
     return grpc::Status::OK;
   });
@@ -111,7 +88,7 @@ grpc::Status FarmService::GetUploadStatus(grpc::ServerContext* ctx, const pb::Sc
 
 grpc::Status FarmService::UploadScene(grpc::ServerContext* ctx, grpc::ServerReader<pb::UploadSceneChunk>* reader,
                                       pb::UploadSceneReply* out) {
-  return guarded(ctx, tokens_, Role::Client, "UploadScene", [&] {
+  return guarded(ctx, gate_, Role::Client, "UploadScene", [&] {
     pb::UploadSceneChunk chunk;
     if (!reader->Read(&chunk)) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "empty upload stream");
     const std::string hash = chunk.scene_hash();
@@ -133,7 +110,7 @@ grpc::Status FarmService::UploadScene(grpc::ServerContext* ctx, grpc::ServerRead
 }
 
 grpc::Status FarmService::SubmitBake(grpc::ServerContext* ctx, const pb::SubmitBakeRequest* req, pb::JobStatus* out) {
-  return guarded(ctx, tokens_, Role::Client, "SubmitBake", [&](const Access& access) {
+  return guarded(ctx, gate_, Role::Client, "SubmitBake", [&](const Access& access) {
     // Keyframe jobs are named by the tracks that need them: a client taking such a name
     // could stall another's track.
     if (req->request_id().rfind(kKeyframeRequestPrefix, 0) == 0)
@@ -160,7 +137,7 @@ std::shared_ptr<void> FarmService::streamSlot(const char* kind) {
 
 grpc::Status FarmService::WatchJob(grpc::ServerContext* ctx, const pb::JobRef* req,
                                    grpc::ServerWriter<pb::JobStatus>* writer) {
-  return guarded(ctx, tokens_, Role::Client, "WatchJob", [&](const Access& access) {
+  return guarded(ctx, gate_, Role::Client, "WatchJob", [&](const Access& access) {
     c_.jobs().status(req->job_id(), access);  // another client's job is not followed
     const auto slot = streamSlot("watch");
     uint64_t seen = c_.waitForChange(~uint64_t(0), 0);
@@ -178,14 +155,14 @@ grpc::Status FarmService::WatchJob(grpc::ServerContext* ctx, const pb::JobRef* r
 }
 
 grpc::Status FarmService::CancelJob(grpc::ServerContext* ctx, const pb::JobRef* req, pb::JobStatus* out) {
-  return guarded(ctx, tokens_, Role::Client, "CancelJob", [&](const Access& access) {
+  return guarded(ctx, gate_, Role::Client, "CancelJob", [&](const Access& access) {
     *out = c_.jobs().cancel(req->job_id(), access);
     return grpc::Status::OK;
   });
 }
 
 grpc::Status FarmService::ListJobs(grpc::ServerContext* ctx, const pb::ListJobsRequest* req, pb::ListJobsReply* out) {
-  return guarded(ctx, tokens_, Role::Client, "ListJobs", [&](const Access& access) {
+  return guarded(ctx, gate_, Role::Client, "ListJobs", [&](const Access& access) {
     JobService::Page page = c_.jobs().list(req->include_finished(), req->page_size(), req->page_token(), access);
     for (auto& s : page.jobs) *out->add_jobs() = std::move(s);
     out->set_next_page_token(page.nextPageToken);
@@ -195,7 +172,7 @@ grpc::Status FarmService::ListJobs(grpc::ServerContext* ctx, const pb::ListJobsR
 
 grpc::Status FarmService::DownloadArtifact(grpc::ServerContext* ctx, const pb::DownloadRequest* req,
                                            grpc::ServerWriter<pb::ArtifactChunk>* writer) {
-  return guarded(ctx, tokens_, Role::Client, "DownloadArtifact", [&](const Access& access) {
+  return guarded(ctx, gate_, Role::Client, "DownloadArtifact", [&](const Access& access) {
     std::string checksum;
     std::string path = c_.jobs().artifactPath(req->job_id(), &checksum, access);
     return streamFile(path, req->offset(), writer, [&](pb::ArtifactChunk& m) { m.set_checksum(checksum); });
@@ -203,21 +180,21 @@ grpc::Status FarmService::DownloadArtifact(grpc::ServerContext* ctx, const pb::D
 }
 
 grpc::Status FarmService::CreateTrack(grpc::ServerContext* ctx, const pb::CreateTrackRequest* req, pb::TrackStatus* out) {
-  return guarded(ctx, tokens_, Role::Client, "CreateTrack", [&](const Access& access) {
+  return guarded(ctx, gate_, Role::Client, "CreateTrack", [&](const Access& access) {
     *out = c_.tracks().create(*req, access);
     return grpc::Status::OK;
   });
 }
 
 grpc::Status FarmService::ListTracks(grpc::ServerContext* ctx, const pb::ListJobsRequest* req, pb::ListTracksReply* out) {
-  return guarded(ctx, tokens_, Role::Client, "ListTracks", [&](const Access& access) {
+  return guarded(ctx, gate_, Role::Client, "ListTracks", [&](const Access& access) {
     for (auto& t : c_.tracks().list(req->include_finished(), access)) *out->add_tracks() = std::move(t);
     return grpc::Status::OK;
   });
 }
 
 grpc::Status FarmService::CancelTrack(grpc::ServerContext* ctx, const pb::TrackRef* req, pb::TrackStatus* out) {
-  return guarded(ctx, tokens_, Role::Client, "CancelTrack", [&](const Access& access) {
+  return guarded(ctx, gate_, Role::Client, "CancelTrack", [&](const Access& access) {
     *out = c_.tracks().cancel(req->track_id(), access);
     return grpc::Status::OK;
   });
@@ -225,7 +202,7 @@ grpc::Status FarmService::CancelTrack(grpc::ServerContext* ctx, const pb::TrackR
 
 grpc::Status FarmService::Subscribe(grpc::ServerContext* ctx, const pb::SubscribeRequest* req,
                                     grpc::ServerWriter<pb::VersionChunk>* writer) {
-  return guarded(ctx, tokens_, Role::Client, "Subscribe", [&](const Access& access) {
+  return guarded(ctx, gate_, Role::Client, "Subscribe", [&](const Access& access) {
     const auto slot = streamSlot("subscribe");
     const std::string& id = req->track_id();
     const pb::TrackStatus first = c_.tracks().status(id, access);  // NOT_FOUND, or another client's
@@ -282,14 +259,14 @@ grpc::Status FarmService::Subscribe(grpc::ServerContext* ctx, const pb::Subscrib
 // --- Workers ----------------------------------------------------------------------------
 
 grpc::Status WorkerService::LeaseTile(grpc::ServerContext* ctx, const pb::LeaseRequest* req, pb::TileLease* out) {
-  return guarded(ctx, tokens_, Role::Worker, "LeaseTile", [&] {
+  return guarded(ctx, gate_, Role::Worker, "LeaseTile", [&] {
     *out = c_.leases().lease(req->worker_id());
     return grpc::Status::OK;
   });
 }
 
 grpc::Status WorkerService::RenewLease(grpc::ServerContext* ctx, const pb::RenewRequest* req, pb::RenewReply* out) {
-  return guarded(ctx, tokens_, Role::Worker, "RenewLease", [&] {
+  return guarded(ctx, gate_, Role::Worker, "RenewLease", [&] {
     *out = c_.leases().renew(req->lease_id());
     return grpc::Status::OK;
   });
@@ -297,7 +274,7 @@ grpc::Status WorkerService::RenewLease(grpc::ServerContext* ctx, const pb::Renew
 
 grpc::Status WorkerService::FetchScene(grpc::ServerContext* ctx, const pb::FetchSceneRequest* req,
                                        grpc::ServerWriter<pb::SceneChunk>* writer) {
-  return guarded(ctx, tokens_, Role::Worker, "FetchScene", [&] {
+  return guarded(ctx, gate_, Role::Worker, "FetchScene", [&] {
     std::string fileName;
     std::string path = c_.scenes().scenePath(req->scene_hash(), &fileName);
     return streamFile(path, req->offset(), writer, [&](pb::SceneChunk& m) { m.set_file_name(fileName); });
@@ -306,7 +283,7 @@ grpc::Status WorkerService::FetchScene(grpc::ServerContext* ctx, const pb::Fetch
 
 grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerReader<pb::TileResultChunk>* reader,
                                          pb::CompleteReply* out) {
-  return guarded(ctx, tokens_, Role::Worker, "CompleteTile", [&] {
+  return guarded(ctx, gate_, Role::Worker, "CompleteTile", [&] {
     pb::TileResultChunk chunk;
     if (!reader->Read(&chunk)) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "empty result stream");
     const std::string leaseId = chunk.lease_id();
@@ -343,7 +320,7 @@ grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerR
 }
 
 grpc::Status WorkerService::FailTile(grpc::ServerContext* ctx, const pb::FailRequest* req, pb::FailReply*) {
-  return guarded(ctx, tokens_, Role::Worker, "FailTile", [&] {
+  return guarded(ctx, gate_, Role::Worker, "FailTile", [&] {
     // Stored in JobStatus.error, a proto3 string: it must stay valid UTF-8 when cut.
     c_.leases().failTile(req->lease_id(), validUtf8Prefix(req->reason(), 1000), req->kind());
     return grpc::Status::OK;

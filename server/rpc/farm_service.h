@@ -7,13 +7,14 @@
 
 #include "coordinator/coordinator.h"
 #include "rpc/auth.h"
+#include "rpc/gatekeeper.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 
 namespace cpvs::server {
 
 class FarmService final : public pb::Farm::Service {
  public:
-  FarmService(Coordinator& c, const TokenTable& tokens) : c_(c), tokens_(tokens) {}
+  FarmService(Coordinator& c, Gatekeeper& gate) : c_(c), gate_(gate) {}
 
   grpc::Status GetUploadStatus(grpc::ServerContext*, const pb::SceneRef*, pb::UploadStatus*) override;
   grpc::Status UploadScene(grpc::ServerContext*, grpc::ServerReader<pb::UploadSceneChunk>*,
@@ -35,13 +36,13 @@ class FarmService final : public pb::Farm::Service {
   std::shared_ptr<void> streamSlot(const char* kind);
 
   Coordinator& c_;
-  const TokenTable& tokens_;
+  Gatekeeper& gate_;
   std::atomic<int> openStreams_{0};
 };
 
 class WorkerService final : public pb::Workers::Service {
  public:
-  WorkerService(Coordinator& c, const TokenTable& tokens) : c_(c), tokens_(tokens) {}
+  WorkerService(Coordinator& c, Gatekeeper& gate) : c_(c), gate_(gate) {}
 
   grpc::Status LeaseTile(grpc::ServerContext*, const pb::LeaseRequest*, pb::TileLease*) override;
   grpc::Status RenewLease(grpc::ServerContext*, const pb::RenewRequest*, pb::RenewReply*) override;
@@ -53,7 +54,7 @@ class WorkerService final : public pb::Workers::Service {
 
  private:
   Coordinator& c_;
-  const TokenTable& tokens_;
+  Gatekeeper& gate_;
 };
 
 }  // namespace cpvs::server

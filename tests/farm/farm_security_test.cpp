@@ -383,7 +383,10 @@ struct SuiteState {
 class FarmSecurityTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    s_ = new SuiteState("security", {"--max-resolution", "4K", "--max-upload-mb", "1", "--max-jobs", "3"});
+    // The suite fails authentication on purpose dozens of times a minute: no lockout here
+    // (FarmAuthLimit tests it).
+    s_ = new SuiteState("security", {"--max-resolution", "4K", "--max-upload-mb", "1", "--max-jobs", "3",
+                                     "--auth-failure-limit", "0"});
     if (!s_->problem.empty()) return;
     FarmUnderTest& f = *s_->farm;
     // A job that stays queued through every test (4 tiles of 32^2), and one done by a real
@@ -515,6 +518,33 @@ TEST_F(FarmSecurityTest, MalformedAuthorizationIsUnauthenticated) {
     EXPECT_EQ(s.error_code(), StatusCode::UNAUTHENTICATED) << "ListJobs with " << what << ": " << net::describe(s);
   }
   expectIntact("malformed authorization headers");
+}
+
+// R18: failed authentications were not limited. An address that fails --auth-failure-limit
+// times within a minute is refused everything, a good token included, for
+// --auth-lockout-seconds, then served again.
+TEST(FarmAuthLimit, AnAddressThatKeepsFailingIsLockedOutForAWhile) {
+  const fs::path dir = fs::temp_directory_path() / ("cpvs_farm_auth_limit_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir / "tokens") << "client " << kClientToken << "\n";
+  FarmUnderTest f(dir, "limited", {"--auth-failure-limit", "5", "--auth-lockout-seconds", "2"});
+  ASSERT_FALSE(f.address().empty()) << f.log();
+  EXPECT_TRUE(f.list(kClientToken, true).ok());
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(f.list(kWrongToken, true).error_code(), StatusCode::UNAUTHENTICATED) << i;
+  const grpc::Status locked = f.list(kClientToken, true);
+  EXPECT_EQ(locked.error_code(), StatusCode::RESOURCE_EXHAUSTED) << net::describe(locked);
+  EXPECT_NE(locked.error_message().find("too many failed authentications"), std::string::npos);
+  EXPECT_EQ(f.lease(kClientToken, "").error_code(), StatusCode::RESOURCE_EXHAUSTED) << "every service";
+  EXPECT_NE(f.log().find("failed to authenticate 5 times"), std::string::npos) << f.log();
+  std::this_thread::sleep_for(std::chrono::milliseconds(2300));
+  EXPECT_TRUE(f.list(kClientToken, true).ok()) << "served again after the lockout";
+  // After a lockout the count starts again; a token of the wrong role is no failed authentication.
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(f.lease(kClientToken, "").error_code(), StatusCode::PERMISSION_DENIED);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(f.list(kWrongToken, true).error_code(), StatusCode::UNAUTHENTICATED);
+  EXPECT_TRUE(f.list(kClientToken, true).ok()) << "4 failures are under the limit";
+  EXPECT_TRUE(f.running());
+  fs::remove_all(dir);
 }
 
 TEST_F(FarmSecurityTest, MalformedRequestsGetTheirStatusAndChangeNothing) {

@@ -26,6 +26,7 @@
 #include "cpvs/net/channel.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/net/health.h"
+#include "rpc/gatekeeper.h"
 #include "cpvs/net/status.h"
 #include "cpvs/scene/mesh_file.h"
 #include "error_testing.h"
@@ -1178,6 +1179,26 @@ TEST(Hardening, R15_OneClientCannotTakeEveryJobPlace) {
   submitAs(alice, "a3");  // a place given back is taken again
   submitAs(server::Access::all(), "admin-1");  // an administrator is not counted per client
   EXPECT_THROW(submitAs(server::Access::all(), "admin-2"), net::FarmError);  // but the farm's limit (4) holds
+}
+
+// R18: the address a failed authentication is counted against, whatever port the peer
+// used, and the lockout's count per address.
+TEST(Hardening, R18_FailedAuthenticationsCountPerAddress) {
+  EXPECT_EQ(server::peerHost("ipv4:10.0.0.7:51234"), "10.0.0.7");
+  EXPECT_EQ(server::peerHost("ipv6:[::1]:5"), "::1");
+  EXPECT_EQ(server::peerHost("ipv6:[2001:db8::1]:443"), "2001:db8::1");
+  EXPECT_EQ(server::peerHost("unix:/tmp/s"), "unix:/tmp/s");
+  server::TokenTable none;
+  server::Gatekeeper gate(none, server::AuthLimits{3, 60, 60});
+  EXPECT_FALSE(gate.failed("10.0.0.7"));
+  EXPECT_FALSE(gate.failed("10.0.0.7"));
+  EXPECT_FALSE(gate.failed("10.0.0.8"));  // another address has a count of its own
+  EXPECT_EQ(gate.lockedFor("10.0.0.7"), 0);
+  EXPECT_TRUE(gate.failed("10.0.0.7"));
+  EXPECT_GT(gate.lockedFor("10.0.0.7"), 59);
+  EXPECT_EQ(gate.lockedFor("10.0.0.8"), 0);
+  server::Gatekeeper open(none, server::AuthLimits{0, 60, 60});
+  for (int i = 0; i < 100; ++i) EXPECT_FALSE(open.failed("10.0.0.7"));
 }
 
 // R27: the health service answered SERVING whatever happened, even with the store held
