@@ -320,16 +320,34 @@ uint64_t TrackService::advance(const TrackRecord& t) {
 void TrackService::tick() {
   std::lock_guard lock(tickMutex_);
   uint64_t active = 0, lag = 0;
+  const auto now = std::chrono::steady_clock::now();
   for (const TrackRecord& t : store_.tracks(false)) {
     ++active;
+    auto failing = failing_.find(t.id);
+    if (failing != failing_.end() && now < failing->second.retryAt) continue;
     try {
       lag = std::max(lag, advance(t));
+      if (failing != failing_.end()) {
+        spdlog::info("track {} advances again after {} failed pass(es)", t.id, failing->second.failures);
+        failing_.erase(failing);
+      }
     } catch (const std::exception& e) {
-      // A track that cannot advance now (its scene gone, the store failing) is retried on
-      // the next pass; it does not stop the others.
-      spdlog::error("track {}: {}", t.id, e.what());
+      // A track that cannot advance now (its scene gone, the store failing) is retried
+      // later, backing off, and does not stop the others.
+      Failing& f = failing_[t.id];
+      ++f.failures;
+      ++failedPasses_;
+      const double wait = std::min(60.0, 0.25 * double(uint64_t(1) << std::min(f.failures - 1, 8)));
+      f.retryAt = now + std::chrono::milliseconds(int64_t(wait * 1000));
+      spdlog::error("track {}: {} (trying again in {} s)", t.id, e.what(), wait);
     }
   }
+  // Tracks that ended are forgotten.
+  if (failing_.size() > active)
+    for (auto it = failing_.begin(); it != failing_.end();) {
+      auto track = store_.track(it->first);
+      it = (!track || track->state != kActive) ? failing_.erase(it) : std::next(it);
+    }
   activeTracks_ = active;
   keyframeLag_ = lag;
 }
@@ -343,7 +361,11 @@ void TrackService::start() {
         std::lock_guard lock(tickMutex_);
         if (stopping_) return;
       }
-      tick();
+      try {
+        tick();
+      } catch (const std::exception& e) {
+        spdlog::error("tracks: {}", e.what());  // the store could not list them: next pass
+      }
     }
   });
 }

@@ -9,8 +9,10 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -62,6 +64,9 @@ class TrackService {
   /// reached that are not published yet (its subscribers show an older sun meanwhile).
   uint64_t activeTracks() const { return activeTracks_; }
   uint64_t keyframeLag() const { return keyframeLag_; }
+  /// Passes over a track that failed (its scene gone, the store failing): each one waits
+  /// twice as long as the one before for its next (a quarter second to a minute).
+  uint64_t failedPasses() const { return failedPasses_; }
   void stop();
 
  private:
@@ -80,7 +85,12 @@ class TrackService {
   std::mutex tickMutex_;  // one pass at a time (the thread's, a test's, create's)
   std::thread thread_;
   bool stopping_ = false;
-  std::atomic<uint64_t> activeTracks_ = 0, keyframeLag_ = 0;
+  std::atomic<uint64_t> activeTracks_ = 0, keyframeLag_ = 0, failedPasses_ = 0;
+  struct Failing {
+    int failures = 0;
+    std::chrono::steady_clock::time_point retryAt{};
+  };
+  std::map<std::string, Failing> failing_;  // by track id, under tickMutex_
 };
 
 }  // namespace cpvs::server

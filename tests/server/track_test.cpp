@@ -5,6 +5,7 @@
 // shared between tracks; night keyframes are left out; bad specs are refused with their
 // kind and change nothing.
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include <cmath>
 #include <memory>
@@ -261,6 +262,52 @@ TEST(Tracks, AClockKeepsBakingAheadOfItsTime) {
   EXPECT_EQ(farm.client.cancelTrack(created.track_id()).state(), pb::TRACK_CANCELLED);
   tileWorker.stop();
   workerThread.join();
+}
+
+// A track that cannot advance (here its stored path names no instant, and its pending
+// keyframe was cancelled, so every pass wants a keyframe it cannot make) is tried again
+// backing off: a quarter second, then a half, one, two..., not on every pass.
+TEST(Tracks, ATrackThatCannotAdvanceBacksOff) {
+  TempDir dir("cpvs_track_backoff_test");
+  InProcessFarm farm(dir / "data");
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:1:2"));
+  pb::TrackSpec spec;
+  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
+  spec.set_resolution("64");
+  spec.set_keyframes_ahead(1);
+  pb::PlacePath& p = *spec.mutable_clock()->mutable_place();
+  p.set_latitude_deg(0);
+  p.set_longitude_deg(0);
+  p.set_start_utc("2024-03-20T09:00:00Z");
+  p.set_step_seconds(1800);
+  spec.mutable_clock()->set_rate(1);
+  const pb::TrackStatus created = farm.client.createTrack("backing-off", spec);
+  // The stored path broken behind the coordinator's back, as a damaged store would be.
+  spec.mutable_clock()->mutable_place()->set_start_utc("not an instant");
+  const std::string broken = spec.SerializeAsString();
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir / "data/farm.sqlite").c_str(), &db), SQLITE_OK);
+  sqlite3_busy_timeout(db, 5000);
+  sqlite3_stmt* update = nullptr;
+  ASSERT_EQ(sqlite3_prepare_v2(db, "UPDATE tracks SET spec = ? WHERE id = ?", -1, &update, nullptr), SQLITE_OK);
+  sqlite3_bind_blob(update, 1, broken.data(), int(broken.size()), SQLITE_TRANSIENT);
+  sqlite3_bind_text(update, 2, created.track_id().c_str(), -1, SQLITE_TRANSIENT);
+  ASSERT_EQ(sqlite3_step(update), SQLITE_DONE) << sqlite3_errmsg(db);
+  sqlite3_finalize(update);
+  sqlite3_close(db);
+  for (const pb::JobStatus& j : farm.client.list(false)) farm.client.cancel(j.job_id());
+  server::TrackService& tracks = farm.coordinator.tracks();
+  const auto start = std::chrono::steady_clock::now();
+  while (tracks.failedPasses() == 0 && std::chrono::steady_clock::now() - start < std::chrono::seconds(10))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_GT(tracks.failedPasses(), 0u) << "the track never failed";
+  const uint64_t first = tracks.failedPasses();
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  // Retries 0.25, 0.5, 1 and 2 s after each failure: at most 4 more in 3 s, where a pass
+  // every 250 ms would have failed 12 times.
+  EXPECT_LE(tracks.failedPasses() - first, 4u);
+  EXPECT_GE(tracks.failedPasses() - first, 2u);
 }
 
 // Bad specs: each refused with its kind and message, no track and no job created.
