@@ -1,6 +1,8 @@
 // `cpvs-server`: the bake farm's coordinator.
 #include <CLI/CLI.hpp>
 #include <grpcpp/grpcpp.h>
+#include <grpcpp/security/tls_certificate_provider.h>
+#include <grpcpp/security/tls_credentials_options.h>
 #include <spdlog/spdlog.h>
 
 #include <atomic>
@@ -93,6 +95,15 @@ int main(int argc, char** argv) {
   app.add_option("--tokens", tokensFile, "Bearer tokens, lines 'ROLE TOKEN' (client, worker, admin); none = open");
   app.add_option("--tls-cert", tlsCert, "PEM certificate chain: serve TLS (with --tls-key)");
   app.add_option("--tls-key", tlsKey, "PEM private key of --tls-cert");
+  std::string workerCa;
+  int tlsReloadSeconds = 60;
+  app.add_option("--worker-ca", workerCa,
+                 "PEM CA whose client certificates make workers (mTLS, with --tls-*): such a worker needs no token");
+  app.add_option("--tls-reload-seconds", tlsReloadSeconds,
+                 "How often the certificate, key and --worker-ca files are read again: a rotated certificate is served "
+                 "without a restart")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 86400));
   app.add_flag("--insecure-open", insecureOpen,
                "Serve an address other than loopback without --tokens: anyone who reaches it may do anything");
   app.add_flag("--allow-plaintext-tokens", allowPlaintextTokens,
@@ -211,17 +222,31 @@ int main(int argc, char** argv) {
                                ": give --tls-cert and --tls-key, or --allow-plaintext-tokens");
     }
 
+    if (!workerCa.empty() && tlsCert.empty()) throw cpvs::InputError("--worker-ca needs --tls-cert and --tls-key");
+    if (!workerCa.empty() && !tokens.enabled())
+      throw cpvs::InputError("--worker-ca needs --tokens: clients and administrators still use tokens");
     std::shared_ptr<grpc::ServerCredentials> creds;
     if (tlsCert.empty()) {
       creds = grpc::InsecureServerCredentials();
     } else {
-      grpc::SslServerCredentialsOptions ssl;
-      ssl.pem_key_cert_pairs.push_back({readText(tlsKey, "TLS key"), readText(tlsCert, "TLS certificate")});
-      creds = grpc::SslServerCredentials(ssl);
+      // Checked now, so that a wrong file is a clear error at start; read again every
+      // --tls-reload-seconds, so that a rotated certificate is served without a restart.
+      for (const auto& [file, what] : {std::pair{tlsKey, "TLS key"}, {tlsCert, "TLS certificate"}, {workerCa, "worker CA"}})
+        if (!file.empty() && readText(file, what).find("-----BEGIN") == std::string::npos)
+          throw cpvs::InputError(std::string("the ") + what + " " + file + " is not PEM");
+      auto files = std::make_shared<grpc::experimental::FileWatcherCertificateProvider>(tlsKey, tlsCert, workerCa,
+                                                                                        unsigned(tlsReloadSeconds));
+      grpc::experimental::TlsServerCredentialsOptions tls(files);
+      tls.watch_identity_key_cert_pairs();
+      if (!workerCa.empty()) {
+        tls.watch_root_certs();
+        tls.set_cert_request_type(GRPC_SSL_REQUEST_CLIENT_CERTIFICATE_AND_VERIFY);
+      }
+      creds = grpc::experimental::TlsServerCredentials(tls);
     }
 
     cpvs::server::Coordinator coordinator(config);
-    cpvs::server::FarmServer server(coordinator, tokens, listen, creds, authLimits);
+    cpvs::server::FarmServer server(coordinator, tokens, listen, creds, authLimits, !workerCa.empty());
     const std::string bound = server.address();
     if (!addressFile.empty()) {
       std::string text = bound + "\n";

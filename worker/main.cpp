@@ -101,6 +101,10 @@ int main(int argc, char** argv) {
   app.add_option("--cache", config.cacheDir, "Folder for fetched scenes")->capture_default_str();
   app.add_option("--token", config.server.token, "Bearer token (default: $CPVS_TOKEN)");
   app.add_option("--ca", config.server.caFile, "PEM roots to trust: use TLS");
+  app.add_option("--cert", config.server.certFile,
+                 "PEM client certificate to present (with --key and --ca): the worker's own identity for a coordinator "
+                 "with --worker-ca, instead of a token");
+  app.add_option("--key", config.server.keyFile, "PEM private key of --cert");
   app.add_flag("--allow-plaintext-token", config.server.allowPlaintextToken,
                "Send the token without TLS to a coordinator that is not on this machine (a trusted private network)");
   app.add_option("--id", config.workerId, "Name in the coordinator's logs")->capture_default_str();
@@ -142,6 +146,11 @@ int main(int argc, char** argv) {
     if (const char* t = std::getenv("CPVS_TOKEN")) config.server.token = t;
   config.server.token = trimmed(config.server.token);
   if (check) return checkWorker(config, maxSilence, minFreeMb, metricsTlsCert);
+  if (config.server.certFile.empty() != config.server.keyFile.empty() ||
+      (!config.server.certFile.empty() && config.server.caFile.empty())) {
+    std::fprintf(stderr, "give --cert and --key together, with --ca\n");
+    return 2;
+  }
   if (config.server.address.empty()) {
     std::fprintf(stderr, "--server is required\nRun with --help for more information.\n");
     return 2;

@@ -56,6 +56,14 @@ std::shared_ptr<grpc::Channel> makeChannel(const Connection& c) {
     pem << in.rdbuf();
     grpc::SslCredentialsOptions ssl;
     ssl.pem_root_certs = pem.str();
+    for (const auto& [file, into] : {std::pair{&c.certFile, &ssl.pem_cert_chain}, {&c.keyFile, &ssl.pem_private_key}}) {
+      if (file->empty()) continue;
+      std::ifstream f(*file);
+      if (!f) throw InputError("cannot read " + *file);
+      std::stringstream text;
+      text << f.rdbuf();
+      *into = text.str();
+    }
     creds = grpc::SslCredentials(ssl);
     // Over TLS the token travels as call credentials, which gRPC refuses to send on a
     // connection without privacy and integrity.

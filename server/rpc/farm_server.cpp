@@ -12,8 +12,8 @@
 namespace cpvs::server {
 
 FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const std::string& listen,
-                       std::shared_ptr<grpc::ServerCredentials> creds, AuthLimits authLimits)
-    : gate_(tokens, authLimits), farm_(coordinator, gate_), workers_(coordinator, gate_) {
+                       std::shared_ptr<grpc::ServerCredentials> creds, AuthLimits authLimits, bool workerCertificates)
+    : gate_(tokens, authLimits, workerCertificates), farm_(coordinator, gate_), workers_(coordinator, gate_) {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::ServerBuilder builder;
   builder.AddListeningPort(listen, creds ? creds : grpc::InsecureServerCredentials(), &port_);

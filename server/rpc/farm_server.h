@@ -26,7 +26,8 @@ class FarmServer {
   /// Serves `coordinator` on `listen` (HOST:PORT; port 0 picks a free one) with `creds`
   /// (plaintext when null). InputError when it cannot listen there.
   FarmServer(Coordinator& coordinator, const TokenTable& tokens, const std::string& listen,
-             std::shared_ptr<grpc::ServerCredentials> creds = nullptr, AuthLimits authLimits = {});
+             std::shared_ptr<grpc::ServerCredentials> creds = nullptr, AuthLimits authLimits = {},
+             bool workerCertificates = false);
   ~FarmServer();
   FarmServer(const FarmServer&) = delete;
   FarmServer& operator=(const FarmServer&) = delete;

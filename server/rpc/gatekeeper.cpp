@@ -70,7 +70,21 @@ grpc::Status Gatekeeper::admit(const grpc::ServerContext* ctx, Role needed, Acce
   };
   const auto& md = ctx->client_metadata();
   auto it = md.find("authorization");
-  if (it == md.end()) return refuse("no bearer token");
+  if (it == md.end()) {
+    // A worker's own certificate instead of the shared worker token (mTLS): the handshake
+    // verified it against --worker-ca, or the connection would not exist.
+    const auto auth = ctx->auth_context();
+    if (workerCertificates_ && auth && auth->IsPeerAuthenticated()) {
+      const auto names = auth->FindPropertyValues("x509_common_name");
+      const std::string name = names.empty() ? std::string("unnamed") : std::string(names.front().data(), names.front().size());
+      *access = Access{"worker-certificate-" + name, false};
+      if (!TokenTable::allows(Role::Worker, needed))
+        return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
+                            std::string("a worker's certificate cannot call this (needs ") + roleName(needed) + ")");
+      return grpc::Status::OK;
+    }
+    return refuse("no bearer token");
+  }
   std::string value(it->second.data(), it->second.size());
   const std::string prefix = "Bearer ";
   if (value.rfind(prefix, 0) != 0) return refuse("authorization is not a bearer token");

@@ -1,4 +1,5 @@
-// Who may call: the bearer tokens, and a limit on failed authentications per peer address
+// Who may call: the bearer tokens or a worker's client certificate, and a limit on failed
+// authentications per peer address
 // (R18). A peer that fails `limit` times within `windowSeconds` is refused every call,
 // whatever it sends, for `lockoutSeconds`: guessing tokens costs a guesser that long a
 // batch, and the log shows one line per lockout rather than one per guess.
@@ -28,7 +29,11 @@ std::string peerHost(const std::string& peer);
 
 class Gatekeeper {
  public:
-  Gatekeeper(const TokenTable& tokens, AuthLimits limits = {}) : tokens_(tokens), limits_(limits) {}
+  /// `workerCertificates`: a caller without a bearer token that presented a client
+  /// certificate the TLS handshake verified (against --worker-ca) is a worker, named by
+  /// the certificate's common name.
+  Gatekeeper(const TokenTable& tokens, AuthLimits limits = {}, bool workerCertificates = false)
+      : tokens_(tokens), limits_(limits), workerCertificates_(workerCertificates) {}
 
   /// Checks the caller's bearer token against the role an RPC needs, and says in `access`
   /// which jobs and tracks the caller may see (R28). RESOURCE_EXHAUSTED while the
@@ -47,6 +52,7 @@ class Gatekeeper {
   };
   const TokenTable& tokens_;
   AuthLimits limits_;
+  bool workerCertificates_;
   std::mutex mutex_;
   std::map<std::string, Peer> peers_;  // bounded: cut when it grows past 10,000 addresses
 };

@@ -278,6 +278,59 @@ TEST_F(FarmTest, TlsEndToEndAndPlaintextOrAnotherCaRefused) {
   EXPECT_EQ(trusted.status, 0) << trusted.out;
 }
 
+// Workers with their own client certificates (mTLS, --worker-ca) instead of the shared
+// token bake the job; a worker whose certificate another CA signed, and one with neither
+// certificate nor token, get nothing. The coordinator's certificate, rotated on disk, is
+// served without a restart (R27): clients then trust the new CA and not the old.
+TEST_F(FarmTest, WorkerCertificatesAndACertificateRotatedWithoutARestart) {
+  for (const auto& [dir, worker] : {std::pair{"mtls", "w1"}, {"mtls-other", "stranger"}}) {
+    Ran made = testing::runShell("bash '" CPVS_SOURCE_DIR "/deploy/make-secrets.sh' --dir '" + path(dir) +
+                                 "' --tls localhost --worker " + worker + " 2>&1");
+    ASSERT_EQ(made.status, 0) << made.out;
+  }
+  const std::string address =
+      startServer("s-mtls", "127.0.0.1:0",
+                  {"--tls-cert", path("mtls/tls.crt"), "--tls-key", path("mtls/tls.key"), "--worker-ca",
+                   path("mtls/ca.crt"), "--tls-reload-seconds", "1"});
+  auto worker = [&](const std::string& name, const std::vector<std::string>& identity) -> ChildProcess& {
+    std::vector<std::string> argv{CPVS_WORKER, "--server", address, "--ca", path("mtls/ca.crt"), "--cache",
+                                  path(name + ".cache"), "--id", name};
+    argv.insert(argv.end(), identity.begin(), identity.end());
+    workers_.push_back(std::make_unique<ChildProcess>(argv, path(name + ".log")));
+    return *workers_.back();
+  };
+  ChildProcess& stranger = worker("w-stranger", {"--cert", path("mtls-other/worker-stranger.crt"), "--key",
+                                                 path("mtls-other/worker-stranger.key")});
+  ChildProcess& nobody = worker("w-nobody", {});
+  EXPECT_TRUE(stranger.waitForLog("coordinator unreachable", 30)) << stranger.log();
+  EXPECT_TRUE(nobody.waitForLog("UNAUTHENTICATED", 30)) << nobody.log();
+  worker("w-certified", {"--cert", path("mtls/worker-w1.crt"), "--key", path("mtls/worker-w1.key")});
+  Ran r = runCli("submit --server " + address + " --token " + kClientToken + " --ca " + path("mtls/ca.crt") + " " +
+                 path("city.obj") + kSpec + " --request-id over-mtls --wait --json --out " + path("mtls.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out << servers_.back()->log();
+  EXPECT_EQ(bytesOf(path("mtls.cpvs")), bytesOf(path("local.cpvs")));
+  EXPECT_EQ(stranger.log().find("returned"), std::string::npos) << stranger.log();
+  EXPECT_EQ(nobody.log().find("returned"), std::string::npos) << nobody.log();
+
+  // The other CA's server certificate replaces this one's on disk, as a renewal would.
+  for (const char* f : {"tls.crt", "tls.key"}) {
+    fs::copy_file(path(std::string("mtls-other/") + f), path(std::string("mtls/") + f + ".new"),
+                  fs::copy_options::overwrite_existing);
+    fs::rename(path(std::string("mtls/") + f + ".new"), path(std::string("mtls/") + f));
+  }
+  Ran renewed;
+  for (int i = 0; i < 50; ++i) {
+    renewed = runCli("jobs --all --server " + address + " --token " + kClientToken + " --ca " + path("mtls-other/ca.crt"));
+    if (renewed.status == 0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  EXPECT_EQ(renewed.status, 0) << renewed.out;
+  EXPECT_NE(renewed.out.find("done"), std::string::npos) << renewed.out;
+  Ran old = runCli("jobs --all --server " + address + " --token " + kClientToken + " --ca " + path("mtls/ca.crt"));
+  EXPECT_EQ(old.status, 4) << old.out;
+  EXPECT_TRUE(servers_.back()->running());
+}
+
 // R7: no open farm and no cleartext tokens beyond this machine unless asked for in words;
 // a client and a worker do not send a token in cleartext to another machine.
 TEST_F(FarmTest, InsecureDefaultsAreRefusedBeforeAnythingIsServedOrSent) {

@@ -66,7 +66,11 @@ ServiceServer::ServiceServer(grpc::Service& service) {
 }
 
 ServiceServer::~ServiceServer() {
-  if (server_) server_->Shutdown();
+  // Every handler returned, and the server's threads done, before the service (the
+  // test's, often a local) can go.
+  if (!server_) return;
+  server_->Shutdown();
+  server_->Wait();
 }
 
 ForwardingWorkers::ForwardingWorkers(const std::string& address)
