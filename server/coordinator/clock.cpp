@@ -6,6 +6,13 @@
 
 namespace cpvs::server {
 
+int64_t leaseClockMs() {
+  static const int64_t wallAtStart = nowMs();
+  static const auto steadyAtStart = std::chrono::steady_clock::now();
+  return wallAtStart +
+         std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - steadyAtStart).count();
+}
+
 std::string randomId(const char* prefix) {
   // 64 bits straight from the system's source for every id (a seeded generator's next
   // ids follow from the ones it gave out): a lease id is a worker's only credential for

@@ -13,6 +13,13 @@ inline int64_t nowMs() {
       .count();
 }
 
+/// The clock of lease deadlines, in Unix milliseconds: the wall clock as it read when the
+/// process first asked, run on by the steady clock since. A step of the wall clock (NTP,
+/// an operator setting the date) does not move it, so no lease expires, or outlives its
+/// length, for one (R10); a restart reads the wall clock again, and gives every lease a
+/// whole length (LeaseService::start).
+int64_t leaseClockMs();
+
 /// `prefix` and 64 bits from the system's random source, hex: ids of jobs and leases,
 /// which no caller can guess.
 std::string randomId(const char* prefix);

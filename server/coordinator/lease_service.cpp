@@ -56,7 +56,7 @@ LeaseService::LeaseService(FarmStore& store, SceneStore& scenes, ArtifactStore& 
 void LeaseService::start() {
   // Workers could not renew while the coordinator was down: every lease still out gets a
   // whole lease length from now before the reaper may take it back (R10).
-  store_.extendLeasesTo(nowMs() + int64_t(rules_.leaseSeconds * 1000));
+  store_.extendLeasesTo(leaseClockMs() + int64_t(rules_.leaseSeconds * 1000));
   lastRoundSteadyMs_ = steadyMs();
   reaper_ = std::thread([this] { reaperLoop(); });
 }
@@ -81,7 +81,7 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
     out.set_retry_after_ms(uint32_t(std::min<int64_t>(wait, 5000)));
     return out;
   }
-  int64_t now = nowMs();
+  int64_t now = leaseClockMs();
   int64_t deadline = now + int64_t(rules_.leaseSeconds * 1000);
   auto l = store_.leaseNextTile(workerId, randomId("l"), now, deadline);
   if (!l) {
@@ -133,7 +133,7 @@ void LeaseService::checkResultLease(const std::string& leaseId) {
 
 pb::RenewReply LeaseService::renew(const std::string& leaseId) {
   pb::RenewReply r;
-  const int64_t now = nowMs();
+  const int64_t now = leaseClockMs();
   int64_t deadline = now + int64_t(rules_.leaseSeconds * 1000);
   // A bake that keeps renewing without finishing (hung) gets no renewal past the longest
   // a tile may take: its lease then expires and the tile goes to another worker (R12).
@@ -271,7 +271,6 @@ void LeaseService::noteWorkerFailure(const std::string& workerId, bool quarantin
 
 void LeaseService::reaperLoop() {
   auto lastSteady = std::chrono::steady_clock::now();
-  int64_t lastWall = nowMs();
   for (;;) {
     {
       std::unique_lock lock(mutex_);
@@ -281,26 +280,22 @@ void LeaseService::reaperLoop() {
     // A store that fails now (a busy or full disk) fails this round, not the process
     // (R9): the leases stay in the store and the next round expires them.
     try {
-      // Deadlines are wall-clock times in the store, but what a worker is owed is time the
-      // coordinator was there to renew: a pause of this process (SIGSTOP, a stalled VM, a
-      // store held busy) and a step of the wall clock move every deadline with them, so
-      // neither expires leases their workers kept renewing (R10).
+      // Deadlines are on the lease clock (steady: a step of the wall clock does not move
+      // it), but what a worker is owed is time the coordinator was there to renew: a
+      // pause of this process (SIGSTOP, a stalled VM, a store held busy) moves every
+      // deadline with it, so no lease its worker kept renewing expires for it (R10).
       const auto steadyNow = std::chrono::steady_clock::now();
-      const int64_t wallNow = nowMs();
       const int64_t steadyGap = std::chrono::duration_cast<std::chrono::milliseconds>(steadyNow - lastSteady).count();
-      const int64_t wallGap = wallNow - lastWall;
       int64_t shift = 0;
       if (steadyGap > kReaperTickMs + kPauseMs) shift += steadyGap - kReaperTickMs;
-      if (std::abs(wallGap - steadyGap) > kPauseMs) shift += wallGap - steadyGap;
       // A store that could not be written (a full disk) counts as a pause too: renewals
       // failed meanwhile, and the time since the last round that went through is owed.
       if (shift != 0) {
         store_.shiftLeaseDeadlines(shift);
-        spdlog::warn("leases could not be kept for {} ms (the coordinator paused or its store unavailable) and its "
-                     "clock moved {} ms: every lease moved {} ms",
-                     steadyGap, wallGap, shift);
+        spdlog::warn("leases could not be kept for {} ms (the coordinator paused or its store unavailable): every "
+                     "lease moved {} ms",
+                     steadyGap, shift);
         lastSteady = steadyNow;
-        lastWall = wallNow;
       }
       {
         std::map<std::string, int64_t> pending;
@@ -319,7 +314,7 @@ void LeaseService::reaperLoop() {
           }
         }
       }
-      const auto expired = store_.expireLeases(nowMs());
+      const auto expired = store_.expireLeases(leaseClockMs());
       metrics_.leasesExpired(expired.size());
       for (const auto& [jobId, tile, attempts] : expired) {
         spdlog::warn("lease on tile {} of job {} expired (attempt {})", tile, jobId, attempts);
@@ -328,7 +323,6 @@ void LeaseService::reaperLoop() {
         feed_.notify();
       }
       lastSteady = steadyNow;
-      lastWall = wallNow;
       lastRoundSteadyMs_ = steadyMs();
     } catch (const StoreUnavailable& e) {
       spdlog::warn("expiring leases waits for the store: {}", e.what());

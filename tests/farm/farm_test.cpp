@@ -331,6 +331,41 @@ TEST_F(FarmTest, WorkerCertificatesAndACertificateRotatedWithoutARestart) {
   EXPECT_TRUE(servers_.back()->running());
 }
 
+// R10: the coordinator's wall clock stepped an hour forward, then ten minutes back, while
+// tiles are out on 2-second leases (an NTP step, an operator's date): no lease expires for
+// it and no tile is charged an attempt; the job gives the local bytes.
+TEST_F(FarmTest, R10_AWallClockJumpExpiresNoLease) {
+  const std::string offset = path("clock-offset");
+  std::ofstream(offset) << "0\n";
+  const std::string address =
+      startServer("s-clock", "127.0.0.1:0",
+                  {"--lease-seconds", "2", "--metrics", "127.0.0.1:0", "--metrics-address-file", path("s-clock.metrics")},
+                  {"LD_PRELOAD=" CPVS_CLOCK_JUMP_SHIM, "CPVS_CLOCK_OFFSET_FILE=" + offset});
+  ChildProcess& coordinator = *servers_.back();
+  // One ray per texel on one thread: each 4K tile takes a second or more.
+  const std::string spec = " --sun-dir 0.3,-1,0.2 --resolution 8192 --tile-size 4096 --renderer embree";
+  ChildProcess& worker = startWorker(address, "w-clock", {"--threads", "1"});
+  auto result = std::async(std::launch::async, [&] {
+    return runCli("submit --server " + address + " --token " + kClientToken + " " + path("city.obj") + spec +
+                  " --request-id clock-jump --wait --json --out " + path("clock.cpvs"));
+  });
+  ASSERT_TRUE(worker.waitForLog("baking", 60)) << worker.log();
+  std::ofstream(offset) << "3600\n";
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  std::ofstream(offset) << "-600\n";
+  Ran r = result.get();
+  ASSERT_EQ(r.status, 0) << r.out << coordinator.log();
+  Ran local = runCli("bake " + path("city.obj") + spec + " -q -o " + path("clock-local.cpvs"));
+  ASSERT_EQ(local.status, 0) << local.out;
+  EXPECT_EQ(bytesOf(path("clock.cpvs")), bytesOf(path("clock-local.cpvs")));
+  EXPECT_EQ(coordinator.log().find("expired"), std::string::npos) << coordinator.log();
+  const std::string metrics = testing::waitForFile(path("s-clock.metrics"), 5);
+  Ran scraped = testing::runShell("curl -s --max-time 10 -H 'Authorization: Bearer " + kAdminToken + "' http://" +
+                                  metrics + "/metrics");
+  EXPECT_NE(scraped.out.find("cpvs_leases_total{event=\"expired\"} 0\n"), std::string::npos) << scraped.out;
+  EXPECT_NE(scraped.out.find("cpvs_leases_total{event=\"failed_tile\"} 0\n"), std::string::npos) << scraped.out;
+}
+
 // R7: no open farm and no cleartext tokens beyond this machine unless asked for in words;
 // a client and a worker do not send a token in cleartext to another machine.
 TEST_F(FarmTest, InsecureDefaultsAreRefusedBeforeAnythingIsServedOrSent) {

@@ -15,10 +15,10 @@ struct Connection {
   bool allowPlaintextToken = false;
   // The name the server's certificate must hold when it is not the address's host (a
   // coordinator checking itself on 127.0.0.1 with a certificate for its public name).
-  std::string tlsName;
+  std::string tlsName{};
   // A client certificate and its key (PEM) to present over TLS: a worker's own identity
   // for a coordinator with --worker-ca, instead of a token.
-  std::string certFile, keyFile;
+  std::string certFile{}, keyFile{};
 };
 
 /// Whether HOST:PORT names this machine only: localhost, 127.0.0.0/8, ::1, or a Unix socket.
