@@ -9,8 +9,10 @@
 #include <prometheus/registry.h>
 #include <prometheus/text_serializer.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstring>
@@ -80,6 +82,28 @@ std::string bearerOf(const std::string& request) {
   return value;
 }
 
+/// A TLS context serving `cert` and `key`; InputError naming the file that is wrong.
+SSL_CTX* tlsContext(const std::string& cert, const std::string& key) {
+  SSL_CTX* ctx = SSL_CTX_new(TLS_server_method());
+  if (!ctx) throw InputError("cannot set TLS up for the metrics endpoint: " + tlsError());
+  SSL_CTX_set_min_proto_version(ctx, TLS1_2_VERSION);
+  std::string wrong;
+  if (SSL_CTX_use_certificate_chain_file(ctx, cert.c_str()) != 1) wrong = "metrics TLS certificate " + cert;
+  else if (SSL_CTX_use_PrivateKey_file(ctx, key.c_str(), SSL_FILETYPE_PEM) != 1) wrong = "metrics TLS key " + key;
+  else if (SSL_CTX_check_private_key(ctx) != 1) wrong = "metrics TLS key " + key + ", which does not match its certificate";
+  if (!wrong.empty()) {
+    SSL_CTX_free(ctx);
+    throw InputError(wrong + ": " + tlsError());
+  }
+  return ctx;
+}
+
+/// When a file was last changed (0 when it cannot be read).
+int64_t changedAt(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 ? int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec : 0;
+}
+
 }  // namespace
 
 struct Endpoint::Server {
@@ -88,6 +112,7 @@ struct Endpoint::Server {
   std::function<void()> refresh;
   int listener = -1;
   SSL_CTX* tls = nullptr;
+  int64_t tlsChangedAt = 0;  // the newer of the certificate's and the key's change times
   std::atomic<bool> stopping{false};
   std::thread thread;
 
@@ -112,9 +137,25 @@ struct Endpoint::Server {
     }
   }
 
+  // A renewed certificate (both files replaced) is served from the next connection on; a
+  // pair that does not load yet (one file replaced so far) keeps the one served.
+  void reloadTlsWhenChanged() {
+    const int64_t changed = std::max(changedAt(options.tlsCert), changedAt(options.tlsKey));
+    if (changed == tlsChangedAt) return;
+    try {
+      SSL_CTX* fresh = tlsContext(options.tlsCert, options.tlsKey);
+      SSL_CTX_free(tls);
+      tls = fresh;
+      tlsChangedAt = changed;
+    } catch (const InputError&) {
+      ERR_clear_error();
+    }
+  }
+
   void serve(int fd) {
     SSL* ssl = nullptr;
     if (tls) {
+      reloadTlsWhenChanged();
       ssl = SSL_new(tls);
       SSL_set_fd(ssl, fd);
       if (SSL_accept(ssl) != 1) {  // a plaintext request on the TLS port, an untrusting client
@@ -185,15 +226,8 @@ Endpoint::Endpoint(EndpointOptions options, std::shared_ptr<prometheus::Registry
   s.refresh = std::move(refresh);
   const std::string& listen = s.options.listen;
   if (tls) {
-    s.tls = SSL_CTX_new(TLS_server_method());
-    if (!s.tls) throw InputError("cannot set TLS up for the metrics endpoint: " + tlsError());
-    SSL_CTX_set_min_proto_version(s.tls, TLS1_2_VERSION);
-    if (SSL_CTX_use_certificate_chain_file(s.tls, s.options.tlsCert.c_str()) != 1)
-      throw InputError("metrics TLS certificate " + s.options.tlsCert + ": " + tlsError());
-    if (SSL_CTX_use_PrivateKey_file(s.tls, s.options.tlsKey.c_str(), SSL_FILETYPE_PEM) != 1)
-      throw InputError("metrics TLS key " + s.options.tlsKey + ": " + tlsError());
-    if (SSL_CTX_check_private_key(s.tls) != 1)
-      throw InputError("metrics TLS key " + s.options.tlsKey + " does not match its certificate: " + tlsError());
+    s.tlsChangedAt = std::max(changedAt(s.options.tlsCert), changedAt(s.options.tlsKey));
+    s.tls = tlsContext(s.options.tlsCert, s.options.tlsKey);
   }
   socklen_t length = 0;
   sockaddr_storage address = parseAddress(listen, length);

@@ -13,7 +13,9 @@ TEST(ChildCodes, RanksCountsAndValidityOverEveryCodeWord) {
     for (int c = 0; c < kChildren; ++c) {
       const uint32_t code = (codes >> (2 * c)) & 3u;
       ASSERT_EQ(childCode(codes, c), code);
-      if (code == kRef) ASSERT_EQ(refRank(codes, c), refs) << std::hex << codes << " child " << c;
+      if (code == kRef) {
+        ASSERT_EQ(refRank(codes, c), refs) << std::hex << codes << " child " << c;
+      }
       refs += code == kRef;
       valid = valid && code != 3;
     }

@@ -200,7 +200,9 @@ TEST_F(MetricsTest, TheCoordinatorAndAWorkerCountTheJobThatRan) {
     EXPECT_TRUE(std::regex_match(series, std::regex(R"([a-z_]+(\{[a-z_]+="[^"]*"(,[a-z_]+="[^"]*")*\})?)"))) << series;
     if (now.types.at(family) == "gauge") continue;
     const auto earlier = before.samples.find(series);
-    if (earlier != before.samples.end()) EXPECT_GE(value, earlier->second) << series << " went down";
+    if (earlier != before.samples.end()) {
+      EXPECT_GE(value, earlier->second) << series << " went down";
+    }
   }
   EXPECT_EQ(after["cpvs_jobs{state=\"done\"}"], 1) << after.body;
   EXPECT_EQ(after["cpvs_jobs{state=\"queued\"}"], 0);
@@ -253,6 +255,18 @@ TEST_F(MetricsTest, MetricsOverTlsAndRefusedWhereTheyWouldLeak) {
   EXPECT_EQ(check.status, 0) << check.out;
   EXPECT_NE(check.out.find("(TLS) answers"), std::string::npos) << check.out;
   EXPECT_NE(check.out.find("the TLS certificate"), std::string::npos) << check.out;
+
+  // A renewed certificate (another CA's here) is served from the next scrape, no restart.
+  Ran other = testing::runShell("bash '" CPVS_SOURCE_DIR "/deploy/make-secrets.sh' --dir '" + path("tls-next") +
+                                "' --tls localhost 2>&1");
+  ASSERT_EQ(other.status, 0) << other.out;
+  for (const char* f : {"tls.crt", "tls.key"}) {
+    std::filesystem::copy_file(path(std::string("tls-next/") + f), path(std::string("tls/") + f + ".new"),
+                               std::filesystem::copy_options::overwrite_existing);
+    std::filesystem::rename(path(std::string("tls/") + f + ".new"), path(std::string("tls/") + f));
+  }
+  EXPECT_EQ(scrape(url, kMetricsToken, "--cacert '" + path("tls-next/ca.crt") + "'").status, 200);
+  EXPECT_EQ(scrape(url, kMetricsToken, "--cacert '" + path("tls/ca.crt") + "'").status, 0) << "the old CA no longer";
 
   // Tokens in plaintext beyond loopback, or an open endpoint there, are refused in words.
   Ran plain = testing::runShell("timeout 30 '" CPVS_SERVER "' --data '" + path("plain.data") + "' --tokens '" +

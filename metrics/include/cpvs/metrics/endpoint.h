@@ -1,6 +1,7 @@
 // The Prometheus endpoint of a farm process (coordinator or worker): GET /metrics on a
 // port of its own, in Prometheus' text format, behind the same choice the process made
-// for its RPCs: bearer tokens or none, TLS or plaintext.
+// for its RPCs: bearer tokens or none, TLS or plaintext (the certificate read again when
+// its files change).
 #pragma once
 
 #include <functional>
