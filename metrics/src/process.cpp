@@ -1,8 +1,5 @@
 #include "cpvs/metrics/process.h"
 
-#include <prometheus/counter.h>
-#include <prometheus/gauge.h>
-#include <prometheus/registry.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -12,13 +9,11 @@
 #include <string>
 #include <vector>
 
+#include "cpvs/metrics/families.h"
+
 namespace cpvs::metrics {
 
 namespace {
-
-prometheus::Gauge& gauge(prometheus::Registry& r, const char* name, const char* help) {
-  return prometheus::BuildGauge().Name(name).Help(help).Register(r).Add({});
-}
 
 // The fields of /proc/self/stat after the command name (which may hold spaces), from
 // field 3 (state) on: index i here is field i + 3 of proc(5).
@@ -55,12 +50,9 @@ ProcessMetrics::ProcessMetrics(prometheus::Registry& registry)
       openFds_(gauge(registry, "process_open_fds", "Number of open file descriptors.")),
       maxFds_(gauge(registry, "process_max_fds", "Maximum number of open file descriptors.")),
       threads_(gauge(registry, "process_threads", "Number of OS threads in the process.")),
-      startTime_(gauge(registry, "process_start_time_seconds", "Start time of the process since unix epoch in seconds.")),
-      cpuSeconds_(prometheus::BuildCounter()
-                      .Name("process_cpu_seconds_total")
-                      .Help("Total user and system CPU time spent in seconds.")
-                      .Register(registry)
-                      .Add({})) {
+      startTime_(
+          gauge(registry, "process_start_time_seconds", "Start time of the process since unix epoch in seconds.")),
+      cpuSeconds_(counter(registry, "process_cpu_seconds_total", "Total user and system CPU time spent in seconds.")) {
   refresh();
 }
 
@@ -80,12 +72,13 @@ void ProcessMetrics::refresh() {
   }
   std::error_code ec;
   size_t fds = 0;
-  for (auto it = std::filesystem::directory_iterator("/proc/self/fd", ec); !ec && it != std::filesystem::directory_iterator();
-       it.increment(ec))
+  for (auto it = std::filesystem::directory_iterator("/proc/self/fd", ec);
+       !ec && it != std::filesystem::directory_iterator(); it.increment(ec))
     ++fds;
   openFds_.Set(double(fds));
   rlimit limit{};
-  if (getrlimit(RLIMIT_NOFILE, &limit) == 0) maxFds_.Set(limit.rlim_cur == RLIM_INFINITY ? -1.0 : double(limit.rlim_cur));
+  if (getrlimit(RLIMIT_NOFILE, &limit) == 0)
+    maxFds_.Set(limit.rlim_cur == RLIM_INFINITY ? -1.0 : double(limit.rlim_cur));
 }
 
 }  // namespace cpvs::metrics

@@ -1,9 +1,6 @@
 #include "coordinator/farm_metrics.h"
 
-#include <prometheus/counter.h>
-#include <prometheus/gauge.h>
-#include <prometheus/histogram.h>
-#include <prometheus/registry.h>
+#include "cpvs/metrics/families.h"
 
 namespace cpvs::server {
 
@@ -11,8 +8,6 @@ namespace {
 
 using prometheus::Histogram;
 
-// Tile stages run from milliseconds (a small tile's write) to an hour (the lease limit).
-const Histogram::BucketBoundaries kSeconds = {0.01, 0.03, 0.1, 0.3, 1, 3, 10, 30, 100, 300, 1000, 3600};
 // Sub-DAGs and artifacts: a kilobyte to tens of gigabytes.
 const Histogram::BucketBoundaries kBytes = {1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10};
 
@@ -31,26 +26,16 @@ FarmMetrics::FarmMetrics()
                         .Name("cpvs_tile_stage_seconds")
                         .Help("Seconds of each stage of a tile's bake, as its worker reported them")
                         .Register(*registry_)),
-      resultBytes_(prometheus::BuildHistogram()
-                       .Name("cpvs_tile_result_bytes")
-                       .Help("Bytes of the encoded sub-DAGs workers returned")
-                       .Register(*registry_)
-                       .Add({}, kBytes)),
-      mergeSeconds_(prometheus::BuildHistogram()
-                        .Name("cpvs_merge_tile_seconds")
-                        .Help("Seconds the coordinator took to merge one tile into its job's DAG")
-                        .Register(*registry_)
-                        .Add({}, kSeconds)),
-      artifactSeconds_(prometheus::BuildHistogram()
-                           .Name("cpvs_artifact_write_seconds")
-                           .Help("Seconds to encode and write a finished job's artifact")
-                           .Register(*registry_)
-                           .Add({}, kSeconds)),
-      artifactBytesWritten_(prometheus::BuildCounter()
-                                .Name("cpvs_artifact_written_bytes_total")
-                                .Help("Bytes of artifacts written")
-                                .Register(*registry_)
-                                .Add({})),
+      resultBytes_(metrics::histogram(*registry_, "cpvs_tile_result_bytes",
+                                      "Bytes of the encoded sub-DAGs workers returned", kBytes)),
+      mergeSeconds_(metrics::histogram(*registry_, "cpvs_merge_tile_seconds",
+                                       "Seconds the coordinator took to merge one tile into its job's DAG",
+                                       metrics::kStageSecondsBuckets)),
+      artifactSeconds_(metrics::histogram(*registry_, "cpvs_artifact_write_seconds",
+                                          "Seconds to encode and write a finished job's artifact",
+                                          metrics::kStageSecondsBuckets)),
+      artifactBytesWritten_(
+          metrics::counter(*registry_, "cpvs_artifact_written_bytes_total", "Bytes of artifacts written")),
       streams_(prometheus::BuildGauge()
                    .Name("cpvs_streams_open")
                    .Help("Long-lived streams open: watch (WatchJob), subscribe (sun-track subscribers)")
@@ -61,42 +46,22 @@ FarmMetrics::FarmMetrics()
                  .Help("Tiles of unfinished jobs not yet returned: queued (waiting for a worker) or leased "
                        "(being baked); their sum is what the workers' autoscaler follows")
                  .Register(*registry_)),
-      mergeBacklog_(prometheus::BuildGauge()
-                        .Name("cpvs_merge_backlog")
-                        .Help("Returned tiles and finished jobs waiting for the merge thread")
-                        .Register(*registry_)
-                        .Add({})),
-      artifactBytes_(prometheus::BuildGauge()
-                         .Name("cpvs_artifacts_stored_bytes")
-                         .Help("Bytes of the finished artifacts the coordinator holds")
-                         .Register(*registry_)
-                         .Add({})),
-      storeBytes_(prometheus::BuildGauge()
-                      .Name("cpvs_store_bytes")
-                      .Help("Bytes of the job database and its write-ahead log")
-                      .Register(*registry_)
-                      .Add({})),
-      storeHealthy_(prometheus::BuildGauge()
-                        .Name("cpvs_store_healthy")
-                        .Help("1 when the job database takes a write within half a second, else 0 (the health "
-                              "service then says NOT_SERVING)")
-                        .Register(*registry_)
-                        .Add({})),
-      tracksActive_(prometheus::BuildGauge()
-                        .Name("cpvs_tracks_active")
-                        .Help("Sun tracks publishing keyframes")
-                        .Register(*registry_)
-                        .Add({})),
-      keyframeLag_(prometheus::BuildGauge()
-                       .Name("cpvs_track_keyframe_lag")
-                       .Help("Keyframes a clock track's sun has reached that are not yet published (the largest "
-                             "over the tracks); above 0 its subscribers show an older sun")
-                       .Register(*registry_)
-                       .Add({})),
+      mergeBacklog_(metrics::gauge(*registry_, "cpvs_merge_backlog",
+                                   "Returned tiles and finished jobs waiting for the merge thread")),
+      artifactBytes_(metrics::gauge(*registry_, "cpvs_artifacts_stored_bytes",
+                                    "Bytes of the finished artifacts the coordinator holds")),
+      storeBytes_(metrics::gauge(*registry_, "cpvs_store_bytes", "Bytes of the job database and its write-ahead log")),
+      storeHealthy_(metrics::gauge(*registry_, "cpvs_store_healthy",
+                                   "1 when the job database takes a write within half a second, else 0 (the health "
+                                   "service then says NOT_SERVING)")),
+      tracksActive_(metrics::gauge(*registry_, "cpvs_tracks_active", "Sun tracks publishing keyframes")),
+      keyframeLag_(metrics::gauge(*registry_, "cpvs_track_keyframe_lag",
+                                  "Keyframes a clock track's sun has reached that are not yet published (the largest "
+                                  "over the tracks); above 0 its subscribers show an older sun")),
       process_(*registry_) {
   // Every series exists from the start, so that rates and alerts see zeros, not gaps.
-  for (const char* e : {"granted", "completed", "late", "failed_tile", "failed_worker", "failed_scene", "interrupted",
-                        "expired"})
+  for (const char* e :
+       {"granted", "completed", "late", "failed_tile", "failed_worker", "failed_scene", "interrupted", "expired"})
     leases_.Add({{"event", e}});
   for (const char* s : {"watch", "subscribe"}) streams_.Add({{"kind", s}});
   for (const char* s : {"queued", "leased"}) tiles_.Add({{"state", s}});
@@ -110,7 +75,8 @@ void FarmMetrics::leaseGranted() { leases_.Add({{"event", "granted"}}).Increment
 void FarmMetrics::tileReturned(bool accepted, const std::map<std::string, double>& stages, uint64_t bytes) {
   leases_.Add({{"event", accepted ? "completed" : "late"}}).Increment();
   if (!accepted) return;
-  for (const auto& [stage, seconds] : stages) stageSeconds_.Add({{"stage", stage}}, kSeconds).Observe(seconds);
+  for (const auto& [stage, seconds] : stages)
+    stageSeconds_.Add({{"stage", stage}}, metrics::kStageSecondsBuckets).Observe(seconds);
   resultBytes_.Observe(double(bytes));
 }
 

@@ -326,8 +326,10 @@ for src in ("server/coordinator/farm_metrics.cpp", "worker/worker_metrics.cpp", 
         families.add(m.group(2))
         if m.group(1) == "Histogram":
             histograms.add(m.group(2))
-    for m in re.finditer(r'(?:gauge|counter)\(\w+, "([a-z_]+)"', text):
-        families.add(m.group(1))
+    for m in re.finditer(r'\b(gauge|counter|histogram)\(\s*\*?\w+,\s*"([a-z_]+)"', text):
+        families.add(m.group(2))
+        if m.group(1) == "histogram":
+            histograms.add(m.group(2))
 known = families | {h + s for h in histograms for s in ("_bucket", "_sum", "_count")} | {"up"}
 promql_words = {"sum", "by", "rate", "increase", "delta", "histogram_quantile", "max", "min", "avg", "count", "and",
                 "or", "unless", "le", "on", "without", "ignoring", "offset", "bool"}

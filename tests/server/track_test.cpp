@@ -8,6 +8,7 @@
 #include <sqlite3.h>
 
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <thread>
 
@@ -227,24 +228,31 @@ TEST(Tracks, APlaceThroughTimeLeavesOutTheNight) {
   EXPECT_EQ(vis, each[2]);
 }
 
+/// A game clock over the equator from the March equinox at 09:00 UTC: `rate` game seconds
+/// per real second, a keyframe every `step` game seconds, 64^3, the city uploaded to `farm`.
+pb::TrackSpec clockTrack(InProcessFarm& farm, const TempDir& dir, double step, double rate, uint32_t ahead) {
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:1:2"));
+  pb::TrackSpec spec;
+  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
+  spec.set_resolution("64");
+  spec.set_keyframes_ahead(ahead);
+  pb::PlacePath& p = *spec.mutable_clock()->mutable_place();
+  p.set_latitude_deg(0);
+  p.set_longitude_deg(0);
+  p.set_start_utc("2024-03-20T09:00:00Z");
+  p.set_step_seconds(step);
+  spec.mutable_clock()->set_rate(rate);
+  return spec;
+}
+
 // A game clock an hour of game time per real second, keyframes every half game hour:
 // the track keeps baking the keyframes around its clock; a subscriber gets them in
 // order, each half an hour of game time after the one before, never ending by itself.
 TEST(Tracks, AClockKeepsBakingAheadOfItsTime) {
   TempDir dir("cpvs_track_clock_test");
   InProcessFarm farm(dir / "data");
-  const std::string obj = dir / "city.obj";
-  writeObj(obj, openScene("city:1:2"));
-  pb::TrackSpec spec;
-  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
-  spec.set_resolution("64");
-  spec.set_keyframes_ahead(2);
-  pb::PlacePath& p = *spec.mutable_clock()->mutable_place();
-  p.set_latitude_deg(0);
-  p.set_longitude_deg(0);
-  p.set_start_utc("2024-03-20T09:00:00Z");
-  p.set_step_seconds(1800);
-  spec.mutable_clock()->set_rate(3600);
+  const pb::TrackSpec spec = clockTrack(farm, dir, 1800, 3600, 2);
   worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
   worker::TileWorker tileWorker(wc);
   std::thread workerThread([&] { tileWorker.run(); });
@@ -270,18 +278,7 @@ TEST(Tracks, AClockKeepsBakingAheadOfItsTime) {
 TEST(Tracks, ATrackThatCannotAdvanceBacksOff) {
   TempDir dir("cpvs_track_backoff_test");
   InProcessFarm farm(dir / "data");
-  const std::string obj = dir / "city.obj";
-  writeObj(obj, openScene("city:1:2"));
-  pb::TrackSpec spec;
-  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
-  spec.set_resolution("64");
-  spec.set_keyframes_ahead(1);
-  pb::PlacePath& p = *spec.mutable_clock()->mutable_place();
-  p.set_latitude_deg(0);
-  p.set_longitude_deg(0);
-  p.set_start_utc("2024-03-20T09:00:00Z");
-  p.set_step_seconds(1800);
-  spec.mutable_clock()->set_rate(1);
+  pb::TrackSpec spec = clockTrack(farm, dir, 1800, 1, 1);
   const pb::TrackStatus created = farm.client.createTrack("backing-off", spec);
   // The stored path broken behind the coordinator's back, as a damaged store would be.
   spec.mutable_clock()->mutable_place()->set_start_utc("not an instant");
