@@ -127,6 +127,20 @@ int main(int argc, char** argv) {
   app.add_option("--auth-lockout-seconds", authLimits.lockoutSeconds, "How long an address is refused after that")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 86400.0));
+  cpvs::server::ConnectionLimits connections;
+  app.add_option("--max-streams-per-connection", connections.streamsPerConnection,
+                 "Calls open at once on one client connection; more wait for a place")
+      ->capture_default_str()->check(CLI::Range(1, 100000));
+  app.add_option("--idle-connection-seconds", connections.idleSeconds,
+                 "A connection with no call open this long is closed (the client reconnects when it calls)")
+      ->capture_default_str()->check(CLI::Range(1.0, 7 * 86400.0));
+  app.add_option("--keepalive-seconds", connections.keepaliveSeconds,
+                 "A connection with calls open is pinged this often; one that does not answer within "
+                 "--keepalive-timeout-seconds is closed and its calls end (their watch places come back)")
+      ->capture_default_str()->check(CLI::Range(1.0, 86400.0));
+  app.add_option("--keepalive-timeout-seconds", connections.keepaliveTimeoutSeconds,
+                 "How long a ping may go unanswered")
+      ->capture_default_str()->check(CLI::Range(1.0, 3600.0));
   app.add_option("--lease-seconds", config.leaseSeconds, "Tile lease length")->capture_default_str()->check(CLI::Range(1.0, 3600.0));
   app.add_option("--max-tile-seconds", config.maxTileSeconds,
                  "Longest a tile may be baked (renewals stop after it; a hung bake's tile goes to another worker)")
@@ -154,6 +168,16 @@ int main(int argc, char** argv) {
   app.add_option("--max-pending-uploads", config.maxPendingUploads,
                  "Uploads started and not complete (idle ones are dropped to make room)")
       ->capture_default_str()->check(CLI::Range(size_t(1), size_t(1000000)));
+  double clientUploadsMb = double(config.clientUploads.uploadingBytes >> 20);
+  double clientScenesMb = double(config.clientUploads.storedBytes >> 20);
+  app.add_option("--client-uploads-mb", clientUploadsMb,
+                 "Bytes one client's uploads in progress may announce, in MiB (one owner in --tokens; admin tokens "
+                 "are not counted)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1e9));
+  app.add_option("--client-scenes-mb", clientScenesMb,
+                 "Bytes of stored scenes one client may hold, in MiB (a scene counts for the client that uploaded "
+                 "it first, until retention forgets it)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1e9));
   app.add_option("--quarantine-seconds", config.quarantineSeconds,
                  "A worker that fails 3 tiles in a row (or reports trouble of its own) gets no tile for this long, "
                  "doubling each time up to 10 minutes")
@@ -198,6 +222,7 @@ int main(int argc, char** argv) {
     config.retention.uploadExpirySeconds = uploadExpiryHours * 3600;
     config.maxLog2Resolution = cpvs::parseResolution(maxResolution);
     config.maxUploadBytes = uint64_t(maxUploadMb * 1024 * 1024);
+    config.clientUploads = {uint64_t(clientUploadsMb * 1024 * 1024), uint64_t(clientScenesMb * 1024 * 1024)};
     config.import.memoryBytes = uint64_t(importMemoryMb * 1024 * 1024);
     config.import.helper = std::filesystem::read_symlink("/proc/self/exe").string();
     cpvs::server::TokenTable tokens = tokensFile.empty() ? cpvs::server::TokenTable() : cpvs::server::TokenTable::load(tokensFile);
@@ -246,7 +271,8 @@ int main(int argc, char** argv) {
     }
 
     cpvs::server::Coordinator coordinator(config);
-    cpvs::server::FarmServer server(coordinator, tokens, listen, creds, authLimits, !workerCa.empty());
+    cpvs::server::FarmServer server(coordinator, tokens, listen, creds, authLimits, !workerCa.empty(),
+                                       connections);
     const std::string bound = server.address();
     if (!addressFile.empty()) {
       std::string text = bound + "\n";

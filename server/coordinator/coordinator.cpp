@@ -22,7 +22,7 @@ Coordinator::Coordinator(CoordinatorConfig config)
       store_(databasePath(config_.dataDir)),
       artifacts_(config_.dataDir),
       scenes_(store_, config_.dataDir, config_.maxUploadBytes, config_.import, config_.maxConcurrentImports,
-              config_.maxPendingUploads),
+              config_.maxPendingUploads, config_.clientUploads),
       merges_(store_, artifacts_, feed_, metrics_, [this](const std::string& jobId, const std::string& why) {
         jobs_.failJob(jobId, why);
       }, [this](const std::string& sceneHash) { return scenes_.load(sceneHash); }),

@@ -48,6 +48,7 @@ struct CoordinatorConfig {
   int maxConcurrentImports = 2;
   int maxWatches = 256;                         // WatchJob and Subscribe streams open at once
   size_t maxPendingUploads = 64;                // uploads started and not complete
+  ClientUploadQuota clientUploads;              // bytes of one client's uploads and scenes
   RetentionRules retention;                     // finished jobs and abandoned uploads forgotten
 };
 

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 
@@ -33,6 +34,18 @@ std::string safeExtension(const std::string& fileName) {
   return ext;
 }
 
+/// The same upload started over: nothing received, not imported, still its client's.
+SceneRecord startedOver(const SceneRecord& r) {
+  return SceneRecord{r.hash, r.fileName, "", r.totalSize, 0, 0, false, r.owner};
+}
+
+/// Bytes in MiB, for messages.
+std::string mib(uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / (1 << 20));
+  return text;
+}
+
 }  // namespace
 
 void checkHashText(const std::string& hash, const char* what) {
@@ -44,13 +57,14 @@ void checkHashText(const std::string& hash, const char* what) {
 }
 
 SceneStore::SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes, ImportLimits limits,
-                       int maxConcurrentImports, size_t maxPendingUploads)
+                       int maxConcurrentImports, size_t maxPendingUploads, ClientUploadQuota clientQuota)
     : store_(store),
       folder_((fs::path(dataDir) / "scenes").string()),
       maxUploadBytes_(maxUploadBytes),
       limits_(std::move(limits)),
       maxConcurrentImports_(std::max(1, maxConcurrentImports)),
-      maxPendingUploads_(maxPendingUploads) {
+      maxPendingUploads_(maxPendingUploads),
+      clientQuota_(clientQuota) {
   createFolderDurably(folder_);
 }
 
@@ -70,7 +84,7 @@ pb::UploadStatus SceneStore::uploadStatus(const std::string& hash) {
   return s;
 }
 
-void SceneStore::beginUpload(const pb::UploadSceneChunk& first) {
+void SceneStore::beginUpload(const pb::UploadSceneChunk& first, const Access& access) {
   checkHashText(first.scene_hash(), "scene_hash");
   std::string ext = safeExtension(first.file_name());
   if (first.total_size() == 0) throw FarmError(ErrorKind::InvalidArgument, "the scene file is empty");
@@ -115,13 +129,32 @@ void SceneStore::beginUpload(const pb::UploadSceneChunk& first) {
                                                           " uploads are in progress on this coordinator; try again later");
     }
   }
-  SceneRecord rec = r ? *r : SceneRecord{first.scene_hash(), first.file_name(), "", first.total_size(), 0, 0, false};
+  if (!r && !access.everything) checkClientQuota(access.owner, first.total_size());
+  SceneRecord rec =
+      r ? *r : SceneRecord{first.scene_hash(), first.file_name(), "", first.total_size(), 0, 0, false, access.owner};
   if (first.offset() != rec.received)
     throw FarmError(ErrorKind::FailedPrecondition, "upload of " + rec.hash + " must resume at byte " +
                                                        std::to_string(rec.received) + ", not " +
                                                        std::to_string(first.offset()));
   store_.putScene(rec);
   touch(rec.hash);
+}
+
+void SceneStore::checkClientQuota(const std::string& owner, uint64_t totalSize) {
+  // Per client (R15): what its uploads in progress may still write, and what its stored
+  // scenes take. A scene another client stored first costs nothing (it is not stored
+  // twice), and a stored scene stops counting when retention forgets it.
+  const SceneBytes held = store_.sceneBytesOf(owner);
+  if (held.uploading + totalSize > clientQuota_.uploadingBytes)
+    throw FarmError(ErrorKind::ResourceExhausted,
+                    "this client's uploads in progress hold " + mib(held.uploading) + " and this one needs " +
+                        mib(totalSize) + "; the limit is " + mib(clientQuota_.uploadingBytes) +
+                        " per client: finish those (or let them expire) first");
+  if (held.stored + totalSize > clientQuota_.storedBytes)
+    throw FarmError(ErrorKind::ResourceExhausted,
+                    "this client's stored scenes take " + mib(held.stored) + " and this one needs " + mib(totalSize) +
+                        "; the limit is " + mib(clientQuota_.storedBytes) +
+                        " per client: scenes no job names are forgotten after the farm's retention time");
 }
 
 void SceneStore::dropUpload(const std::string& hash) {
@@ -259,7 +292,7 @@ pb::UploadSceneReply SceneStore::endUpload(const std::string& hash) {
   // Every byte arrived; a crash may have come after the rename to `final` or during the
   // import (R5): then the stored file is checked and imported again. Lost both ways, the
   // upload starts over.
-  auto restart = [&] { store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false}); };
+  auto restart = [&] { store_.putScene(startedOver(*r)); };
   std::error_code ec;
   const bool renamed = !fs::exists(part, ec) && fs::exists(final, ec);
   if (!renamed && !fs::exists(part, ec)) {
@@ -358,7 +391,7 @@ bool SceneStore::verifyStored(const std::string& hash) {
   fs::remove(stored, ec);
   fs::remove(partPath(hash), ec);
   fs::remove(meshPath(hash), ec);
-  store_.putScene(SceneRecord{hash, r->fileName, "", r->totalSize, 0, 0, false});
+  store_.putScene(startedOver(*r));
   return false;
 }
 

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "coordinator/access.h"
 #include "cpvs/scene/isolated_import.h"
 #include "cpvs/scene/scene.h"
 #include "cpvs/v1/farm.pb.h"
@@ -21,16 +22,24 @@ namespace cpvs::server {
 
 namespace pb = ::cpvs::v1;
 
+/// What one client's scenes may take on the coordinator (R15); administrators and the
+/// callers of a farm without tokens are not counted.
+struct ClientUploadQuota {
+  uint64_t uploadingBytes = uint64_t(8) << 30;  // announced by its uploads in progress
+  uint64_t storedBytes = uint64_t(32) << 30;    // of the complete scenes it uploaded first
+};
+
 class SceneStore {
  public:
   /// Creates scenes/ under the data folder. Uploads are imported under `limits` (in a
   /// child process when it names a helper), at most `maxConcurrentImports` at once.
   SceneStore(FarmStore& store, const std::string& dataDir, uint64_t maxUploadBytes, ImportLimits limits = {},
-             int maxConcurrentImports = 2, size_t maxPendingUploads = 64);
+             int maxConcurrentImports = 2, size_t maxPendingUploads = 64, ClientUploadQuota clientQuota = {});
 
   pb::UploadStatus uploadStatus(const std::string& sceneHash);
-  /// Starts or resumes an upload; its offset must equal the bytes already received.
-  void beginUpload(const pb::UploadSceneChunk& first);
+  /// Starts or resumes an upload; its offset must equal the bytes already received. A new
+  /// upload counts against its caller's ClientUploadQuota (RESOURCE_EXHAUSTED past it).
+  void beginUpload(const pb::UploadSceneChunk& first, const Access& access = Access::all());
   /// Appends data at `offset` (the bytes received so far).
   void appendUpload(const std::string& sceneHash, uint64_t offset, const std::string& data);
   /// Completes the upload when every byte is in: checks the hash, imports the scene
@@ -59,6 +68,8 @@ class SceneStore {
  private:
   std::string partPath(const std::string& hash) const;
   std::string meshPath(const std::string& hash) const;
+  /// FarmError(ResourceExhausted) unless `owner` may begin an upload of `totalSize` bytes.
+  void checkClientQuota(const std::string& owner, uint64_t totalSize);
   /// Notes that an upload made progress now (under mutex_).
   void touch(const std::string& hash);
   /// Forgets an upload in progress: its files and its row (under mutex_).
@@ -72,6 +83,7 @@ class SceneStore {
   ImportLimits limits_;
   int maxConcurrentImports_;
   size_t maxPendingUploads_;
+  ClientUploadQuota clientQuota_;
   std::mutex mutex_;  // one upload step at a time (imports run without it)
   std::condition_variable importDone_;
   std::set<std::string> importing_;

@@ -4,6 +4,7 @@
 
 #include <grpcpp/resource_quota.h>
 
+#include <algorithm>
 #include <chrono>
 
 #include "cpvs/base/error.h"
@@ -12,7 +13,8 @@
 namespace cpvs::server {
 
 FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const std::string& listen,
-                       std::shared_ptr<grpc::ServerCredentials> creds, AuthLimits authLimits, bool workerCertificates)
+                       std::shared_ptr<grpc::ServerCredentials> creds, AuthLimits authLimits, bool workerCertificates,
+                       ConnectionLimits connections)
     : gate_(tokens, authLimits, workerCertificates), farm_(coordinator, gate_), workers_(coordinator, gate_) {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::ServerBuilder builder;
@@ -20,19 +22,21 @@ FarmServer::FarmServer(Coordinator& coordinator, const TokenTable& tokens, const
   // One server per port: gRPC's default SO_REUSEPORT would let a second bind it too (R14).
   builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   // Clients ping open streams every kKeepaliveMs (net/channel.h); the server pings too,
-  // and drops a connection whose peer stopped answering.
-  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, net::kKeepaliveMs);
-  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, net::kKeepaliveTimeoutMs);
+  // and drops a connection whose peer stopped answering (a partition), which ends its
+  // calls and gives back their places.
+  const auto ms = [](double seconds) { return int(std::min(seconds * 1000, 2e9)); };
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, ms(connections.keepaliveSeconds));
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, ms(connections.keepaliveTimeoutSeconds));
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, net::kKeepaliveMs / 2);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
   // Limits at the edge (R15): threads (each open call of this synchronous server holds
-  // one; watches are capped below this by the service, so workers always get through),
-  // streams per connection, and connections idle for 10 minutes closed.
+  // one; watches are capped below this by the service, so workers get through them),
+  // streams per connection, and idle connections closed.
   grpc::ResourceQuota quota("cpvs-server");
-  quota.SetMaxThreads(coordinator.config().maxWatches + 256);
+  quota.SetMaxThreads(coordinator.config().maxWatches + connections.spareThreads);
   builder.SetResourceQuota(quota);
-  builder.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS, 128);
-  builder.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS, 10 * 60 * 1000);
+  builder.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS, connections.streamsPerConnection);
+  builder.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS, ms(connections.idleSeconds));
   builder.SetMaxReceiveMessageSize(net::kMaxMessageBytes);
   builder.SetMaxSendMessageSize(net::kMaxMessageBytes);
   builder.RegisterService(&farm_);

@@ -88,11 +88,11 @@ grpc::Status FarmService::GetUploadStatus(grpc::ServerContext* ctx, const pb::Sc
 
 grpc::Status FarmService::UploadScene(grpc::ServerContext* ctx, grpc::ServerReader<pb::UploadSceneChunk>* reader,
                                       pb::UploadSceneReply* out) {
-  return guarded(ctx, gate_, Role::Client, "UploadScene", [&] {
+  return guarded(ctx, gate_, Role::Client, "UploadScene", [&](const Access& access) {
     pb::UploadSceneChunk chunk;
     if (!reader->Read(&chunk)) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "empty upload stream");
     const std::string hash = chunk.scene_hash();
-    c_.scenes().beginUpload(chunk);
+    c_.scenes().beginUpload(chunk, access);
     // The coordinator checked the size and the resume offset; the stream must continue them.
     net::ChunkReceiver receiver(chunk.offset(), chunk.total_size(), ErrorKind::InvalidArgument, "the upload");
     bool first = true;

@@ -116,8 +116,9 @@ constexpr int kOptionsColumn = 16;
 /// 8: light bundles, their lights (jobs.lights) and grids (job_grids), added to a version
 /// 2 to 7 store (whose jobs are sun bakes); 9: every job's grids in job_grids, of either
 /// projection (a sun job's one orthographic grid moved there from the jobs table's
-/// columns when a version 2 to 8 store is upgraded).
-constexpr int kSchemaVersion = 9;
+/// columns when a version 2 to 8 store is upgraded); 10: the client that began each
+/// scene's upload (scenes.owner, for the per-client upload quotas; '' in an upgraded store).
+constexpr int kSchemaVersion = 10;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -297,7 +298,8 @@ FarmStore::FarmStore(const std::string& path) {
   Transaction schema(db_);
   exec(
       "CREATE TABLE IF NOT EXISTS scenes(hash TEXT PRIMARY KEY, file_name TEXT, total_size INTEGER, received INTEGER,"
-      " complete INTEGER, triangles INTEGER, geometry_hash TEXT, last_used_ms INTEGER NOT NULL DEFAULT 0)");
+      " complete INTEGER, triangles INTEGER, geometry_hash TEXT, last_used_ms INTEGER NOT NULL DEFAULT 0,"
+      " owner TEXT NOT NULL DEFAULT '')");
   {
     Statement v(db_, "PRAGMA user_version");
     v.step();
@@ -327,6 +329,7 @@ FarmStore::FarmStore(const std::string& path) {
       if (tracks.i64(0) > 0) exec("ALTER TABLE tracks ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
     }
     if (upgradable && version <= 7) exec("ALTER TABLE jobs ADD COLUMN lights BLOB NOT NULL DEFAULT ''");
+    if (upgradable && version <= 9) exec("ALTER TABLE scenes ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
     if (upgradable && version <= 8) {
       // A sun job's grid moves from the jobs table's columns to its job_grids row.
       if (version == 8) {
@@ -397,8 +400,8 @@ void FarmStore::exec(const char* sql) {
 std::optional<SceneRecord> FarmStore::scene(const std::string& hash) {
   std::lock_guard lock(mutex_);
   Statement s(db_,
-              "SELECT hash, file_name, total_size, received, complete, triangles, geometry_hash FROM scenes WHERE "
-              "hash = ?");
+              "SELECT hash, file_name, total_size, received, complete, triangles, geometry_hash, owner FROM scenes "
+              "WHERE hash = ?");
   s.text(1, hash);
   if (!s.step()) return std::nullopt;
   SceneRecord r;
@@ -409,18 +412,29 @@ std::optional<SceneRecord> FarmStore::scene(const std::string& hash) {
   r.complete = s.i64(4) != 0;
   r.triangles = uint64_t(s.i64(5));
   r.geometryHash = s.str(6);
+  r.owner = s.str(7);
   return r;
 }
 
 void FarmStore::putScene(const SceneRecord& r) {
   std::lock_guard lock(mutex_);
   Statement s(db_, (std::string("INSERT OR REPLACE INTO scenes(hash, file_name, total_size, received, complete, "
-                                 "triangles, geometry_hash, last_used_ms) VALUES(?, ?, ?, ?, ?, ?, ?, ") +
+                                 "triangles, geometry_hash, owner, last_used_ms) VALUES(?, ?, ?, ?, ?, ?, ?, ?, ") +
                      kNowMs + ")")
                         .c_str());
   s.text(1, r.hash).text(2, r.fileName).bind(3, int64_t(r.totalSize)).bind(4, int64_t(r.received));
-  s.bind(5, int64_t(r.complete)).bind(6, int64_t(r.triangles)).text(7, r.geometryHash);
+  s.bind(5, int64_t(r.complete)).bind(6, int64_t(r.triangles)).text(7, r.geometryHash).text(8, r.owner);
   s.run();
+}
+
+SceneBytes FarmStore::sceneBytesOf(const std::string& owner) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_,
+              "SELECT COALESCE(SUM(CASE WHEN complete = 0 THEN total_size END), 0), "
+              "COALESCE(SUM(CASE WHEN complete = 1 THEN total_size END), 0) FROM scenes WHERE owner = ?");
+  s.text(1, owner);
+  s.step();
+  return {uint64_t(s.i64(0)), uint64_t(s.i64(1))};
 }
 
 void FarmStore::touchScene(const std::string& hash) {

@@ -44,6 +44,11 @@ struct SceneRecord {
   std::string hash, fileName, geometryHash;
   uint64_t totalSize = 0, received = 0, triangles = 0;
   bool complete = false;
+  std::string owner;  // the client whose upload began it ('' without tokens, or an administrator)
+};
+
+struct SceneBytes {
+  uint64_t uploading = 0, stored = 0;
 };
 
 /// One grid of a job (table job_grids): a sun job's one orthographic grid, or one of a
@@ -132,6 +137,8 @@ class FarmStore {
   // Scenes.
   std::optional<SceneRecord> scene(const std::string& hash);
   void putScene(const SceneRecord& s);
+  /// The bytes of one owner's scenes: announced by uploads in progress, and stored.
+  SceneBytes sceneBytesOf(const std::string& owner);
   /// Whether the store can take a write within `timeoutMs`: its lock and SQLite's write
   /// lock both free (what the health service reports, R27).
   bool responsive(int timeoutMs);

@@ -547,6 +547,65 @@ TEST(FarmAuthLimit, AnAddressThatKeepsFailingIsLockedOutForAWhile) {
   fs::remove_all(dir);
 }
 
+/// The test scene, then a comment naming `salt` and padding to exactly `size` bytes: a
+/// scene of a chosen size and hash.
+std::string sceneOfSize(size_t size, const std::string& salt) {
+  std::string text = testSceneObj() + "# " + salt + "\n";
+  for (size_t pad = size - std::min(size, text.size()); pad > 0;) {
+    const size_t n = std::min<size_t>(pad, 80);
+    text += std::string(n - 1, '#') + "\n";
+    pad -= n;
+  }
+  return text;
+}
+
+// R15: one client could fill the coordinator's disk with uploads and scenes. Its uploads
+// in progress and its stored scenes have a quota each; other clients and administrators
+// are not held up, and a scene another client stored costs nothing.
+TEST(FarmClientQuota, UploadsAndStoredScenesOfOneClientAreBounded) {
+  // 10,485 bytes in progress and 15,728 stored per client.
+  SuiteState s("quota", {"--client-uploads-mb", "0.01", "--client-scenes-mb", "0.015"});
+  ASSERT_EQ(s.problem, "");
+  FarmUnderTest& f = *s.farm;
+  ASSERT_LT(s.sceneBytes.size(), 2000u);  // the client's first stored scene (the suite's)
+  const std::string a = sceneOfSize(8000, "a"), b = sceneOfSize(4000, "b"), c = sceneOfSize(9000, "c"),
+                    d = sceneOfSize(8000, "d");
+  ASSERT_EQ(a.size(), 8000u);
+  pb::UploadSceneReply reply;
+  ASSERT_TRUE(f.upload(kClientToken, uploadChunks(hashOf(a), "a.obj", a, 0, 100), &reply).ok());
+  EXPECT_FALSE(reply.complete());
+  // 8,000 + 4,000 bytes in progress: over.
+  grpc::Status over = f.upload(kClientToken, uploadChunks(hashOf(b), "b.obj", b));
+  EXPECT_EQ(over.error_code(), StatusCode::RESOURCE_EXHAUSTED) << net::describe(over);
+  EXPECT_NE(over.error_message().find("uploads in progress"), std::string::npos) << over.error_message();
+  // Another client, and an administrator, are not counted against it.
+  ASSERT_TRUE(f.upload(kTeamToken, uploadChunks(hashOf(b), "b.obj", b), &reply).ok());
+  EXPECT_TRUE(reply.complete());
+  ASSERT_TRUE(f.upload(kAdminToken, uploadChunks(hashOf(c), "c.obj", c, 0, 100), &reply).ok());
+  // The client's upload completes: 8,000 more bytes stored, none in progress.
+  ASSERT_TRUE(f.upload(kClientToken, uploadChunks(hashOf(a), "a.obj", a, 100), &reply).ok());
+  EXPECT_TRUE(reply.complete());
+  // Its stored scenes and one more of 8,000 bytes: over.
+  over = f.upload(kClientToken, uploadChunks(hashOf(d), "d.obj", d));
+  EXPECT_EQ(over.error_code(), StatusCode::RESOURCE_EXHAUSTED) << net::describe(over);
+  EXPECT_NE(over.error_message().find("stored scenes"), std::string::npos) << over.error_message();
+  pb::UploadStatus status;
+  ASSERT_TRUE(f.uploadStatus(kClientToken, hashOf(d), &status).ok());
+  EXPECT_FALSE(status.known()) << "nothing of the refused upload is kept";
+  // A scene another client stored is no new bytes: the client still gets it.
+  ASSERT_TRUE(f.upload(kClientToken, uploadChunks(hashOf(b), "b.obj", b), &reply).ok());
+  EXPECT_TRUE(reply.complete());
+  // The owners outlive a restart: the client is still over its quota.
+  s.farm.reset();
+  fs::remove(s.dir / "quota.address");  // the next one's, not the last one's
+  s.farm = std::make_unique<FarmUnderTest>(s.dir, "quota", std::vector<std::string>{"--client-uploads-mb", "0.01",
+                                                                                     "--client-scenes-mb", "0.015"});
+  over = s.farm->upload(kClientToken, uploadChunks(hashOf(d), "d.obj", d));
+  EXPECT_EQ(over.error_code(), StatusCode::RESOURCE_EXHAUSTED) << net::describe(over);
+  EXPECT_TRUE(s.farm->upload(kTeamToken, uploadChunks(hashOf(d), "d.obj", d), &reply).ok());
+  EXPECT_TRUE(s.farm->running());
+}
+
 TEST_F(FarmSecurityTest, MalformedRequestsGetTheirStatusAndChangeNothing) {
   FarmUnderTest& f = *s_->farm;
   const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();

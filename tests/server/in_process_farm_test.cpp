@@ -714,7 +714,7 @@ void downgradeToSchema8(sqlite3* db) {
   sql += "DELETE FROM job_grids WHERE projection = 0; ";
   for (const char* column : {"projection", "origin_x", "origin_y", "origin_z", "u0", "v0", "d0", "extent", "depth_extent"})
     sql += std::string("ALTER TABLE job_grids DROP COLUMN ") + column + "; ";
-  sql += "PRAGMA user_version = 8";
+  sql += "ALTER TABLE scenes DROP COLUMN owner; PRAGMA user_version = 8";
   ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
 }
 
@@ -748,6 +748,28 @@ TEST(FarmStore, ASchemaEightStoreKeepsEveryGridOfEveryJob) {
   EXPECT_EQ(b->grids[0].closest, 3.25);
   store.createJob(sampleJob("after", 0, 1));
   EXPECT_TRUE(store.job("after")->grids.at(0).grid == sun.grids[0].grid);
+  // Scenes gained their owner (schema 10): none for those stored before.
+  store.putScene({"s1", "a.obj", "", 100, 100, 12, true, "alice"});
+  EXPECT_EQ(store.scene("s1")->owner, "alice");
+}
+
+// The bytes a client's scenes take (its upload quota's reading): announced by its uploads
+// in progress, and stored; another owner's are not its.
+TEST(FarmStore, SceneBytesAreCountedPerOwner) {
+  TempDir dir("cpvs_farm_store_scene_bytes");
+  server::FarmStore store(dir / "farm.sqlite");
+  EXPECT_EQ(store.sceneBytesOf("alice").uploading, 0u);
+  store.putScene({"s1", "a.obj", "", 100, 100, 12, true, "alice"});
+  store.putScene({"s2", "b.obj", "", 1000, 10, 0, false, "alice"});
+  store.putScene({"s3", "c.obj", "", 7000, 0, 0, false, "alice"});
+  store.putScene({"s4", "d.obj", "", 50000, 50000, 4, true, "bob"});
+  store.putScene({"s5", "e.obj", "", 3, 0, 0, false, ""});
+  const server::SceneBytes alice = store.sceneBytesOf("alice"), bob = store.sceneBytesOf("bob");
+  EXPECT_EQ(alice.uploading, 8000u);
+  EXPECT_EQ(alice.stored, 100u);
+  EXPECT_EQ(bob.uploading, 0u);
+  EXPECT_EQ(bob.stored, 50000u);
+  EXPECT_EQ(store.sceneBytesOf("").uploading, 3u);
 }
 
 // A store of schema 2 (before the renderer column) is upgraded in place: its jobs were

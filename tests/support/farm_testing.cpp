@@ -31,9 +31,9 @@ server::CoordinatorConfig defaults(const std::string& dataDir) {
 
 }  // namespace
 
-InProcessFarm::InProcessFarm(server::CoordinatorConfig config)
+InProcessFarm::InProcessFarm(server::CoordinatorConfig config, server::ConnectionLimits connections)
     : coordinator(std::move(config)),
-      server(coordinator, tokens, "127.0.0.1:0"),
+      server(coordinator, tokens, "127.0.0.1:0", nullptr, {}, false, connections),
       client(net::Connection{server.address(), "", ""}) {}
 
 InProcessFarm::InProcessFarm(const std::string& dataDir) : InProcessFarm(defaults(dataDir)) {}

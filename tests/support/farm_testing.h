@@ -40,7 +40,7 @@ class TempDir {
 
 /// A coordinator on `config.dataDir`, served without tokens on 127.0.0.1:0, and a client.
 struct InProcessFarm {
-  explicit InProcessFarm(server::CoordinatorConfig config);
+  explicit InProcessFarm(server::CoordinatorConfig config, server::ConnectionLimits connections = {});
   /// The same with defaults over `dataDir`.
   explicit InProcessFarm(const std::string& dataDir);
 
