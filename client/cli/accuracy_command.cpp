@@ -1,6 +1,5 @@
 // `cpvs accuracy`: bakes a scene at several resolutions and measures each bake, and plain
 // shadow maps, against exact ray-traced visibility on the same surface points.
-#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -91,8 +90,7 @@ void prepareOutDir(const std::string& dir) {
 }
 
 int runAccuracy(const AccuracyArgs& a) {
-  std::unique_ptr<tbb::global_control> limit;
-  if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
+  const auto limit = threadLimit(a.threads);
   AccuracyOptions opt;
   opt.log2Resolutions = parseResolutions(a.resolutions);
   if (a.samples < 100) throw InputError("--samples " + std::to_string(a.samples) + " must be at least 100");
@@ -158,7 +156,7 @@ void addAccuracyCommand(CLI::App& app, int& status) {
       ->capture_default_str();
   c->add_option("--timing-seconds", a->timingSeconds, "Each lookup timing repeats its batch at least this long")
       ->capture_default_str();
-  c->add_option("--threads,-j", a->threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  addThreadsFlag(c, a->threads);
   c->add_flag("--quiet,-q", a->quiet, "No progress output");
   c->callback([a, &status] { status = runAccuracy(*a); });
 }

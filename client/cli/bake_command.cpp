@@ -1,6 +1,5 @@
 // `cpvs bake`: one process, no server: scene in, .cpvs out, with a summary.
 #include <spdlog/spdlog.h>
-#include <tbb/global_control.h>
 
 #include <cstdio>
 #include <iostream>
@@ -161,8 +160,7 @@ int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point 
 
 int runBake(const BakeArgs& a) {
   auto totalStart = std::chrono::steady_clock::now();
-  std::unique_ptr<tbb::global_control> limit;
-  if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, a.threads);
+  const auto limit = threadLimit(a.threads);
   checkOutputFolder(a.out, "--out");
   if (a.lights.given()) return runLightBake(a, totalStart);
   if (a.pointerGrid != kMaxGridLevels) throw InputError("--pointer-grid is for light bundles (--spot, --point, --lights)");
@@ -243,7 +241,7 @@ void addBakeCommand(CLI::App& app, int& status) {
                 "(32^3 cells, at most what the resolution allows); the same answers, another size and speed")
       ->capture_default_str();
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
-  c->add_option("--threads,-j", a->threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  addThreadsFlag(c, a->threads);
   c->add_flag("!--no-zstd", a->zstd, "Store the levels uncompressed");
   c->add_flag("--json", a->json, "Print the summary as JSON on stdout");
   c->add_flag("--quiet,-q", a->quiet, "No progress output");

@@ -17,6 +17,17 @@
 
 namespace cpvs::cli {
 
+void addThreadsFlag(CLI::App* c, int& threads) {
+  c->add_option("--threads,-j", threads, "Threads for every parallel step (0 = all cores)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 4096));
+}
+
+std::unique_ptr<tbb::global_control> threadLimit(int threads) {
+  if (threads <= 0) return nullptr;
+  return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
+}
+
 namespace {
 
 template <class Option>

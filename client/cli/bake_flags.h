@@ -6,7 +6,10 @@
 
 #include <CLI/CLI.hpp>
 
+#include <tbb/global_control.h>
+
 #include <cmath>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -20,6 +23,12 @@
 #include "cpvs/scene/scene.h"
 
 namespace cpvs::cli {
+
+/// --threads,-j: how many threads every parallel step may use (0: all cores).
+void addThreadsFlag(CLI::App* c, int& threads);
+/// Holds TBB, and with it everything parallel in a bake (rendering, the camera cast,
+/// Embree's builds), to `threads` while it lives; nothing for 0.
+std::unique_ptr<tbb::global_control> threadLimit(int threads);
 
 /// --sun-dir, or --sun-elevation with --sun-azimuth.
 struct SunFlags {

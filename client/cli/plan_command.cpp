@@ -25,6 +25,7 @@ struct PlanArgs {
   OptionFlags options;
   std::string coveragePng;
   bool json = false;
+  int threads = 0;
 };
 
 // The grid seen from the sun, at most 1024 pixels a side: tiles no triangle touches
@@ -82,6 +83,7 @@ int runLightPlan(const PlanArgs& a) {
 }
 
 int runPlan(const PlanArgs& a) {
+  const auto limit = threadLimit(a.threads);  // cameras cast rays, receivers are gathered in parallel
   if (a.lights.given()) return runLightPlan(a);
   const BakeOptions options = optionsOf(a.options);
   const ReceiverDeclaration receivers = receiversOf(a.options);
@@ -116,6 +118,7 @@ void addPlanCommand(CLI::App& app, int& status) {
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R, as for bake")->capture_default_str();
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
   c->add_flag("--json", a->json, "Print the plan as JSON (what the artifact records)");
+  addThreadsFlag(c, a->threads);
   c->add_option("--coverage-png", a->coveragePng,
                 "Also draw the grid from the sun: tiles no triangle touches (black), tiles no receiver reads (dark "
                 "grey), tiles to render (grey), the columns receivers' lookups reach (orange)");

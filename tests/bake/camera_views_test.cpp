@@ -1,8 +1,13 @@
 // Sampled camera visibility: the exact caster against testing every triangle, bit for bit;
 // occluders hide what the faced (conservative) declaration keeps; the sample is the same
-// on any thread count and a subset of the faced sides; positions, budgets and refusals.
+// on any thread count (on the calling thread alone under a limit of one, as `--threads 1`
+// sets) and a subset of the faced sides; positions, budgets and refusals.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
+#include <tbb/task_scheduler_observer.h>
+
+#include <atomic>
+#include <thread>
 
 #include <random>
 
@@ -18,6 +23,14 @@ namespace cpvs {
 namespace {
 
 using testing::appendQuad;
+
+/// Counts TBB worker threads joining the calling thread's arena to run its tasks.
+struct WorkerEntries : tbb::task_scheduler_observer {
+  std::atomic<int> count{0};
+  WorkerEntries() { observe(true); }
+  ~WorkerEntries() override { observe(false); }
+  void on_scheduler_entry(bool isWorker) override { count += isWorker ? 1 : 0; }
+};
 
 TEST(ExactCaster, AgreesBitForBitWithTestingEveryTriangle) {
   // Random triangles and a grid of quads sharing edges and vertices (rays through them tie).
@@ -136,12 +149,17 @@ TEST(CameraViews, SampledSidesAreTheSameOnAnyThreadCountAndWithinTheFacedOnes) {
   d.cameraVisibility = CameraVisibility::Sampled;
   d.cameraSpacing = 0.04 * e;
   d.cameraRays = 32;
+  WorkerEntries workers;
   const CameraViews many = sampleCameraViews(city, d);
+  const int workersOfMany = workers.count.exchange(0);
   CameraViews one;
   {
+    // What `--threads 1` sets: the cast runs on the calling thread alone.
     tbb::global_control serial(tbb::global_control::max_allowed_parallelism, 1);
     one = sampleCameraViews(city, d);
   }
+  EXPECT_EQ(workers.count.load(), 0) << "the cast used TBB's worker threads under a limit of 1";
+  if (std::thread::hardware_concurrency() > 1) EXPECT_GT(workersOfMany, 0) << "the count sees workers";
   EXPECT_EQ(one.sides, many.sides);
   EXPECT_EQ(one.hits, many.hits);
   size_t seen = 0, facedCount = 0;

@@ -222,6 +222,16 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
   r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json" + sampled + " -o " + path("s.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;
   const uint64_t sampledBytes = parse(r)["bytes"].get<uint64_t>();
+  // On one thread (the cast too: camera_views_test) the same bytes, and the same plan.
+  r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 -q --threads 1" + sampled + " -o " +
+           path("s1.cpvs"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(readFile(path("s1.cpvs")), readFile(path("s.cpvs")));
+  const std::string planOf = "plan city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json" + sampled;
+  r = cpvs(planOf + " --threads 1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(r.out, cpvs(planOf).out);
+  EXPECT_EQ(cpvs(planOf + " --threads -1").status, 2);
   r = cpvs("bake city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json --receivers cameras:" +
            path("faced.json") + " -o " + path("f.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;
