@@ -6,6 +6,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/net/convert.h"
+#include "coordinator/stored_spec.h"
 
 namespace cpvs::server {
 
@@ -37,8 +38,7 @@ LightBundle bundleOf(const JobRecord& j, std::vector<Dag>&& dags, int pointerGri
   b.options = j.options;
   b.sceneHash = parseHashHex(j.geometryHash, "the job's geometry hash");
   b.receiverHash = j.receiverHash;
-  v1::LightList lights;
-  if (!lights.ParseFromString(j.lights)) throw FormatError("job " + j.id + ": its lights do not parse");
+  const v1::LightList lights = lightListOf(j);
   for (int i = 0; i < lights.lights_size(); ++i) b.lights.push_back({net::fromProto(lights.lights(i)), 0, 0});
   std::vector<double> closest;
   for (size_t k = 0; k < j.grids.size(); ++k) {

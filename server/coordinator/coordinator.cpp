@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "cpvs/net/convert.h"
+#include "coordinator/stored_spec.h"
 
 namespace cpvs::server {
 
@@ -19,7 +20,7 @@ std::string databasePath(const std::string& dataDir) { return (fs::path(dataDir)
 Coordinator::Coordinator(CoordinatorConfig config)
     : config_(std::move(config)),
       lock_(config_.dataDir),
-      store_(databasePath(config_.dataDir)),
+      store_(databasePath(config_.dataDir), legacySpecRewrite()),
       artifacts_(config_.dataDir),
       scenes_(store_, config_.dataDir, config_.maxUploadBytes, config_.import, config_.maxConcurrentImports,
               config_.maxPendingUploads, config_.clientUploads),

@@ -11,6 +11,7 @@
 
 #include "coordinator/bundle_job.h"
 #include "coordinator/clock.h"
+#include "coordinator/stored_spec.h"
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/bake/bake_plan.h"
 #include "cpvs/bake/bake_scene.h"
@@ -62,7 +63,7 @@ std::optional<pb::JobStatus> JobService::knownRequest(const pb::SubmitBakeReques
   // Request ids are one namespace: another client's says nothing about its job.
   if (!access.sees(existing->owner))
     throw FarmError(ErrorKind::AlreadyExists, "request_id " + request.request_id() + " is taken; use another");
-  if (existing->spec != request.spec().SerializeAsString())
+  if (!sameMessage(bakeSpecOf(*existing), request.spec()))
     throw FarmError(ErrorKind::AlreadyExists,
                     "request_id " + request.request_id() + " was used for a different job (" + existing->id + ")");
   return toStatus(*existing);
@@ -85,7 +86,11 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   s.set_job_id(j.id);
   s.set_request_id(j.requestId);
   s.set_state(pb::JobState(int(j.state)));
-  s.mutable_spec()->ParseFromString(j.spec);
+  try {
+    *s.mutable_spec() = bakeSpecOf(j);
+  } catch (const FormatError& e) {
+    spdlog::error("{}", e.what());  // the status still tells the job's state
+  }
   s.set_tiles_total(j.tilesTotal);
   s.set_tiles_done(j.tilesDone);
   s.set_tiles_untouched(j.tilesUntouched);
@@ -208,7 +213,7 @@ std::optional<pb::JobStatus> JobService::createJob(const pb::SubmitBakeRequest& 
   j.owner = access.owner;
   j.sceneHash = spec.scene_hash();
   j.geometryHash = sceneHash(scene).hex();
-  j.spec = spec.SerializeAsString();
+  storeSpec(j, spec);
   j.priority = spec.priority();
   j.createdMs = nowMs();
   // Checked again and created under one lock: a retry that arrives while its first call
@@ -299,7 +304,7 @@ pb::JobStatus JobService::submitBundle(const pb::SubmitBakeRequest& request, con
                                     std::to_string(uint64_t(1) << j.options.log2TileSize) + " texels,");
   v1::LightList list;
   for (const Light& l : lights) *list.add_lights() = net::toProto(l);
-  j.lights = list.SerializeAsString();
+  j.lights = storedJson(list);
   j.plan = lightPlanJson(planned, closest);
   j.tilesTotal = tiles.count();
   // Tiles whose texels all lie outside their light's cone are all lit (no light falls

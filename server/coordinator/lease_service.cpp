@@ -9,6 +9,7 @@
 #include "coordinator/bundle_job.h"
 #include "coordinator/clock.h"
 #include "coordinator/failpoint.h"
+#include "coordinator/stored_spec.h"
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/text.h"
@@ -104,7 +105,11 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
     out.set_grid_index(at.grid);
     out.set_light(g.light);
     pb::LightList lights;
-    if (!lights.ParseFromString(j->lights) || g.light >= uint32_t(lights.lights_size())) {
+    try {
+      lights = lightListOf(*j);
+    } catch (const FormatError&) {
+    }
+    if (g.light >= uint32_t(lights.lights_size())) {
       // Damaged in the store: no tile of the job can bake, so it fails instead of
       // leasing the same tile until its attempts run out.
       const std::string why = "its stored lights do not hold light " + std::to_string(g.light);
@@ -115,10 +120,8 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
   }
   *out.mutable_options() = net::toProto(j->options);
   if (j->options.receivers != ReceiverKind::Everywhere) {
-    // The volume (mesh hash, boxes) lives in the spec as submitted, not in the typed columns.
-    pb::BakeSpec spec;
-    spec.ParseFromString(j->spec);
-    *out.mutable_options()->mutable_receivers() = spec.options().receivers();
+    // The declaration (volume, boxes, cameras) lives in the spec as submitted, not in the typed columns.
+    *out.mutable_options()->mutable_receivers() = bakeSpecOf(*j).options().receivers();
   }
   out.set_deadline_unix_ms(deadline);
   out.set_lease_ms(uint32_t(deadline - now));

@@ -17,6 +17,7 @@
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/v1/farm.pb.h"
 #include "coordinator/clock.h"
+#include "coordinator/stored_spec.h"
 
 namespace cpvs::server {
 
@@ -224,8 +225,7 @@ bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
       }
     } else {
       // The grids' nodes shared in grid order, as bakeLights shares them.
-      v1::BakeSpec spec;
-      spec.ParseFromString(j.spec);
+      const v1::BakeSpec spec = bakeSpecOf(j);
       const LightBundle bundle = bundleOf(j, std::move(dags), spec.has_pointer_grid() ? int(spec.pointer_grid()) : kMaxGridLevels);
       m.dagBytes = bundle.poolBytes;
       const double merged = secondsSince(start);

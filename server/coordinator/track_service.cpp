@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "coordinator/clock.h"
+#include "coordinator/stored_spec.h"
 #include "cpvs/base/error.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/net/convert.h"
@@ -106,7 +107,11 @@ pb::TrackStatus TrackService::toStatus(const TrackRecord& t) const {
   s.set_track_id(t.id);
   s.set_request_id(t.requestId);
   s.set_state(pb::TrackState(t.state));
-  s.mutable_spec()->ParseFromString(t.spec);
+  try {
+    *s.mutable_spec() = trackSpecOf(t);
+  } catch (const FormatError& e) {
+    spdlog::error("{}", e.what());  // the status still tells the track's state
+  }
   s.set_keyframes_total(t.keyframesTotal);
   s.set_keyframes_published(t.published);
   s.set_keyframes_skipped(t.skipped);
@@ -139,7 +144,7 @@ pb::TrackStatus TrackService::create(const pb::CreateTrackRequest& request, cons
   if (auto known = store_.trackByRequest(request.request_id())) {
     if (!access.sees(known->owner))
       throw FarmError(ErrorKind::AlreadyExists, "request_id " + request.request_id() + " is taken; use another");
-    if (known->spec != spec.SerializeAsString())
+    if (!sameMessage(trackSpecOf(*known), spec))
       throw FarmError(ErrorKind::AlreadyExists, "request_id " + request.request_id() + " names another track");
     return toStatus(*known);
   }
@@ -176,7 +181,7 @@ pb::TrackStatus TrackService::create(const pb::CreateTrackRequest& request, cons
   t.id = randomId("t");
   t.requestId = request.request_id();
   t.owner = access.owner;
-  t.spec = spec.SerializeAsString();
+  storeSpec(t, spec);
   t.state = kActive;
   t.createdMs = nowMs();
   {
@@ -232,8 +237,7 @@ std::optional<VersionRecord> TrackService::versionAfter(const std::string& track
 }
 
 uint64_t TrackService::advance(const TrackRecord& t) {
-  pb::TrackSpec spec;
-  spec.ParseFromString(t.spec);
+  const pb::TrackSpec spec = trackSpecOf(t);
   const uint64_t ahead = spec.keyframes_ahead() ? spec.keyframes_ahead() : 2;
   const uint64_t keep = spec.keep_versions() ? spec.keep_versions() : 16;
   bool changed = false;

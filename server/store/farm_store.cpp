@@ -94,8 +94,8 @@ constexpr const char* kJobColumns =
     "id, request_id, scene_hash, geometry_hash, spec, state, priority, created_ms, started_ms, finished_ms, error, "
     "artifact_checksum, tiles_total, bytes, file_bytes, peak_merge_bytes, "
     "closed, exit_mode, cull, compress, undefined_rule, log2_tile_size, hash_kind, renderer, receivers, receiver_pcf, "
-    "receiver_hash, plan, owner, lights";
-constexpr int kJobColumnCount = 30;
+    "receiver_hash, plan, owner, lights, receiver_scene";
+constexpr int kJobColumnCount = 31;
 
 /// The SQL parameters of an INSERT of n columns: "?, ?, ..., ?".
 std::string parameterMarks(int n) {
@@ -117,8 +117,11 @@ constexpr int kOptionsColumn = 16;
 /// 2 to 7 store (whose jobs are sun bakes); 9: every job's grids in job_grids, of either
 /// projection (a sun job's one orthographic grid moved there from the jobs table's
 /// columns when a version 2 to 8 store is upgraded); 10: the client that began each
-/// scene's upload (scenes.owner, for the per-client upload quotas; '' in an upgraded store).
-constexpr int kSchemaVersion = 10;
+/// scene's upload (scenes.owner, for the per-client upload quotas; '' in an upgraded store);
+/// 11: specs and lights as JSON documents (protobuf's mapping) rather than serialized
+/// protobuf, and the scenes they name in columns of their own (jobs.receiver_scene,
+/// tracks.scene_hash), not found by searching the specs' bytes.
+constexpr int kSchemaVersion = 11;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -156,11 +159,12 @@ JobRecord readJob(const Statement& s) {
   j.plan = s.str(c + 11);
   j.owner = s.str(c + 12);
   j.lights = s.str(c + 13);
+  j.receiverScene = s.str(c + 14);
   return j;
 }
 
 void bindJob(Statement& s, const JobRecord& j) {
-  s.text(1, j.id).text(2, j.requestId).text(3, j.sceneHash).text(4, j.geometryHash).bind(5, j.spec);
+  s.text(1, j.id).text(2, j.requestId).text(3, j.sceneHash).text(4, j.geometryHash).text(5, j.spec);
   s.bind(6, int64_t(j.state)).bind(7, int64_t(j.priority)).bind(8, j.createdMs).bind(9, j.startedMs);
   s.bind(10, j.finishedMs).text(11, j.error).text(12, j.artifactChecksum).bind(13, int64_t(j.tilesTotal));
   s.bind(14, int64_t(0)).bind(15, int64_t(0)).bind(16, int64_t(0));
@@ -173,7 +177,8 @@ void bindJob(Statement& s, const JobRecord& j) {
   s.text(c++, j.receiverHash == Hash128{} ? std::string() : j.receiverHash.hex());
   s.text(c++, j.plan);
   s.text(c++, j.owner);
-  s.bind(c++, j.lights);
+  s.text(c++, j.lights);
+  s.text(c++, j.receiverScene);
 }
 
 constexpr const char* kGridColumns =
@@ -260,7 +265,7 @@ constexpr const char* kNowMs = "CAST(strftime('%s', 'now') AS INTEGER) * 1000";
 
 }  // namespace
 
-FarmStore::FarmStore(const std::string& path) {
+FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
   if (sqlite3_open(path.c_str(), &db_) != SQLITE_OK) {
     std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
     sqlite3_close(db_);
@@ -296,6 +301,7 @@ FarmStore::FarmStore(const std::string& path) {
   // The schema is made or upgraded in one transaction with its version: a crash half-way
   // leaves the store as it was, never a version whose columns are half there.
   Transaction schema(db_);
+  bool rewriteSpecs = false;
   exec(
       "CREATE TABLE IF NOT EXISTS scenes(hash TEXT PRIMARY KEY, file_name TEXT, total_size INTEGER, received INTEGER,"
       " complete INTEGER, triangles INTEGER, geometry_hash TEXT, last_used_ms INTEGER NOT NULL DEFAULT 0,"
@@ -330,6 +336,13 @@ FarmStore::FarmStore(const std::string& path) {
     }
     if (upgradable && version <= 7) exec("ALTER TABLE jobs ADD COLUMN lights BLOB NOT NULL DEFAULT ''");
     if (upgradable && version <= 9) exec("ALTER TABLE scenes ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
+    if (upgradable && version <= 10) {
+      exec("ALTER TABLE jobs ADD COLUMN receiver_scene TEXT NOT NULL DEFAULT ''");
+      Statement tracks(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'tracks'");
+      tracks.step();
+      if (tracks.i64(0) > 0) exec("ALTER TABLE tracks ADD COLUMN scene_hash TEXT NOT NULL DEFAULT ''");
+      rewriteSpecs = true;
+    }
     if (upgradable && version <= 8) {
       // A sun job's grid moves from the jobs table's columns to its job_grids row.
       if (version == 8) {
@@ -352,12 +365,12 @@ FarmStore::FarmStore(const std::string& path) {
   }
   exec(
       "CREATE TABLE IF NOT EXISTS jobs(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, scene_hash TEXT, geometry_hash "
-      "TEXT, spec BLOB, state INTEGER, priority INTEGER, created_ms INTEGER, started_ms INTEGER, finished_ms INTEGER, "
+      "TEXT, spec TEXT, state INTEGER, priority INTEGER, created_ms INTEGER, started_ms INTEGER, finished_ms INTEGER, "
       "error TEXT, artifact_checksum TEXT, tiles_total INTEGER, bytes INTEGER, file_bytes INTEGER, "
       "peak_merge_bytes INTEGER, closed INTEGER, exit_mode INTEGER, cull "
       "INTEGER, compress INTEGER, undefined_rule INTEGER, log2_tile_size INTEGER, hash_kind INTEGER, renderer INTEGER, "
       "receivers INTEGER, receiver_pcf INTEGER, receiver_hash TEXT, plan TEXT, owner TEXT NOT NULL DEFAULT '', "
-      "lights BLOB NOT NULL DEFAULT '')");
+      "lights TEXT NOT NULL DEFAULT '', receiver_scene TEXT NOT NULL DEFAULT '')");
   exec(kCreateJobGrids);
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
@@ -372,9 +385,9 @@ FarmStore::FarmStore(const std::string& path) {
       "granted_ms INTEGER)");
   exec("CREATE TABLE IF NOT EXISTS job_stages(job_id TEXT, stage TEXT, seconds REAL, PRIMARY KEY(job_id, stage))");
   exec(
-      "CREATE TABLE IF NOT EXISTS tracks(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, spec BLOB, state INTEGER, "
+      "CREATE TABLE IF NOT EXISTS tracks(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, spec TEXT, state INTEGER, "
       "created_ms INTEGER, error TEXT, keyframes_total INTEGER, next_keyframe INTEGER, published INTEGER, "
-      "skipped INTEGER, latest_sequence INTEGER, owner TEXT NOT NULL DEFAULT '')");
+      "skipped INTEGER, latest_sequence INTEGER, owner TEXT NOT NULL DEFAULT '', scene_hash TEXT NOT NULL DEFAULT '')");
   exec(
       "CREATE TABLE IF NOT EXISTS keyframes(track_id TEXT REFERENCES tracks(id), keyframe INTEGER, instant_ms "
       "INTEGER, dir_x REAL, dir_y REAL, dir_z REAL, job_id TEXT, state INTEGER, PRIMARY KEY(track_id, keyframe))");
@@ -382,6 +395,35 @@ FarmStore::FarmStore(const std::string& path) {
       "CREATE TABLE IF NOT EXISTS versions(track_id TEXT REFERENCES tracks(id), sequence INTEGER, keyframe INTEGER, "
       "instant_ms INTEGER, dir_x REAL, dir_y REAL, dir_z REAL, job_id TEXT, checksum TEXT, file_bytes INTEGER, "
       "published_ms INTEGER, PRIMARY KEY(track_id, sequence))");
+  if (rewriteSpecs) {
+    // In the schema's transaction: a crash leaves the old version with its old specs.
+    if (rewrite.job) {
+      std::vector<JobRecord> jobs;
+      for (Statement s(db_, "SELECT id, spec, lights FROM jobs"); s.step();) {
+        JobRecord& j = jobs.emplace_back();
+        j.id = s.str(0), j.spec = s.str(1), j.lights = s.str(2);
+      }
+      for (JobRecord& j : jobs) {
+        rewrite.job(j);
+        Statement u(db_, "UPDATE jobs SET spec = ?, lights = ?, receiver_scene = ? WHERE id = ?");
+        u.text(1, j.spec).text(2, j.lights).text(3, j.receiverScene).text(4, j.id);
+        u.run();
+      }
+    }
+    if (rewrite.track) {
+      std::vector<TrackRecord> tracks;
+      for (Statement s(db_, "SELECT id, spec FROM tracks"); s.step();) {
+        TrackRecord& t = tracks.emplace_back();
+        t.id = s.str(0), t.spec = s.str(1);
+      }
+      for (TrackRecord& t : tracks) {
+        rewrite.track(t);
+        Statement u(db_, "UPDATE tracks SET spec = ?, scene_hash = ? WHERE id = ?");
+        u.text(1, t.spec).text(2, t.sceneHash).text(3, t.id);
+        u.run();
+      }
+    }
+  }
   exec(("PRAGMA user_version = " + std::to_string(kSchemaVersion)).c_str());
   schema.commit();
 }
@@ -447,14 +489,14 @@ void FarmStore::touchScene(const std::string& hash) {
 std::vector<std::string> FarmStore::pruneUnusedScenes(int64_t beforeMs, size_t limit) {
   std::lock_guard lock(mutex_);
   Transaction t(db_);
-  // A receiver volume is a scene too: a job names it in its spec, so a scene any job
-  // still names in any way is kept (the spec's bytes hold the hash as text).
+  // A receiver volume is a scene too: a scene any job names, as its scene or its
+  // receivers', or an active track bakes, is kept.
   std::vector<std::string> hashes = selectAndDelete(
       db_,
       "SELECT hash FROM scenes WHERE complete = 1 AND last_used_ms < ? "
       "AND hash NOT IN (SELECT scene_hash FROM jobs) "
-      "AND NOT EXISTS (SELECT 1 FROM jobs WHERE instr(spec, CAST(scenes.hash AS BLOB)) > 0) "
-      "AND NOT EXISTS (SELECT 1 FROM tracks WHERE state = 1 AND instr(spec, CAST(scenes.hash AS BLOB)) > 0) "
+      "AND hash NOT IN (SELECT receiver_scene FROM jobs) "
+      "AND hash NOT IN (SELECT scene_hash FROM tracks WHERE state = 1) "
       "ORDER BY last_used_ms LIMIT ?",
       beforeMs, limit, {"DELETE FROM scenes WHERE hash = ?"});
   t.commit();
@@ -831,7 +873,7 @@ namespace {
 
 constexpr const char* kTrackColumns =
     "id, request_id, spec, state, created_ms, error, keyframes_total, next_keyframe, published, skipped, latest_sequence, "
-    "owner";
+    "owner, scene_hash";
 
 TrackRecord readTrack(Statement& s) {
   TrackRecord t;
@@ -847,6 +889,7 @@ TrackRecord readTrack(Statement& s) {
   t.skipped = uint64_t(s.i64(9));
   t.latestSequence = uint64_t(s.i64(10));
   t.owner = s.str(11);
+  t.sceneHash = s.str(12);
   return t;
 }
 
@@ -871,10 +914,10 @@ VersionRecord readVersion(Statement& s) {
 
 void FarmStore::createTrack(const TrackRecord& t) {
   std::lock_guard lock(mutex_);
-  Statement s(db_, (std::string("INSERT INTO tracks(") + kTrackColumns + ") VALUES(?,?,?,?,?,?,?,?,?,?,?,?)").c_str());
-  s.text(1, t.id).text(2, t.requestId).bind(3, t.spec).bind(4, int64_t(t.state)).bind(5, t.createdMs).text(6, t.error);
+  Statement s(db_, (std::string("INSERT INTO tracks(") + kTrackColumns + ") VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?)").c_str());
+  s.text(1, t.id).text(2, t.requestId).text(3, t.spec).bind(4, int64_t(t.state)).bind(5, t.createdMs).text(6, t.error);
   s.bind(7, int64_t(t.keyframesTotal)).bind(8, int64_t(t.nextKeyframe)).bind(9, int64_t(t.published));
-  s.bind(10, int64_t(t.skipped)).bind(11, int64_t(t.latestSequence)).text(12, t.owner);
+  s.bind(10, int64_t(t.skipped)).bind(11, int64_t(t.latestSequence)).text(12, t.owner).text(13, t.sceneHash);
   s.run();
 }
 

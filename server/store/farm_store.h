@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -47,6 +48,16 @@ struct SceneRecord {
   std::string owner;  // the client whose upload began it ('' without tokens, or an administrator)
 };
 
+struct JobRecord;
+struct TrackRecord;
+
+/// Rewrites a job's or a track's stored spec (spec, lights, and the scene columns they
+/// fill) in an older store's format to this build's; the store knows no spec format.
+struct SpecRewrite {
+  std::function<void(JobRecord&)> job;
+  std::function<void(TrackRecord&)> track;
+};
+
 struct SceneBytes {
   uint64_t uploading = 0, stored = 0;
 };
@@ -63,9 +74,12 @@ struct JobGrid {
 
 struct JobRecord {
   std::string id, requestId, sceneHash, geometryHash;
-  std::string spec;     // the request's cpvs.v1.BakeSpec as sent, serialized: shown back, compared on retries
-  /// A light bundle's lights, cpvs.v1.LightList serialized (the scene's own included: what
-  /// the artifact's light table records); empty for a sun bake.
+  /// The request's cpvs.v1.BakeSpec as sent, one JSON document in protobuf's mapping
+  /// (coordinator/stored_spec.h): shown back, compared on retries.
+  std::string spec;
+  std::string receiverScene;  // the scene hash of its receiver volume mesh, '' for none
+  /// A light bundle's lights, a cpvs.v1.LightList in the same JSON (the scene's own
+  /// included: what the artifact's light table records); empty for a sun bake.
   std::string lights;
   /// What the tiles bake, in GridTiles' order: the sun's one grid, or a bundle's.
   std::vector<JobGrid> grids;
@@ -96,7 +110,9 @@ struct LeaseRecord {
 /// A sun track (TrackService): its spec as sent, and how far it got. state holds the
 /// values of cpvs.v1.TrackState.
 struct TrackRecord {
-  std::string id, requestId, spec, error;
+  std::string id, requestId, error;
+  std::string spec;       // its cpvs.v1.TrackSpec as sent, in JSON as a job's spec
+  std::string sceneHash;  // the scene its keyframes bake
   std::string owner;  // the client that created it (R28); '' without tokens
   int state = 1;
   int64_t createdMs = 0;
@@ -129,7 +145,9 @@ class FarmStore {
  public:
   /// Opens (creating if needed) the database file. Throws std::runtime_error, also for a
   /// database of another schema version.
-  explicit FarmStore(const std::string& path);
+  /// Opens (or creates) the store at `path`, upgrading an older schema in place; specs
+  /// stored before they were JSON (schema 10 and older) are rewritten by `rewrite`.
+  explicit FarmStore(const std::string& path, SpecRewrite rewrite = {});
   ~FarmStore();
   FarmStore(const FarmStore&) = delete;
   FarmStore& operator=(const FarmStore&) = delete;

@@ -6,6 +6,7 @@
 #include <sqlite3.h>
 
 #include <algorithm>
+#include <tuple>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -33,6 +34,7 @@
 #include "rpc/farm_server.h"
 #include "store/farm_store.h"
 #include "cpvs/runtime/runtime.h"
+#include "coordinator/stored_spec.h"
 #include "farm_testing.h"
 #include "tile_worker.h"
 
@@ -714,7 +716,8 @@ void downgradeToSchema8(sqlite3* db) {
   sql += "DELETE FROM job_grids WHERE projection = 0; ";
   for (const char* column : {"projection", "origin_x", "origin_y", "origin_z", "u0", "v0", "d0", "extent", "depth_extent"})
     sql += std::string("ALTER TABLE job_grids DROP COLUMN ") + column + "; ";
-  sql += "ALTER TABLE scenes DROP COLUMN owner; PRAGMA user_version = 8";
+  sql += "ALTER TABLE scenes DROP COLUMN owner; ALTER TABLE jobs DROP COLUMN receiver_scene; "
+         "ALTER TABLE tracks DROP COLUMN scene_hash; PRAGMA user_version = 8";
   ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
 }
 
@@ -751,6 +754,90 @@ TEST(FarmStore, ASchemaEightStoreKeepsEveryGridOfEveryJob) {
   // Scenes gained their owner (schema 10): none for those stored before.
   store.putScene({"s1", "a.obj", "", 100, 100, 12, true, "alice"});
   EXPECT_EQ(store.scene("s1")->owner, "alice");
+}
+
+// A store of schema 10 kept specs and lights as serialized protobuf: opened by the
+// coordinator's rewrite, they become JSON documents that say the same, and the scenes
+// they name fill their columns.
+TEST(FarmStore, ASchemaTenStoreHasItsSpecsRewrittenAsJson) {
+  TempDir dir("cpvs_farm_store_v10");
+  const std::string path = dir / "farm.sqlite";
+  pb::BakeSpec spec;
+  spec.set_scene_hash(std::string(32, 'b'));
+  spec.set_resolution("4K");
+  spec.mutable_options()->mutable_receivers()->set_kind(pb::RECEIVERS_VOLUME);
+  spec.mutable_options()->mutable_receivers()->set_volume_scene_hash(std::string(32, '7'));
+  spec.set_name("with a volume");
+  pb::LightList lights;
+  lights.add_lights()->set_kind(pb::LIGHT_POINT);
+  pb::TrackSpec trackSpec;
+  trackSpec.set_scene_hash(std::string(32, '8'));
+  trackSpec.set_resolution("1K");
+  {
+    server::FarmStore store(path);
+    server::JobRecord j = sampleJob("old", 0, 1);
+    j.spec = spec.SerializeAsString();
+    j.lights = lights.SerializeAsString();
+    store.createJob(j);
+    server::JobRecord sun = sampleJob("sun", 0, 1);
+    sun.spec = pb::BakeSpec().SerializeAsString();  // an empty message: no bytes at all
+    store.createJob(sun);
+    server::TrackRecord t;
+    t.id = "t1";
+    t.requestId = "rt1";
+    t.spec = trackSpec.SerializeAsString();
+    store.createTrack(t);
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db,
+                         "ALTER TABLE jobs DROP COLUMN receiver_scene; ALTER TABLE tracks DROP COLUMN scene_hash; "
+                         "PRAGMA user_version = 10",
+                         nullptr, nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+  server::FarmStore store(path, server::legacySpecRewrite());
+  const auto j = store.job("old");
+  ASSERT_TRUE(j.has_value());
+  EXPECT_EQ(j->spec.front(), '{') << j->spec;
+  EXPECT_NE(j->spec.find("\"volume_scene_hash\":\"77777777777777777777777777777777\""), std::string::npos) << j->spec;
+  EXPECT_TRUE(server::sameMessage(server::bakeSpecOf(*j), spec));
+  EXPECT_TRUE(server::sameMessage(server::lightListOf(*j), lights));
+  EXPECT_EQ(j->receiverScene, std::string(32, '7'));
+  EXPECT_EQ(store.job("sun")->spec, "{}");
+  EXPECT_TRUE(store.job("sun")->lights.empty());  // a sun job has none
+  const auto t = store.track("t1");
+  ASSERT_TRUE(t.has_value());
+  EXPECT_TRUE(server::sameMessage(server::trackSpecOf(*t), trackSpec));
+  EXPECT_EQ(t->sceneHash, std::string(32, '8'));
+  // A damaged spec is a clear error, not an empty message.
+  server::JobRecord damaged = *j;
+  damaged.spec = "{\"scene_hash\": 3";
+  EXPECT_THROW(server::bakeSpecOf(damaged), FormatError);
+}
+
+// The scenes retention may forget: none a job names (its scene or its receiver volume's)
+// or an active track bakes.
+TEST(FarmStore, UnusedScenesAreThoseNoJobOrActiveTrackNames) {
+  TempDir dir("cpvs_farm_store_unused");
+  server::FarmStore store(dir / "farm.sqlite");
+  const std::string unused(32, 'd'), jobScene(32, 'b'), volume(32, '7'), tracked(32, '8'), ended(32, '9');
+  for (const std::string& hash : {unused, jobScene, volume, tracked, ended})
+    store.putScene({hash, "s.obj", "", 2, 2, 1, true});
+  server::JobRecord j = sampleJob("j", 0, 1);  // its scene is jobScene
+  j.receiverScene = volume;
+  store.createJob(j);
+  for (const auto& [id, hash, state] : {std::tuple{"t1", tracked, 1}, std::tuple{"t2", ended, 2}}) {
+    server::TrackRecord t;
+    t.id = id;
+    t.requestId = std::string("r") + id;
+    t.sceneHash = hash;
+    t.state = state;
+    store.createTrack(t);
+  }
+  std::vector<std::string> pruned = store.pruneUnusedScenes(std::numeric_limits<int64_t>::max(), 100);
+  std::sort(pruned.begin(), pruned.end());
+  EXPECT_EQ(pruned, (std::vector<std::string>{ended, unused}));  // sorted
 }
 
 // The bytes a client's scenes take (its upload quota's reading): announced by its uploads
