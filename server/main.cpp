@@ -13,6 +13,8 @@
 #include <sstream>
 #include <thread>
 
+#include <unistd.h>
+
 #include "coordinator/coordinator.h"
 #include "cpvs/scene/isolated_import.h"
 #include "cpvs/base/error.h"
@@ -77,7 +79,6 @@ std::string readText(const std::string& path, const char* what) {
 int main(int argc, char** argv) {
   // The coordinator runs itself in this mode to import an upload in a limited child
   // process (cpvs/scene/isolated_import.h); not for people.
-  if (argc == 3 && std::string(argv[1]) == "--import-scene") return cpvs::runImportHelper(argv[2]);
   CLI::App app{"cpvs-server: the coordinator of a CPVS bake farm. Takes bake jobs, splits them into tiles, "
                "leases them to workers, merges their sub-DAGs as they arrive and serves the artifacts."};
   std::string listen = "127.0.0.1:7443", data, addressFile, tokensFile, tlsCert, tlsKey, metricsListen, metricsAddressFile;
@@ -224,7 +225,10 @@ int main(int argc, char** argv) {
     config.maxUploadBytes = uint64_t(maxUploadMb * 1024 * 1024);
     config.clientUploads = {uint64_t(clientUploadsMb * 1024 * 1024), uint64_t(clientScenesMb * 1024 * 1024)};
     config.import.memoryBytes = uint64_t(importMemoryMb * 1024 * 1024);
-    config.import.helper = std::filesystem::read_symlink("/proc/self/exe").string();
+    config.import.helper = cpvs::importProgram();
+    if (config.import.helper.empty() || access(config.import.helper.c_str(), X_OK) != 0)
+      throw cpvs::InputError("the scene importer " + (config.import.helper.empty() ? "cpvs-import" : config.import.helper) +
+                             " is missing: uploads are imported by it (install it beside cpvs-server)");
     cpvs::server::TokenTable tokens = tokensFile.empty() ? cpvs::server::TokenTable() : cpvs::server::TokenTable::load(tokensFile);
     // Safe defaults: an open farm or tokens in cleartext only where nothing but this
     // machine can reach the port, unless the operator says so in as many words.

@@ -288,6 +288,12 @@ void TileWorker::release(const pb::TileLease& lease, const std::string& reason, 
   if (!s.ok()) spdlog::warn("could not release tile {}: {}", lease.tile_index(), net::describe(s));
 }
 
+Scene TileWorker::importScene(const std::string& sceneHash) {
+  // The coordinator imported the upload in its sandbox; a worker does not trust it more
+  // for that: assimp runs in cpvs-import here too.
+  return importIsolated(fetchScene(sceneHash), config_.import, nullptr, nullptr);
+}
+
 std::string TileWorker::fetchScene(const std::string& sceneHash) {
   try {
     return fetchSceneOnce(sceneHash);
@@ -369,7 +375,7 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
     if (!cached) cached = cache_[sceneHash] = std::make_shared<CachedScene>();
   }
   std::lock_guard lock(cached->mutex);
-  if (cached->scene.indices.empty()) cached->scene = loadScene(fetchScene(sceneHash), nullptr, ImportOptions{true});
+  if (cached->scene.indices.empty()) cached->scene = importScene(sceneHash);
   // Every field of the grid decides the projection; the bits of the doubles name it.
   std::string key = std::string(optionName(renderer)) + "," + std::to_string(int(grid.projection()));
   char field[32];
@@ -390,7 +396,7 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
   if (!prepared) {
     auto start = std::chrono::steady_clock::now();
     const ReceiverDeclaration declaration =
-        net::declarationOf(receivers, [&](const std::string& hash) { return loadScene(fetchScene(hash), nullptr, ImportOptions{true}); });
+        net::declarationOf(receivers, [&](const std::string& hash) { return importScene(hash); });
     Scene storage;
     const Scene& casters = castersOf(cached->scene, exclude, "the lease's light", storage);
     // A light's fixture casts none of its shadows but receives as the rest of the scene.

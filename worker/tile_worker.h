@@ -10,6 +10,7 @@
 #include <string>
 
 #include "cpvs/bake/bake_scene.h"
+#include "cpvs/scene/isolated_import.h"
 #include "cpvs/scene/source.h"
 #include "cpvs/v1/farm.grpc.pb.h"
 #include "cpvs/net/channel.h"
@@ -26,6 +27,9 @@ struct WorkerConfig {
   std::string workerId;    // for the coordinator's logs
   int maxTiles = 0;        // stop after this many tiles (0 = never; for tests)
   int threads = 0;         // threads per bake, Embree's and the DAG construction's (0 = all cores)
+  /// How fetched scene files are imported: in cpvs-import's sandbox (cpvs-worker's
+  /// default), or in this process when it names no helper (tests that embed a worker).
+  ImportLimits import;
 };
 
 /// The file in the cache folder a worker touches (at most every 5 s) whenever the
@@ -79,6 +83,8 @@ class TileWorker {
   /// The cached file of a scene, fetched when missing; WorkerFault for trouble of the
   /// worker's own or a damaged scene.
   std::string fetchScene(const std::string& sceneHash);
+  /// Fetches a scene and imports it under config_.import.
+  Scene importScene(const std::string& sceneHash);
   std::string fetchSceneOnce(const std::string& sceneHash);
   /// sendResult, again with backoff while the coordinator is unreachable.
   void deliverResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,

@@ -18,14 +18,13 @@
 
 namespace {
 
-// Every scene file is imported in a child process of this program, limited in memory and
-// time (CPVS_IMPORT_MEMORY_MB, CPVS_IMPORT_SECONDS): a file that crashes or hangs assimp
-// costs a clear error, never this process.
+// Every scene file is imported in a child process (cpvs-import, beside this program),
+// limited in memory and time (CPVS_IMPORT_MEMORY_MB, CPVS_IMPORT_SECONDS): a file that
+// crashes or hangs assimp costs a clear error, never this process.
 void isolateImports() {
   cpvs::ImportLimits limits;
-  std::error_code ec;
-  limits.helper = std::filesystem::read_symlink("/proc/self/exe", ec).string();
-  if (ec) return;  // no /proc: imported in this process
+  limits.helper = cpvs::importProgram();
+  if (limits.helper.empty()) return;  // no /proc: imported in this process
   limits.selfContained = false;
   auto positive = [](const char* name, double fallback) {
     const char* text = std::getenv(name);
@@ -43,9 +42,6 @@ void isolateImports() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // The import child (isolateImports); not for people.
-  if (argc >= 3 && std::string(argv[1]) == "--import-scene")
-    return cpvs::runImportHelper(argv[2], !(argc == 4 && std::string(argv[3]) == "--references"));
   CLI::App app{
       "cpvs: compact precomputed voxelized shadows.\n"
       "Bakes the sun's binary visibility of every voxel of a scene into a small DAG, and queries it.\n"

@@ -7,8 +7,14 @@
 #include <tbb/task_scheduler_observer.h>
 
 #include <atomic>
+#include <chrono>
 #include <thread>
 
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <optional>
 #include <random>
 
 #include "cpvs/bake/camera_views.h"
@@ -31,6 +37,25 @@ struct WorkerEntries : tbb::task_scheduler_observer {
   ~WorkerEntries() override { observe(false); }
   void on_scheduler_entry(bool isWorker) override { count += isWorker ? 1 : 0; }
 };
+
+/// The procedural city and sampled cameras: a street level region in the middle, a path
+/// along an edge and up. `faced`: the sides the faced declaration of the same places keeps.
+ReceiverDeclaration cityCameras(const Scene& city, std::vector<uint8_t>* faced = nullptr) {
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Cameras;
+  Vec3 lo, hi;
+  sceneBounds(city, lo, hi);
+  const Vec3 mid = (lo + hi) * 0.5;
+  const double e = hi.x - lo.x;
+  d.cameraRegions = {{Vec3{mid.x - 0.1 * e, lo.y + 0.01 * e, mid.z - 0.1 * e}, Vec3{mid.x + 0.1 * e, lo.y + 0.02 * e, mid.z + 0.1 * e}}};
+  d.cameraPaths = {{Vec3{lo.x, lo.y + 0.01 * e, lo.z}, Vec3{hi.x, lo.y + 0.01 * e, lo.z}, Vec3{hi.x, hi.y, hi.z}}};
+  d.viewDistance = 0.3 * e;
+  if (faced) *faced = receivingSides(city, d);
+  d.cameraVisibility = CameraVisibility::Sampled;
+  d.cameraSpacing = 0.04 * e;
+  d.cameraRays = 32;
+  return d;
+}
 
 TEST(ExactCaster, AgreesBitForBitWithTestingEveryTriangle) {
   // Random triangles and a grid of quads sharing edges and vertices (rays through them tie).
@@ -134,32 +159,45 @@ TEST(CameraViews, OccludersHideWhatTheFacedDeclarationKeeps) {
   for (uint8_t side : sampleCameraViews(s, near).sides) EXPECT_EQ(side, 0);
 }
 
+// The child process of TheCastHonoursAThreadLimit: a limit of CPVS_TEST_THREAD_LIMIT
+// threads (0: none) set before any parallel work, as `--threads` does; its exit status
+// is how many times a TBB worker joined the cast.
+TEST(CameraViewsChild, DISABLED_CastUnderALimit) {
+  const char* text = std::getenv("CPVS_TEST_THREAD_LIMIT");
+  if (!text) GTEST_SKIP() << "run by TheCastHonoursAThreadLimit";
+  std::optional<tbb::global_control> limit;
+  if (std::atoi(text) > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(std::atoi(text)));
+  const Scene city = makeProceduralCity(6, 11);
+  const ReceiverDeclaration d = cityCameras(city);
+  WorkerEntries workers;
+  (void)sampleCameraViews(city, d);
+  std::_Exit(std::min(workers.count.load(), 100));
+}
+
+// `--threads 1` (a TBB limit set before any parallel work) keeps the camera cast on the
+// calling thread: in a fresh process, no TBB worker joins it; without the limit, they do.
+TEST(CameraViews, TheCastHonoursAThreadLimit) {
+  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
+  auto workersJoining = [&](int limit) {
+    const std::string command = "CPVS_TEST_THREAD_LIMIT=" + std::to_string(limit) + " '" + self +
+                                "' --gtest_also_run_disabled_tests --gtest_filter=CameraViewsChild.* >/dev/null 2>&1";
+    const int status = std::system(command.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  EXPECT_EQ(workersJoining(1), 0);
+  if (std::thread::hardware_concurrency() > 1) EXPECT_GT(workersJoining(0), 0) << "the count sees workers";
+}
+
 TEST(CameraViews, SampledSidesAreTheSameOnAnyThreadCountAndWithinTheFacedOnes) {
   const Scene city = makeProceduralCity(6, 11);
-  ReceiverDeclaration d;
-  d.kind = ReceiverKind::Cameras;
-  Vec3 lo, hi;
-  sceneBounds(city, lo, hi);
-  const Vec3 mid = (lo + hi) * 0.5;
-  const double e = hi.x - lo.x;  // a street level region in the middle, a path along an edge and up
-  d.cameraRegions = {{Vec3{mid.x - 0.1 * e, lo.y + 0.01 * e, mid.z - 0.1 * e}, Vec3{mid.x + 0.1 * e, lo.y + 0.02 * e, mid.z + 0.1 * e}}};
-  d.cameraPaths = {{Vec3{lo.x, lo.y + 0.01 * e, lo.z}, Vec3{hi.x, lo.y + 0.01 * e, lo.z}, Vec3{hi.x, hi.y, hi.z}}};
-  d.viewDistance = 0.3 * e;
-  const std::vector<uint8_t> faced = receivingSides(city, d);
-  d.cameraVisibility = CameraVisibility::Sampled;
-  d.cameraSpacing = 0.04 * e;
-  d.cameraRays = 32;
-  WorkerEntries workers;
+  std::vector<uint8_t> faced;
+  const ReceiverDeclaration d = cityCameras(city, &faced);
   const CameraViews many = sampleCameraViews(city, d);
-  const int workersOfMany = workers.count.exchange(0);
   CameraViews one;
   {
-    // What `--threads 1` sets: the cast runs on the calling thread alone.
     tbb::global_control serial(tbb::global_control::max_allowed_parallelism, 1);
     one = sampleCameraViews(city, d);
   }
-  EXPECT_EQ(workers.count.load(), 0) << "the cast used TBB's worker threads under a limit of 1";
-  if (std::thread::hardware_concurrency() > 1) EXPECT_GT(workersOfMany, 0) << "the count sees workers";
   EXPECT_EQ(one.sides, many.sides);
   EXPECT_EQ(one.hits, many.hits);
   size_t seen = 0, facedCount = 0;

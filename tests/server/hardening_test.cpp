@@ -867,7 +867,7 @@ std::string gltfWithBuffer(const std::string& uri, uint64_t byteLength) {
 server::CoordinatorConfig isolatedImports(const std::string& dataDir, double seconds = 60, uint64_t memoryMb = 2048) {
   server::CoordinatorConfig config;
   config.dataDir = dataDir;
-  config.import.helper = CPVS_SERVER;
+  config.import.helper = CPVS_IMPORT;
   config.import.seconds = seconds;
   config.import.memoryBytes = memoryMb << 20;
   return config;

@@ -1,8 +1,7 @@
 // Scene files are imported outside the process that wants them: assimp is not robust
-// against hostile or broken files, so each import runs in a child process (the program
-// itself again, in its --import-scene mode: cpvs-server for uploads, cpvs for local
-// bakes) with its address space, CPU time and file writes limited and a wall-clock
-// timeout. What comes back is a scene mesh file (cpvs/scene/mesh_file.h), checked like any
+// against hostile or broken files, so each import runs in a child process (`cpvs-import`,
+// installed beside cpvs-server for uploads and cpvs for local bakes) with its address
+// space, CPU time and file writes limited, a wall-clock timeout and a seccomp filter. What comes back is a scene mesh file (cpvs/scene/mesh_file.h), checked like any
 // untrusted input. A crash, a hang or a memory blow-up of the importer costs that file only.
 #pragma once
 
@@ -15,8 +14,8 @@
 namespace cpvs {
 
 struct ImportLimits {
-  /// The program run as `HELPER --import-scene FILE` (the caller itself); empty: import
-  /// in this process, not isolated (tests and tools that embed a coordinator).
+  /// The program run as `HELPER FILE [--references]` (cpvs-import, importProgram());
+  /// empty: import in this process, not isolated (tests and tools that embed a coordinator).
   std::string helper;
   uint64_t memoryBytes = uint64_t(8) << 30;  // address space of the importer
   double seconds = 600;                      // wall clock (and CPU time) of one import
@@ -32,7 +31,11 @@ struct ImportLimits {
 Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneStats* stats,
                      std::vector<uint8_t>* meshBytes);
 
-/// The child's side (`--import-scene FILE [--references]`): imports FILE (self-contained
+/// cpvs-import beside the running program (the folder of /proc/self/exe), where a build
+/// and an install put it; empty when /proc cannot say where this program is.
+std::string importProgram();
+
+/// The child's side (cpvs-import's main: `FILE [--references]`): imports FILE (self-contained
 /// unless `selfContained` is false) and writes its mesh file to standard output. Exit status 0, 2 (the file does not import; the reason on standard error), or
 /// 3 (anything else, out of memory included). CPVS_FAILPOINT=import-crash, import-hang
 /// or import-hog (or POINT:TEXT, for a path holding TEXT) makes it crash, hang or
