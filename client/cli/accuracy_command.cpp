@@ -38,7 +38,9 @@ struct AccuracyArgs {
 class StageLog {
  public:
   explicit StageLog(bool enabled) : enabled_(enabled), start_(std::chrono::steady_clock::now()) {}
-  bool operator()(const std::string& stage, uint64_t done, uint64_t total) {
+  bool operator()(const Progress& p) {
+    const std::string& stage = p.stage;
+    const uint64_t done = p.done, total = p.total;
     if (!enabled_ || total == 0) return true;
     const double t = secondsSince(start_);
     const int percent = int(100.0 * double(done) / double(total));
@@ -117,7 +119,7 @@ int runAccuracy(const AccuracyArgs& a) {
                  static_cast<unsigned long long>(opt.pcfSamples));
   StageLog log(!a.quiet);
   const AccuracyReport report =
-      measureAccuracy(scene, frame, opt, [&](const std::string& s, uint64_t d, uint64_t t) { return log(s, d, t); });
+      measureAccuracy(scene, frame, opt, [&](const Progress& p) { return log(p); });
   writeAccuracyReport(report, a.out);
   std::cout << accuracyTable(report);
   if (!a.quiet)

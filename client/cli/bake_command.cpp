@@ -135,7 +135,7 @@ int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point 
   ProgressDisplay progress(!a.json && !a.quiet);
   LightBundle bundle = bakeLights(
       scene, lights, footprint, opt, sceneHash(scene), &st,
-      [&](const std::string& s, uint64_t d, uint64_t t) { return progress.update(s, d, t); }, nullptr, receivers);
+      [&](const Progress& p) { return progress.update(p); }, nullptr, receivers);
   progress.finish();
   if (a.pointerGrid != kMaxGridLevels) bundle = withPointerGrids(bundle, a.pointerGrid);
   start = std::chrono::steady_clock::now();
@@ -199,9 +199,7 @@ int runBake(const BakeArgs& a) {
   art.sceneHash = sceneHash(scene);
   art.receiverHash = receiverHash(receivers);
   art.plan = planJson(planBake(scene, ss, opt, receivers, prepared.raster(), prepared.receivers(), declaredMedia(a.options)));
-  art.dag = bakeGrid(prepared, opt, &st, [&](const std::string& s, uint64_t d, uint64_t t) {
-    return progress.update(s, d, t);
-  });
+  art.dag = bakeGrid(prepared, opt, &st, [&](const Progress& p) { return progress.update(p); });
   progress.finish();
   if (hasTranslucentMeshes(scene)) {
     start = std::chrono::steady_clock::now();

@@ -48,11 +48,13 @@ ProgressDisplay::ProgressDisplay(bool enabled) : enabled_(enabled), tty_(::isatt
 
 ProgressDisplay::~ProgressDisplay() { finish(); }
 
-bool ProgressDisplay::update(const std::string& stage, uint64_t done, uint64_t total) {
+bool ProgressDisplay::update(const Progress& p) {
+  const std::string& stage = p.stage;
+  const uint64_t done = p.done, total = p.total;
   if (!enabled_ || total == 0) return true;
   double t = now() - start_;
   double frac = double(done) / double(total);
-  double eta = done > 0 ? t / frac - t : 0;
+  double eta = p.secondsLeft >= 0 ? p.secondsLeft : done > 0 ? t / frac - t : 0;
   int percent = int(frac * 100);
   if (tty_) {
     const int width = 30;
@@ -60,7 +62,7 @@ bool ProgressDisplay::update(const std::string& stage, uint64_t done, uint64_t t
     std::fprintf(stderr, "\r%-8s [%s%s] %3d%%  %llu/%llu %s  %.1fs elapsed  ETA %.1fs ", stage.c_str(),
                  std::string(filled, '#').c_str(), std::string(width - filled, ' ').c_str(), percent,
                  static_cast<unsigned long long>(done), static_cast<unsigned long long>(total), unitOf(stage), t,
-                 done > 0 ? eta : 0.0);
+                 done > 0 || p.secondsLeft >= 0 ? eta : 0.0);
     std::fflush(stderr);
     drawn_ = true;
   } else if (done == total || percent / 10 != lastPercent_ / 10 || t - lastLog_ >= 5) {

@@ -13,6 +13,7 @@
 #include "cpvs/base/hash.h"
 #include "cpvs/base/text.h"
 #include "cpvs/base/error.h"
+#include "cpvs/base/progress.h"
 
 namespace cpvs::cli {
 
@@ -33,7 +34,9 @@ class ProgressDisplay {
  public:
   explicit ProgressDisplay(bool enabled);
   ~ProgressDisplay();
-  bool update(const std::string& stage, uint64_t done, uint64_t total);
+  /// Draws `p`; its ETA is p.secondsLeft when the work gave one, else done/total's
+  /// extrapolation of the time so far.
+  bool update(const Progress& p);
   void finish();
 
  private:

@@ -160,7 +160,8 @@ std::string statusJson(const pb::JobStatus& s, const std::string& indent, bool w
 pb::JobStatus followJob(FarmClient& client, const std::string& jobId, bool show) {
   ProgressDisplay progress(show);
   pb::JobStatus final = client.watch(jobId, [&](const pb::JobStatus& s) {
-    progress.update(net::jobStateName(s.state()), s.tiles_done(), s.tiles_total());
+    // The coordinator's ETA (from its running tiles' rate), not one made up here.
+    progress.update({net::jobStateName(s.state()), s.tiles_done(), s.tiles_total(), s.eta_seconds()});
   });
   progress.finish();
   return final;

@@ -107,7 +107,7 @@ class Reporter {
  public:
   explicit Reporter(const ProgressFn& fn) : fn_(fn) {}
   void operator()(const std::string& stage, uint64_t done, uint64_t total) const {
-    if (fn_ && !fn_(stage, done, total)) throw Cancelled();
+    if (fn_ && !fn_({stage, done, total})) throw Cancelled();
   }
   const ProgressFn& fn() const { return fn_; }
 
@@ -221,8 +221,8 @@ ShadowQuery bakeRow(const Inputs& in, const OrthoGrid& grid, const std::string& 
   const auto start = std::chrono::steady_clock::now();
   // The bake's own renderer, as `cpvs bake` would prepare it (included in the bake time).
   const BakeScene prepared(in.scene, grid, in.options.bake.renderer, 0, in.options.receivers);
-  art.dag = bakeGrid(prepared, art.options, &st, [&](const std::string&, uint64_t d, uint64_t t) {
-    return !in.progress || in.progress(label + " bake", d, t);
+  art.dag = bakeGrid(prepared, art.options, &st, [&](const Progress& p) {
+    return !in.progress || in.progress({label + " bake", p.done, p.total, p.secondsLeft});
   });
   row.bakeSeconds = secondsSince(start);
   row.stageSeconds = st.seconds;

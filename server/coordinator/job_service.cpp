@@ -12,6 +12,7 @@
 #include "coordinator/bundle_job.h"
 #include "coordinator/clock.h"
 #include "coordinator/stored_spec.h"
+#include "cpvs/bake/bake.h"
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/bake/bake_plan.h"
 #include "cpvs/bake/bake_scene.h"
@@ -106,8 +107,14 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   double eta = -1;
   const uint64_t baked = j.tilesDone - j.tilesUntouched - j.tilesUnread;  // those took no time
   if (j.state == JobState::Running && baked > 0 && j.startedMs > 0) {
-    double running = double(nowMs() - j.startedMs) / 1000.0;
+    const double running = double(nowMs() - j.startedMs) / 1000.0;
     eta = running * double(j.tilesTotal - j.tilesDone) / double(baked);
+    // Better, where the tiles' triangles are known: the worker seconds the tiles left
+    // should take by the law fitted to those done (TileEta's), turned into wall seconds
+    // at the rate the farm has turned worker seconds into wall seconds so far.
+    const TileCosts costs = store_.tileCosts(j.id);
+    if (const auto law = TileCostLaw::fit(costs.done); law && costs.done.t > 0)
+      eta = law->seconds(double(costs.leftTiles), costs.leftWork) * running / costs.done.t;
   }
   s.set_eta_seconds(isFinal(j.state) ? 0 : eta);
   s.set_error(j.error);
@@ -184,12 +191,14 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   // merged without a worker. The plan classified every tile (BakePlan::tileClasses, the
   // local bake's test, without building a renderer).
   BakePlan bakePlan;
+  std::vector<uint32_t> work;  // per tile, the triangles that reach it: what the ETA weighs
   {
     std::optional<Scene> opaque;
     const RasterScene projected(sunCasters(scene, opaque), grid);
     const ReceiverSet reads(scene, grid, receivers);
     bakePlan = planBake(scene, stats, options, receivers, projected, reads, media);
     j.plan = planJson(bakePlan);
+    work = tileWork(projected, plan, [&](uint64_t i) { return bakePlan.tileClasses.at(i) == BakePlan::kRendered; });
   }
   CPVS_CHECK(bakePlan.tileClasses.size() == j.tilesTotal);
   std::vector<TileState> states(j.tilesTotal, TileState::Queued);
@@ -197,7 +206,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
     if (bakePlan.tileClasses[i] == BakePlan::kUntouched) states[i] = TileState::Untouched;
     if (bakePlan.tileClasses[i] == BakePlan::kUnread) states[i] = TileState::Unread;
   }
-  if (auto existing = createJob(request, access, scene, j, states)) return *existing;
+  if (auto existing = createJob(request, access, scene, j, states, work)) return *existing;
   spdlog::info("job {} submitted: scene {}, {}^3, {} tiles ({} touched by no triangle, {} read by no receiver)", j.id,
                j.sceneHash, grid.resolution(), j.tilesTotal, bakePlan.tilesUntouched, bakePlan.tilesUnread);
   feed_.notify();
@@ -206,7 +215,8 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
 
 std::optional<pb::JobStatus> JobService::createJob(const pb::SubmitBakeRequest& request, const Access& access,
                                                    const Scene& scene, JobRecord& j,
-                                                   const std::vector<TileState>& states) {
+                                                   const std::vector<TileState>& states,
+                                                   const std::vector<uint32_t>& work) {
   const pb::BakeSpec& spec = request.spec();
   j.id = randomId("j");
   j.requestId = request.request_id();
@@ -224,7 +234,7 @@ std::optional<pb::JobStatus> JobService::createJob(const pb::SubmitBakeRequest& 
   if (auto existing = knownRequest(request, access)) return existing;
   checkRoom(access);
   artifacts_.createTileFolder(j.id);
-  store_.createJob(j, states);
+  store_.createJob(j, states, work);
   if (std::none_of(states.begin(), states.end(), [](TileState s) { return s == TileState::Queued; }))
     store_.setJobState(j.id, JobState::Merging, "", nowMs());
   for (uint64_t t = 0; t < j.tilesTotal; ++t)

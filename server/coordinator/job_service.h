@@ -71,10 +71,12 @@ class JobService {
   /// (grid, tile) of its grids.
   pb::JobStatus submitBundle(const pb::SubmitBakeRequest& request, const Access& access);
   /// Gives the job its identity from the request (id, owner, scene, spec, priority, time)
-  /// and creates it with its tiles in `states` (done ones queued for merging); the job a
-  /// retry names instead, when one does.
+  /// and creates it with its tiles in `states` (done ones queued for merging) and their
+  /// `work` (none known when empty: a bundle's ETA counts tiles); the job a retry names
+  /// instead, when one does.
   std::optional<pb::JobStatus> createJob(const pb::SubmitBakeRequest& request, const Access& access,
-                                         const Scene& scene, JobRecord& j, const std::vector<TileState>& states);
+                                         const Scene& scene, JobRecord& j, const std::vector<TileState>& states,
+                                         const std::vector<uint32_t>& work = {});
   void checkTileCount(uint64_t tiles, const std::string& what) const;
 
   FarmStore& store_;

@@ -206,7 +206,9 @@ bool LeaseService::takeResult(const std::string& leaseId, const std::string& enc
     throw FarmError(ErrorKind::Unavailable, "the coordinator cannot store the result now (its disk); send it again");
   }
   failpoint("tile-written");
-  if (!store_.completeTile(l->jobId, l->tile)) return false;
+  double seconds = 0;  // the worker's, what the ETA fits
+  for (const auto& [stage, s] : stages) seconds += s;
+  if (!store_.completeTile(l->jobId, l->tile, seconds)) return false;
   failpoint("tile-acknowledged");
   {
     std::lock_guard workersLock(workersMutex_);

@@ -120,8 +120,10 @@ constexpr int kOptionsColumn = 16;
 /// scene's upload (scenes.owner, for the per-client upload quotas; '' in an upgraded store);
 /// 11: specs and lights as JSON documents (protobuf's mapping) rather than serialized
 /// protobuf, and the scenes they name in columns of their own (jobs.receiver_scene,
-/// tracks.scene_hash), not found by searching the specs' bytes.
-constexpr int kSchemaVersion = 11;
+/// tracks.scene_hash), not found by searching the specs' bytes; 12: each tile's work (the
+/// triangles that reach it) and the seconds its worker spent, for the ETA (0 in an
+/// upgraded store: its jobs' ETA counts tiles).
+constexpr int kSchemaVersion = 12;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -343,6 +345,10 @@ FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
       if (tracks.i64(0) > 0) exec("ALTER TABLE tracks ADD COLUMN scene_hash TEXT NOT NULL DEFAULT ''");
       rewriteSpecs = true;
     }
+    if (upgradable && version <= 11) {
+      exec("ALTER TABLE tiles ADD COLUMN work INTEGER NOT NULL DEFAULT 0");
+      exec("ALTER TABLE tiles ADD COLUMN seconds REAL NOT NULL DEFAULT 0");
+    }
     if (upgradable && version <= 8) {
       // A sun job's grid moves from the jobs table's columns to its job_grids row.
       if (version == 8) {
@@ -374,7 +380,8 @@ FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
   exec(kCreateJobGrids);
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
-      "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, failed_by TEXT, PRIMARY KEY(job_id, idx))");
+      "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, failed_by TEXT, work INTEGER NOT NULL DEFAULT 0, "
+      "seconds REAL NOT NULL DEFAULT 0, PRIMARY KEY(job_id, idx))");
   exec("CREATE INDEX IF NOT EXISTS tiles_by_state ON tiles(state, job_id)");
   // A job's next queued tile in tile order, without walking the tiles done before it.
   exec("CREATE INDEX IF NOT EXISTS tiles_by_job_state ON tiles(job_id, state, idx)");
@@ -575,17 +582,20 @@ std::optional<JobRecord> FarmStore::jobByRequest(const std::string& requestId) {
   return job(id);
 }
 
-void FarmStore::createJob(const JobRecord& j, const std::vector<TileState>& states) {
+void FarmStore::createJob(const JobRecord& j, const std::vector<TileState>& states, const std::vector<uint32_t>& work) {
   CPVS_CHECK(states.empty() || states.size() == j.tilesTotal);
+  CPVS_CHECK(work.empty() || work.size() == j.tilesTotal);
   std::lock_guard lock(mutex_);
   Transaction t(db_);
   Statement s(db_, (std::string("INSERT INTO jobs(") + kJobColumns + ") VALUES(" + parameterMarks(kJobColumnCount) + ")").c_str());
   bindJob(s, j);
   s.run();
-  Statement tile(db_, "INSERT INTO tiles VALUES(?, ?, ?, 0, NULL, 0, '', NULL)");  // prepared once
+  Statement tile(db_,
+                 "INSERT INTO tiles(job_id, idx, state, attempts, lease_id, deadline_ms, last_error, failed_by, work) "
+                 "VALUES(?, ?, ?, 0, NULL, 0, '', NULL, ?)");  // prepared once
   for (uint64_t i = 0; i < j.tilesTotal; ++i) {
     const TileState state = states.empty() ? TileState::Queued : states[i];
-    tile.text(1, j.id).bind(2, int64_t(i)).bind(3, int64_t(state));
+    tile.text(1, j.id).bind(2, int64_t(i)).bind(3, int64_t(state)).bind(4, int64_t(work.empty() ? 0 : work[i]));
     tile.run();
     tile.reset();
   }
@@ -775,12 +785,32 @@ std::optional<TileState> FarmStore::tileState(const std::string& jobId, uint64_t
   return TileState(s.i64(0));
 }
 
-bool FarmStore::completeTile(const std::string& jobId, uint64_t tile) {
+bool FarmStore::completeTile(const std::string& jobId, uint64_t tile, double seconds) {
   std::lock_guard lock(mutex_);
-  Statement s(db_, "UPDATE tiles SET state = 2, lease_id = NULL WHERE job_id = ? AND idx = ? AND state IN (0, 1)");
-  s.text(1, jobId).bind(2, int64_t(tile));
+  Statement s(db_,
+              "UPDATE tiles SET state = 2, lease_id = NULL, seconds = ? WHERE job_id = ? AND idx = ? AND state IN (0, 1)");
+  s.bind(1, seconds).text(2, jobId).bind(3, int64_t(tile));
   s.run();
   return sqlite3_changes(db_) > 0;
+}
+
+TileCosts FarmStore::tileCosts(const std::string& jobId) {
+  std::lock_guard lock(mutex_);
+  // One pass over the job's tiles (its index range): done ones with their seconds, the
+  // queued and leased ones still to do.
+  Statement s(db_,
+              "SELECT COUNT(*), TOTAL(work), TOTAL(work * work), TOTAL(seconds), TOTAL(work * seconds) FROM tiles "
+              "WHERE job_id = ? AND state = 2 AND work > 0 AND seconds > 0");
+  s.text(1, jobId);
+  TileCosts c;
+  if (s.step()) c.done = {double(s.i64(0)), s.f64(1), s.f64(2), s.f64(3), s.f64(4)};
+  Statement left(db_, "SELECT COUNT(*), TOTAL(work) FROM tiles WHERE job_id = ? AND state IN (0, 1) AND work > 0");
+  left.text(1, jobId);
+  if (left.step()) {
+    c.leftTiles = uint64_t(left.i64(0));
+    c.leftWork = left.f64(1);
+  }
+  return c;
 }
 
 std::optional<int> FarmStore::requeueTile(const std::string& leaseId, const std::string& error, bool counts) {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "cpvs/bake/options.h"
+#include "cpvs/bake/tile_eta.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/vec3.h"
 #include "cpvs/light/grid_spec.h"
@@ -56,6 +57,14 @@ struct TrackRecord;
 struct SpecRewrite {
   std::function<void(JobRecord&)> job;
   std::function<void(TrackRecord&)> track;
+};
+
+/// A job's tiles with work (triangles) known: those done with their seconds, as sums, and
+/// those still to do.
+struct TileCosts {
+  TileCostSums done;
+  uint64_t leftTiles = 0;
+  double leftWork = 0;
 };
 
 struct SceneBytes {
@@ -176,10 +185,13 @@ class FarmStore {
   /// Tiles of the job still queued or leased (an index range, however large the job).
   uint64_t outstandingTiles(const std::string& jobId);
   std::optional<JobRecord> jobByRequest(const std::string& requestId);
-  /// Inserts the job and its tiles, all queued.
   /// The job and its tiles, each in its state of `states` (one per tile: Queued, Untouched
-  /// or Unread), or all Queued when `states` is empty.
-  void createJob(const JobRecord& j, const std::vector<TileState>& states = {});
+  /// or Unread), or all Queued when `states` is empty, and with its work of `work` (the
+  /// triangles that reach it, cpvs/bake/bake.h tileWork), or none known when empty.
+  void createJob(const JobRecord& j, const std::vector<TileState>& states = {},
+                 const std::vector<uint32_t>& work = {});
+  /// What the job's tiles cost so far and what is left, for its ETA (TileEta's law).
+  TileCosts tileCosts(const std::string& jobId);
   std::vector<JobRecord> jobs(bool includeFinished);
   /// At most `limit` jobs after the position (createdMs, id), oldest first: a page of a
   /// listing that stays bounded however many jobs the store holds (R16); with `owner`,
@@ -222,8 +234,9 @@ class FarmStore {
   bool renewLease(const std::string& leaseId, int64_t deadlineMs);
   /// The tile's state; nullopt for a tile the job does not have.
   std::optional<TileState> tileState(const std::string& jobId, uint64_t tile);
-  /// Marks the tile done unless it already is; returns whether this call did.
-  bool completeTile(const std::string& jobId, uint64_t tile);
+  /// Marks the tile done unless it already is, with the seconds its worker spent on it;
+  /// returns whether this call did.
+  bool completeTile(const std::string& jobId, uint64_t tile, double seconds = 0);
   /// Returns the tile of a failed lease to the queue when that lease is still the tile's
   /// current one, noting its worker as the one that failed it last; returns the tile's
   /// attempts so far (the lease's not counted when `counts` is false), nullopt when the

@@ -219,9 +219,9 @@ TEST(LightBundle, BakesRoundTripsAndSharesAcrossLights) {
   // Cancelled from the progress callback: the bake stops with Cancelled.
   size_t calls = 0;
   EXPECT_THROW(bakeLights(scene, lights, footprint, options, sceneHash(scene), nullptr,
-                          [&](const std::string& stage, uint64_t done, uint64_t total) {
-                            EXPECT_EQ(stage, "lights");
-                            EXPECT_EQ(total, b.grids.size());
+                          [&](const Progress& p) {
+                            EXPECT_EQ(p.stage, "lights");
+                            EXPECT_EQ(p.total, b.grids.size());
                             return ++calls < 3;
                           }),
                Cancelled);

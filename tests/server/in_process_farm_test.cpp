@@ -88,7 +88,20 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   const pb::JobStatus done = farmClient.watch(submitted.job_id());
   EXPECT_EQ(done.state(), pb::JOB_DONE) << done.error();
   EXPECT_EQ(done.tiles_total(), 16u);
+  EXPECT_EQ(done.eta_seconds(), 0);
   farmClient.download(submitted.job_id(), dir / "farm.cpvs");
+  {
+    // What the ETA is fitted to: each rendered tile's triangles, kept at submit, and the
+    // seconds its worker reported, kept at its acknowledgement.
+    server::FarmStore store(dir / "data/farm.sqlite");
+    const server::TileCosts costs = store.tileCosts(submitted.job_id());
+    EXPECT_EQ(costs.done.n, double(16 - done.tiles_untouched() - done.tiles_unread()));
+    EXPECT_GE(costs.done.w, costs.done.n);
+    EXPECT_GT(costs.done.t, 0);
+    EXPECT_EQ(costs.leftTiles, 0u);
+    EXPECT_EQ(costs.leftWork, 0);
+    EXPECT_TRUE(TileCostLaw::fit(costs.done).has_value());
+  }
 
   // The runtime fetches it into its cache under its content hash, then answers from the
   // cache; an unknown job is the farm's refusal.
@@ -717,7 +730,8 @@ void downgradeToSchema8(sqlite3* db) {
   for (const char* column : {"projection", "origin_x", "origin_y", "origin_z", "u0", "v0", "d0", "extent", "depth_extent"})
     sql += std::string("ALTER TABLE job_grids DROP COLUMN ") + column + "; ";
   sql += "ALTER TABLE scenes DROP COLUMN owner; ALTER TABLE jobs DROP COLUMN receiver_scene; "
-         "ALTER TABLE tracks DROP COLUMN scene_hash; PRAGMA user_version = 8";
+         "ALTER TABLE tracks DROP COLUMN scene_hash; ALTER TABLE tiles DROP COLUMN work; "
+         "ALTER TABLE tiles DROP COLUMN seconds; PRAGMA user_version = 8";
   ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
 }
 
@@ -792,6 +806,7 @@ TEST(FarmStore, ASchemaTenStoreHasItsSpecsRewrittenAsJson) {
   ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
   ASSERT_EQ(sqlite3_exec(db,
                          "ALTER TABLE jobs DROP COLUMN receiver_scene; ALTER TABLE tracks DROP COLUMN scene_hash; "
+                         "ALTER TABLE tiles DROP COLUMN work; ALTER TABLE tiles DROP COLUMN seconds; "
                          "PRAGMA user_version = 10",
                          nullptr, nullptr, nullptr),
             SQLITE_OK);
@@ -838,6 +853,36 @@ TEST(FarmStore, UnusedScenesAreThoseNoJobOrActiveTrackNames) {
   std::vector<std::string> pruned = store.pruneUnusedScenes(std::numeric_limits<int64_t>::max(), 100);
   std::sort(pruned.begin(), pruned.end());
   EXPECT_EQ(pruned, (std::vector<std::string>{ended, unused}));  // sorted
+}
+
+// Each tile's work (triangles) is kept with it, and the seconds of the tiles done; the
+// sums the ETA fits count done tiles with work and seconds, and the work left.
+TEST(FarmStore, TileCostsSumTheTilesDoneAndTheWorkLeft) {
+  TempDir dir("cpvs_farm_store_costs");
+  server::FarmStore store(dir / "farm.sqlite");
+  server::JobRecord j = sampleJob("j", 0, 5);
+  store.createJob(j, {server::TileState::Queued, server::TileState::Queued, server::TileState::Untouched,
+                      server::TileState::Queued, server::TileState::Queued},
+                  {10, 20, 0, 30, 40});
+  EXPECT_EQ(store.tileCosts("j").done.n, 0);
+  EXPECT_EQ(store.tileCosts("j").leftTiles, 4u);
+  EXPECT_EQ(store.tileCosts("j").leftWork, 100);
+  EXPECT_TRUE(store.completeTile("j", 0, 1.5));
+  EXPECT_TRUE(store.completeTile("j", 3, 2.5));
+  EXPECT_FALSE(store.completeTile("j", 3, 9.0));  // the first result's seconds stand
+  const server::TileCosts c = store.tileCosts("j");
+  EXPECT_EQ(c.done.n, 2);
+  EXPECT_EQ(c.done.w, 40);
+  EXPECT_EQ(c.done.ww, 100 + 900);
+  EXPECT_EQ(c.done.t, 4.0);
+  EXPECT_EQ(c.done.wt, 10 * 1.5 + 30 * 2.5);
+  EXPECT_EQ(c.leftTiles, 2u);
+  EXPECT_EQ(c.leftWork, 60);
+  // A job made without work (a bundle, or an upgraded store's) has none to fit.
+  store.createJob(sampleJob("none", 0, 2));
+  EXPECT_TRUE(store.completeTile("none", 0, 3.0));
+  EXPECT_EQ(store.tileCosts("none").done.n, 0);
+  EXPECT_EQ(store.tileCosts("none").leftTiles, 0u);
 }
 
 // The bytes a client's scenes take (its upload quota's reading): announced by its uploads

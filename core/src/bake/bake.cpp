@@ -1,11 +1,14 @@
 #include "cpvs/bake/bake.h"
 
 #include <algorithm>
+#include <chrono>
 #include <mutex>
+#include <optional>
 
 #include "cpvs/bake/column_masks.h"
 #include "cpvs/bake/insert_tile.h"
 #include "cpvs/bake/min_max_pyramid.h"
+#include "cpvs/bake/tile_eta.h"
 #include "cpvs/base/error.h"
 #include "cpvs/dag/compress.h"
 #include "cpvs/dag/assemble_roots.h"
@@ -67,22 +70,51 @@ Dag bakeUntouchedTile(int log2R, uint64_t tileX, uint64_t tileY, const BakeOptio
   return buildTile(masks, log2R, t, tileX, tileY, options, st);
 }
 
+std::vector<uint32_t> tileWork(const RasterScene& raster, const TilePlan& plan,
+                               const std::function<bool(uint64_t tile)>& rendered) {
+  std::vector<uint32_t> work(plan.count(), 0);
+  std::vector<uint32_t> touching;
+  const uint64_t T = uint64_t(1) << plan.log2TileSize();
+  for (uint64_t i = 0; i < plan.count(); ++i) {
+    if (!rendered(i)) continue;
+    const TileCoord tile = plan.tile(i);
+    raster.trianglesTouching(tile.x * T, tile.y * T, T, T, touching);
+    work[i] = uint32_t(std::max<size_t>(touching.size(), 1));  // rendered, so it costs something
+  }
+  return work;
+}
+
+std::vector<uint32_t> tileWork(const BakeScene& scene, const TilePlan& plan) {
+  return tileWork(scene.raster(), plan, [&](uint64_t i) {
+    const TileCoord tile = plan.tile(i);
+    return scene.touchesTile(tile.x, tile.y, plan.log2TileSize());
+  });
+}
+
 Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* times, const ProgressFn& progress) {
   StageTimes local;
   StageTimes& st = times ? *times : local;
   const TilePlan plan(scene.log2Resolution(), options.log2TileSize);
   const uint64_t total = plan.count();
   StreamingMerger merger(options.compress);
-  if (progress && !progress("bake", 0, total)) throw Cancelled();
+  std::optional<TileEta> eta;
+  if (progress) {
+    eta.emplace(tileWork(scene, plan));
+    if (!progress({"bake", 0, total})) throw Cancelled();
+  }
   // Tiles run one after another; each stage inside a tile is parallel. Merges happen as
   // tiles complete, so at most ~log2(tiles) partial DAGs are held.
   for (uint64_t i = 0; i < total; ++i) {
     const TileCoord tile = plan.tile(i);
+    const auto tileStart = std::chrono::steady_clock::now();
     Dag sub = bakeTile(scene, tile.x, tile.y, options, &st);
     auto start = std::chrono::steady_clock::now();
     merger.add(std::move(sub));
     st.add("merge", secondsSince(start));
-    if (progress && !progress("bake", i + 1, total)) throw Cancelled();
+    if (progress) {
+      eta->finished(i, secondsSince(tileStart));
+      if (!progress({"bake", i + 1, total, eta->secondsLeft()})) throw Cancelled();
+    }
   }
   auto start = std::chrono::steady_clock::now();
   Dag merged = *merger.finish();

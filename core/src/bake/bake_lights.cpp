@@ -176,7 +176,7 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
   std::vector<Dag> dags(n);
   std::vector<StageTimes> gridTimes(n);
   if (gridSeconds) gridSeconds->assign(n, 0);
-  if (progress && !progress("lights", 0, n)) throw Cancelled();
+  if (progress && !progress({"lights", 0, n})) throw Cancelled();
   // Grids bake side by side, each parallel inside too: one grid alone leaves cores idle
   // between its stages. Isolated, so that a thread waiting inside one grid's bake does
   // not start another (at most one grid per thread in memory). Each grid's DAG depends
@@ -226,7 +226,7 @@ LightBundle bakeLights(const Scene& scene, const std::vector<Light>& lights, dou
       std::lock_guard<std::mutex> lock(reporting);
       if (gridSeconds) (*gridSeconds)[k] = secondsSince(start);
       ++done;
-      if (progress && !cancelled && !progress("lights", done, n)) cancelled = true;
+      if (progress && !cancelled && !progress({"lights", done, n})) cancelled = true;
     }
   });
   if (cancelled) throw Cancelled();

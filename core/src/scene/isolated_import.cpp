@@ -71,16 +71,6 @@ Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneS
   argv.push_back(nullptr);
   const rlim_t memory = rlim_t(limits.memoryBytes);
   const rlim_t cpu = rlim_t(limits.seconds) + 1;
-  // The caller's environment (CPVS_FAILPOINT reaches the tests' child), and malloc asked
-  // for transparent huge pages: the child's heap is all new, and faulting it in 4 KiB
-  // pages was a tenth of a small import's time.
-  std::vector<std::string> environment;
-  for (char** e = environ; *e; ++e)
-    if (std::strncmp(*e, "GLIBC_TUNABLES=", 15) != 0) environment.emplace_back(*e);
-  environment.emplace_back("GLIBC_TUNABLES=glibc.malloc.hugetlb=1");
-  std::vector<char*> envp;
-  for (std::string& e : environment) envp.push_back(e.data());
-  envp.push_back(nullptr);
   // vfork: the child borrows this process's memory until it runs execve, instead of
   // copying its page tables (a coordinator holding a GiB paid milliseconds per import).
   // Until then it makes system calls only, on what was made above.
@@ -98,7 +88,7 @@ Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneS
     setrlimit(RLIMIT_CPU, &cpuTime);
     setrlimit(RLIMIT_FSIZE, &noFiles);  // it writes to its pipes only: no file at all
     setrlimit(RLIMIT_CORE, &noCore);
-    execve(argv[0], argv.data(), envp.data());
+    execv(argv[0], argv.data());
     _exit(127);
   }
   outWrite.reset();

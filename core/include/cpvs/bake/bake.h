@@ -2,6 +2,8 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <vector>
 
 #include "cpvs/bake/bake_scene.h"
 #include "cpvs/bake/options.h"
@@ -26,10 +28,20 @@ Dag bakeTile(const BakeScene& scene, uint64_t tileX, uint64_t tileY, const BakeO
 Dag bakeUntouchedTile(int log2Resolution, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
                       StageTimes* times = nullptr);
 
+/// Per tile of `plan`, in its order, the triangles that reach it
+/// (RasterScene::trianglesTouching; at least 1 for a tile that is rendered), 0 for a tile
+/// that is not (BakeScene::touchesTile): the work TileEta weighs tiles by.
+std::vector<uint32_t> tileWork(const BakeScene& scene, const TilePlan& plan);
+/// The same from a projection and which tiles are rendered (by index in `plan`'s order),
+/// for a planner that classified them (BakePlan::tileClasses).
+std::vector<uint32_t> tileWork(const RasterScene& raster, const TilePlan& plan,
+                               const std::function<bool(uint64_t tile)>& rendered);
+
 /// Bakes the whole grid: every tile (bakeTile), merged as they complete (StreamingMerger),
 /// then the levels above the tile roots. Tiles run one after another, each stage inside
 /// parallel (two tiles at once were measured slower on two cores: 6.6 s against 5.2 s for
-/// the city at 8K). Throws Cancelled when `progress` returns false.
+/// the city at 8K). Throws Cancelled when `progress` returns false; its reports carry the
+/// seconds left as TileEta estimates them from the tiles done.
 Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* times = nullptr,
              const ProgressFn& progress = nullptr);
 

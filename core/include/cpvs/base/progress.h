@@ -8,10 +8,19 @@
 
 namespace cpvs {
 
-/// Progress of long work: stage name, units done, units total. Return false to cancel;
-/// the work then throws Cancelled (base/error.h) at its next check. Called from the
-/// thread that runs the work, never concurrently.
-using ProgressFn = std::function<bool(const std::string& stage, uint64_t done, uint64_t total)>;
+/// How far long work is: units done of the total, and the seconds the work expects it
+/// still needs when it can say better than done/total would (its units cost unlike
+/// amounts: a bake's tiles hold unlike numbers of triangles); negative when it cannot.
+struct Progress {
+  std::string stage;
+  uint64_t done = 0, total = 0;
+  double secondsLeft = -1;
+};
+
+/// Progress of long work. Return false to cancel; the work then throws Cancelled
+/// (base/error.h) at its next check. Called from the thread that runs the work, never
+/// concurrently.
+using ProgressFn = std::function<bool(const Progress&)>;
 
 /// Seconds since `start`, for stage timing.
 inline double secondsSince(std::chrono::steady_clock::time_point start) {
