@@ -796,8 +796,8 @@ bool FarmStore::completeTile(const std::string& jobId, uint64_t tile, double sec
 
 TileCosts FarmStore::tileCosts(const std::string& jobId) {
   std::lock_guard lock(mutex_);
-  // One pass over the job's tiles (its index range): done ones with their seconds, the
-  // queued and leased ones still to do.
+  // The job's done tiles with their seconds, then its queued and leased ones still to
+  // do: two index ranges of (job, state).
   Statement s(db_,
               "SELECT COUNT(*), TOTAL(work), TOTAL(work * work), TOTAL(seconds), TOTAL(work * seconds) FROM tiles "
               "WHERE job_id = ? AND state = 2 AND work > 0 AND seconds > 0");
