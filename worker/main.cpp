@@ -109,6 +109,13 @@ int main(int argc, char** argv) {
                "Send the token without TLS to a coordinator that is not on this machine (a trusted private network)");
   app.add_option("--id", config.workerId, "Name in the coordinator's logs")->capture_default_str();
   app.add_option("--max-tiles", config.maxTiles, "Stop after this many tiles (0 = run until stopped)");
+  double importMemoryMb = double(config.import.memoryBytes >> 20);
+  app.add_option("--import-memory-mb", importMemoryMb,
+                 "Address space of cpvs-import, which imports each fetched scene (give what the coordinator's "
+                 "--import-memory-mb is: a scene it took must import here too)")
+      ->capture_default_str()->check(CLI::Range(64.0, 1048576.0));
+  app.add_option("--import-seconds", config.import.seconds, "Longest one scene's import may take (as the coordinator's)")
+      ->capture_default_str()->check(CLI::Range(1.0, 86400.0));
   app.add_option("--threads,-j", config.threads,
                  "Threads for all the slots' bakes together, for a worker sharing its machine (0 = all cores)")
       ->capture_default_str()
@@ -161,6 +168,7 @@ int main(int argc, char** argv) {
     threadLimit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, config.threads);
   try {
     config.import.helper = cpvs::importProgram();
+    config.import.memoryBytes = uint64_t(importMemoryMb * 1024 * 1024);
     if (config.import.helper.empty() || access(config.import.helper.c_str(), X_OK) != 0)
       throw cpvs::InputError("the scene importer " + (config.import.helper.empty() ? "cpvs-import" : config.import.helper) +
                              " is missing: scenes are imported by it (install it beside cpvs-worker)");

@@ -13,6 +13,7 @@
 #include "cpvs/scene/import.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/bake/bake_lights.h"
+#include "cpvs/base/error.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/text.h"
 #include "cpvs/io/cpvs_file.h"
@@ -291,7 +292,16 @@ void TileWorker::release(const pb::TileLease& lease, const std::string& reason, 
 Scene TileWorker::importScene(const std::string& sceneHash) {
   // The coordinator imported the upload in its sandbox; a worker does not trust it more
   // for that: assimp runs in cpvs-import here too.
-  return importIsolated(fetchScene(sceneHash), config_.import, nullptr, nullptr);
+  const std::string path = fetchScene(sceneHash);
+  try {
+    return importIsolated(path, config_.import, nullptr, nullptr);
+  } catch (const InputError&) {
+    throw;  // the file: the tile fails
+  } catch (const std::exception& e) {
+    // The importer could not run here (missing, no process or pipe): this worker's
+    // trouble, not the tile's.
+    throw WorkerFault(pb::FAIL_WORKER, "importing scene " + sceneHash + ": " + e.what());
+  }
 }
 
 std::string TileWorker::fetchScene(const std::string& sceneHash) {

@@ -82,6 +82,20 @@ void JobService::checkRoom(const Access& access) {
                                                       " unfinished jobs, the most one client may have");
 }
 
+TileCosts JobService::costsOf(const std::string& jobId) const {
+  const auto now = std::chrono::steady_clock::now();
+  {
+    std::lock_guard lock(costsMutex_);
+    const auto it = costs_.find(jobId);
+    if (it != costs_.end() && now - it->second.first < std::chrono::seconds(5)) return it->second.second;
+  }
+  TileCosts costs = store_.tileCosts(jobId);
+  std::lock_guard lock(costsMutex_);
+  if (costs_.size() >= 1024) costs_.clear();  // running jobs are far fewer; finished ones drop out
+  costs_[jobId] = {now, costs};
+  return costs;
+}
+
 pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   pb::JobStatus s;
   s.set_job_id(j.id);
@@ -112,7 +126,7 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
     // Better, where the tiles' triangles are known: the worker seconds the tiles left
     // should take by the law fitted to those done (TileEta's), turned into wall seconds
     // at the rate the farm has turned worker seconds into wall seconds so far.
-    const TileCosts costs = store_.tileCosts(j.id);
+    const TileCosts costs = costsOf(j.id);
     if (const auto law = TileCostLaw::fit(costs.done); law && costs.done.t > 0)
       eta = law->seconds(double(costs.leftTiles), costs.leftWork) * running / costs.done.t;
   }

@@ -2,6 +2,8 @@
 // cancelled or failed (the first end stands), done with an artifact.
 #pragma once
 
+#include <chrono>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -60,6 +62,9 @@ class JobService {
 
  private:
   pb::JobStatus toStatus(const JobRecord& j) const;
+  /// The job's tile costs (FarmStore::tileCosts), read again at most every 5 s: each is
+  /// a pass over its tiles under the store's lock, and every watch asks once a second.
+  TileCosts costsOf(const std::string& jobId) const;
   /// Ends an unfinished job as cancelled or failed; false when it had already ended.
   bool endJob(const std::string& jobId, JobState state, const std::string& why);
   /// The job a request id already names: the same spec is a retry, another is refused.
@@ -86,6 +91,8 @@ class JobService {
   ChangeFeed& feed_;
   JobLimits limits_;
   std::mutex submitMutex_;  // a request id's check and its job's creation, see submit
+  mutable std::mutex costsMutex_;
+  mutable std::map<std::string, std::pair<std::chrono::steady_clock::time_point, TileCosts>> costs_;
   std::mutex resultMutex_;
 };
 

@@ -102,8 +102,12 @@ void SceneStore::beginUpload(const pb::UploadSceneChunk& first, const Access& ac
   // when only the name differs (R19). Another size or format is a different claim about
   // the file: refused while the upload it would wipe is making progress, taken over once
   // that one has been idle (or the coordinator restarted since).
-  if (r && (r->totalSize != first.total_size() ||
-            fs::path(r->fileName).extension() != fs::path(first.file_name()).extension())) {
+  const bool anotherClaim = r && (r->totalSize != first.total_size() ||
+                                  fs::path(r->fileName).extension() != fs::path(first.file_name()).extension());
+  // A new upload is its caller's: within its quota, checked before anything is dropped
+  // to make room for it.
+  if ((!r || anotherClaim) && !access.everything) checkClientQuota(access.owner, first.total_size());
+  if (anotherClaim) {
     const auto last = lastActivity_.find(first.scene_hash());
     if (last != lastActivity_.end() && std::chrono::steady_clock::now() - last->second < kUploadIdleTakeover)
       throw FarmError(ErrorKind::FailedPrecondition,
@@ -129,7 +133,6 @@ void SceneStore::beginUpload(const pb::UploadSceneChunk& first, const Access& ac
                                                           " uploads are in progress on this coordinator; try again later");
     }
   }
-  if (!r && !access.everything) checkClientQuota(access.owner, first.total_size());
   SceneRecord rec =
       r ? *r : SceneRecord{first.scene_hash(), first.file_name(), "", first.total_size(), 0, 0, false, access.owner};
   if (first.offset() != rec.received)
@@ -150,9 +153,12 @@ void SceneStore::checkClientQuota(const std::string& owner, uint64_t totalSize) 
                     "this client's uploads in progress hold " + mib(held.uploading) + " and this one needs " +
                         mib(totalSize) + "; the limit is " + mib(clientQuota_.uploadingBytes) +
                         " per client: finish those (or let them expire) first");
-  if (held.stored + totalSize > clientQuota_.storedBytes)
+  // Uploads in progress become stored scenes: counted here too, so that several begun at
+  // once cannot together pass the quota.
+  if (held.stored + held.uploading + totalSize > clientQuota_.storedBytes)
     throw FarmError(ErrorKind::ResourceExhausted,
-                    "this client's stored scenes take " + mib(held.stored) + " and this one needs " + mib(totalSize) +
+                    "this client's stored scenes and uploads take " + mib(held.stored + held.uploading) +
+                        " and this one needs " + mib(totalSize) +
                         "; the limit is " + mib(clientQuota_.storedBytes) +
                         " per client: scenes no job names are forgotten after the farm's retention time");
 }

@@ -10,7 +10,10 @@ namespace cpvs::server {
 namespace {
 
 void parseStored(const std::string& json, google::protobuf::Message* m, const std::string& what) {
-  const auto status = google::protobuf::util::JsonStringToMessage(json, m);
+  // A field a later build removed is no reason to lose the job.
+  google::protobuf::util::JsonParseOptions options;
+  options.ignore_unknown_fields = true;
+  const auto status = google::protobuf::util::JsonStringToMessage(json, m, options);
   if (!status.ok()) throw FormatError(what + " does not parse: " + std::string(status.message()));
 }
 
@@ -42,6 +45,7 @@ void storeSpec(JobRecord& j, const pb::BakeSpec& spec) {
 void storeSpec(TrackRecord& t, const pb::TrackSpec& spec) {
   t.spec = storedJson(spec);
   t.sceneHash = spec.scene_hash();
+  t.receiverScene = spec.options().receivers().volume_scene_hash();
 }
 
 pb::BakeSpec bakeSpecOf(const JobRecord& j) {
@@ -63,7 +67,14 @@ pb::TrackSpec trackSpecOf(const TrackRecord& t) {
 }
 
 bool sameMessage(const google::protobuf::Message& a, const google::protobuf::Message& b) {
-  return google::protobuf::util::MessageDifferencer::Equals(a, b);
+  // What the JSON keeps: fields this build does not know (a newer client's) are not
+  // stored, so they do not make a retry another request.
+  std::unique_ptr<google::protobuf::Message> x(a.New()), y(b.New());
+  x->CopyFrom(a);
+  y->CopyFrom(b);
+  x->DiscardUnknownFields();
+  y->DiscardUnknownFields();
+  return google::protobuf::util::MessageDifferencer::Equals(*x, *y);
 }
 
 SpecRewrite legacySpecRewrite() {

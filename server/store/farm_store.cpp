@@ -120,7 +120,7 @@ constexpr int kOptionsColumn = 16;
 /// scene's upload (scenes.owner, for the per-client upload quotas; '' in an upgraded store);
 /// 11: specs and lights as JSON documents (protobuf's mapping) rather than serialized
 /// protobuf, and the scenes they name in columns of their own (jobs.receiver_scene,
-/// tracks.scene_hash), not found by searching the specs' bytes; 12: each tile's work (the
+/// tracks.scene_hash and receiver_scene), not found by searching the specs' bytes; 12: each tile's work (the
 /// triangles that reach it) and the seconds its worker spent, for the ETA (0 in an
 /// upgraded store: its jobs' ETA counts tiles).
 constexpr int kSchemaVersion = 12;
@@ -342,7 +342,10 @@ FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
       exec("ALTER TABLE jobs ADD COLUMN receiver_scene TEXT NOT NULL DEFAULT ''");
       Statement tracks(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'tracks'");
       tracks.step();
-      if (tracks.i64(0) > 0) exec("ALTER TABLE tracks ADD COLUMN scene_hash TEXT NOT NULL DEFAULT ''");
+      if (tracks.i64(0) > 0) {
+        exec("ALTER TABLE tracks ADD COLUMN scene_hash TEXT NOT NULL DEFAULT ''");
+        exec("ALTER TABLE tracks ADD COLUMN receiver_scene TEXT NOT NULL DEFAULT ''");
+      }
       rewriteSpecs = true;
     }
     if (upgradable && version <= 11) {
@@ -394,7 +397,8 @@ FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
   exec(
       "CREATE TABLE IF NOT EXISTS tracks(id TEXT PRIMARY KEY, request_id TEXT UNIQUE, spec TEXT, state INTEGER, "
       "created_ms INTEGER, error TEXT, keyframes_total INTEGER, next_keyframe INTEGER, published INTEGER, "
-      "skipped INTEGER, latest_sequence INTEGER, owner TEXT NOT NULL DEFAULT '', scene_hash TEXT NOT NULL DEFAULT '')");
+      "skipped INTEGER, latest_sequence INTEGER, owner TEXT NOT NULL DEFAULT '', scene_hash TEXT NOT NULL DEFAULT '', "
+      "receiver_scene TEXT NOT NULL DEFAULT '')");
   exec(
       "CREATE TABLE IF NOT EXISTS keyframes(track_id TEXT REFERENCES tracks(id), keyframe INTEGER, instant_ms "
       "INTEGER, dir_x REAL, dir_y REAL, dir_z REAL, job_id TEXT, state INTEGER, PRIMARY KEY(track_id, keyframe))");
@@ -425,8 +429,8 @@ FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
       }
       for (TrackRecord& t : tracks) {
         rewrite.track(t);
-        Statement u(db_, "UPDATE tracks SET spec = ?, scene_hash = ? WHERE id = ?");
-        u.text(1, t.spec).text(2, t.sceneHash).text(3, t.id);
+        Statement u(db_, "UPDATE tracks SET spec = ?, scene_hash = ?, receiver_scene = ? WHERE id = ?");
+        u.text(1, t.spec).text(2, t.sceneHash).text(3, t.receiverScene).text(4, t.id);
         u.run();
       }
     }
@@ -504,6 +508,7 @@ std::vector<std::string> FarmStore::pruneUnusedScenes(int64_t beforeMs, size_t l
       "AND hash NOT IN (SELECT scene_hash FROM jobs) "
       "AND hash NOT IN (SELECT receiver_scene FROM jobs) "
       "AND hash NOT IN (SELECT scene_hash FROM tracks WHERE state = 1) "
+      "AND hash NOT IN (SELECT receiver_scene FROM tracks WHERE state = 1) "
       "ORDER BY last_used_ms LIMIT ?",
       beforeMs, limit, {"DELETE FROM scenes WHERE hash = ?"});
   t.commit();
@@ -903,7 +908,7 @@ namespace {
 
 constexpr const char* kTrackColumns =
     "id, request_id, spec, state, created_ms, error, keyframes_total, next_keyframe, published, skipped, latest_sequence, "
-    "owner, scene_hash";
+    "owner, scene_hash, receiver_scene";
 
 TrackRecord readTrack(Statement& s) {
   TrackRecord t;
@@ -920,6 +925,7 @@ TrackRecord readTrack(Statement& s) {
   t.latestSequence = uint64_t(s.i64(10));
   t.owner = s.str(11);
   t.sceneHash = s.str(12);
+  t.receiverScene = s.str(13);
   return t;
 }
 
@@ -944,10 +950,10 @@ VersionRecord readVersion(Statement& s) {
 
 void FarmStore::createTrack(const TrackRecord& t) {
   std::lock_guard lock(mutex_);
-  Statement s(db_, (std::string("INSERT INTO tracks(") + kTrackColumns + ") VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?)").c_str());
+  Statement s(db_, (std::string("INSERT INTO tracks(") + kTrackColumns + ") VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?)").c_str());
   s.text(1, t.id).text(2, t.requestId).text(3, t.spec).bind(4, int64_t(t.state)).bind(5, t.createdMs).text(6, t.error);
   s.bind(7, int64_t(t.keyframesTotal)).bind(8, int64_t(t.nextKeyframe)).bind(9, int64_t(t.published));
-  s.bind(10, int64_t(t.skipped)).bind(11, int64_t(t.latestSequence)).text(12, t.owner).text(13, t.sceneHash);
+  s.bind(10, int64_t(t.skipped)).bind(11, int64_t(t.latestSequence)).text(12, t.owner).text(13, t.sceneHash).text(14, t.receiverScene);
   s.run();
 }
 

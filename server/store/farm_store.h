@@ -122,6 +122,7 @@ struct TrackRecord {
   std::string id, requestId, error;
   std::string spec;       // its cpvs.v1.TrackSpec as sent, in JSON as a job's spec
   std::string sceneHash;  // the scene its keyframes bake
+  std::string receiverScene;  // the scene hash of its receiver volume mesh, '' for none
   std::string owner;  // the client that created it (R28); '' without tokens
   int state = 1;
   int64_t createdMs = 0;

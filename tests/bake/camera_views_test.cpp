@@ -161,7 +161,8 @@ TEST(CameraViews, OccludersHideWhatTheFacedDeclarationKeeps) {
 
 // The child process of TheCastHonoursAThreadLimit: a limit of CPVS_TEST_THREAD_LIMIT
 // threads (0: none) set before any parallel work, as `--threads` does; its exit status
-// is how many times a TBB worker joined the cast.
+// is 100 plus how many times a TBB worker joined the cast (so that a child that ran no
+// test, exiting 0, is no answer).
 TEST(CameraViewsChild, DISABLED_CastUnderALimit) {
   const char* text = std::getenv("CPVS_TEST_THREAD_LIMIT");
   if (!text) GTEST_SKIP() << "run by TheCastHonoursAThreadLimit";
@@ -171,7 +172,7 @@ TEST(CameraViewsChild, DISABLED_CastUnderALimit) {
   const ReceiverDeclaration d = cityCameras(city);
   WorkerEntries workers;
   (void)sampleCameraViews(city, d);
-  std::_Exit(std::min(workers.count.load(), 100));
+  std::_Exit(100 + std::min(workers.count.load(), 100));
 }
 
 // `--threads 1` (a TBB limit set before any parallel work) keeps the camera cast on the
@@ -182,10 +183,15 @@ TEST(CameraViews, TheCastHonoursAThreadLimit) {
     const std::string command = "CPVS_TEST_THREAD_LIMIT=" + std::to_string(limit) + " '" + self +
                                 "' --gtest_also_run_disabled_tests --gtest_filter=CameraViewsChild.* >/dev/null 2>&1";
     const int status = std::system(command.c_str());
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return WIFEXITED(status) && WEXITSTATUS(status) >= 100 ? WEXITSTATUS(status) - 100 : -1;
   };
   EXPECT_EQ(workersJoining(1), 0);
-  if (std::thread::hardware_concurrency() > 1) EXPECT_GT(workersJoining(0), 0) << "the count sees workers";
+  if (std::thread::hardware_concurrency() > 1) {
+    // A busy machine may run a short cast before a worker wakes: a few tries.
+    int joined = 0;
+    for (int attempt = 0; attempt < 3 && joined <= 0; ++attempt) joined = workersJoining(0);
+    EXPECT_GT(joined, 0) << "the count sees workers";
+  }
 }
 
 TEST(CameraViews, SampledSidesAreTheSameOnAnyThreadCountAndWithinTheFacedOnes) {

@@ -1321,9 +1321,9 @@ TEST(Hardening, R16_R25_FinishedJobsAndAbandonedUploadsAreForgottenInTime) {
     store.setJobState("jnew", server::JobState::Failed, "failed", now);
     store.setJobState("jrun", server::JobState::Running, "", twoHoursAgo);
     store.setJobState("jtrack", server::JobState::Done, "", twoHoursAgo);
-    for (const std::string& hash : {oldUpload, newUpload}) store.putScene({hash, "s.obj", "", 1000, 8, 0, false});
+    for (const std::string& hash : {oldUpload, newUpload}) store.putScene({hash, "s.obj", "", 1000, 8, 0, false, ""});
     // Stored scenes: one no job names, one a running job names (oneTileJob's), one just used.
-    for (const std::string& hash : {unusedScene, usedScene, freshScene}) store.putScene({hash, "s.obj", "", 2, 2, 1, true});
+    for (const std::string& hash : {unusedScene, usedScene, freshScene}) store.putScene({hash, "s.obj", "", 2, 2, 1, true, ""});
   }
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open((data / "farm.sqlite").c_str(), &db), SQLITE_OK);

@@ -730,7 +730,8 @@ void downgradeToSchema8(sqlite3* db) {
   for (const char* column : {"projection", "origin_x", "origin_y", "origin_z", "u0", "v0", "d0", "extent", "depth_extent"})
     sql += std::string("ALTER TABLE job_grids DROP COLUMN ") + column + "; ";
   sql += "ALTER TABLE scenes DROP COLUMN owner; ALTER TABLE jobs DROP COLUMN receiver_scene; "
-         "ALTER TABLE tracks DROP COLUMN scene_hash; ALTER TABLE tiles DROP COLUMN work; "
+         "ALTER TABLE tracks DROP COLUMN scene_hash; ALTER TABLE tracks DROP COLUMN receiver_scene; "
+         "ALTER TABLE tiles DROP COLUMN work; "
          "ALTER TABLE tiles DROP COLUMN seconds; PRAGMA user_version = 8";
   ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
 }
@@ -787,6 +788,8 @@ TEST(FarmStore, ASchemaTenStoreHasItsSpecsRewrittenAsJson) {
   pb::TrackSpec trackSpec;
   trackSpec.set_scene_hash(std::string(32, '8'));
   trackSpec.set_resolution("1K");
+  trackSpec.mutable_options()->mutable_receivers()->set_kind(pb::RECEIVERS_VOLUME);
+  trackSpec.mutable_options()->mutable_receivers()->set_volume_scene_hash(std::string(32, '6'));
   {
     server::FarmStore store(path);
     server::JobRecord j = sampleJob("old", 0, 1);
@@ -806,6 +809,7 @@ TEST(FarmStore, ASchemaTenStoreHasItsSpecsRewrittenAsJson) {
   ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
   ASSERT_EQ(sqlite3_exec(db,
                          "ALTER TABLE jobs DROP COLUMN receiver_scene; ALTER TABLE tracks DROP COLUMN scene_hash; "
+                         "ALTER TABLE tracks DROP COLUMN receiver_scene; "
                          "ALTER TABLE tiles DROP COLUMN work; ALTER TABLE tiles DROP COLUMN seconds; "
                          "PRAGMA user_version = 10",
                          nullptr, nullptr, nullptr),
@@ -825,6 +829,7 @@ TEST(FarmStore, ASchemaTenStoreHasItsSpecsRewrittenAsJson) {
   ASSERT_TRUE(t.has_value());
   EXPECT_TRUE(server::sameMessage(server::trackSpecOf(*t), trackSpec));
   EXPECT_EQ(t->sceneHash, std::string(32, '8'));
+  EXPECT_EQ(t->receiverScene, std::string(32, '6'));
   // A damaged spec is a clear error, not an empty message.
   server::JobRecord damaged = *j;
   damaged.spec = "{\"scene_hash\": 3";
@@ -832,13 +837,14 @@ TEST(FarmStore, ASchemaTenStoreHasItsSpecsRewrittenAsJson) {
 }
 
 // The scenes retention may forget: none a job names (its scene or its receiver volume's)
-// or an active track bakes.
+// or an active track bakes (its scene or its receiver volume's).
 TEST(FarmStore, UnusedScenesAreThoseNoJobOrActiveTrackNames) {
   TempDir dir("cpvs_farm_store_unused");
   server::FarmStore store(dir / "farm.sqlite");
-  const std::string unused(32, 'd'), jobScene(32, 'b'), volume(32, '7'), tracked(32, '8'), ended(32, '9');
-  for (const std::string& hash : {unused, jobScene, volume, tracked, ended})
-    store.putScene({hash, "s.obj", "", 2, 2, 1, true});
+  const std::string unused(32, 'd'), jobScene(32, 'b'), volume(32, '7'), tracked(32, '8'), ended(32, '9'),
+      trackVolume(32, '6');
+  for (const std::string& hash : {unused, jobScene, volume, tracked, ended, trackVolume})
+    store.putScene({hash, "s.obj", "", 2, 2, 1, true, ""});
   server::JobRecord j = sampleJob("j", 0, 1);  // its scene is jobScene
   j.receiverScene = volume;
   store.createJob(j);
@@ -847,6 +853,7 @@ TEST(FarmStore, UnusedScenesAreThoseNoJobOrActiveTrackNames) {
     t.id = id;
     t.requestId = std::string("r") + id;
     t.sceneHash = hash;
+    t.receiverScene = state == 1 ? trackVolume : "";
     t.state = state;
     store.createTrack(t);
   }

@@ -4,6 +4,7 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <pthread.h>
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
@@ -73,10 +74,24 @@ Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneS
   const rlim_t cpu = rlim_t(limits.seconds) + 1;
   // vfork: the child borrows this process's memory until it runs execve, instead of
   // copying its page tables (a coordinator holding a GiB paid milliseconds per import).
-  // Until then it makes system calls only, on what was made above.
+  // Until then it makes system calls only, on what was made above, with every signal
+  // blocked: a handler of this process (a worker's SIGTERM count) must not run in the
+  // child on the shared memory. The child puts the handlers back to their defaults and
+  // the mask as it was before it runs the importer (what posix_spawn does).
+  sigset_t all, before;
+  sigfillset(&all);
+  pthread_sigmask(SIG_BLOCK, &all, &before);
   const pid_t pid = vfork();
-  if (pid < 0) throw std::runtime_error(std::string("vfork: ") + std::strerror(errno));
   if (pid == 0) {
+    for (int sig = 1; sig < NSIG; ++sig) {
+      struct sigaction action;
+      if (sigaction(sig, nullptr, &action) == 0 && action.sa_handler != SIG_IGN && action.sa_handler != SIG_DFL) {
+        action.sa_handler = SIG_DFL;
+        action.sa_flags = 0;
+        sigaction(sig, &action, nullptr);
+      }
+    }
+    sigprocmask(SIG_SETMASK, &before, nullptr);
     dup2(outWrite.fd, 1);
     dup2(errWrite.fd, 2);
     const int devNull = open("/dev/null", O_RDONLY);
@@ -91,6 +106,9 @@ Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneS
     execv(argv[0], argv.data());
     _exit(127);
   }
+  const int vforkError = errno;
+  pthread_sigmask(SIG_SETMASK, &before, nullptr);
+  if (pid < 0) throw std::runtime_error(std::string("vfork: ") + std::strerror(vforkError));
   outWrite.reset();
   errWrite.reset();
   std::vector<uint8_t> mesh;
