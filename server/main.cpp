@@ -13,8 +13,6 @@
 #include <sstream>
 #include <thread>
 
-#include <unistd.h>
-
 #include "coordinator/coordinator.h"
 #include "cpvs/scene/isolated_import.h"
 #include "cpvs/base/error.h"
@@ -225,10 +223,7 @@ int main(int argc, char** argv) {
     config.maxUploadBytes = uint64_t(maxUploadMb * 1024 * 1024);
     config.clientUploads = {uint64_t(clientUploadsMb * 1024 * 1024), uint64_t(clientScenesMb * 1024 * 1024)};
     config.import.memoryBytes = uint64_t(importMemoryMb * 1024 * 1024);
-    config.import.helper = cpvs::importProgram();
-    if (config.import.helper.empty() || access(config.import.helper.c_str(), X_OK) != 0)
-      throw cpvs::InputError("the scene importer " + (config.import.helper.empty() ? "cpvs-import" : config.import.helper) +
-                             " is missing: uploads are imported by it (install it beside cpvs-server)");
+    config.import.helper = cpvs::requiredImportProgram("cpvs-server");
     cpvs::server::TokenTable tokens = tokensFile.empty() ? cpvs::server::TokenTable() : cpvs::server::TokenTable::load(tokensFile);
     // Safe defaults: an open farm or tokens in cleartext only where nothing but this
     // machine can reach the port, unless the operator says so in as many words.

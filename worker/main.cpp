@@ -167,11 +167,8 @@ int main(int argc, char** argv) {
   if (config.threads > 0)
     threadLimit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, config.threads);
   try {
-    config.import.helper = cpvs::importProgram();
+    config.import.helper = cpvs::requiredImportProgram("cpvs-worker");
     config.import.memoryBytes = uint64_t(importMemoryMb * 1024 * 1024);
-    if (config.import.helper.empty() || access(config.import.helper.c_str(), X_OK) != 0)
-      throw cpvs::InputError("the scene importer " + (config.import.helper.empty() ? "cpvs-import" : config.import.helper) +
-                             " is missing: scenes are imported by it (install it beside cpvs-worker)");
     cpvs::worker::TileWorker worker(config);
     std::unique_ptr<cpvs::metrics::Endpoint> metrics;
     if (!metricsListen.empty()) {

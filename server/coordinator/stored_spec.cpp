@@ -17,15 +17,6 @@ void parseStored(const std::string& json, google::protobuf::Message* m, const st
   if (!status.ok()) throw FormatError(what + " does not parse: " + std::string(status.message()));
 }
 
-/// A message kept as serialized protobuf, as JSON (empty stays empty).
-template <typename Message>
-std::string rewritten(const std::string& bytes, const std::string& what) {
-  if (bytes.empty()) return bytes;
-  Message m;
-  if (!m.ParseFromString(bytes)) throw FormatError(what + ": its stored bytes do not parse");
-  return storedJson(m);
-}
-
 }  // namespace
 
 std::string storedJson(const google::protobuf::Message& m) {
@@ -82,7 +73,10 @@ SpecRewrite legacySpecRewrite() {
             pb::BakeSpec spec;
             if (!spec.ParseFromString(j.spec)) throw FormatError("job " + j.id + ": its stored spec does not parse");
             storeSpec(j, spec);
-            j.lights = rewritten<pb::LightList>(j.lights, "job " + j.id + ": its lights");
+            if (j.lights.empty()) return;  // a sun job
+            pb::LightList lights;
+            if (!lights.ParseFromString(j.lights)) throw FormatError("job " + j.id + ": its stored lights do not parse");
+            j.lights = storedJson(lights);
           },
           [](TrackRecord& t) {
             pb::TrackSpec spec;

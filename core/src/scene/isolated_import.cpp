@@ -182,6 +182,14 @@ std::string importProgram() {
   return (self.parent_path() / "cpvs-import").string();
 }
 
+std::string requiredImportProgram(const std::string& program) {
+  const std::string helper = importProgram();
+  if (helper.empty() || access(helper.c_str(), X_OK) != 0)
+    throw InputError("the scene importer " + (helper.empty() ? std::string("cpvs-import") : helper) +
+                     " is missing: scenes are imported by it (install it beside " + program + ")");
+  return helper;
+}
+
 int runImportHelper(const std::string& path, bool selfContained) {
   // Before the file is touched: whatever the importer does with it happens in the filter.
   if (const std::string why = enterImportSandbox(); !why.empty()) {

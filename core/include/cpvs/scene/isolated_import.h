@@ -34,6 +34,9 @@ Scene importIsolated(const std::string& path, const ImportLimits& limits, SceneS
 /// cpvs-import beside the running program (the folder of /proc/self/exe), where a build
 /// and an install put it; empty when /proc cannot say where this program is.
 std::string importProgram();
+/// importProgram(), which `program` (a farm process) cannot serve without: InputError,
+/// naming it, when it is not there to run.
+std::string requiredImportProgram(const std::string& program);
 
 /// The child's side (cpvs-import's main: `FILE [--references]`): imports FILE (self-contained
 /// unless `selfContained` is false) and writes its mesh file to standard output. Exit status 0, 2 (the file does not import; the reason on standard error), or
