@@ -20,6 +20,7 @@
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/net/chunked_stream.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/model_convert.h"
 #include "cpvs/net/receiver_declaration.h"
 #include "cpvs/net/status.h"
 
@@ -406,7 +407,7 @@ std::shared_ptr<BakeScene> TileWorker::bakeScene(const std::string& sceneHash, c
   if (!prepared) {
     auto start = std::chrono::steady_clock::now();
     const ReceiverDeclaration declaration =
-        net::declarationOf(receivers, [&](const std::string& hash) { return importScene(hash); });
+        net::declarationOf(net::modelOf(receivers), [&](const std::string& hash) { return importScene(hash); });
     Scene storage;
     const Scene& casters = castersOf(cached->scene, exclude, "the lease's light", storage);
     // A light's fixture casts none of its shadows but receives as the rest of the scene.

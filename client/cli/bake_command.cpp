@@ -10,7 +10,6 @@
 #include "bundle_text.h"
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/dag/packed_layout.h"
-#include "cpvs/net/convert.h"
 #include "cpvs/bake/camera_views.h"
 #include "cpvs/bake/bake_plan.h"
 #include "cli_util.h"

@@ -9,7 +9,7 @@
 #include "cpvs/base/parse.h"
 #include "cpvs/light/area_light.h"
 #include "cpvs/query/medium.h"
-#include "cpvs/net/convert.h"
+#include "cpvs/net/farm_model.h"
 #include "cpvs/net/receiver_declaration.h"
 #include "cpvs/scene/boxes.h"
 #include "cpvs/query/normal_offset.h"

@@ -36,7 +36,7 @@
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/scene/source.h"
 #include "cpvs/client/farm_client.h"
-#include "cpvs/net/convert.h"
+#include "cpvs/net/farm_model.h"
 #include "cpvs/query/normal_offset.h"
 #include "cpvs/sun/sun_position.h"
 
@@ -46,7 +46,10 @@ using client::FarmCallError;
 using client::FarmClient;
 using client::isFinalState;
 using client::randomRequestId;
-namespace pb = ::cpvs::v1;
+using net::BakeSpec;
+using net::JobOptions;
+using net::JobState;
+using net::JobStatus;
 
 namespace {
 
@@ -105,9 +108,9 @@ std::string formatSeconds(double s) {
 }
 
 /// Stage times summed by name, in the pipeline's order, then any others by name.
-std::vector<std::pair<std::string, double>> stagesOf(const pb::JobStatus& s) {
+std::vector<std::pair<std::string, double>> stagesOf(const JobStatus& s) {
   std::map<std::string, double> sum;
-  for (const auto& st : s.stages()) sum[st.stage()] += st.seconds();
+  for (const auto& st : s.stages) sum[st.stage] += st.seconds;
   std::vector<std::pair<std::string, double>> out;
   for (const char* name : kStageNames) {
     auto it = sum.find(name);
@@ -121,92 +124,92 @@ std::vector<std::pair<std::string, double>> stagesOf(const pb::JobStatus& s) {
 
 /// A job status as a JSON object. `out` is the artifact's path for submit and watch
 /// (null when there is none); `withOut` false leaves the key away (listings).
-std::string statusJson(const pb::JobStatus& s, const std::string& indent, bool withOut, const std::string& out = {}) {
+std::string statusJson(const JobStatus& s, const std::string& indent, bool withOut, const std::string& out = {}) {
   const std::string in = indent + "  ";
   std::ostringstream o;
   o << "{\n"
-    << in << "\"job\": " << jsonString(s.job_id()) << ",\n"
-    << in << "\"request_id\": " << jsonString(s.request_id()) << ",\n"
-    << in << "\"name\": " << jsonString(s.spec().name()) << ",\n"
-    << in << "\"scene_hash\": " << jsonString(s.spec().scene_hash()) << ",\n"
-    << in << "\"state\": " << jsonString(net::jobStateName(s.state())) << ",\n"
-    << in << "\"priority\": " << s.spec().priority() << ",\n"
-    << in << "\"resolution\": " << s.resolution() << ",\n"
-    << in << "\"lights\": " << s.lights() << ",\n"
-    << in << "\"grids\": " << s.grids() << ",\n"
-    << in << "\"tiles\": " << s.tiles_total() << ",\n"
-    << in << "\"tiles_done\": " << s.tiles_done() << ",\n"
-    << in << "\"tiles_untouched\": " << s.tiles_untouched() << ",\n"
-    << in << "\"tiles_unread\": " << s.tiles_unread() << ",\n"
-    << in << "\"bytes\": " << s.bytes() << ",\n"
-    << in << "\"file_bytes\": " << s.file_bytes() << ",\n"
-    << in << "\"peak_merge_bytes\": " << s.peak_merge_bytes() << ",\n"
-    << in << "\"seconds_total\": " << jsonNumber(s.seconds_elapsed()) << ",\n"
-    << in << "\"eta_seconds\": " << (s.eta_seconds() < 0 ? "null" : jsonNumber(s.eta_seconds())) << ",\n"
-    << in << "\"created_unix_ms\": " << s.created_unix_ms() << ",\n"
+    << in << "\"job\": " << jsonString(s.jobId) << ",\n"
+    << in << "\"request_id\": " << jsonString(s.requestId) << ",\n"
+    << in << "\"name\": " << jsonString(s.spec.name) << ",\n"
+    << in << "\"scene_hash\": " << jsonString(s.spec.sceneHash) << ",\n"
+    << in << "\"state\": " << jsonString(net::jobStateName(s.state)) << ",\n"
+    << in << "\"priority\": " << s.spec.priority << ",\n"
+    << in << "\"resolution\": " << s.resolution << ",\n"
+    << in << "\"lights\": " << s.lights << ",\n"
+    << in << "\"grids\": " << s.grids << ",\n"
+    << in << "\"tiles\": " << s.tilesTotal << ",\n"
+    << in << "\"tiles_done\": " << s.tilesDone << ",\n"
+    << in << "\"tiles_untouched\": " << s.tilesUntouched << ",\n"
+    << in << "\"tiles_unread\": " << s.tilesUnread << ",\n"
+    << in << "\"bytes\": " << s.bytes << ",\n"
+    << in << "\"file_bytes\": " << s.fileBytes << ",\n"
+    << in << "\"peak_merge_bytes\": " << s.peakMergeBytes << ",\n"
+    << in << "\"seconds_total\": " << jsonNumber(s.secondsElapsed) << ",\n"
+    << in << "\"eta_seconds\": " << (s.etaSeconds < 0 ? "null" : jsonNumber(s.etaSeconds)) << ",\n"
+    << in << "\"created_unix_ms\": " << s.createdUnixMs << ",\n"
     << in << "\"stages\": {";
   bool first = true;
   for (const auto& [stage, seconds] : stagesOf(s)) {
     o << (first ? "" : ", ") << jsonString(stage) << ": " << jsonNumber(seconds);
     first = false;
   }
-  o << "},\n" << in << "\"error\": " << jsonString(s.error());
+  o << "},\n" << in << "\"error\": " << jsonString(s.error);
   if (withOut) o << ",\n" << in << "\"out\": " << (out.empty() ? "null" : jsonString(out));
   o << "\n" << indent << "}";
   return o.str();
 }
 
 /// Follows a job to its end with a progress bar (stage = state, counts = tiles).
-pb::JobStatus followJob(FarmClient& client, const std::string& jobId, bool show) {
+JobStatus followJob(FarmClient& client, const std::string& jobId, bool show) {
   ProgressDisplay progress(show);
-  pb::JobStatus final = client.watch(jobId, [&](const pb::JobStatus& s) {
+  JobStatus final = client.watch(jobId, [&](const JobStatus& s) {
     // The coordinator's ETA (from its running tiles' rate), not one made up here.
-    progress.update({net::jobStateName(s.state()), s.tiles_done(), s.tiles_total(), s.eta_seconds()});
+    progress.update({net::jobStateName(s.state), s.tilesDone, s.tilesTotal, s.etaSeconds});
   });
   progress.finish();
   return final;
 }
 
-void printDone(const pb::JobStatus& s) {
-  const uint64_t R = s.grids() ? 0 : s.resolution();  // a bundle's grids have resolutions of their own
-  if (s.grids())
+void printDone(const JobStatus& s) {
+  const uint64_t R = s.grids ? 0 : s.resolution;  // a bundle's grids have resolutions of their own
+  if (s.grids)
     std::printf("Job %s done: a light bundle of %u light%s in %u grids (the finest %llu^2), %llu tile%s, %.2f s\n",
-                loggable(s.job_id()).c_str(), s.lights(), s.lights() == 1 ? "" : "s", s.grids(),
-                static_cast<unsigned long long>(s.resolution()), static_cast<unsigned long long>(s.tiles_total()),
-                s.tiles_total() == 1 ? "" : "s", s.seconds_elapsed());
+                loggable(s.jobId).c_str(), s.lights, s.lights == 1 ? "" : "s", s.grids,
+                static_cast<unsigned long long>(s.resolution), static_cast<unsigned long long>(s.tilesTotal),
+                s.tilesTotal == 1 ? "" : "s", s.secondsElapsed);
   else
-    std::printf("Job %s done: %llu^3 in %llu tile%s, %.2f s\n", loggable(s.job_id()).c_str(),
-                static_cast<unsigned long long>(R), static_cast<unsigned long long>(s.tiles_total()),
-                s.tiles_total() == 1 ? "" : "s", s.seconds_elapsed());
-  if (s.tiles_untouched() + s.tiles_unread() > 0)
+    std::printf("Job %s done: %llu^3 in %llu tile%s, %.2f s\n", loggable(s.jobId).c_str(),
+                static_cast<unsigned long long>(R), static_cast<unsigned long long>(s.tilesTotal),
+                s.tilesTotal == 1 ? "" : "s", s.secondsElapsed);
+  if (s.tilesUntouched + s.tilesUnread > 0)
     std::printf("  %llu tiles all lit, never leased: %llu touched by no triangle, %llu read by no receiver\n",
-                static_cast<unsigned long long>(s.tiles_untouched() + s.tiles_unread()),
-                static_cast<unsigned long long>(s.tiles_untouched()), static_cast<unsigned long long>(s.tiles_unread()));
+                static_cast<unsigned long long>(s.tilesUntouched + s.tilesUnread),
+                static_cast<unsigned long long>(s.tilesUntouched), static_cast<unsigned long long>(s.tilesUnread));
   auto stages = stagesOf(s);
   if (!stages.empty()) {
     std::printf("\n  %-10s %10s\n", "stage", "seconds");
     for (const auto& [stage, seconds] : stages) std::printf("  %-10s %10.3f\n", stage.c_str(), seconds);
     std::printf("  (tile stages are summed over the workers)\n");
   }
-  std::printf("\n  DAG: %s (%llu bytes), file: %s, largest merge held: %s\n", humanBytes(s.bytes()).c_str(),
-              static_cast<unsigned long long>(s.bytes()), humanBytes(s.file_bytes()).c_str(),
-              humanBytes(s.peak_merge_bytes()).c_str());
-  if (R > 0 && s.bytes() > 0) {
+  std::printf("\n  DAG: %s (%llu bytes), file: %s, largest merge held: %s\n", humanBytes(s.bytes).c_str(),
+              static_cast<unsigned long long>(s.bytes), humanBytes(s.fileBytes).c_str(),
+              humanBytes(s.peakMergeBytes).c_str());
+  if (R > 0 && s.bytes > 0) {
     uint64_t sm = R * R * 2;
     std::printf("  16-bit shadow map of %llu^2: %s, %.1fx larger than the DAG\n", static_cast<unsigned long long>(R),
-                humanBytes(sm).c_str(), double(sm) / double(s.bytes()));
+                humanBytes(sm).c_str(), double(sm) / double(s.bytes));
   }
 }
 
 /// What a final status means for the exit status: 0 done, 1 failed or cancelled (with a
 /// message on stderr).
-int finalExitStatus(const pb::JobStatus& s) {
-  if (s.state() == pb::JOB_FAILED) {
-    std::fprintf(stderr, "cpvs: job %s failed: %s\n", loggable(s.job_id()).c_str(), loggable(s.error(), 2000).c_str());
+int finalExitStatus(const JobStatus& s) {
+  if (s.state == JobState::Failed) {
+    std::fprintf(stderr, "cpvs: job %s failed: %s\n", loggable(s.jobId).c_str(), loggable(s.error, 2000).c_str());
     return 1;
   }
-  if (s.state() == pb::JOB_CANCELLED) {
-    std::fprintf(stderr, "cpvs: job %s was cancelled\n", loggable(s.job_id()).c_str());
+  if (s.state == JobState::Cancelled) {
+    std::fprintf(stderr, "cpvs: job %s was cancelled\n", loggable(s.jobId).c_str());
     return 1;
   }
   return 0;
@@ -214,85 +217,71 @@ int finalExitStatus(const pb::JobStatus& s) {
 
 // --- submit -----------------------------------------------------------------------------
 
-/// Each option flag given on the command line overrides its field of `o` (the proto's
-/// enum values are the core's: static_asserts in net/src/convert.cpp); checked after.
+/// Each option flag given on the command line overrides its field of `o`; checked after.
 /// Returns the receiver volume's mesh file to upload (`--receivers volume:MESH`), or "".
-std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, pb::BakeOptions& o) {
+std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, JobOptions& o) {
   auto given = [&](const char* option) { return c.count(option) > 0; };
   const BakeOptions flags = optionsOf(options);
-  if (given("--closed")) o.set_closed(pb::ClosedMode(flags.closed));
-  if (given("--exit")) o.set_exit(pb::ExitMode(flags.exit));
-  if (given("--cull")) o.set_no_cull(!flags.cull);
-  if (given("--compress")) o.set_compress(pb::CompressMode(flags.compress));
-  if (given("--undefined")) o.set_undefined_rule(pb::UndefinedRule(flags.undefinedRule));
-  if (given("--tile-size")) o.set_tile_size(uint32_t(1) << flags.log2TileSize);
-  if (given("--renderer")) o.set_renderer(pb::Renderer(flags.renderer));
+  if (given("--closed")) o.closed = flags.closed;
+  if (given("--exit")) o.exit = flags.exit;
+  if (given("--cull")) o.cull = flags.cull;
+  if (given("--compress")) o.compress = flags.compress;
+  if (given("--undefined")) o.undefinedRule = flags.undefinedRule;
+  if (given("--tile-size")) o.tileSize = uint32_t(1) << flags.log2TileSize;
+  if (given("--renderer")) o.renderer = flags.renderer;
   std::string mesh;
   if (given("--receivers") || given("--receiver-box") || given("--receiver-pcf") || given("--ground-layer") ||
       given("--ground-slope") || cameraFlagsGiven(options)) {
-    pb::Receivers& r = *o.mutable_receivers();
+    net::Receivers& r = o.receivers ? *o.receivers : o.receivers.emplace();
     bool cameraFile = false;
     if (given("--receivers")) {
-      r.set_kind(pb::ReceiverKind(flags.receivers));
-      r.clear_volume_scene_hash();
+      r.kind = flags.receivers;
+      r.volumeSceneHash.clear();
       const size_t colon = options.receivers.find(':');
       if (colon != std::string::npos) mesh = options.receivers.substr(colon + 1);
       if (!mesh.empty() && flags.receivers != ReceiverKind::Volume && flags.receivers != ReceiverKind::Cameras)
         throw InputError("--receivers: only 'volume' and 'cameras' take a file ('" + options.receivers + "')");
       // A camera file sets every camera field; the camera flags then add to it or override.
       if (flags.receivers == ReceiverKind::Cameras && net::isCameraFile(mesh)) {
-        net::clearCameras(r);
-        r.MergeFrom(net::readCameraFile(mesh));
+        net::copyCameras(net::readCameraFile(mesh), r);
         mesh.clear();
         cameraFile = true;
       }
     }
     if (given("--receiver-pcf")) {
       checkPcfWidth(options.receiverPcf);
-      r.set_max_pcf(uint32_t(options.receiverPcf));
+      r.maxPcf = uint32_t(options.receiverPcf);
     }
     if (given("--receiver-box")) {
-      r.clear_boxes();
-      for (const auto& [lo, hi] : boxesOf(options.receiverBoxes, "--receiver-box")) {
-        pb::ReceiverBox& b = *r.add_boxes();
-        *b.mutable_min() = net::toProto(lo);
-        *b.mutable_max() = net::toProto(hi);
-      }
+      r.boxes.clear();
+      for (const auto& [lo, hi] : boxesOf(options.receiverBoxes, "--receiver-box")) r.boxes.push_back({lo, hi});
     }
     if (given("--camera-region")) {
-      if (!cameraFile) r.clear_camera_regions();
-      for (const auto& [lo, hi] : boxesOf(options.cameraRegions, "--camera-region")) {
-        pb::ReceiverBox& b = *r.add_camera_regions();
-        *b.mutable_min() = net::toProto(lo);
-        *b.mutable_max() = net::toProto(hi);
-      }
+      if (!cameraFile) r.cameraRegions.clear();
+      for (const auto& [lo, hi] : boxesOf(options.cameraRegions, "--camera-region")) r.cameraRegions.push_back({lo, hi});
     }
-    if (given("--view-distance")) r.set_view_distance(options.viewDistance);
+    if (given("--view-distance")) r.viewDistance = options.viewDistance;
     if (given("--camera-visibility"))
-      r.set_camera_visibility(pb::CameraVisibility(parseOption<CameraVisibility>(options.cameraVisibility, "--camera-visibility")));
-    if (given("--camera-spacing")) r.set_camera_spacing(options.cameraSpacing);
+      r.cameraVisibility = parseOption<CameraVisibility>(options.cameraVisibility, "--camera-visibility");
+    if (given("--camera-spacing")) r.cameraSpacing = options.cameraSpacing;
     if (given("--camera-rays")) {
       if (options.cameraRays < 0) throw InputError("--camera-rays must be 0 (the default, 128) or more");
-      r.set_camera_rays(uint32_t(options.cameraRays));
+      r.cameraRays = uint32_t(options.cameraRays);
     }
-    if (given("--ground-layer")) {
-      const auto [from, to] = groundLayerOf(options.groundLayer);
-      r.set_ground_layer(to);
-      r.set_ground_layer_from(from);
-    }
-    if (given("--ground-slope")) r.set_ground_slope_deg(options.groundSlope);
+    if (given("--ground-layer")) std::tie(r.groundLayerFrom, r.groundLayer) = groundLayerOf(options.groundLayer);
+    if (given("--ground-slope")) r.groundSlopeDeg = options.groundSlope;
   }
   // A mesh still to upload stands for the hash it will have.
-  pb::BakeOptions check = o;
-  if (!mesh.empty()) check.mutable_receivers()->set_volume_scene_hash(std::string(32, '0'));
-  (void)net::fromProto(check);
+  JobOptions check = o;
+  if (!mesh.empty()) check.receivers->volumeSceneHash = std::string(32, '0');
+  (void)net::bakeOptionsOf(check);
   return mesh;
 }
 
 /// Uploads the receiver volume's mesh (if the flags named one) and records its hash.
-void uploadReceiverVolume(FarmClient& client, const std::string& mesh, pb::BakeOptions& o) {
+void uploadReceiverVolume(FarmClient& client, const std::string& mesh, JobOptions& o) {
   if (mesh.empty()) return;
-  o.mutable_receivers()->set_volume_scene_hash(client.uploadScene(mesh).sceneHash);
+  o.receivers->volumeSceneHash = client.uploadScene(mesh).sceneHash;
 }
 
 struct SubmitArgs {
@@ -342,17 +331,17 @@ class TemporaryScene {
   std::string dir_, path_;
 };
 
-void buildSun(const SubmitArgs& a, const CLI::App& c, pb::BakeSpec& spec);
+void buildSun(const SubmitArgs& a, const CLI::App& c, BakeSpec& spec);
 
 /// The spec to submit: the job file's, if any, with every flag given on the command line
 /// overriding its field, and the bake defaults for what neither gives. Validated here,
 /// before anything is uploaded; InputError names the flag or field.
-pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volumeMesh) {
+BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volumeMesh) {
   auto given = [&](const char* option) { return c.count(option) > 0; };
-  pb::BakeSpec spec;
+  BakeSpec spec;
   if (!a.jobFile.empty()) {
     std::vector<uint8_t> bytes = readFile(a.jobFile);
-    spec = net::specFromJson(std::string(bytes.begin(), bytes.end()), a.jobFile);
+    spec = net::bakeSpecFromJson(std::string(bytes.begin(), bytes.end()), a.jobFile);
   }
 
   // Local lights: the flags replace the job file's lights (or add the scene's).
@@ -360,82 +349,79 @@ pb::BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volu
     // The farm expands the area lights into their VPLs as `cpvs bake` does.
     LightFlags own = a.lights;
     own.areas.clear();
-    spec.clear_lights();
-    spec.clear_area_lights();
-    if (!own.spots.empty() || !own.points.empty() || !own.lightsFile.empty())
-      for (const Light& l : flagLights(own)) *spec.add_lights() = net::toProto(l);
-    for (const AreaLight& area : flagAreaLights(a.lights)) *spec.add_area_lights() = net::toProto(area);
+    spec.lights.clear();
+    if (!own.spots.empty() || !own.points.empty() || !own.lightsFile.empty()) spec.lights = flagLights(own);
+    spec.areaLights = flagAreaLights(a.lights);
   }
-  if (a.lights.sceneLights) spec.set_scene_lights(true);
+  if (a.lights.sceneLights) spec.sceneLights = true;
   if (given("--footprint")) {
     if (!(a.lights.footprint > 0) || !std::isfinite(a.lights.footprint))
       throw InputError("--footprint must be a finite width > 0");
-    spec.set_footprint(a.lights.footprint);
+    spec.footprint = a.lights.footprint;
   }
   if (given("--pointer-grid")) {
     if (a.pointerGrid < 0 || a.pointerGrid > kMaxGridLevels)
       throw InputError("--pointer-grid " + std::to_string(a.pointerGrid) + ": levels 0 to " + std::to_string(kMaxGridLevels));
-    spec.set_pointer_grid(uint32_t(a.pointerGrid));
+    spec.pointerGrid = uint32_t(a.pointerGrid);
   }
   if (net::isLightBundle(spec)) {
     checkNoSunWithLights(a.sun);
-    if (spec.sun_case() != pb::BakeSpec::SUN_NOT_SET)
+    if (!std::holds_alternative<std::monostate>(spec.sun))
       throw InputError("local lights make a light bundle: " + a.jobFile + " names a sun too");
     if (given("--resolution"))
       throw InputError("--resolution is the sun's: give a light's own in a lights file, or --footprint");
-    (void)net::lightsOf(spec);
+    for (size_t i = 0; i < spec.lights.size(); ++i)
+      if (spec.lights[i].area != 0)
+        throw InputError("lights[" + std::to_string(i) + "]: an area number is the farm's to give the VPLs of "
+                         "area_lights; submit the area light there");
   } else {
-    if (spec.has_pointer_grid() || spec.footprint() != 0)
+    if (spec.pointerGrid || spec.footprint != 0)
       throw InputError("--pointer-grid and --footprint are for local lights (--spot, --point, --lights, --scene-lights)");
     buildSun(a, c, spec);
   }
-  volumeMesh = applyOptionFlags(a.options, c, *spec.mutable_options());
-  for (const BakePlan::Medium& m : declaredMedia(a.options)) {
-    pb::Medium* p = spec.add_media();
-    p->set_name(m.name);
-    p->set_scattering(m.scattering);
-    p->set_absorption(m.absorption);
-    p->set_g(m.g);
-  }
+  volumeMesh = applyOptionFlags(a.options, c, spec.options);
+  for (const BakePlan::Medium& m : declaredMedia(a.options))
+    spec.media.push_back({m.name, m.scattering, m.absorption, m.g});
 
-  if (given("--priority")) spec.set_priority(a.priority);
-  if (given("--name")) spec.set_name(a.name);
-  if (spec.name().empty() && !a.scene.empty())
-    spec.set_name(isGeneratedScene(a.scene) ? a.scene : fs::path(a.scene).filename().string());
-  if (a.scene.empty() && spec.scene_hash().empty())
+  if (given("--priority")) spec.priority = a.priority;
+  if (given("--name")) spec.name = a.name;
+  if (spec.name.empty() && !a.scene.empty())
+    spec.name = isGeneratedScene(a.scene) ? a.scene : fs::path(a.scene).filename().string();
+  if (a.scene.empty() && spec.sceneHash.empty())
     throw InputError("give the SCENE to bake (a file or city[:BLOCKS[:SEED]]), or a scene_hash in the job file");
   return spec;
 }
 
 /// The sun and resolution of a sun bake's spec, from the flags over the job file's.
-void buildSun(const SubmitArgs& a, const CLI::App& c, pb::BakeSpec& spec) {
+void buildSun(const SubmitArgs& a, const CLI::App& c, BakeSpec& spec) {
   auto given = [&](const char* option) { return c.count(option) > 0; };
   const bool dir = given("--sun-dir"), elevation = given("--sun-elevation"), azimuth = given("--sun-azimuth");
   if (dir && (elevation || azimuth))
     throw InputError("give either --sun-dir or --sun-elevation/--sun-azimuth, not both");
   if (dir) {
-    *spec.mutable_sun_direction() = net::toProto(parseVec3(a.sun.dir, "--sun-dir"));
+    spec.sun = parseVec3(a.sun.dir, "--sun-dir");
   } else if (elevation || azimuth) {
-    if (!elevation && spec.sun_case() != pb::BakeSpec::kSunAngles)
+    const net::SunAngles* fromFile = std::get_if<net::SunAngles>(&spec.sun);
+    if (!elevation && !fromFile)
       throw InputError("--sun-azimuth needs --sun-elevation (or sun_angles in the job file)");
-    pb::SunAngles angles = spec.sun_case() == pb::BakeSpec::kSunAngles ? spec.sun_angles() : pb::SunAngles();
-    if (elevation) angles.set_elevation_deg(a.sun.elevation);
-    if (azimuth) angles.set_azimuth_deg(a.sun.azimuth);
-    *spec.mutable_sun_angles() = angles;
+    net::SunAngles angles = fromFile ? *fromFile : net::SunAngles{};
+    if (elevation) angles.elevationDeg = a.sun.elevation;
+    if (azimuth) angles.azimuthDeg = a.sun.azimuth;
+    spec.sun = angles;
   }
-  if (spec.sun_case() == pb::BakeSpec::SUN_NOT_SET)
+  if (std::holds_alternative<std::monostate>(spec.sun))
     throw InputError(std::string("give the light: --sun-dir X,Y,Z or --sun-elevation DEG, or local lights (--spot, "
                                  "--point, --lights, --scene-lights)") +
                      (a.jobFile.empty() ? "" : " (or sun_direction, sun_angles or lights in " + a.jobFile + ")"));
   (void)net::lightOf(spec);
 
-  if (given("--resolution") || spec.resolution().empty()) spec.set_resolution(a.resolution);
-  (void)parseResolution(spec.resolution());
+  if (given("--resolution") || spec.resolution.empty()) spec.resolution = a.resolution;
+  (void)parseResolution(spec.resolution);
 }
 
 int runSubmit(const SubmitArgs& a, const CLI::App& c) {
   std::string volumeMesh;
-  pb::BakeSpec spec = buildSpec(a, c, volumeMesh);
+  BakeSpec spec = buildSpec(a, c, volumeMesh);
   if (!a.out.empty()) checkOutputFolder(a.out, "--out");
   const bool chatty = !a.json && !a.quiet;
   FarmClient client(connectionOf(a.conn));
@@ -446,13 +432,10 @@ int runSubmit(const SubmitArgs& a, const CLI::App& c) {
     if (isGeneratedScene(a.scene)) {
       generated.emplace(a.scene);
       path = generated->path();
-      if (spec.scene_lights()) {
+      if (spec.sceneLights) {
         // The scene's lights go in the spec, first, as the local bake lists them.
-        const std::vector<Light> lights =
-            withSceneLights(generated->scene(), net::lightsOf(spec), "--scene-lights: " + a.scene);
-        spec.clear_lights();
-        for (const Light& l : lights) *spec.add_lights() = net::toProto(l);
-        spec.set_scene_lights(false);
+        spec.lights = withSceneLights(generated->scene(), spec.lights, "--scene-lights: " + a.scene);
+        spec.sceneLights = false;
       }
     }
     FarmClient::UploadResult up = client.uploadScene(path);
@@ -462,34 +445,33 @@ int runSubmit(const SubmitArgs& a, const CLI::App& c) {
       note(!chatty, "uploaded " + a.scene + ": " + humanBytes(up.bytesSent) +
                         (up.resumedFrom ? " (resumed after " + humanBytes(up.resumedFrom) + ")" : "") + ", " +
                         std::to_string(up.triangles) + " triangles (" + up.sceneHash + ")");
-    spec.set_scene_hash(up.sceneHash);
+    spec.sceneHash = up.sceneHash;
   }
 
-  uploadReceiverVolume(client, volumeMesh, *spec.mutable_options());
+  uploadReceiverVolume(client, volumeMesh, spec.options);
   const std::string requestId = a.requestId.empty() ? randomRequestId() : a.requestId;
-  pb::JobStatus status = client.submit(requestId, spec);
+  JobStatus status = client.submit(requestId, spec);
   if (!a.wait) {
     if (a.json)
       std::cout << statusJson(status, "", true) << "\n";
     else
-      std::printf("%s\n", loggable(status.job_id()).c_str());
+      std::printf("%s\n", loggable(status.jobId).c_str());
     return 0;
   }
 
-  note(!chatty, "job " + status.job_id() + " submitted: " +
-                    (status.grids() ? std::to_string(status.lights()) + " lights in " + std::to_string(status.grids()) +
-                                          " grids"
-                                    : spec.resolution()) +
-                    ", " + std::to_string(status.tiles_total()) + " tiles");
-  pb::JobStatus final = followJob(client, status.job_id(), chatty);
+  note(!chatty, "job " + status.jobId + " submitted: " +
+                    (status.grids ? std::to_string(status.lights) + " lights in " + std::to_string(status.grids) + " grids"
+                                  : spec.resolution) +
+                    ", " + std::to_string(status.tilesTotal) + " tiles");
+  JobStatus final = followJob(client, status.jobId, chatty);
   std::string written;
-  if (final.state() == pb::JOB_DONE && !a.out.empty()) {
-    client.download(final.job_id(), a.out);
+  if (final.state == JobState::Done && !a.out.empty()) {
+    client.download(final.jobId, a.out);
     written = a.out;
   }
   if (a.json) {
     std::cout << statusJson(final, "", true, written) << "\n";
-  } else if (final.state() == pb::JOB_DONE) {
+  } else if (final.state == JobState::Done) {
     printDone(final);
     if (!written.empty()) std::printf("\nWrote %s\n", written.c_str());
   }
@@ -505,7 +487,7 @@ struct JobsArgs {
 
 int runJobs(const JobsArgs& a) {
   FarmClient client(connectionOf(a.conn));
-  std::vector<pb::JobStatus> jobs = client.list(a.all);
+  std::vector<JobStatus> jobs = client.list(a.all);
   if (a.json) {
     std::cout << "{\"jobs\": [";
     for (size_t i = 0; i < jobs.size(); ++i) std::cout << (i ? ", " : "\n  ") << statusJson(jobs[i], "  ", false);
@@ -518,13 +500,13 @@ int runJobs(const JobsArgs& a) {
   }
   int idWidth = 3;
   // What the coordinator sends reaches the terminal escaped (R26): names are free text.
-  for (const auto& j : jobs) idWidth = std::max(idWidth, int(loggable(j.job_id()).size()));
+  for (const auto& j : jobs) idWidth = std::max(idWidth, int(loggable(j.jobId).size()));
   std::printf("%-*s  %-9s  %13s  %10s  %8s  %s\n", idWidth, "JOB", "STATE", "TILES", "RESOLUTION", "ELAPSED", "NAME");
   for (const auto& j : jobs) {
-    std::string tiles = std::to_string(j.tiles_done()) + "/" + std::to_string(j.tiles_total());
-    std::printf("%-*s  %-9s  %13s  %10llu  %8s  %s\n", idWidth, loggable(j.job_id()).c_str(), net::jobStateName(j.state()),
-                tiles.c_str(), static_cast<unsigned long long>(j.resolution()),
-                formatSeconds(j.seconds_elapsed()).c_str(), loggable(j.spec().name()).c_str());
+    std::string tiles = std::to_string(j.tilesDone) + "/" + std::to_string(j.tilesTotal);
+    std::printf("%-*s  %-9s  %13s  %10llu  %8s  %s\n", idWidth, loggable(j.jobId).c_str(), net::jobStateName(j.state),
+                tiles.c_str(), static_cast<unsigned long long>(j.resolution), formatSeconds(j.secondsElapsed).c_str(),
+                loggable(j.spec.name).c_str());
   }
   return 0;
 }
@@ -537,10 +519,10 @@ struct WatchArgs {
 
 int runWatch(const WatchArgs& a) {
   FarmClient client(connectionOf(a.conn));
-  pb::JobStatus final = followJob(client, a.job, !a.json && !a.quiet);
+  JobStatus final = followJob(client, a.job, !a.json && !a.quiet);
   if (a.json)
     std::cout << statusJson(final, "", true) << "\n";
-  else if (final.state() == pb::JOB_DONE)
+  else if (final.state == JobState::Done)
     printDone(final);
   return finalExitStatus(final);
 }
@@ -552,8 +534,8 @@ struct CancelArgs {
 
 int runCancel(const CancelArgs& a) {
   FarmClient client(connectionOf(a.conn));
-  pb::JobStatus s = client.cancel(a.job);
-  std::printf("%s\n", net::jobStateName(s.state()));
+  JobStatus s = client.cancel(a.job);
+  std::printf("%s\n", net::jobStateName(s.state));
   return 0;
 }
 
@@ -651,52 +633,42 @@ struct TrackCreateArgs {
   bool json = false;
 };
 
-std::string trackJson(const pb::TrackStatus& t) {
-  static const char* states[] = {"unspecified", "active", "finished", "cancelled"};
+std::string trackJson(const net::TrackStatus& t) {
   std::ostringstream o;
-  o << "{\"track\": " << jsonString(t.track_id()) << ", \"name\": " << jsonString(t.spec().name())
-    << ", \"state\": " << jsonString(states[std::clamp(int(t.state()), 0, 3)])
-    << ", \"keyframes_total\": " << t.keyframes_total() << ", \"keyframes_published\": " << t.keyframes_published()
-    << ", \"keyframes_skipped\": " << t.keyframes_skipped() << ", \"latest_sequence\": " << t.latest_sequence()
-    << ", \"error\": " << jsonString(t.error()) << "}";
+  o << "{\"track\": " << jsonString(t.trackId) << ", \"name\": " << jsonString(t.spec.name)
+    << ", \"state\": " << jsonString(net::trackStateName(t.state)) << ", \"keyframes_total\": " << t.keyframesTotal
+    << ", \"keyframes_published\": " << t.keyframesPublished << ", \"keyframes_skipped\": " << t.keyframesSkipped
+    << ", \"latest_sequence\": " << t.latestSequence << ", \"error\": " << jsonString(t.error) << "}";
   return o.str();
 }
 
 int runTrackCreate(const TrackCreateArgs& a, const CLI::App& c) {
   auto given = [&](const char* option) { return c.count(option) > 0; };
-  pb::TrackSpec spec;
-  spec.set_resolution(a.resolution);
+  net::TrackSpec spec;
+  spec.resolution = a.resolution;
   (void)parseResolution(a.resolution);
-  const std::string volumeMesh = applyOptionFlags(a.options, c, *spec.mutable_options());
-  spec.set_name(a.name.empty() ? (isGeneratedScene(a.scene) ? a.scene : fs::path(a.scene).filename().string()) : a.name);
-  spec.set_keyframes_ahead(a.ahead);
-  spec.set_keep_versions(a.keep);
+  const std::string volumeMesh = applyOptionFlags(a.options, c, spec.options);
+  spec.name = a.name.empty() ? (isGeneratedScene(a.scene) ? a.scene : fs::path(a.scene).filename().string()) : a.name;
+  spec.keyframesAhead = a.ahead;
+  spec.keepVersions = a.keep;
   const bool place = given("--lat") || given("--lon") || given("--start");
   if (place == !a.directions.empty())
     throw InputError("give the sun path: --directions X,Y,Z;X,Y,Z;... or a place (--lat, --lon, --start, --step, and --end or --rate)");
   if (!a.directions.empty()) {
     std::stringstream list(a.directions);
+    std::vector<Vec3> directions;
     for (std::string item; std::getline(list, item, ';');)
-      if (!item.empty()) *spec.mutable_directions()->add_directions() = net::toProto(parseVec3(item, "--directions"));
+      if (!item.empty()) directions.push_back(parseVec3(item, "--directions"));
+    spec.path = std::move(directions);
   } else {
     if (!given("--lat") || !given("--lon") || !given("--start") || !given("--step"))
       throw InputError("a place path needs --lat, --lon, --start and --step");
     if (given("--end") == given("--rate")) throw InputError("give --end (a span of time) or --rate (a game clock), not both");
-    pb::PlacePath p;
-    p.set_latitude_deg(a.latitude);
-    p.set_longitude_deg(a.longitude);
-    p.set_height_m(a.height);
-    p.set_start_utc(a.start);
-    p.set_end_utc(a.end);
-    p.set_step_seconds(a.step);
-    p.set_up(a.up);
-    p.set_north(a.north);
-    if (given("--rate")) {
-      *spec.mutable_clock()->mutable_place() = p;
-      spec.mutable_clock()->set_rate(a.rate);
-    } else {
-      *spec.mutable_place() = p;
-    }
+    const net::PlacePath p{a.latitude, a.longitude, a.height, a.start, a.end, a.step, a.up, a.north};
+    if (given("--rate"))
+      spec.path = net::ClockPath{p, a.rate};
+    else
+      spec.path = p;
   }
   FarmClient client(connectionOf(a.conn));
   std::optional<TemporaryScene> generated;
@@ -705,14 +677,14 @@ int runTrackCreate(const TrackCreateArgs& a, const CLI::App& c) {
     generated.emplace(a.scene);
     path = generated->path();
   }
-  spec.set_scene_hash(client.uploadScene(path).sceneHash);
-  uploadReceiverVolume(client, volumeMesh, *spec.mutable_options());
-  const pb::TrackStatus t = client.createTrack(a.requestId.empty() ? randomRequestId() : a.requestId, spec);
+  spec.sceneHash = client.uploadScene(path).sceneHash;
+  uploadReceiverVolume(client, volumeMesh, spec.options);
+  const net::TrackStatus t = client.createTrack(a.requestId.empty() ? randomRequestId() : a.requestId, spec);
   if (a.json) std::printf("%s\n", trackJson(t).c_str());
   else
     std::printf("%s  track of %s keyframes created; follow it: cpvs subscribe --server %s %s --out DIR\n",
-                t.track_id().c_str(), t.keyframes_total() ? std::to_string(t.keyframes_total()).c_str() : "unbounded",
-                a.conn.server.c_str(), t.track_id().c_str());
+                t.trackId.c_str(), t.keyframesTotal ? std::to_string(t.keyframesTotal).c_str() : "unbounded",
+                a.conn.server.c_str(), t.trackId.c_str());
   return 0;
 }
 
@@ -731,13 +703,12 @@ int runTrackList(const TrackListArgs& a) {
     return 0;
   }
   std::printf("%-20s %-10s %-10s %-10s %s\n", "TRACK", "STATE", "PUBLISHED", "LATEST", "NAME");
-  static const char* states[] = {"?", "active", "finished", "cancelled"};
   for (const auto& t : tracks)
-    std::printf("%-20s %-10s %-10s %-10llu %s\n", t.track_id().c_str(), states[std::clamp(int(t.state()), 0, 3)],
-                (std::to_string(t.keyframes_published()) + "/" +
-                 (t.keyframes_total() ? std::to_string(t.keyframes_total()) : std::string("-")))
+    std::printf("%-20s %-10s %-10s %-10llu %s\n", t.trackId.c_str(), net::trackStateName(t.state),
+                (std::to_string(t.keyframesPublished) + "/" +
+                 (t.keyframesTotal ? std::to_string(t.keyframesTotal) : std::string("-")))
                     .c_str(),
-                static_cast<unsigned long long>(t.latest_sequence()), loggable(t.spec().name(), 80).c_str());
+                static_cast<unsigned long long>(t.latestSequence), loggable(t.spec.name, 80).c_str());
   return 0;
 }
 
@@ -748,7 +719,7 @@ struct TrackCancelArgs {
 
 int runTrackCancel(const TrackCancelArgs& a) {
   FarmClient client(connectionOf(a.conn));
-  const pb::TrackStatus t = client.cancelTrack(a.track);
+  const net::TrackStatus t = client.cancelTrack(a.track);
   std::printf("%s\n", trackJson(t).c_str());
   return 0;
 }
@@ -768,17 +739,17 @@ int runSubscribe(const SubscribeArgs& a) {
   uint64_t received = 0, after = a.after;
   std::optional<std::chrono::steady_clock::time_point> lostSince;  // since when no version came
   double pause = 0.25;
-  auto onVersion = [&](const pb::TrackVersion& v, const std::vector<uint8_t>& bytes) {
+  auto onVersion = [&](const net::TrackVersion& v, const std::vector<uint8_t>& bytes) {
     char name[64];
-    std::snprintf(name, sizeof name, "version-%06llu.cpvs", static_cast<unsigned long long>(v.sequence()));
+    std::snprintf(name, sizeof name, "version-%06llu.cpvs", static_cast<unsigned long long>(v.sequence));
     const std::string path = (fs::path(a.out) / name).string();
     writeFileAtomic(path, bytes);
     ++received;
-    after = v.sequence();
+    after = v.sequence;
     lostSince.reset();
     pause = 0.25;
-    note(a.quiet, "version " + std::to_string(v.sequence()) + " (keyframe " + std::to_string(v.keyframe()) +
-                      (v.instant_unix_ms() ? ", " + formatUtcInstant(utcFromUnixMillis(v.instant_unix_ms())) : std::string()) +
+    note(a.quiet, "version " + std::to_string(v.sequence) + " (keyframe " + std::to_string(v.keyframe) +
+                      (v.instantUnixMs ? ", " + formatUtcInstant(utcFromUnixMillis(v.instantUnixMs)) : std::string()) +
                       ", " + humanBytes(bytes.size()) + ") -> " + path);
     return a.count == 0 || received < a.count;
   };

@@ -346,16 +346,4 @@ pb::BakeSpec specFromJson(const std::string& json, const std::string& source) {
   return spec;
 }
 
-const char* jobStateName(pb::JobState s) {
-  switch (s) {
-    case pb::JOB_QUEUED: return "queued";
-    case pb::JOB_RUNNING: return "running";
-    case pb::JOB_MERGING: return "merging";
-    case pb::JOB_DONE: return "done";
-    case pb::JOB_FAILED: return "failed";
-    case pb::JOB_CANCELLED: return "cancelled";
-    default: return "unknown";
-  }
-}
-
 }  // namespace cpvs::net

@@ -13,8 +13,6 @@
 
 namespace cpvs::runtime {
 
-namespace pb = ::cpvs::v1;
-
 namespace {
 
 // One version ready for lookups.
@@ -60,20 +58,20 @@ struct TrackFollower::Impl {
           std::lock_guard lock(mutex);
           from = last;
         }
-        c.subscribe(trackId, from, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& bytes) {
+        c.subscribe(trackId, from, [&](const client::TrackVersion& v, const std::vector<uint8_t>& bytes) {
           if (stopping) return false;
           // Made ready (decoded, uploaded) without the lock; swapped in with it.
           Held h;
-          h.sequence = v.sequence();
-          h.instantMs = v.instant_unix_ms() != 0 ? v.instant_unix_ms() : int64_t(v.sequence());
-          auto artifact = ShadowArtifact::fromBytes(bytes, "track " + trackId + " version " + std::to_string(v.sequence()));
+          h.sequence = v.sequence;
+          h.instantMs = v.instantUnixMs != 0 ? v.instantUnixMs : int64_t(v.sequence);
+          auto artifact = ShadowArtifact::fromBytes(bytes, "track " + trackId + " version " + std::to_string(v.sequence));
           h.lookups = device ? std::make_shared<ShadowLookups>(artifact, *device, backend)
                              : std::make_shared<ShadowLookups>(artifact, backend, options);
           std::lock_guard lock(mutex);
           held[h.instantMs] = std::move(h);
           while (held.size() > kHeldVersions) held.erase(held.begin());
           ++received;
-          last = v.sequence();
+          last = v.sequence;
           error.clear();
           arrived.notify_all();
           return !stopping.load();

@@ -69,7 +69,7 @@ void Coordinator::refreshMetrics() {
   if (r.storeHealthy) {
     // A store that does not answer keeps the last counts rather than holding the scrape.
     const FarmStore::Census c = store_.census();
-    for (const auto& [state, count] : c.jobs) r.jobsByState[net::jobStateName(pb::JobState(int(state)))] = count;
+    for (const auto& [state, count] : c.jobs) r.jobsByState[net::jobStateName(net::JobState(int(state)))] = count;
     r.tilesQueued = c.tilesQueued;
     r.tilesLeased = c.tilesLeased;
     r.artifactBytes = c.artifactBytes;

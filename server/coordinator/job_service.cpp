@@ -24,6 +24,7 @@
 #include "cpvs/dag/packed_layout.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/model_convert.h"
 #include "cpvs/net/receiver_declaration.h"
 #include "cpvs/net/error_kind.h"
 #include "cpvs/query/medium.h"
@@ -145,7 +146,11 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   return s;
 }
 
-pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Access& access) {
+pb::JobStatus JobService::submit(const std::string& requestId, const net::BakeSpec& bake, const Access& access) {
+  // Stored, compared and planned as the contract's message (stored_spec.h).
+  pb::SubmitBakeRequest request;
+  request.set_request_id(requestId);
+  *request.mutable_spec() = net::toProto(bake);
   const pb::BakeSpec& spec = request.spec();
   if (request.request_id().empty() || request.request_id().size() > 128)
     throw FarmError(ErrorKind::InvalidArgument, "request_id must be 1..128 characters");
@@ -193,7 +198,7 @@ pb::JobStatus JobService::submit(const pb::SubmitBakeRequest& request, const Acc
   ReceiverDeclaration receivers;
   try {
     grid = makeGrid(scene, frame, log2R);
-    receivers = net::declarationOf(spec.options().receivers(), [&](const std::string& hash) { return scenes_.load(hash); });
+    receivers = net::declarationOf(net::modelOf(spec.options().receivers()), [&](const std::string& hash) { return scenes_.load(hash); });
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
   }
@@ -293,7 +298,7 @@ pb::JobStatus JobService::submitBundle(const pb::SubmitBakeRequest& request, con
   std::vector<double> closest;
   try {
     const ReceiverDeclaration receivers =
-        net::declarationOf(spec.options().receivers(), [&](const std::string& hash) { return scenes_.load(hash); });
+        net::declarationOf(net::modelOf(spec.options().receivers()), [&](const std::string& hash) { return scenes_.load(hash); });
     j.receiverHash = receiverHash(receivers);
     // Area lights become their VPLs after the spec's lights, as `cpvs bake` orders them.
     Vec3 lo, hi;
@@ -410,7 +415,7 @@ std::string JobService::artifactPath(const std::string& jobId, std::string* chec
   const JobRecord j = visibleJob(jobId, access);
   if (j.state != JobState::Done)
     throw FarmError(ErrorKind::FailedPrecondition,
-                    "job " + jobId + " is " + net::jobStateName(pb::JobState(int(j.state))) + ", not done");
+                    "job " + jobId + " is " + net::jobStateName(net::JobState(int(j.state))) + ", not done");
   if (checksum) *checksum = j.artifactChecksum;
   return artifacts_.artifactPath(jobId);
 }

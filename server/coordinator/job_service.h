@@ -14,6 +14,7 @@
 #include "coordinator/change_feed.h"
 #include "coordinator/merge_scheduler.h"
 #include "coordinator/scene_store.h"
+#include "cpvs/net/farm_model.h"
 #include "cpvs/v1/farm.pb.h"
 #include "store/farm_store.h"
 
@@ -39,7 +40,9 @@ class JobService {
 
   /// Jobs are the submitting client's (`access`): another client's job is PermissionDenied
   /// to status, cancel and artifactPath, and missing from its listing (R28).
-  pb::JobStatus submit(const pb::SubmitBakeRequest& request, const Access& access = Access::all());
+  /// A job for `spec`, or the job `requestId` already names when it names the same spec
+  /// (AlreadyExists when another).
+  pb::JobStatus submit(const std::string& requestId, const net::BakeSpec& spec, const Access& access = Access::all());
   pb::JobStatus status(const std::string& jobId, const Access& access = Access::all());
   /// One page of the listing, oldest first (R16): at most `pageSize` jobs (0: 100, at most
   /// 1000) and fewer when the reply would pass kListReplyBytes; the next page starts after

@@ -9,6 +9,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/model_convert.h"
 #include "cpvs/net/error_kind.h"
 #include "cpvs/sun/sun_position.h"
 
@@ -122,19 +123,18 @@ pb::TrackStatus TrackService::toStatus(const TrackRecord& t) const {
 }
 
 std::string TrackService::submitKeyframe(const pb::TrackSpec& spec, const Vec3& direction, const std::string& owner) {
-  pb::SubmitBakeRequest req;
-  pb::BakeSpec& b = *req.mutable_spec();
-  b.set_scene_hash(spec.scene_hash());
-  *b.mutable_sun_direction() = net::toProto(direction);
-  b.set_resolution(spec.resolution());
-  *b.mutable_options() = spec.options();
-  b.set_priority(kKeyframePriority);
-  b.set_name("keyframe");
+  net::BakeSpec b;
+  b.sceneHash = spec.scene_hash();
+  b.sun = direction;
+  b.resolution = spec.resolution();
+  b.options = net::modelOf(spec.options());
+  b.priority = kKeyframePriority;
+  b.name = "keyframe";
   // Named by what it bakes: the same keyframe from any of one owner's tracks is the same
   // job (owners share no job, R28).
-  const std::string content = b.SerializeAsString() + (owner.empty() ? "" : "\n" + owner);
-  req.set_request_id(kKeyframeRequestPrefix + contentHash(content.data(), content.size()).hex());
-  return jobs_.submit(req, owner.empty() ? Access::all() : Access::of(owner)).job_id();  // '': no tokens
+  const std::string content = net::toProto(b).SerializeAsString() + (owner.empty() ? "" : "\n" + owner);
+  const std::string requestId = kKeyframeRequestPrefix + contentHash(content.data(), content.size()).hex();
+  return jobs_.submit(requestId, b, owner.empty() ? Access::all() : Access::of(owner)).job_id();  // '': no tokens
 }
 
 pb::TrackStatus TrackService::create(const pb::CreateTrackRequest& request, const Access& access) {

@@ -14,6 +14,7 @@
 #include "cpvs/net/chunked_stream.h"
 #include "cpvs/net/status.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/model_convert.h"
 
 namespace cpvs::server {
 
@@ -116,7 +117,7 @@ grpc::Status FarmService::SubmitBake(grpc::ServerContext* ctx, const pb::SubmitB
     if (req->request_id().rfind(kKeyframeRequestPrefix, 0) == 0)
       throw FarmError(ErrorKind::InvalidArgument,
                       std::string("request ids starting with '") + kKeyframeRequestPrefix + "' are the farm's own");
-    *out = c_.jobs().submit(*req, access);
+    *out = c_.jobs().submit(req->request_id(), net::modelOf(req->spec()), access);
     return grpc::Status::OK;
   });
 }

@@ -21,24 +21,30 @@
 namespace {
 
 namespace fs = std::filesystem;
-namespace pb = ::cpvs::v1;
+namespace net = cpvs::net;
 using cpvs::testing::ChildProcess;
 
 int64_t wallMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-pb::TrackSpec golden(const std::string& hash, const std::string& resolution) {
-  pb::TrackSpec s;
-  s.set_scene_hash(hash);
-  s.set_resolution(resolution);
-  s.set_keyframes_ahead(2);
-  pb::PlacePath& p = *s.mutable_place();
-  p.set_latitude_deg(39.742476);
-  p.set_longitude_deg(-105.1786);
-  p.set_step_seconds(1800);
-  p.set_start_utc("2024-06-21T10:00:00-06:00");
-  p.set_end_utc("2024-06-21T13:30:00-06:00");  // 8 keyframes
+/// A place through a morning: 8 keyframes half an hour apart.
+net::PlacePath morning() {
+  net::PlacePath p;
+  p.latitudeDeg = 39.742476;
+  p.longitudeDeg = -105.1786;
+  p.stepSeconds = 1800;
+  p.startUtc = "2024-06-21T10:00:00-06:00";
+  p.endUtc = "2024-06-21T13:30:00-06:00";
+  return p;
+}
+
+net::TrackSpec golden(const std::string& hash, const std::string& resolution) {
+  net::TrackSpec s;
+  s.sceneHash = hash;
+  s.resolution = resolution;
+  s.keyframesAhead = 2;
+  s.path = morning();
   return s;
 }
 
@@ -78,9 +84,9 @@ int main(int argc, char** argv) {
 
     // A place through a morning: throughput.
     const auto start = std::chrono::steady_clock::now();
-    const pb::TrackStatus day = client.createTrack("day-" + resolution, golden(hash, resolution));
+    const net::TrackStatus day = client.createTrack("day-" + resolution, golden(hash, resolution));
     uint64_t versions = 0, bytes = 0;
-    client.subscribe(day.track_id(), 0, [&](const pb::TrackVersion&, const std::vector<uint8_t>& b) {
+    client.subscribe(day.trackId, 0, [&](const net::TrackVersion&, const std::vector<uint8_t>& b) {
       ++versions;
       bytes += b.size();
       return true;
@@ -92,20 +98,19 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
 
     // A game clock: how far ahead of it the versions arrive (the first is baked at creation).
-    pb::TrackSpec clock = golden(hash, resolution);
-    pb::PlacePath place = clock.place();
-    place.set_end_utc("");
-    place.set_step_seconds(step);
-    *clock.mutable_clock()->mutable_place() = place;
-    clock.mutable_clock()->set_rate(rate);
-    const pb::TrackStatus followed = client.createTrack("clock-" + resolution, clock);
+    net::TrackSpec clock = golden(hash, resolution);
+    net::PlacePath place = morning();
+    place.endUtc = "";
+    place.stepSeconds = step;
+    clock.path = net::ClockPath{place, rate};
+    const net::TrackStatus followed = client.createTrack("clock-" + resolution, clock);
     std::vector<double> leads;
-    client.subscribe(followed.track_id(), 0, [&](const pb::TrackVersion& v, const std::vector<uint8_t>&) {
-      const double due = double(followed.created_unix_ms()) + double(v.keyframe()) * step / rate * 1000;
+    client.subscribe(followed.trackId, 0, [&](const net::TrackVersion& v, const std::vector<uint8_t>&) {
+      const double due = double(followed.createdUnixMs) + double(v.keyframe) * step / rate * 1000;
       leads.push_back((due - double(wallMs())) / 1000);
       return leads.size() < 6;
     });
-    client.cancelTrack(followed.track_id());
+    client.cancelTrack(followed.trackId);
     double mean = 0;
     for (double l : leads) mean += l / double(leads.size());
     std::printf("| %s | clock x%g, a keyframe every %g s of game time (%.1f s real) | %zu | - | - | - | %.1f / %.1f / %.1f |\n",

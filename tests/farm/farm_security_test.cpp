@@ -408,7 +408,7 @@ class FarmSecurityTest : public ::testing::Test {
     int exit = worker.wait(30);
     if (!w.ok() || last.state() != pb::JOB_DONE || exit != 0)
       s_->problem = "the worker did not finish the tiny job: " + net::describe(w) + ", state " +
-                    net::jobStateName(last.state()) + ", worker exit " + std::to_string(exit) + "\n" + worker.log() +
+                    net::jobStateName(net::JobState(last.state())) + ", worker exit " + std::to_string(exit) + "\n" + worker.log() +
                     f.log();
   }
   static void TearDownTestSuite() {

@@ -116,7 +116,7 @@ class OpenStreams {
 struct WatchedFarm {
   WatchedFarm(const std::string& name, server::CoordinatorConfig config, server::ConnectionLimits limits)
       : dir(name), farm((config.dataDir = dir / "data", config), limits) {
-    jobId = farm.client.submit(name, farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).job_id();
+    jobId = farm.client.submit(name, farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).jobId;
   }
   /// Starts a watch of the job on `stub`.
   void watch(OpenStreams<pb::JobStatus>& streams, pb::Farm::Stub& stub) const {

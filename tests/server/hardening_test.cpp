@@ -135,10 +135,10 @@ TEST(Hardening, R8_FailureReasonsStayValidUtf8) {
     grpc::ClientContext fctx;
     ASSERT_TRUE(workers->FailTile(&fctx, fr, &reply).ok());
   }
-  const std::vector<pb::JobStatus> jobs = farm.client.list(true);  // parses: the error is UTF-8
+  const std::vector<client::JobStatus> jobs = farm.client.list(true);  // parses: the error is UTF-8
   ASSERT_EQ(jobs.size(), 1u);
-  EXPECT_EQ(jobs[0].state(), pb::JOB_FAILED);
-  EXPECT_NE(jobs[0].error().find("failed 3 times"), std::string::npos);
+  EXPECT_EQ(jobs[0].state, client::JobState::Failed);
+  EXPECT_NE(jobs[0].error.find("failed 3 times"), std::string::npos);
 }
 
 // R15 (and R1's server part): CompleteTile under a lease nobody holds is refused at the
@@ -219,7 +219,7 @@ TEST(Hardening, R5_AnUploadInterruptedInItsImportCompletesOnTheNextTry) {
     EXPECT_EQ(up.sceneHash, hash);
     EXPECT_GT(up.triangles, 0u);
     EXPECT_TRUE(farm.coordinator.scenes().uploadStatus(hash).complete());
-    EXPECT_EQ(farm.client.submit("r5", farm.uploadAndSpec(obj, "city:1:1", "64")).state() != pb::JOB_FAILED, true);
+    EXPECT_EQ(farm.client.submit("r5", farm.uploadAndSpec(obj, "city:1:1", "64")).state != client::JobState::Failed, true);
   }
   markIncomplete();
   for (const auto& entry : std::filesystem::directory_iterator(dir / "data/scenes"))
@@ -241,8 +241,8 @@ TEST(Hardening, R5_AnUploadInterruptedInItsImportCompletesOnTheNextTry) {
 TEST(Hardening, R2_AJobOfTooManyTilesIsRefusedAtOnce) {
   TempDir dir("cpvs_r2");
   InProcessFarm farm(dir / "data");
-  pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "256K");
-  spec.mutable_options()->set_tile_size(8);
+  net::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "256K");
+  spec.options.tileSize = 8;
   const auto start = std::chrono::steady_clock::now();
   try {
     farm.client.submit("r2", spec);
@@ -317,23 +317,23 @@ TEST(Hardening, R21_AMissingStoredFileDoesNotNameTheDataFolder) {
   InProcessFarm farm(dir / "data");
   worker::TileWorker tileWorker(testing::workerConfig(farm.connection(), dir / "cache"));
   std::thread workerThread([&] { tileWorker.run(); });
-  const pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
-  const pb::JobStatus job = farm.client.watch(farm.client.submit("r21", spec).job_id());
+  const net::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+  const client::JobStatus job = farm.client.watch(farm.client.submit("r21", spec).jobId);
   tileWorker.stop();
   workerThread.join();
-  ASSERT_EQ(job.state(), pb::JOB_DONE);
-  fs::remove(farm.coordinator.jobs().artifactPath(job.job_id(), nullptr));
+  ASSERT_EQ(job.state, client::JobState::Done);
+  fs::remove(farm.coordinator.jobs().artifactPath(job.jobId, nullptr));
   try {
-    farm.client.download(job.job_id(), dir / "out.cpvs");
+    farm.client.download(job.jobId, dir / "out.cpvs");
     ADD_FAILURE() << "downloaded a missing artifact";
   } catch (const client::FarmCallError& e) {
     EXPECT_EQ(e.kind(), net::ErrorKind::DataLoss) << e.what();
     EXPECT_EQ(std::string(e.what()).find(dir / "data"), std::string::npos) << e.what();
   }
   // Nor does a job failed by an error that names a file in it (a merge that could not read).
-  const std::string failing = farm.client.submit("r21-failed", spec).job_id();
+  const std::string failing = farm.client.submit("r21-failed", spec).jobId;
   farm.coordinator.jobs().failJob(failing, "merge failed: cannot read " + (dir / "data") + "/tiles/x/0.cpvt");
-  const std::string error = farm.client.watch(failing).error();
+  const std::string error = farm.client.watch(failing).error;
   EXPECT_EQ(error.find(dir / "data"), std::string::npos) << error;
   EXPECT_NE(error.find("cannot read the data folder/tiles/x/0.cpvt"), std::string::npos) << error;
 }
@@ -362,9 +362,9 @@ TEST(Hardening, R4_AMissingAcknowledgedTileIsBakedAgainAtRestart) {
   std::string jobId;
   {
     InProcessFarm farm(dir / "data");
-    pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
-    spec.mutable_options()->set_tile_size(32);  // 4 tiles
-    jobId = farm.client.submit("r4", spec).job_id();
+    net::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+    spec.options.tileSize = 32;  // 4 tiles
+    jobId = farm.client.submit("r4", spec).jobId;
   }
   {
     // Tile 0 acknowledged, but its file lost (as after a power cut before R3's syncs).
@@ -375,11 +375,11 @@ TEST(Hardening, R4_AMissingAcknowledgedTileIsBakedAgainAtRestart) {
   InProcessFarm farm(dir / "data");
   worker::TileWorker tileWorker(testing::workerConfig(farm.connection(), dir / "cache"));
   std::thread workerThread([&] { tileWorker.run(); });
-  const pb::JobStatus done = farm.client.watch(jobId);
+  const client::JobStatus done = farm.client.watch(jobId);
   tileWorker.stop();
   workerThread.join();
-  EXPECT_EQ(done.state(), pb::JOB_DONE) << done.error();
-  EXPECT_EQ(done.tiles_done(), 4u);
+  EXPECT_EQ(done.state, client::JobState::Done) << done.error;
+  EXPECT_EQ(done.tilesDone, 4u);
 }
 
 // R4: an acknowledged tile whose file is truncated or has a byte flipped when the
@@ -392,9 +392,9 @@ TEST(Hardening, R4_ATruncatedOrFlippedAcknowledgedTileIsBakedAgainAtRestart) {
     std::string jobId;
     {
       InProcessFarm farm(data);
-      pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
-      spec.mutable_options()->set_tile_size(32);  // 4 tiles
-      jobId = farm.client.submit("r4-" + name, spec).job_id();
+      net::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+      spec.options.tileSize = 32;  // 4 tiles
+      jobId = farm.client.submit("r4-" + name, spec).jobId;
       worker::TileWorker one(testing::workerConfig(farm.connection(), dir / (name + ".cache"), 1));
       one.run();  // one tile acknowledged, three to go
     }
@@ -405,10 +405,10 @@ TEST(Hardening, R4_ATruncatedOrFlippedAcknowledgedTileIsBakedAgainAtRestart) {
     InProcessFarm farm(data);
     worker::TileWorker rest(testing::workerConfig(farm.connection(), dir / (name + ".cache")));
     std::thread pulling([&] { rest.run(); });
-    const pb::JobStatus done = farm.client.watch(jobId);
+    const client::JobStatus done = farm.client.watch(jobId);
     rest.stop();
     pulling.join();
-    EXPECT_EQ(done.state(), pb::JOB_DONE) << name << ": " << done.error();
+    EXPECT_EQ(done.state, client::JobState::Done) << name << ": " << done.error;
     farm.client.download(jobId, dir / (name + ".cpvs"));
     return readFile(dir / (name + ".cpvs"));
   };
@@ -552,7 +552,7 @@ class FlakyOnce final : public ForwardingWorkers {
 TEST(Hardening, R17_ABakedTileIsSentAgainNotBakedAgain) {
   TempDir dir("cpvs_r17");
   InProcessFarm farm(dir / "data");
-  const std::string jobId = farm.client.submit("r17", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).job_id();
+  const std::string jobId = farm.client.submit("r17", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).jobId;
   FlakyOnce proxy(farm.server.address());
   uint64_t tilesDone = 0;
   const std::string log = logOf([&] {
@@ -563,8 +563,8 @@ TEST(Hardening, R17_ABakedTileIsSentAgainNotBakedAgain) {
   });
   EXPECT_EQ(proxy.completes.load(), 2);
   ASSERT_EQ(tilesDone, 1u);  // before the watch, which would wait for the tile
-  const pb::JobStatus status = farm.client.watch(jobId);
-  EXPECT_EQ(status.state(), pb::JOB_DONE) << status.error();
+  const client::JobStatus status = farm.client.watch(jobId);
+  EXPECT_EQ(status.state, client::JobState::Done) << status.error;
   size_t bakes = 0;
   for (size_t at = log.find(": baking"); at != std::string::npos; at = log.find(": baking", at + 1)) ++bakes;
   EXPECT_EQ(bakes, 1u) << log;
@@ -624,9 +624,9 @@ TEST(Hardening, R11_RenewalsFollowTheLeaseLengthWhateverTheClocks) {
   config.dataDir = dir / "data";
   config.leaseSeconds = 0.3;  // renewals every 0.1 s
   InProcessFarm farm(config);
-  pb::BakeSpec spec = farm.uploadAndSpec(dir / "city.obj", "city:3:2", "256");
-  spec.mutable_options()->set_tile_size(256);  // one tile
-  const std::string jobId = farm.client.submit("r11", spec).job_id();
+  net::BakeSpec spec = farm.uploadAndSpec(dir / "city.obj", "city:3:2", "256");
+  spec.options.tileSize = 256;  // one tile
+  const std::string jobId = farm.client.submit("r11", spec).jobId;
 
   SkewedClock proxy(farm.server.address(), true, 3);
   {
@@ -635,9 +635,9 @@ TEST(Hardening, R11_RenewalsFollowTheLeaseLengthWhateverTheClocks) {
     tileWorker.run();
   }
   EXPECT_GE(proxy.renewalsWhileHeld.load(), 3);
-  const pb::JobStatus status = farm.client.watch(jobId);
-  EXPECT_EQ(status.tiles_done(), 1u);  // the lease held to the end
-  EXPECT_EQ(status.state(), pb::JOB_DONE) << status.error();
+  const client::JobStatus status = farm.client.watch(jobId);
+  EXPECT_EQ(status.tilesDone, 1u);  // the lease held to the end
+  EXPECT_EQ(status.state, client::JobState::Done) << status.error;
 }
 
 // R10: a worker that failed every tile at once took the lowest queued tile again each time
@@ -647,14 +647,14 @@ TEST(Hardening, R11_RenewalsFollowTheLeaseLengthWhateverTheClocks) {
 TEST(Hardening, R10_ABadWorkerCannotBurnATilesAttempts) {
   TempDir dir("cpvs_r10_bad");
   InProcessFarm farm(dir / "data");
-  pb::BakeSpec spec = farm.uploadAndSpec(dir / "city.obj", "city:3:2", "128");
-  spec.mutable_options()->set_tile_size(64);  // 4 tiles
-  const std::string jobId = farm.client.submit("r10-bad", spec).job_id();
+  net::BakeSpec spec = farm.uploadAndSpec(dir / "city.obj", "city:3:2", "128");
+  spec.options.tileSize = 64;  // 4 tiles
+  const std::string jobId = farm.client.submit("r10-bad", spec).jobId;
   server::LeaseService& leases = farm.coordinator.leases();
   std::atomic<bool> stop{false};
   std::atomic<int> failed{0};
   std::string log;
-  pb::JobStatus status;
+  client::JobStatus status;
   log = logOf([&] {
     std::thread bad([&] {
       while (!stop) {
@@ -676,7 +676,7 @@ TEST(Hardening, R10_ABadWorkerCannotBurnATilesAttempts) {
     pulling.join();
     bad.join();
   });
-  EXPECT_EQ(status.state(), pb::JOB_DONE) << status.error();
+  EXPECT_EQ(status.state, client::JobState::Done) << status.error;
   EXPECT_EQ(failed.load(), 3);  // then quarantined for the rest of the job
   EXPECT_GT(leases.quarantinedForMs("bad"), 20000);
   EXPECT_NE(log.find("worker bad gets no tile for 30 s: it failed 3 tiles in a row"), std::string::npos) << log;
@@ -690,7 +690,7 @@ TEST(Hardening, R10_AWorkerThatStopsOrBreaksCostsTheTileNoAttempt) {
   config.dataDir = dir / "data";
   config.maxAttempts = 1;
   InProcessFarm farm(config);
-  const std::string jobId = farm.client.submit("r10-kinds", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).job_id();
+  const std::string jobId = farm.client.submit("r10-kinds", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).jobId;
   server::LeaseService& leases = farm.coordinator.leases();
   for (int i = 0; i < 2; ++i) {
     const pb::TileLease l = leases.lease("preempted-" + std::to_string(i));
@@ -705,10 +705,10 @@ TEST(Hardening, R10_AWorkerThatStopsOrBreaksCostsTheTileNoAttempt) {
   const pb::TileLease kept = leases.lease("full-disk");
   EXPECT_FALSE(kept.granted());
   EXPECT_GT(kept.retry_after_ms(), 0u);
-  EXPECT_EQ(farm.client.list(true).at(0).state(), pb::JOB_RUNNING);
+  EXPECT_EQ(farm.client.list(true).at(0).state, client::JobState::Running);
   worker::TileWorker healthy(testing::workerConfig(farm.connection(), dir / "cache", 1));
   healthy.run();
-  EXPECT_EQ(farm.client.watch(jobId).state(), pb::JOB_DONE);
+  EXPECT_EQ(farm.client.watch(jobId).state, client::JobState::Done);
 }
 
 // R10: leases out when the coordinator went down were expired at its first round after
@@ -731,7 +731,7 @@ TEST(Hardening, R10_LeasesOutAcrossARestartGetAWholeLeaseLength) {
   InProcessFarm farm(config);
   std::this_thread::sleep_for(std::chrono::milliseconds(600));  // two reaper rounds
   EXPECT_TRUE(farm.coordinator.leases().renew(leaseId).valid());
-  EXPECT_EQ(farm.client.list(true).at(0).state(), pb::JOB_RUNNING) << farm.client.list(true).at(0).error();
+  EXPECT_EQ(farm.client.list(true).at(0).state, client::JobState::Running) << farm.client.list(true).at(0).error;
 }
 
 // R4: a worker's "the scene arrived damaged" was a failed tile attempt; the coordinator now
@@ -743,16 +743,16 @@ TEST(Hardening, R4_ASceneDamagedOnTheCoordinatorIsForgottenAndUploadedAgain) {
   config.dataDir = dir / "data";
   config.maxAttempts = 1;
   InProcessFarm farm(config);
-  const pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
-  const std::string jobId = farm.client.submit("r4-scene", spec).job_id();
+  const net::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+  const std::string jobId = farm.client.submit("r4-scene", spec).jobId;
   server::LeaseService& leases = farm.coordinator.leases();
   const pb::TileLease first = leases.lease("w1");
   ASSERT_TRUE(first.granted());
   leases.failTile(first.lease_id(), "scene arrived damaged (hash mismatch)", pb::FAIL_SCENE_DAMAGED);
-  EXPECT_EQ(farm.client.list(true).at(0).state(), pb::JOB_RUNNING);  // intact here: the transfer's fault
+  EXPECT_EQ(farm.client.list(true).at(0).state, client::JobState::Running);  // intact here: the transfer's fault
   EXPECT_GT(leases.quarantinedForMs("w1"), 0);
 
-  const std::string stored = dir / ("data/scenes/" + spec.scene_hash() + ".obj");
+  const std::string stored = dir / ("data/scenes/" + spec.sceneHash + ".obj");
   ASSERT_TRUE(fs::exists(stored));
   std::vector<uint8_t> bytes = readFile(stored);
   bytes[bytes.size() / 2] ^= 0x20;
@@ -760,16 +760,16 @@ TEST(Hardening, R4_ASceneDamagedOnTheCoordinatorIsForgottenAndUploadedAgain) {
   const pb::TileLease second = leases.lease("w2");
   ASSERT_TRUE(second.granted());
   leases.failTile(second.lease_id(), "scene arrived damaged (hash mismatch)", pb::FAIL_SCENE_DAMAGED);
-  const pb::JobStatus failed = farm.client.watch(jobId);
-  EXPECT_EQ(failed.state(), pb::JOB_FAILED);
-  EXPECT_NE(failed.error().find("submit the job again"), std::string::npos) << failed.error();
-  EXPECT_FALSE(farm.coordinator.scenes().uploadStatus(spec.scene_hash()).complete());
+  const client::JobStatus failed = farm.client.watch(jobId);
+  EXPECT_EQ(failed.state, client::JobState::Failed);
+  EXPECT_NE(failed.error.find("submit the job again"), std::string::npos) << failed.error;
+  EXPECT_FALSE(farm.coordinator.scenes().uploadStatus(spec.sceneHash).complete());
   const client::FarmClient::UploadResult again = farm.client.uploadScene(dir / "box.obj");
   EXPECT_FALSE(again.alreadyThere);
-  const std::string retried = farm.client.submit("r4-scene-again", spec).job_id();
+  const std::string retried = farm.client.submit("r4-scene-again", spec).jobId;
   worker::TileWorker healthy(testing::workerConfig(farm.connection(), dir / "cache", 1));
   healthy.run();
-  EXPECT_EQ(farm.client.watch(retried).state(), pb::JOB_DONE);
+  EXPECT_EQ(farm.client.watch(retried).state, client::JobState::Done);
 }
 
 // R23 (rest): a worker trusted any cached file named after a scene's hash; one damaged on
@@ -777,18 +777,18 @@ TEST(Hardening, R4_ASceneDamagedOnTheCoordinatorIsForgottenAndUploadedAgain) {
 TEST(Hardening, R23_ADamagedCachedSceneIsFetchedAgain) {
   TempDir dir("cpvs_r23_cache");
   InProcessFarm farm(dir / "data");
-  const pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
-  const std::string jobId = farm.client.submit("r23-cache", spec).job_id();
+  const net::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+  const std::string jobId = farm.client.submit("r23-cache", spec).jobId;
   fs::create_directories(dir / "cache");
-  std::ofstream(dir / ("cache/" + spec.scene_hash() + ".obj")) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  std::ofstream(dir / ("cache/" + spec.sceneHash + ".obj")) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
   const std::string log = logOf([&] {
     worker::TileWorker w(testing::workerConfig(farm.connection(), dir / "cache", 1));
     w.run();
   });
   EXPECT_NE(log.find("fails its hash: fetching it again"), std::string::npos) << log;
-  EXPECT_EQ(farm.client.watch(jobId).state(), pb::JOB_DONE);
-  const std::vector<uint8_t> cached = readFile(dir / ("cache/" + spec.scene_hash() + ".obj"));
-  EXPECT_EQ(contentHash(cached.data(), cached.size()).hex(), spec.scene_hash());
+  EXPECT_EQ(farm.client.watch(jobId).state, client::JobState::Done);
+  const std::vector<uint8_t> cached = readFile(dir / ("cache/" + spec.sceneHash + ".obj"));
+  EXPECT_EQ(contentHash(cached.data(), cached.size()).hex(), spec.sceneHash);
 }
 
 // R19: announcing a scene's hash with another file name wiped the upload in progress,
@@ -962,13 +962,13 @@ TEST(Hardening, R6_AnImportThatCrashesHangsOrBlowsUpCostsItsUploadOnly) {
   EXPECT_EQ(uploadError(farm.client, obj), "");
   // The mesh kept at upload serves every submit: with the importer broken, submits work.
   ::setenv("CPVS_FAILPOINT", "import-crash", 1);
-  pb::BakeSpec spec;
-  spec.set_scene_hash(hash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-  spec.set_resolution("64");
-  const pb::JobStatus job = farm.client.submit("r6-no-import", spec);
+  net::BakeSpec spec;
+  spec.sceneHash = hash;
+  spec.sun = Vec3{0.2, -1, 0.1};
+  spec.resolution = "64";
+  const client::JobStatus job = farm.client.submit("r6-no-import", spec);
   ::unsetenv("CPVS_FAILPOINT");
-  EXPECT_NE(job.state(), pb::JOB_FAILED) << job.error();
+  EXPECT_NE(job.state, client::JobState::Failed) << job.error;
   EXPECT_TRUE(fs::exists(dir / ("data/scenes/" + hash + ".mesh")));
 }
 
@@ -1039,7 +1039,7 @@ TEST(Hardening, R6_ASceneMeshFileRoundTripsAndDamageIsRefused) {
 TEST(Hardening, R15_AThousandWatchesAreCappedAndWorkersStillGetThrough) {
   TempDir dir("cpvs_r15_watch");
   InProcessFarm farm(dir / "data");
-  const std::string jobId = farm.client.submit("r15", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).job_id();
+  const std::string jobId = farm.client.submit("r15", farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64")).jobId;
   constexpr int kWatches = 1000, kChannels = 10;
   std::vector<std::unique_ptr<pb::Farm::Stub>> stubs;
   for (int c = 0; c < kChannels; ++c) {
@@ -1156,12 +1156,9 @@ TEST(Hardening, R15_OneClientCannotTakeEveryJobPlace) {
   config.maxActiveJobs = 4;
   config.maxActiveJobsPerClient = 2;
   InProcessFarm farm(config);
-  const pb::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
+  const net::BakeSpec spec = farm.uploadAndSpec(dir / "box.obj", "city:1:1", "64");
   auto submitAs = [&](const server::Access& access, const std::string& requestId) {
-    pb::SubmitBakeRequest req;
-    req.set_request_id(requestId);
-    *req.mutable_spec() = spec;
-    return farm.coordinator.jobs().submit(req, access);
+    return farm.coordinator.jobs().submit(requestId, spec, access);
   };
   const server::Access alice = server::Access::of("alice"), bob = server::Access::of("bob");
   submitAs(alice, "a1");
@@ -1344,7 +1341,7 @@ TEST(Hardening, R16_R25_FinishedJobsAndAbandonedUploadsAreForgottenInTime) {
   {
     InProcessFarm farm(config);
     std::set<std::string> listed;
-    for (const auto& j : farm.client.list(true)) listed.insert(j.job_id());
+    for (const auto& j : farm.client.list(true)) listed.insert(j.jobId);
     EXPECT_EQ(listed, (std::set<std::string>{"jnew", "jrun", "jtrack"}));
     EXPECT_THROW(farm.coordinator.jobs().status("jold"), net::FarmError);
     EXPECT_FALSE(fs::exists(data / "artifacts/jold.cpvs"));
@@ -1372,7 +1369,7 @@ TEST(Hardening, R16_R25_FinishedJobsAndAbandonedUploadsAreForgottenInTime) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_FALSE(fs::exists(data / "artifacts/jnew.cpvs"));
   std::set<std::string> listed;
-  for (const auto& j : farm.client.list(true)) listed.insert(j.job_id());
+  for (const auto& j : farm.client.list(true)) listed.insert(j.jobId);
   EXPECT_EQ(listed, (std::set<std::string>{"jrun", "jtrack"}));
 }
 

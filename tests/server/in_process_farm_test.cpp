@@ -28,6 +28,7 @@
 #include "cpvs/client/farm_client.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/model_convert.h"
 #include "cpvs/scene/import.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/scene/source.h"
@@ -79,23 +80,23 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   EXPECT_GT(up.triangles, 0u);
   EXPECT_TRUE(farmClient.uploadScene(obj).alreadyThere);  // content-addressed: sent once
 
-  pb::BakeSpec spec;
-  spec.set_scene_hash(up.sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0.3, -1, 0.2});
-  spec.set_resolution("256");
-  spec.mutable_options()->set_tile_size(64);
-  const pb::JobStatus submitted = farmClient.submit("in-process-1", spec);
-  const pb::JobStatus done = farmClient.watch(submitted.job_id());
-  EXPECT_EQ(done.state(), pb::JOB_DONE) << done.error();
-  EXPECT_EQ(done.tiles_total(), 16u);
-  EXPECT_EQ(done.eta_seconds(), 0);
-  farmClient.download(submitted.job_id(), dir / "farm.cpvs");
+  net::BakeSpec spec;
+  spec.sceneHash = up.sceneHash;
+  spec.sun = Vec3{0.3, -1, 0.2};
+  spec.resolution = "256";
+  spec.options.tileSize = 64;
+  const client::JobStatus submitted = farmClient.submit("in-process-1", spec);
+  const client::JobStatus done = farmClient.watch(submitted.jobId);
+  EXPECT_EQ(done.state, client::JobState::Done) << done.error;
+  EXPECT_EQ(done.tilesTotal, 16u);
+  EXPECT_EQ(done.etaSeconds, 0);
+  farmClient.download(submitted.jobId, dir / "farm.cpvs");
   {
     // What the ETA is fitted to: each rendered tile's triangles, kept at submit, and the
     // seconds its worker reported, kept at its acknowledgement.
     server::FarmStore store(dir / "data/farm.sqlite");
-    const server::TileCosts costs = store.tileCosts(submitted.job_id());
-    EXPECT_EQ(costs.done.n, double(16 - done.tiles_untouched() - done.tiles_unread()));
+    const server::TileCosts costs = store.tileCosts(submitted.jobId);
+    EXPECT_EQ(costs.done.n, double(16 - done.tilesUntouched - done.tilesUnread));
     EXPECT_GE(costs.done.w, costs.done.n);
     EXPECT_GT(costs.done.t, 0);
     EXPECT_EQ(costs.leftTiles, 0u);
@@ -107,33 +108,33 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   // cache; an unknown job is the farm's refusal.
   const runtime::FarmAddress address{farm.server.address(), "", ""};
   bool fromCache = true;
-  const std::string cached = runtime::fetchArtifact(address, submitted.job_id(), dir / "runtime-cache", &fromCache);
+  const std::string cached = runtime::fetchArtifact(address, submitted.jobId, dir / "runtime-cache", &fromCache);
   EXPECT_FALSE(fromCache);
   const std::vector<uint8_t> farmBytes = readFile(dir / "farm.cpvs");
   EXPECT_EQ(readFile(cached), farmBytes);
   EXPECT_EQ(cached, (dir / "runtime-cache") + "/" + contentHash(farmBytes.data(), farmBytes.size()).hex() + ".cpvs");
-  EXPECT_EQ(runtime::fetchArtifact(address, submitted.job_id(), dir / "runtime-cache", &fromCache), cached);
+  EXPECT_EQ(runtime::fetchArtifact(address, submitted.jobId, dir / "runtime-cache", &fromCache), cached);
   EXPECT_TRUE(fromCache);
   // A download that stopped half way resumes; one whose kept part is not the artifact's
   // fails its checksum, is dropped, and the next fetch gets the artifact.
   std::filesystem::create_directories(dir / "half/incoming");
   const std::string part = (dir / "half/incoming/") + [&] {
     std::string hex;
-    for (unsigned char c : submitted.job_id()) hex += {"0123456789abcdef"[c >> 4], "0123456789abcdef"[c & 15]};
+    for (unsigned char c : submitted.jobId) hex += {"0123456789abcdef"[c >> 4], "0123456789abcdef"[c & 15]};
     return hex;
   }() + ".cpvs.part";
   writeFileAtomic(part, std::vector<uint8_t>(farmBytes.begin(), farmBytes.begin() + farmBytes.size() / 2));
-  EXPECT_EQ(readFile(runtime::fetchArtifact(address, submitted.job_id(), dir / "half", &fromCache)), farmBytes);
+  EXPECT_EQ(readFile(runtime::fetchArtifact(address, submitted.jobId, dir / "half", &fromCache)), farmBytes);
   EXPECT_FALSE(fromCache);
   std::filesystem::create_directories(dir / "garbled/incoming");
   writeFileAtomic((dir / "garbled/incoming/") + part.substr(part.rfind('/') + 1), std::vector<uint8_t>(100, 7));
   try {
-    runtime::fetchArtifact(address, submitted.job_id(), dir / "garbled");
+    runtime::fetchArtifact(address, submitted.jobId, dir / "garbled");
     ADD_FAILURE() << "a garbled part was accepted";
   } catch (const runtime::RuntimeError& e) {
     EXPECT_EQ(e.status(), runtime::Status::CorruptArtifact) << e.what();
   }
-  EXPECT_EQ(readFile(runtime::fetchArtifact(address, submitted.job_id(), dir / "garbled")), farmBytes);
+  EXPECT_EQ(readFile(runtime::fetchArtifact(address, submitted.jobId, dir / "garbled")), farmBytes);
   try {
     runtime::fetchArtifact(address, "no-such-job", dir / "runtime-cache");
     ADD_FAILURE() << "fetched an unknown job";
@@ -147,13 +148,13 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   farm.server.shutdown(1);
 
   // With the farm gone the cache still answers; a damaged cached file is not trusted.
-  EXPECT_EQ(runtime::fetchArtifact(address, submitted.job_id(), dir / "runtime-cache", &fromCache), cached);
+  EXPECT_EQ(runtime::fetchArtifact(address, submitted.jobId, dir / "runtime-cache", &fromCache), cached);
   EXPECT_TRUE(fromCache);
   std::vector<uint8_t> damaged = farmBytes;
   damaged[damaged.size() / 2] ^= 1;
   writeFileAtomic(cached, damaged);
   try {
-    runtime::fetchArtifact(address, submitted.job_id(), dir / "runtime-cache", &fromCache);
+    runtime::fetchArtifact(address, submitted.jobId, dir / "runtime-cache", &fromCache);
     ADD_FAILURE() << "a damaged cached artifact was returned";
   } catch (const runtime::RuntimeError& e) {
     EXPECT_EQ(e.status(), runtime::Status::FarmError) << e.what();  // it went to the farm, which is down
@@ -192,14 +193,14 @@ TEST(InProcessFarm, TranslucentCastersTravelInTheArtifactAsBakedLocally) {
     const std::string glb = dir / (name + ".glb");
     testing::writeGlb(scene, glb);
     const client::FarmClient::UploadResult up = farm.client.uploadScene(glb);
-    pb::BakeSpec spec;
-    spec.set_scene_hash(up.sceneHash);
-    *spec.mutable_sun_direction() = net::toProto(Vec3{0.3, -1, 0.2});
-    spec.set_resolution("256");
-    spec.mutable_options()->set_tile_size(64);
-    const pb::JobStatus done = farm.client.watch(farm.client.submit("glass-" + name, spec).job_id());
-    ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
-    farm.client.download(done.job_id(), dir / "farm.cpvs");
+    net::BakeSpec spec;
+    spec.sceneHash = up.sceneHash;
+    spec.sun = Vec3{0.3, -1, 0.2};
+    spec.resolution = "256";
+    spec.options.tileSize = 64;
+    const client::JobStatus done = farm.client.watch(farm.client.submit("glass-" + name, spec).jobId);
+    ASSERT_EQ(done.state, client::JobState::Done) << done.error;
+    farm.client.download(done.jobId, dir / "farm.cpvs");
     const CpvsArtifact farmed = readCpvs(dir / "farm.cpvs");
     ASSERT_TRUE(farmed.translucent) << "the glass's tree travels with the CPVS";
     EXPECT_EQ(farmed.translucent->frustumCount(), translucentCasters(scene).triangleCount());
@@ -209,7 +210,7 @@ TEST(InProcessFarm, TranslucentCastersTravelInTheArtifactAsBakedLocally) {
     if (name == "apart") {
       // The pane's tiles are touched by no opaque triangle: untouched in the plan, as the
       // bake of the opaque part finds them.
-      EXPECT_GT(done.tiles_untouched(), 0u);
+      EXPECT_GT(done.tilesUntouched, 0u);
       auto tiles = [](const std::string& plan) {
         const size_t at = plan.find("\"tiles\": {");
         return plan.substr(at, plan.find('}', at) - at);
@@ -245,42 +246,41 @@ TEST(InProcessFarm, UntouchedTilesAreNotLeasedAndBothRenderersGiveTheLocalBytes)
     for (Renderer renderer : {Renderer::Raster, Renderer::Embree}) {
       if (kind != ReceiverKind::Everywhere && renderer == Renderer::Embree) continue;
       SCOPED_TRACE(std::string(optionName(renderer)) + ", receivers " + optionName(kind));
-      pb::BakeSpec spec;
-      spec.set_scene_hash(up.sceneHash);
-      *spec.mutable_sun_direction() = net::toProto(Vec3{0.2, -1, 0.1});
-      spec.set_resolution("256");
-      spec.mutable_options()->set_tile_size(32);
-      spec.mutable_options()->set_renderer(pb::Renderer(int(renderer)));
+      net::BakeSpec spec;
+      spec.sceneHash = up.sceneHash;
+      spec.sun = Vec3{0.2, -1, 0.1};
+      spec.resolution = "256";
+      spec.options.tileSize = 32;
+      spec.options.renderer = renderer;
       ReceiverDeclaration d;
       d.kind = kind;
       d.maxPcf = 9;
       if (kind != ReceiverKind::Everywhere) {
-        spec.mutable_options()->mutable_receivers()->set_kind(pb::ReceiverKind(int(kind)));
-        spec.mutable_options()->mutable_receivers()->set_max_pcf(9);
+        spec.options.receivers.emplace();
+        spec.options.receivers->kind = kind;
+        spec.options.receivers->maxPcf = 9;
       }
       if (kind == ReceiverKind::Cameras) {
-        pb::Receivers& r = *spec.mutable_options()->mutable_receivers();
-        pb::ReceiverBox& b = *r.add_camera_regions();
-        *b.mutable_min() = net::toProto(Vec3{-1, 0.5, -1});
-        *b.mutable_max() = net::toProto(Vec3{2, 1.5, 2});
-        r.set_view_distance(3);
+        net::Receivers& r = *spec.options.receivers;
+        r.cameraRegions.push_back({Vec3{-1, 0.5, -1}, Vec3{2, 1.5, 2}});
+        r.viewDistance = 3;
         d.cameraRegions = {{Vec3{-1, 0.5, -1}, Vec3{2, 1.5, 2}}};
         d.viewDistance = 3;
       }
       const uint64_t leasedBefore = tileWorker.tilesLeased();
-      const pb::JobStatus done = farm.client.watch(
-          farm.client.submit(std::string("untouched-") + optionName(renderer) + "-" + optionName(kind), spec).job_id());
-      ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
-      EXPECT_EQ(done.tiles_total(), 64u);
-      EXPECT_EQ(done.tiles_done(), 64u);
-      EXPECT_GT(done.tiles_untouched(), 20u) << "the space between the boxes is empty";
-      EXPECT_LT(done.tiles_untouched() + done.tiles_unread(), 64u);
+      const client::JobStatus done = farm.client.watch(
+          farm.client.submit(std::string("untouched-") + optionName(renderer) + "-" + optionName(kind), spec).jobId);
+      ASSERT_EQ(done.state, client::JobState::Done) << done.error;
+      EXPECT_EQ(done.tilesTotal, 64u);
+      EXPECT_EQ(done.tilesDone, 64u);
+      EXPECT_GT(done.tilesUntouched, 20u) << "the space between the boxes is empty";
+      EXPECT_LT(done.tilesUntouched + done.tilesUnread, 64u);
       if (kind == ReceiverKind::Cameras) {
-        EXPECT_GT(done.tiles_unread(), 0u) << "the cameras never see the second box";
+        EXPECT_GT(done.tilesUnread, 0u) << "the cameras never see the second box";
       }
       // The worker baked exactly the others: the status says how many were never leased.
-      EXPECT_EQ(tileWorker.tilesLeased() - leasedBefore, 64u - done.tiles_untouched() - done.tiles_unread());
-      farm.client.download(done.job_id(), dir / "farm.cpvs");
+      EXPECT_EQ(tileWorker.tilesLeased() - leasedBefore, 64u - done.tilesUntouched - done.tilesUnread);
+      farm.client.download(done.jobId, dir / "farm.cpvs");
 
       BakeOptions options;
       options.log2TileSize = 5;
@@ -320,48 +320,42 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
   const std::string volumeHash = farm.client.uploadScene(meshObj).sceneHash;
   const Scene loaded = loadScene(obj);
   for (ReceiverKind kind : {ReceiverKind::Surfaces, ReceiverKind::Volume, ReceiverKind::Cameras}) {
-    pb::BakeSpec spec;
-    spec.set_scene_hash(sceneHash);
-    *spec.mutable_sun_direction() = net::toProto(Vec3{0.3, -1, 0.2});
-    spec.set_resolution("256");
-    spec.mutable_options()->set_tile_size(64);
-    pb::Receivers& r = *spec.mutable_options()->mutable_receivers();
-    r.set_kind(pb::ReceiverKind(int(kind)));
-    r.set_max_pcf(5);
+    net::BakeSpec spec;
+    spec.sceneHash = sceneHash;
+    spec.sun = Vec3{0.3, -1, 0.2};
+    spec.resolution = "256";
+    spec.options.tileSize = 64;
+    net::Receivers& r = spec.options.receivers.emplace();
+    r.kind = kind;
+    r.maxPcf = 5;
     ReceiverDeclaration d;
     d.kind = kind;
     d.maxPcf = 5;
     if (kind == ReceiverKind::Volume) {
-      r.set_volume_scene_hash(volumeHash);
-      pb::ReceiverBox& b = *r.add_boxes();
-      *b.mutable_min() = net::toProto(Vec3{-4, 5, -4});
-      *b.mutable_max() = net::toProto(Vec3{3, 7, 2});
+      r.volumeSceneHash = volumeHash;
+      r.boxes.push_back({Vec3{-4, 5, -4}, Vec3{3, 7, 2}});
       d.volume = loadScene(meshObj);
       appendBox(d.volume, {-4, 5, -4}, {3, 7, 2});
       finalizeScene(d.volume);
       // And a ground layer, from 0.5 to 2 units over surfaces within 30 degrees of level.
-      r.set_ground_layer(2);
-      r.set_ground_layer_from(0.5);
-      r.set_ground_slope_deg(30);
+      r.groundLayer = 2;
+      r.groundLayerFrom = 0.5;
+      r.groundSlopeDeg = 30;
       d.groundLayer = 2;
       d.groundLayerFrom = 0.5;
       d.groundSlopeDeg = 30;
     }
     if (kind == ReceiverKind::Cameras) {
-      pb::ReceiverBox& b = *r.add_camera_regions();
-      *b.mutable_min() = net::toProto(Vec3{3, 1, 3});
-      *b.mutable_max() = net::toProto(Vec3{8, 2, 8});
-      r.set_view_distance(6);
+      r.cameraRegions.push_back({Vec3{3, 1, 3}, Vec3{8, 2, 8}});
+      r.viewDistance = 6;
       d.cameraRegions = {{Vec3{3, 1, 3}, Vec3{8, 2, 8}}};
       d.viewDistance = 6;
       // Sampled from the region, a point and a path: every worker casts the same rays.
-      *r.add_camera_points() = net::toProto(Vec3{-2, 1.5, 0});
-      pb::CameraPath& path = *r.add_camera_paths();
-      *path.add_points() = net::toProto(Vec3{-5, 1, -5});
-      *path.add_points() = net::toProto(Vec3{5, 1, -5});
-      r.set_camera_visibility(pb::CAMERA_VISIBILITY_SAMPLED);
-      r.set_camera_spacing(1.5);
-      r.set_camera_rays(24);
+      r.cameraPoints = {Vec3{-2, 1.5, 0}};
+      r.cameraPaths = {{Vec3{-5, 1, -5}, Vec3{5, 1, -5}}};
+      r.cameraVisibility = CameraVisibility::Sampled;
+      r.cameraSpacing = 1.5;
+      r.cameraRays = 24;
       d.cameraPoints = {Vec3{-2, 1.5, 0}};
       d.cameraPaths = {{Vec3{-5, 1, -5}, Vec3{5, 1, -5}}};
       d.cameraVisibility = CameraVisibility::Sampled;
@@ -369,12 +363,12 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
       d.cameraRays = 24;
     }
     const uint64_t leasedBefore = tileWorker.tilesLeased();
-    const pb::JobStatus done =
-        farm.client.watch(farm.client.submit(std::string("receivers-") + optionName(kind), spec).job_id());
-    ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
+    const client::JobStatus done =
+        farm.client.watch(farm.client.submit(std::string("receivers-") + optionName(kind), spec).jobId);
+    ASSERT_EQ(done.state, client::JobState::Done) << done.error;
     // Tiles no receiver reads are done at submit and never leased.
-    EXPECT_EQ(tileWorker.tilesLeased() - leasedBefore, done.tiles_total() - done.tiles_untouched() - done.tiles_unread());
-    farm.client.download(done.job_id(), dir / "farm.cpvs");
+    EXPECT_EQ(tileWorker.tilesLeased() - leasedBefore, done.tilesTotal - done.tilesUntouched - done.tilesUnread);
+    farm.client.download(done.jobId, dir / "farm.cpvs");
 
     BakeOptions options;
     options.log2TileSize = 6;
@@ -383,12 +377,12 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
     EXPECT_EQ(readFile(dir / "farm.cpvs"), encodeCpvs(local, true)) << optionName(kind);
   }
   // A volume that is not closed, or names no uploaded mesh, is refused at submit.
-  pb::BakeSpec bad;
-  bad.set_scene_hash(sceneHash);
-  *bad.mutable_sun_direction() = net::toProto(Vec3{0.3, -1, 0.2});
-  bad.set_resolution("256");
-  bad.mutable_options()->mutable_receivers()->set_kind(pb::RECEIVERS_VOLUME);
-  bad.mutable_options()->mutable_receivers()->set_volume_scene_hash(sceneHash);  // the open level
+  net::BakeSpec bad;
+  bad.sceneHash = sceneHash;
+  bad.sun = Vec3{0.3, -1, 0.2};
+  bad.resolution = "256";
+  bad.options.receivers.emplace().kind = ReceiverKind::Volume;
+  bad.options.receivers->volumeSceneHash = sceneHash;  // the open level
   auto refusal = [&](const std::string& id) {
     try {
       farm.client.submit(id, bad);
@@ -400,7 +394,7 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
   auto [kind, message] = refusal("bad-volume");
   EXPECT_EQ(kind, net::ErrorKind::InvalidArgument) << message;
   EXPECT_NE(message.find("must be closed"), std::string::npos) << message;
-  bad.mutable_options()->mutable_receivers()->set_volume_scene_hash(std::string(32, 'a'));
+  bad.options.receivers->volumeSceneHash = std::string(32, 'a');
   std::tie(kind, message) = refusal("missing-volume");
   EXPECT_EQ(kind, net::ErrorKind::NotFound) << message;
   tileWorker.stop();
@@ -420,10 +414,10 @@ TEST(InProcessFarm, UnknownJobsAndRefusalsAreTheirKinds) {
     EXPECT_TRUE(e.callerCanFix());
     EXPECT_NE(std::string(e.what()).find("NOT_FOUND: no job no-such-job"), std::string::npos) << e.what();
   }
-  pb::BakeSpec spec;
-  spec.set_scene_hash(std::string(32, 'a'));
-  spec.set_resolution("256");
-  *spec.mutable_sun_direction() = net::toProto(Vec3{0, -1, 0});
+  net::BakeSpec spec;
+  spec.sceneHash = std::string(32, 'a');
+  spec.sun = Vec3{0, -1, 0};
+  spec.resolution = "256";
   try {
     farmClient.submit("r", spec);
     ADD_FAILURE();
@@ -465,7 +459,8 @@ server::JobRecord sampleJob(const std::string& id, int priority, uint64_t tiles)
 TEST(InProcessFarm, ABadLightBundleIsRefusedWithWhatIsWrong) {
   TempDir dir("cpvs_in_process_bundle_refusals");
   InProcessFarm farm(dir / "data");
-  const pb::BakeSpec sun = farm.uploadAndSpec(dir / "city.obj", "city:1:1", "256");
+  // As the wire carries it: some of these a client's model cannot even hold.
+  const pb::BakeSpec sun = net::toProto(farm.uploadAndSpec(dir / "city.obj", "city:1:1", "256"));
   pb::BakeSpec lamp = sun;
   lamp.clear_sun();
   lamp.clear_resolution();
@@ -515,7 +510,7 @@ TEST(InProcessFarm, ABadLightBundleIsRefusedWithWhatIsWrong) {
     pb::BakeSpec bad = lamp;
     cases[i].first(bad);
     try {
-      farm.client.submit("bad-" + std::to_string(i), bad);
+      farm.submitMessage("bad-" + std::to_string(i), bad);
       ADD_FAILURE() << "case " << i << " was accepted";
     } catch (const client::FarmCallError& e) {
       EXPECT_EQ(e.kind(), net::ErrorKind::InvalidArgument) << i << ": " << e.what();
@@ -527,12 +522,12 @@ TEST(InProcessFarm, ABadLightBundleIsRefusedWithWhatIsWrong) {
     pb::BakeSpec bad = sun;
     if (i) bad.set_footprint(0.5);
     else bad.set_pointer_grid(2);
-    EXPECT_THROW(farm.client.submit("bad-sun-" + std::to_string(i), bad), client::FarmCallError);
+    EXPECT_THROW(farm.submitMessage("bad-sun-" + std::to_string(i), bad), client::FarmCallError);
   }
   EXPECT_TRUE(farm.client.list(true).empty());
   // The good one is accepted: one light, one grid, 16 tiles of 64.
   lamp.mutable_options()->set_tile_size(64);
-  const pb::JobStatus ok = farm.client.submit("good", lamp);
+  const pb::JobStatus ok = farm.submitMessage("good", lamp);
   EXPECT_EQ(ok.lights(), 1u);
   EXPECT_EQ(ok.grids(), 1u);
   EXPECT_EQ(ok.tiles_total(), 16u);
@@ -559,23 +554,23 @@ TEST(InProcessFarm, ALightsFixtureIsLeftOutOnTheWorkersAsInTheLocalBake) {
   lamp.coneDeg = 60;
   lamp.log2Resolution = 8;
   lamp.exclude = {"lamp"};
-  pb::BakeSpec spec;
-  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
-  *spec.add_lights() = net::toProto(lamp);
-  spec.mutable_options()->set_tile_size(64);
-  const pb::JobStatus submitted = farm.client.submit("fixture", spec);
-  const pb::JobStatus done = farm.client.watch(submitted.job_id());
-  ASSERT_EQ(done.state(), pb::JOB_DONE) << done.error();
-  farm.client.download(submitted.job_id(), dir / "farm.cpvs");
+  net::BakeSpec spec;
+  spec.sceneHash = farm.client.uploadScene(obj).sceneHash;
+  spec.lights = {lamp};
+  spec.options.tileSize = 64;
+  const client::JobStatus submitted = farm.client.submit("fixture", spec);
+  const client::JobStatus done = farm.client.watch(submitted.jobId);
+  ASSERT_EQ(done.state, client::JobState::Done) << done.error;
+  farm.client.download(submitted.jobId, dir / "farm.cpvs");
   // Declared receivers: the workers keep what lookups on the surfaces read (the shade's
   // too, though it casts nothing), as the local bake does.
-  pb::BakeSpec declared = spec;
-  declared.mutable_options()->mutable_receivers()->set_kind(pb::RECEIVERS_SURFACES);
-  declared.mutable_options()->mutable_receivers()->set_max_pcf(5);
-  const pb::JobStatus submittedSurfaces = farm.client.submit("fixture-surfaces", declared);
-  const pb::JobStatus doneSurfaces = farm.client.watch(submittedSurfaces.job_id());
-  ASSERT_EQ(doneSurfaces.state(), pb::JOB_DONE) << doneSurfaces.error();
-  farm.client.download(submittedSurfaces.job_id(), dir / "farm-surfaces.cpvs");
+  net::BakeSpec declared = spec;
+  declared.options.receivers.emplace().kind = ReceiverKind::Surfaces;
+  declared.options.receivers->maxPcf = 5;
+  const client::JobStatus submittedSurfaces = farm.client.submit("fixture-surfaces", declared);
+  const client::JobStatus doneSurfaces = farm.client.watch(submittedSurfaces.jobId);
+  ASSERT_EQ(doneSurfaces.state, client::JobState::Done) << doneSurfaces.error;
+  farm.client.download(submittedSurfaces.jobId, dir / "farm-surfaces.cpvs");
   tileWorker.stop();
   workerThread.join();
 
@@ -604,7 +599,7 @@ TEST(InProcessFarm, ALightsFixtureIsLeftOutOnTheWorkersAsInTheLocalBake) {
   EXPECT_EQ(q.filtered(0, {0.5, 0, 0.5}, {0, 1, 0}, 3), 1.0f) << "under the lamp, lit through its shade";
 
   // A fixture the scene does not name is refused at submit.
-  spec.mutable_lights(0)->set_exclude(0, "lampshade");
+  spec.lights[0].exclude[0] = "lampshade";
   try {
     farm.client.submit("no-such-fixture", spec);
     ADD_FAILURE() << "a fixture the scene does not name was accepted";
@@ -629,10 +624,10 @@ TEST(InProcessFarm, ABundleWhoseStoredLightsAreDamagedFailsAtItsFirstLease) {
     lamp.direction = {0.1, -1, 0};
     lamp.coneDeg = 60;
     lamp.log2Resolution = 7;
-    pb::BakeSpec spec;
-    spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
-    *spec.add_lights() = net::toProto(lamp);
-    job = farm.client.submit("damaged", spec).job_id();
+    net::BakeSpec spec;
+    spec.sceneHash = farm.client.uploadScene(obj).sceneHash;
+    spec.lights = {lamp};
+    job = farm.client.submit("damaged", spec).jobId;
   }
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open((dir / "data/farm.sqlite").c_str(), &db), SQLITE_OK);

@@ -16,6 +16,7 @@
 #include "cpvs/base/error.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/model_convert.h"
 #include "cpvs/scene/import.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/scene/source.h"
@@ -42,25 +43,25 @@ std::vector<uint8_t> localBytes(const Scene& scene, const Vec3& direction) {
   return encodeCpvs(testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection(direction), 7), {}), true);
 }
 
-pb::TrackSpec directionTrack(const std::string& sceneHash, const std::vector<Vec3>& dirs) {
-  pb::TrackSpec spec;
-  spec.set_scene_hash(sceneHash);
-  spec.set_resolution("128");
-  spec.set_name("three suns");
-  spec.set_keyframes_ahead(1);
-  for (const Vec3& d : dirs) *spec.mutable_directions()->add_directions() = net::toProto(d);
+net::TrackSpec directionTrack(const std::string& sceneHash, const std::vector<Vec3>& dirs) {
+  net::TrackSpec spec;
+  spec.sceneHash = sceneHash;
+  spec.resolution = "128";
+  spec.name = "three suns";
+  spec.keyframesAhead = 1;
+  spec.path = dirs;
   return spec;
 }
 
 struct Received {
-  std::vector<pb::TrackVersion> versions;
+  std::vector<net::TrackVersion> versions;
   std::vector<std::vector<uint8_t>> bytes;
 };
 
 // Subscribes after `after` until the track ends, or until `most` versions (0: no limit).
 Received follow(client::FarmClient& c, const std::string& track, uint64_t after = 0, size_t most = 0) {
   Received got;
-  c.subscribe(track, after, [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
+  c.subscribe(track, after, [&](const net::TrackVersion& v, const std::vector<uint8_t>& b) {
     got.versions.push_back(v);
     got.bytes.push_back(b);
     return most == 0 || got.versions.size() < most;
@@ -79,17 +80,17 @@ TEST(Tracks, VersionsArriveInOrderAndResumeAcrossDisconnectsAndRestarts) {
     // A coordinator with no worker: the track is created and its first keyframe waits.
     auto farm = std::make_unique<InProcessFarm>(dir / "data");
     const std::string hash = farm->client.uploadScene(obj).sceneHash;
-    const pb::TrackStatus created = farm->client.createTrack("track-1", directionTrack(hash, dirs));
-    trackId = created.track_id();
-    EXPECT_EQ(created.state(), pb::TRACK_ACTIVE);
-    EXPECT_EQ(created.keyframes_total(), 3u);
-    EXPECT_EQ(farm->client.createTrack("track-1", directionTrack(hash, dirs)).track_id(), trackId);  // a retry
-    pb::TrackSpec other = directionTrack(hash, dirs);
-    other.set_name("another");
+    const net::TrackStatus created = farm->client.createTrack("track-1", directionTrack(hash, dirs));
+    trackId = created.trackId;
+    EXPECT_EQ(created.state, net::TrackState::Active);
+    EXPECT_EQ(created.keyframesTotal, 3u);
+    EXPECT_EQ(farm->client.createTrack("track-1", directionTrack(hash, dirs)).trackId, trackId);  // a retry
+    net::TrackSpec other = directionTrack(hash, dirs);
+    other.name = "another";
     EXPECT_THROW(farm->client.createTrack("track-1", other), client::FarmCallError);
     const auto jobs = farm->client.list(false);
     ASSERT_EQ(jobs.size(), 1u);  // one keyframe ahead
-    EXPECT_LT(jobs[0].spec().priority(), 0);  // below interactive bakes
+    EXPECT_LT(jobs[0].spec.priority, 0);  // below interactive bakes
     farm->server.shutdown(1);
   }
   // Restarted on the same folder, with a worker: the track carries on.
@@ -101,7 +102,7 @@ TEST(Tracks, VersionsArriveInOrderAndResumeAcrossDisconnectsAndRestarts) {
 
   // A subscriber that goes away after the first version...
   Received got;
-  auto keep = [&](const pb::TrackVersion& v, const std::vector<uint8_t>& b) {
+  auto keep = [&](const net::TrackVersion& v, const std::vector<uint8_t>& b) {
     got.versions.push_back(v);
     got.bytes.push_back(b);
     return got.versions.size() != 1;
@@ -111,37 +112,37 @@ TEST(Tracks, VersionsArriveInOrderAndResumeAcrossDisconnectsAndRestarts) {
   EXPECT_EQ(farm.client.subscribe(trackId, 1, keep), 3u);
   ASSERT_EQ(got.versions.size(), 3u);
   for (size_t i = 0; i < 3; ++i) {
-    EXPECT_EQ(got.versions[i].sequence(), i + 1);
-    EXPECT_EQ(got.versions[i].keyframe(), i);
+    EXPECT_EQ(got.versions[i].sequence, i + 1);
+    EXPECT_EQ(got.versions[i].keyframe, i);
     EXPECT_EQ(got.bytes[i], localBytes(scene, quantized(dirs[i]))) << "keyframe " << i;
   }
-  const pb::TrackStatus done = farm.client.listTracks(true).at(0);
-  EXPECT_EQ(done.state(), pb::TRACK_FINISHED);
-  EXPECT_EQ(done.keyframes_published(), 3u);
-  EXPECT_EQ(done.latest_sequence(), 3u);
+  const net::TrackStatus done = farm.client.listTracks(true).at(0);
+  EXPECT_EQ(done.state, net::TrackState::Finished);
+  EXPECT_EQ(done.keyframesPublished, 3u);
+  EXPECT_EQ(done.latestSequence, 3u);
 
   // A second track over the same suns bakes nothing new: its keyframes are the same jobs.
   const size_t jobsBefore = farm.client.list(true).size();
-  pb::TrackSpec again = directionTrack(farm.client.listTracks(true).at(0).spec().scene_hash(), dirs);
-  again.set_name("again");
-  const std::string second = farm.client.createTrack("track-2", again).track_id();
+  net::TrackSpec again = directionTrack(farm.client.listTracks(true).at(0).spec.sceneHash, dirs);
+  again.name = "again";
+  const std::string second = farm.client.createTrack("track-2", again).trackId;
   const Received twice = follow(farm.client, second);
   ASSERT_EQ(twice.versions.size(), 3u);
-  EXPECT_EQ(twice.versions[2].job_id(), got.versions[2].job_id());
+  EXPECT_EQ(twice.versions[2].jobId, got.versions[2].jobId);
   EXPECT_EQ(twice.bytes, got.bytes);
   EXPECT_EQ(farm.client.list(true).size(), jobsBefore);
 
   // Retention: a track that keeps two versions offers a late subscriber the newest two.
-  pb::TrackSpec kept = directionTrack(farm.client.listTracks(true).at(0).spec().scene_hash(), dirs);
-  kept.set_name("kept");
-  kept.set_keep_versions(2);
-  const std::string third = farm.client.createTrack("track-3", kept).track_id();
-  for (int i = 0; i < 300 && farm.client.listTracks(true).back().state() != pb::TRACK_FINISHED; ++i)
+  net::TrackSpec kept = directionTrack(farm.client.listTracks(true).at(0).spec.sceneHash, dirs);
+  kept.name = "kept";
+  kept.keepVersions = 2;
+  const std::string third = farm.client.createTrack("track-3", kept).trackId;
+  for (int i = 0; i < 300 && farm.client.listTracks(true).back().state != net::TrackState::Finished; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   const Received late = follow(farm.client, third);
   ASSERT_EQ(late.versions.size(), 2u);
-  EXPECT_EQ(late.versions[0].sequence(), 2u);
-  EXPECT_EQ(late.versions[1].sequence(), 3u);
+  EXPECT_EQ(late.versions[0].sequence, 2u);
+  EXPECT_EQ(late.versions[1].sequence, 3u);
 
   // Tokens from the future and unknown tracks are refused.
   try {
@@ -168,33 +169,34 @@ TEST(Tracks, APlaceThroughTimeLeavesOutTheNight) {
   const std::string obj = dir / "city.obj";
   writeObj(obj, openScene("city:2:5"));
   const Scene scene = loadScene(obj);
-  pb::TrackSpec spec;
-  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
-  spec.set_resolution("128");
-  spec.set_keyframes_ahead(4);
-  pb::PlacePath& p = *spec.mutable_place();
-  p.set_latitude_deg(39.742476);
-  p.set_longitude_deg(-105.1786);
-  p.set_start_utc("2024-06-21T16:00:00-06:00");
-  p.set_end_utc("2024-06-21T22:00:00-06:00");
-  p.set_step_seconds(7200);
+  net::TrackSpec spec;
+  spec.sceneHash = farm.client.uploadScene(obj).sceneHash;
+  spec.resolution = "128";
+  spec.keyframesAhead = 4;
+  net::PlacePath p;
+  p.latitudeDeg = 39.742476;
+  p.longitudeDeg = -105.1786;
+  p.startUtc = "2024-06-21T16:00:00-06:00";
+  p.endUtc = "2024-06-21T22:00:00-06:00";
+  p.stepSeconds = 7200;
+  spec.path = p;
   worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
   worker::TileWorker tileWorker(wc);
   std::thread workerThread([&] { tileWorker.run(); });
-  const std::string id = farm.client.createTrack("evening", spec).track_id();
+  const std::string id = farm.client.createTrack("evening", spec).trackId;
   const Received got = follow(farm.client, id);
   tileWorker.stop();
   workerThread.join();
   ASSERT_EQ(got.versions.size(), 3u);
   for (size_t i = 0; i < 3; ++i) {
     const int64_t instant = unixMillis(parseUtcInstant("2024-06-21T16:00:00-06:00")) + int64_t(i) * 7200000;
-    EXPECT_EQ(got.versions[i].instant_unix_ms(), instant);
+    EXPECT_EQ(got.versions[i].instantUnixMs, instant);
     const SunPosition sun = sunPosition(utcFromUnixMillis(instant), {39.742476, -105.1786, 0});
     EXPECT_FALSE(sun.night);
     EXPECT_EQ(got.bytes[i], localBytes(scene, quantized(sun.direction))) << "keyframe " << i;
   }
   EXPECT_TRUE(sunPosition(parseUtcInstant("2024-06-21T22:00:00-06:00"), {39.742476, -105.1786, 0}).night);
-  EXPECT_EQ(farm.client.listTracks(true).at(0).state(), pb::TRACK_FINISHED);
+  EXPECT_EQ(farm.client.listTracks(true).at(0).state, net::TrackState::Finished);
 
   // The runtime follows the track: a lookup at a keyframe's instant answers that
   // keyframe; between two, their crossfade; before the first and after the last, those.
@@ -214,35 +216,33 @@ TEST(Tracks, APlaceThroughTimeLeavesOutTheNight) {
     for (size_t i = 0; i < points.size(); ++i) each[k][i] = art->cpu().filtered(points[i], normals[i], 5);
   }
   EXPECT_NE(each[0], each[2]) << "the sun moved: the shadows must too";
-  const int64_t t0 = got.versions[0].instant_unix_ms(), t1 = got.versions[1].instant_unix_ms();
+  const int64_t t0 = got.versions[0].instantUnixMs, t1 = got.versions[1].instantUnixMs;
   std::vector<float> vis;
   for (size_t k = 0; k < 3; ++k) {
-    follower.visibility(points, normals, 5, got.versions[k].instant_unix_ms(), vis);
+    follower.visibility(points, normals, 5, got.versions[k].instantUnixMs, vis);
     EXPECT_EQ(vis, each[k]) << "at keyframe " << k;
   }
   follower.visibility(points, normals, 5, t0 + (t1 - t0) / 4, vis);
   for (size_t i = 0; i < points.size(); ++i) ASSERT_NEAR(vis[i], 0.75f * each[0][i] + 0.25f * each[1][i], 1e-6) << i;
   follower.visibility(points, normals, 5, t0 - 3600000, vis);
   EXPECT_EQ(vis, each[0]);
-  follower.visibility(points, normals, 5, got.versions[2].instant_unix_ms() + 3600000, vis);
+  follower.visibility(points, normals, 5, got.versions[2].instantUnixMs + 3600000, vis);
   EXPECT_EQ(vis, each[2]);
 }
 
 /// A game clock over the equator from the March equinox at 09:00 UTC: `rate` game seconds
 /// per real second, a keyframe every `step` game seconds, 64^3, the city uploaded to `farm`.
-pb::TrackSpec clockTrack(InProcessFarm& farm, const TempDir& dir, double step, double rate, uint32_t ahead) {
+net::TrackSpec clockTrack(InProcessFarm& farm, const TempDir& dir, double step, double rate, uint32_t ahead) {
   const std::string obj = dir / "city.obj";
   writeObj(obj, openScene("city:1:2"));
-  pb::TrackSpec spec;
-  spec.set_scene_hash(farm.client.uploadScene(obj).sceneHash);
-  spec.set_resolution("64");
-  spec.set_keyframes_ahead(ahead);
-  pb::PlacePath& p = *spec.mutable_clock()->mutable_place();
-  p.set_latitude_deg(0);
-  p.set_longitude_deg(0);
-  p.set_start_utc("2024-03-20T09:00:00Z");
-  p.set_step_seconds(step);
-  spec.mutable_clock()->set_rate(rate);
+  net::TrackSpec spec;
+  spec.sceneHash = farm.client.uploadScene(obj).sceneHash;
+  spec.resolution = "64";
+  spec.keyframesAhead = ahead;
+  net::PlacePath p;
+  p.startUtc = "2024-03-20T09:00:00Z";
+  p.stepSeconds = step;
+  spec.path = net::ClockPath{p, rate};
   return spec;
 }
 
@@ -252,22 +252,22 @@ pb::TrackSpec clockTrack(InProcessFarm& farm, const TempDir& dir, double step, d
 TEST(Tracks, AClockKeepsBakingAheadOfItsTime) {
   TempDir dir("cpvs_track_clock_test");
   InProcessFarm farm(dir / "data");
-  const pb::TrackSpec spec = clockTrack(farm, dir, 1800, 3600, 2);
+  const net::TrackSpec spec = clockTrack(farm, dir, 1800, 3600, 2);
   worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
   worker::TileWorker tileWorker(wc);
   std::thread workerThread([&] { tileWorker.run(); });
-  const pb::TrackStatus created = farm.client.createTrack("clock", spec);
-  EXPECT_EQ(created.keyframes_total(), 0u);  // unbounded
-  const Received got = follow(farm.client, created.track_id(), 0, 4);
+  const net::TrackStatus created = farm.client.createTrack("clock", spec);
+  EXPECT_EQ(created.keyframesTotal, 0u);  // unbounded
+  const Received got = follow(farm.client, created.trackId, 0, 4);
   ASSERT_EQ(got.versions.size(), 4u);
   for (size_t i = 1; i < got.versions.size(); ++i) {
-    EXPECT_EQ(got.versions[i].sequence(), got.versions[i - 1].sequence() + 1);
-    EXPECT_GT(got.versions[i].keyframe(), got.versions[i - 1].keyframe());
-    EXPECT_EQ(got.versions[i].instant_unix_ms() - got.versions[i - 1].instant_unix_ms(),
-              int64_t(got.versions[i].keyframe() - got.versions[i - 1].keyframe()) * 1800000);
+    EXPECT_EQ(got.versions[i].sequence, got.versions[i - 1].sequence + 1);
+    EXPECT_GT(got.versions[i].keyframe, got.versions[i - 1].keyframe);
+    EXPECT_EQ(got.versions[i].instantUnixMs - got.versions[i - 1].instantUnixMs,
+              int64_t(got.versions[i].keyframe - got.versions[i - 1].keyframe) * 1800000);
   }
-  EXPECT_EQ(farm.client.listTracks(false).at(0).state(), pb::TRACK_ACTIVE);  // a clock does not end
-  EXPECT_EQ(farm.client.cancelTrack(created.track_id()).state(), pb::TRACK_CANCELLED);
+  EXPECT_EQ(farm.client.listTracks(false).at(0).state, net::TrackState::Active);  // a clock does not end
+  EXPECT_EQ(farm.client.cancelTrack(created.trackId).state, net::TrackState::Cancelled);
   tileWorker.stop();
   workerThread.join();
 }
@@ -278,22 +278,23 @@ TEST(Tracks, AClockKeepsBakingAheadOfItsTime) {
 TEST(Tracks, ATrackThatCannotAdvanceBacksOff) {
   TempDir dir("cpvs_track_backoff_test");
   InProcessFarm farm(dir / "data");
-  pb::TrackSpec spec = clockTrack(farm, dir, 1800, 1, 1);
-  const pb::TrackStatus created = farm.client.createTrack("backing-off", spec);
+  const net::TrackSpec spec = clockTrack(farm, dir, 1800, 1, 1);
+  const net::TrackStatus created = farm.client.createTrack("backing-off", spec);
   // The stored path broken behind the coordinator's back, as a damaged store would be.
-  spec.mutable_clock()->mutable_place()->set_start_utc("not an instant");
-  const std::string broken = spec.SerializeAsString();
+  pb::TrackSpec stored = net::toProto(spec);
+  stored.mutable_clock()->mutable_place()->set_start_utc("not an instant");
+  const std::string broken = stored.SerializeAsString();
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open((dir / "data/farm.sqlite").c_str(), &db), SQLITE_OK);
   sqlite3_busy_timeout(db, 5000);
   sqlite3_stmt* update = nullptr;
   ASSERT_EQ(sqlite3_prepare_v2(db, "UPDATE tracks SET spec = ? WHERE id = ?", -1, &update, nullptr), SQLITE_OK);
   sqlite3_bind_blob(update, 1, broken.data(), int(broken.size()), SQLITE_TRANSIENT);
-  sqlite3_bind_text(update, 2, created.track_id().c_str(), -1, SQLITE_TRANSIENT);
+  sqlite3_bind_text(update, 2, created.trackId.c_str(), -1, SQLITE_TRANSIENT);
   ASSERT_EQ(sqlite3_step(update), SQLITE_DONE) << sqlite3_errmsg(db);
   sqlite3_finalize(update);
   sqlite3_close(db);
-  for (const pb::JobStatus& j : farm.client.list(false)) farm.client.cancel(j.job_id());
+  for (const client::JobStatus& j : farm.client.list(false)) farm.client.cancel(j.jobId);
   server::TrackService& tracks = farm.coordinator.tracks();
   const auto start = std::chrono::steady_clock::now();
   while (tracks.failedPasses() == 0 && std::chrono::steady_clock::now() - start < std::chrono::seconds(10))
@@ -315,25 +316,26 @@ TEST(Tracks, BadSpecsAreRefusedAndChangeNothing) {
   writeObj(obj, openScene("city:1:1"));
   const std::string hash = farm.client.uploadScene(obj).sceneHash;
   auto place = [&](const char* start, const char* end, double step, double lat) {
-    pb::TrackSpec s;
-    s.set_scene_hash(hash);
-    s.set_resolution("128");
-    pb::PlacePath& p = *s.mutable_place();
-    p.set_latitude_deg(lat);
-    p.set_start_utc(start);
-    p.set_end_utc(end);
-    p.set_step_seconds(step);
+    net::TrackSpec s;
+    s.sceneHash = hash;
+    s.resolution = "128";
+    net::PlacePath p;
+    p.latitudeDeg = lat;
+    p.startUtc = start;
+    p.endUtc = end;
+    p.stepSeconds = step;
+    s.path = p;
     return s;
   };
   struct Bad {
-    pb::TrackSpec spec;
+    net::TrackSpec spec;
     const char* message;
   };
-  pb::TrackSpec noPath;
-  noPath.set_scene_hash(hash);
-  noPath.set_resolution("128");
-  pb::TrackSpec unknownScene = directionTrack(std::string(32, 'a'), {{0, -1, 0}});
-  pb::TrackSpec zeroDirection = directionTrack(hash, {{0, 0, 0}});
+  net::TrackSpec noPath;
+  noPath.sceneHash = hash;
+  noPath.resolution = "128";
+  net::TrackSpec unknownScene = directionTrack(std::string(32, 'a'), {{0, -1, 0}});
+  net::TrackSpec zeroDirection = directionTrack(hash, {{0, 0, 0}});
   const std::vector<Bad> cases{
       {place("2024-06-21T12:00Z", "2024-06-21T10:00Z", 600, 40), "is before start_utc"},
       {place("2024-06-21T12:00Z", "2024-06-21T13:00Z", 0, 40), "step_seconds must be positive"},

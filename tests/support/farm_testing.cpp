@@ -4,6 +4,7 @@
 
 #include "cpvs/net/channel.h"
 #include "cpvs/net/convert.h"
+#include "cpvs/net/status.h"
 #include "cpvs/scene/obj_writer.h"
 #include "cpvs/scene/source.h"
 
@@ -38,14 +39,27 @@ InProcessFarm::InProcessFarm(server::CoordinatorConfig config, server::Connectio
 
 InProcessFarm::InProcessFarm(const std::string& dataDir) : InProcessFarm(defaults(dataDir)) {}
 
-pb::BakeSpec InProcessFarm::uploadAndSpec(const std::string& objPath, const std::string& scene,
-                                          const std::string& resolution, const Vec3& sun) {
+net::BakeSpec InProcessFarm::uploadAndSpec(const std::string& objPath, const std::string& scene,
+                                           const std::string& resolution, const Vec3& sun) {
   writeObj(objPath, openScene(scene));
-  pb::BakeSpec spec;
-  spec.set_scene_hash(client.uploadScene(objPath).sceneHash);
-  *spec.mutable_sun_direction() = net::toProto(sun);
-  spec.set_resolution(resolution);
+  net::BakeSpec spec;
+  spec.sceneHash = client.uploadScene(objPath).sceneHash;
+  spec.sun = sun;
+  spec.resolution = resolution;
   return spec;
+}
+
+pb::JobStatus InProcessFarm::submitMessage(const std::string& requestId, const pb::BakeSpec& spec) {
+  auto stub = pb::Farm::NewStub(grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+  pb::SubmitBakeRequest request;
+  request.set_request_id(requestId);
+  *request.mutable_spec() = spec;
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+  pb::JobStatus out;
+  const grpc::Status status = stub->SubmitBake(&ctx, request, &out);
+  if (!status.ok()) throw client::FarmCallError(net::fromGrpcStatus(status));
+  return out;
 }
 
 worker::WorkerConfig workerConfig(const net::Connection& connection, const std::string& cacheDir, int maxTiles) {

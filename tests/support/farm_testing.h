@@ -47,8 +47,12 @@ struct InProcessFarm {
   net::Connection connection() const { return {server.address(), "", ""}; }
   /// Writes the generated scene `spec` ("city:1:1") as OBJ at `objPath`, uploads it, and
   /// returns a bake of it at `resolution` under `sun`.
-  pb::BakeSpec uploadAndSpec(const std::string& objPath, const std::string& scene, const std::string& resolution,
-                             const Vec3& sun = {0.2, -1, 0.1});
+  net::BakeSpec uploadAndSpec(const std::string& objPath, const std::string& scene, const std::string& resolution,
+                              const Vec3& sun = {0.2, -1, 0.1});
+  /// Submits `spec` as it is, past the client library's model: for what the coordinator
+  /// must refuse that the model cannot even hold (a spot light without a direction).
+  /// Throws client::FarmCallError as FarmClient::submit does.
+  pb::JobStatus submitMessage(const std::string& requestId, const pb::BakeSpec& spec);
 
   server::Coordinator coordinator;
   server::TokenTable tokens;

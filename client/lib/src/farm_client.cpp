@@ -25,9 +25,12 @@
 #include "cpvs/base/hash.h"
 #include "cpvs/net/channel.h"
 #include "cpvs/net/chunked_stream.h"
+#include "cpvs/net/model_convert.h"
 #include "cpvs/net/status.h"
 
 namespace cpvs::client {
+
+namespace pb = ::cpvs::v1;
 
 namespace {
 
@@ -50,6 +53,17 @@ FarmCallError callError(net::ErrorKind kind, const std::string& message) {
   return FarmCallError(net::FarmError(kind, std::string(net::errorKindName(kind)) + ": " + message));
 }
 
+/// An answer of the coordinator as the model's value; one this client cannot read (a
+/// newer coordinator's enum value) is the coordinator's failure, not the caller's input.
+template <class Message>
+auto modelOf(const Message& m) {
+  try {
+    return net::modelOf(m);
+  } catch (const InputError& e) {
+    throw callError(net::ErrorKind::Internal, std::string("the coordinator's answer: ") + e.what());
+  }
+}
+
 }  // namespace
 
 // --- FarmCallError ----------------------------------------------------------------------
@@ -69,7 +83,6 @@ bool FarmCallError::callerCanFix() const {
   }
 }
 
-bool isFinalState(pb::JobState s) { return s == pb::JOB_DONE || s == pb::JOB_FAILED || s == pb::JOB_CANCELLED; }
 
 std::string randomRequestId() {
   std::random_device rd;
@@ -189,14 +202,14 @@ pb::UploadSceneReply FarmClient::Transport::sendScene(const std::vector<uint8_t>
   return reply;
 }
 
-pb::JobStatus FarmClient::submit(const std::string& requestId, const pb::BakeSpec& spec) {
+JobStatus FarmClient::submit(const std::string& requestId, const BakeSpec& spec) {
   pb::SubmitBakeRequest request;
   request.set_request_id(requestId);
-  *request.mutable_spec() = spec;
-  return transport_->unary(&pb::Farm::Stub::SubmitBake, request);
+  *request.mutable_spec() = net::toProto(spec);
+  return modelOf(transport_->unary(&pb::Farm::Stub::SubmitBake, request));
 }
 
-pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<void(const pb::JobStatus&)>& onUpdate) {
+JobStatus FarmClient::watch(const std::string& jobId, const std::function<void(const JobStatus&)>& onUpdate) {
   pb::JobRef ref;
   ref.set_job_id(jobId);
   // The server sends a status at least once a second. A watch that hears nothing for
@@ -206,7 +219,7 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
   // its folder keeps the job, and the watch carries on (R17).
   using Clock = std::chrono::steady_clock;
   constexpr int kWatchSilenceSeconds = 15, kWatchGiveUpSeconds = 120;
-  pb::JobStatus last;
+  JobStatus last;
   bool any = false;
   // When a status (or a new connection) was last seen, read by the watchdog thread too.
   auto sinceEpochMs = [] {
@@ -235,7 +248,7 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
     while (reader->Read(&status)) {
       lastHeardMs = sinceEpochMs();
       backoffMs = 250;
-      last = status;
+      last = modelOf(status);
       any = true;
       if (onUpdate) onUpdate(last);
     }
@@ -246,7 +259,7 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
     }
     cv.notify_all();
     watchdog.join();
-    if (finished.ok() && any && isFinalState(last.state())) return last;
+    if (finished.ok() && any && isFinalState(last.state)) return last;
     const bool lost = finished.error_code() == grpc::StatusCode::UNAVAILABLE ||
                       finished.error_code() == grpc::StatusCode::CANCELLED ||
                       finished.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
@@ -260,21 +273,21 @@ pb::JobStatus FarmClient::watch(const std::string& jobId, const std::function<vo
   }
 }
 
-pb::JobStatus FarmClient::cancel(const std::string& jobId) {
+JobStatus FarmClient::cancel(const std::string& jobId) {
   pb::JobRef ref;
   ref.set_job_id(jobId);
-  return transport_->unary(&pb::Farm::Stub::CancelJob, ref);
+  return modelOf(transport_->unary(&pb::Farm::Stub::CancelJob, ref));
 }
 
-std::vector<pb::JobStatus> FarmClient::list(bool includeFinished) {
+std::vector<JobStatus> FarmClient::list(bool includeFinished) {
   // Page by page (the coordinator bounds each reply, R16) until the last one.
   pb::ListJobsRequest request;
   request.set_include_finished(includeFinished);
   request.set_page_size(1000);
-  std::vector<pb::JobStatus> out;
+  std::vector<JobStatus> out;
   for (;;) {
     const pb::ListJobsReply reply = transport_->unary(&pb::Farm::Stub::ListJobs, request);
-    out.insert(out.end(), reply.jobs().begin(), reply.jobs().end());
+    for (const pb::JobStatus& job : reply.jobs()) out.push_back(modelOf(job));
     if (reply.next_page_token().empty()) return out;
     if (reply.next_page_token() == request.page_token() || reply.jobs().empty())
       throw callError(net::ErrorKind::Internal, "the coordinator's job listing does not move on");
@@ -282,28 +295,30 @@ std::vector<pb::JobStatus> FarmClient::list(bool includeFinished) {
   }
 }
 
-pb::TrackStatus FarmClient::createTrack(const std::string& requestId, const pb::TrackSpec& spec) {
+TrackStatus FarmClient::createTrack(const std::string& requestId, const TrackSpec& spec) {
   pb::CreateTrackRequest request;
   request.set_request_id(requestId);
-  *request.mutable_spec() = spec;
-  return transport_->unary(&pb::Farm::Stub::CreateTrack, request);
+  *request.mutable_spec() = net::toProto(spec);
+  return modelOf(transport_->unary(&pb::Farm::Stub::CreateTrack, request));
 }
 
-std::vector<pb::TrackStatus> FarmClient::listTracks(bool includeEnded) {
+std::vector<TrackStatus> FarmClient::listTracks(bool includeEnded) {
   pb::ListJobsRequest request;
   request.set_include_finished(includeEnded);
   const pb::ListTracksReply reply = transport_->unary(&pb::Farm::Stub::ListTracks, request);
-  return {reply.tracks().begin(), reply.tracks().end()};
+  std::vector<TrackStatus> out;
+  for (const pb::TrackStatus& track : reply.tracks()) out.push_back(modelOf(track));
+  return out;
 }
 
-pb::TrackStatus FarmClient::cancelTrack(const std::string& trackId) {
+TrackStatus FarmClient::cancelTrack(const std::string& trackId) {
   pb::TrackRef ref;
   ref.set_track_id(trackId);
-  return transport_->unary(&pb::Farm::Stub::CancelTrack, ref);
+  return modelOf(transport_->unary(&pb::Farm::Stub::CancelTrack, ref));
 }
 
 uint64_t FarmClient::subscribe(const std::string& trackId, uint64_t afterSequence,
-                               const std::function<bool(const pb::TrackVersion&, const std::vector<uint8_t>&)>& onVersion) {
+                               const std::function<bool(const TrackVersion&, const std::vector<uint8_t>&)>& onVersion) {
   pb::SubscribeRequest request;
   request.set_track_id(trackId);
   request.set_after_sequence(afterSequence);
@@ -342,7 +357,7 @@ uint64_t FarmClient::subscribe(const std::string& trackId, uint64_t afterSequenc
     if (contentHash(bytes.data(), bytes.size()).hex() != version.checksum())
       throw broken("version " + std::to_string(version.sequence()) + " does not match its checksum");
     last = version.sequence();
-    if (!onVersion(version, bytes)) {
+    if (!onVersion(modelOf(version), bytes)) {
       ctx.TryCancel();
       reader->Finish();
       return last;

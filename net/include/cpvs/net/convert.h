@@ -13,6 +13,7 @@
 #include "cpvs/base/vec3.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/base/error.h"
+#include "cpvs/net/farm_model.h"
 #include "cpvs/v1/farm.pb.h"
 
 namespace cpvs::net {
@@ -26,9 +27,6 @@ Vec3 fromProto(const pb::Vec3& v);
 /// (checkLight) are the caller's. InputError for a resolution that does not parse.
 pb::Light toProto(const Light& l);
 Light fromProto(const pb::Light& l);
-/// A lights file (the JSON form of LightList): InputError naming the file for anything
-/// unreadable, malformed or not a light field, or a light count outside [1, kMaxLights].
-std::vector<Light> readLightsFile(const std::string& path);
 
 /// InputError for a hash other than XXH3 (the farm has no other).
 pb::BakeOptions toProto(const BakeOptions& o);
@@ -74,7 +72,5 @@ LightFrame lightOf(const pb::BakeSpec& spec);
 /// The JSON form of a spec (a job file) and back; InputError with protobuf's message.
 std::string specToJson(const pb::BakeSpec& spec);
 pb::BakeSpec specFromJson(const std::string& json, const std::string& source);
-
-const char* jobStateName(pb::JobState s);
 
 }  // namespace cpvs::net

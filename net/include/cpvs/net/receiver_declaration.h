@@ -6,15 +6,15 @@
 #include <string>
 
 #include "cpvs/bake/receivers.h"
-#include "cpvs/v1/farm.pb.h"
+#include "cpvs/net/farm_model.h"
 
 namespace cpvs::net {
 
-/// The declaration of `receivers` (checkReceivers first): its kind and PCF width, and for
-/// a volume the mesh `loadMesh(volume_scene_hash)` returns followed by the boxes, in
-/// order, as `cpvs bake --receivers volume:MESH --receiver-box ...` builds it (the same
+/// The declaration of `receivers` (checkReceivers first, convert.h): its kind and PCF
+/// width, and for a volume the mesh `loadMesh(volumeSceneHash)` returns followed by the
+/// boxes, in order, as `cpvs bake --receivers volume:MESH --receiver-box ...` builds it (the same
 /// receiverHash). InputError for an invalid or open volume.
-ReceiverDeclaration declarationOf(const ::cpvs::v1::Receivers& receivers,
+ReceiverDeclaration declarationOf(const Receivers& receivers,
                                   const std::function<Scene(const std::string& hash)>& loadMesh);
 
 /// Whether the file `cameras:FILE` names is a camera file (it ends in .json, any case) rather than a
@@ -25,12 +25,12 @@ bool isCameraFile(const std::string& path);
 /// cameraPoints, cameraPaths, viewDistance, cameraVisibility, cameraSpacing, cameraRays),
 /// the same text a job file's "receivers" holds. InputError naming the file for anything
 /// unreadable, malformed or not a camera field.
-::cpvs::v1::Receivers readCameraFile(const std::string& path);
+Receivers readCameraFile(const std::string& path);
 
-/// Clears every camera field of `receivers` (those a camera file holds).
-void clearCameras(::cpvs::v1::Receivers& receivers);
+/// Replaces the camera fields of `to` (those a camera file holds) with those of `from`.
+void copyCameras(const Receivers& from, Receivers& to);
 
 /// Sets the camera fields of `declaration` from those of `receivers`.
-void setCameras(const ::cpvs::v1::Receivers& receivers, ReceiverDeclaration& declaration);
+void setCameras(const Receivers& receivers, ReceiverDeclaration& declaration);
 
 }  // namespace cpvs::net

@@ -1,8 +1,9 @@
 // The client's side of the bake farm, as a library: upload a scene, submit a bake,
 // watch, cancel, list and download. Its header names no transport type (no gRPC status,
 // channel or stub: those live in src/ over net/), so a runtime or a tool links it without
-// seeing gRPC; jobs are the contract's plain messages (cpvs/v1/farm.pb.h). The command
-// line's farm subcommands (client/cli/farm_commands.cpp) print and choose exit statuses.
+// seeing gRPC or protobuf; jobs and tracks are the farm model's plain values
+// (cpvs/net/farm_model.h). The command line's farm subcommands (client/cli/farm_commands.cpp)
+// print and choose exit statuses.
 #pragma once
 
 #include <cstdint>
@@ -14,11 +15,18 @@
 
 #include "cpvs/net/connection.h"
 #include "cpvs/net/error_kind.h"
-#include "cpvs/v1/farm.pb.h"
+#include "cpvs/net/farm_model.h"
 
 namespace cpvs::client {
 
-namespace pb = ::cpvs::v1;
+using net::BakeSpec;
+using net::isFinalState;
+using net::JobOptions;
+using net::JobState;
+using net::JobStatus;
+using net::TrackSpec;
+using net::TrackStatus;
+using net::TrackVersion;
 
 /// A call to the coordinator that failed, with the kind of error it failed with. what()
 /// names the kind as the status code it travelled as, e.g. "NOT_FOUND: no job 42".
@@ -38,9 +46,6 @@ class FarmCallError : public std::runtime_error {
   net::ErrorKind kind_;
 };
 
-/// True for the states a job never leaves: DONE, FAILED, CANCELLED.
-bool isFinalState(pb::JobState s);
-
 /// A fresh request id for SubmitBake: 128 random bits as 32 lower-case hex digits.
 std::string randomRequestId();
 
@@ -57,7 +62,7 @@ class FarmClient {
   FarmClient& operator=(const FarmClient&) = delete;
 
   struct UploadResult {
-    std::string sceneHash;   // XXH3-128 of the file, 32 hex digits: BakeSpec.scene_hash
+    std::string sceneHash;   // XXH3-128 of the file, 32 hex digits: BakeSpec::sceneHash
     bool alreadyThere = false;  // the server held the complete scene; nothing was sent
     uint64_t resumedFrom = 0;   // bytes the server held of an earlier, interrupted upload
     uint64_t bytesSent = 0;
@@ -74,18 +79,18 @@ class FarmClient {
 
   /// Submits a bake of an uploaded scene. Submitting again with the same `requestId` and
   /// spec returns the same job; with another spec it fails with ALREADY_EXISTS.
-  pb::JobStatus submit(const std::string& requestId, const pb::BakeSpec& spec);
+  JobStatus submit(const std::string& requestId, const BakeSpec& spec);
 
   /// Follows a job until it reaches a final state, calling `onUpdate` with every status
   /// the server sends (on each change, and about once a second), and returns the final
   /// one. Throws FarmCallError when the stream breaks before that.
-  pb::JobStatus watch(const std::string& jobId, const std::function<void(const pb::JobStatus&)>& onUpdate = {});
+  JobStatus watch(const std::string& jobId, const std::function<void(const JobStatus&)>& onUpdate = {});
 
   /// Asks the server to cancel a job and returns its status afterwards.
-  pb::JobStatus cancel(const std::string& jobId);
+  JobStatus cancel(const std::string& jobId);
 
   /// The jobs on the server; finished ones too when `includeFinished`.
-  std::vector<pb::JobStatus> list(bool includeFinished);
+  std::vector<JobStatus> list(bool includeFinished);
 
   struct DownloadResult {
     uint64_t bytes = 0;        // size of the artifact
@@ -103,16 +108,16 @@ class FarmClient {
   DownloadResult download(const std::string& jobId, const std::string& outPath);
 
   /// Creates a sun track (idempotent by request id, as submit).
-  pb::TrackStatus createTrack(const std::string& requestId, const pb::TrackSpec& spec);
-  std::vector<pb::TrackStatus> listTracks(bool includeEnded);
-  pb::TrackStatus cancelTrack(const std::string& trackId);
+  TrackStatus createTrack(const std::string& requestId, const TrackSpec& spec);
+  std::vector<TrackStatus> listTracks(bool includeEnded);
+  TrackStatus cancelTrack(const std::string& trackId);
   /// Follows a track from after `afterSequence` (0: the oldest version kept): calls
   /// `onVersion` with each version and its whole artifact, checked against its checksum,
   /// in order, as they are published; returns the last sequence received when the track
   /// ends or `onVersion` returns false. Resume after a failure with that sequence: no
   /// version is lost or repeated. FarmCallError when the call fails.
   uint64_t subscribe(const std::string& trackId, uint64_t afterSequence,
-                     const std::function<bool(const pb::TrackVersion&, const std::vector<uint8_t>&)>& onVersion);
+                     const std::function<bool(const TrackVersion&, const std::vector<uint8_t>&)>& onVersion);
 
  private:
   struct Transport;  // channel, stub and the streams over them (src/farm_client.cpp)
