@@ -1,7 +1,10 @@
 #include "cpvs/bake/bake.h"
 
+#include <tbb/parallel_pipeline.h>
+
 #include <algorithm>
 #include <chrono>
+#include <memory>
 #include <mutex>
 #include <optional>
 
@@ -102,20 +105,54 @@ Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* tim
     eta.emplace(tileWork(scene, plan));
     if (!progress({"bake", 0, total})) throw Cancelled();
   }
-  // Tiles run one after another; each stage inside a tile is parallel. Merges happen as
-  // tiles complete, so at most ~log2(tiles) partial DAGs are held.
-  for (uint64_t i = 0; i < total; ++i) {
-    const TileCoord tile = plan.tile(i);
-    const auto tileStart = std::chrono::steady_clock::now();
-    Dag sub = bakeTile(scene, tile.x, tile.y, options, &st);
-    auto start = std::chrono::steady_clock::now();
-    merger.add(std::move(sub));
-    st.add("merge", secondsSince(start));
-    if (progress) {
-      eta->finished(i, secondsSince(tileStart));
-      if (!progress({"bake", i + 1, total, eta->secondsLeft()})) throw Cancelled();
-    }
-  }
+  // Tiles are pipelined: while one tile's serial stages run (its insertion, its merge),
+  // the next renders and compresses, so every core has work; the stages inside a tile are
+  // parallel too. Merges follow the plan's order, so the bytes do not depend on timing,
+  // and at most kTilesInFlight tiles' masks and sub-DAGs are held beside the merger's
+  // ~log2(tiles) partial DAGs.
+  constexpr size_t kTilesInFlight = 2;
+  struct Baked {
+    uint64_t index = 0;
+    Dag dag;
+    StageTimes times;
+    double seconds = 0;
+  };
+  const auto bakeStart = std::chrono::steady_clock::now();
+  double tileSeconds = 0;  // summed over tiles: more than the wall time when they overlap
+  uint64_t next = 0;
+  tbb::parallel_pipeline(
+      kTilesInFlight,
+      tbb::make_filter<void, uint64_t>(tbb::filter_mode::serial_in_order,
+                                       [&](tbb::flow_control& fc) -> uint64_t {
+                                         if (next == total) fc.stop();
+                                         return next++;
+                                       }) &
+          tbb::make_filter<uint64_t, std::shared_ptr<Baked>>(
+              tbb::filter_mode::parallel,
+              [&](uint64_t i) {
+                auto b = std::make_shared<Baked>();
+                b->index = i;
+                const auto start = std::chrono::steady_clock::now();
+                const TileCoord tile = plan.tile(i);
+                b->dag = bakeTile(scene, tile.x, tile.y, options, &b->times);
+                b->seconds = secondsSince(start);
+                return b;
+              }) &
+          tbb::make_filter<std::shared_ptr<Baked>, void>(tbb::filter_mode::serial_in_order, [&](std::shared_ptr<Baked> b) {
+            st.add(b->times);
+            const auto start = std::chrono::steady_clock::now();
+            merger.add(std::move(b->dag));
+            st.add("merge", secondsSince(start));
+            tileSeconds += b->seconds;
+            if (progress) {
+              eta->finished(b->index, b->seconds);
+              // The fit is in one tile's seconds; tiles overlapping finish that much sooner.
+              const double left = eta->secondsLeft();
+              const double overlap = tileSeconds > 0 ? secondsSince(bakeStart) / tileSeconds : 1;
+              if (!progress({"bake", b->index + 1, total, left < 0 ? left : left * std::min(overlap, 1.0)}))
+                throw Cancelled();
+            }
+          }));
   auto start = std::chrono::steady_clock::now();
   Dag merged = *merger.finish();
   Dag result = assembleRoots(std::move(merged), options.hash, options.compress);

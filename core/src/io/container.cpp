@@ -3,6 +3,9 @@
 #include <xxhash.h>
 #include <zstd.h>
 
+#include <algorithm>
+#include <thread>
+
 namespace cpvs {
 
 void beginContainer(ByteWriter& w, const ContainerKind& kind, uint32_t flags) {
@@ -45,8 +48,23 @@ void writeSection(ByteWriter& w, const std::vector<uint8_t>& bytes, bool zstd) {
     w.raw(bytes.data(), bytes.size());
     return;
   }
+  // zstd's own workers compress a large section's jobs in parallel. Its output does not
+  // depend on how many workers there are, as long as there is one (0 is another format
+  // of the same data): the bytes are the same on every machine. One context per thread,
+  // kept, so that its workers are started once.
+  struct Context {
+    ZSTD_CCtx* c = ZSTD_createCCtx();
+    Context() {
+      CPVS_CHECK(c != nullptr);
+      ZSTD_CCtx_setParameter(c, ZSTD_c_compressionLevel, 9);
+      const unsigned cores = std::thread::hardware_concurrency();
+      ZSTD_CCtx_setParameter(c, ZSTD_c_nbWorkers, int(std::clamp(cores, 1u, 16u)));
+    }
+    ~Context() { ZSTD_freeCCtx(c); }
+  };
+  thread_local Context context;
   std::vector<uint8_t> packed(ZSTD_compressBound(bytes.size()));
-  const size_t n = ZSTD_compress(packed.data(), packed.size(), bytes.data(), bytes.size(), 9);
+  const size_t n = ZSTD_compress2(context.c, packed.data(), packed.size(), bytes.data(), bytes.size());
   CPVS_CHECK(!ZSTD_isError(n));
   w.put<uint64_t>(n);
   w.raw(packed.data(), n);

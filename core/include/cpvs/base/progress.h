@@ -18,8 +18,8 @@ struct Progress {
 };
 
 /// Progress of long work. Return false to cancel; the work then throws Cancelled
-/// (base/error.h) at its next check. Called from the thread that runs the work, never
-/// concurrently.
+/// (base/error.h) at its next check. Never called concurrently, but not always from the
+/// thread that started the work (a bake reports from whichever thread merged the tile).
 using ProgressFn = std::function<bool(const Progress&)>;
 
 /// Seconds since `start`, for stage timing.
