@@ -22,6 +22,17 @@ LightFrame lightFromFlags(const std::string& sunDir, double elevation, double az
   return LightFrame::fromElevationAzimuth(elevation, std::isnan(azimuth) ? 0.0 : azimuth);
 }
 
+std::string formatSeconds(double s) {
+  char buf[32];
+  if (s < 60)
+    std::snprintf(buf, sizeof buf, "%.1fs", s);
+  else if (s < 3600)
+    std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%dh%02dm", int(s) / 3600, int(s) / 60 % 60);
+  return buf;
+}
+
 std::string humanBytes(uint64_t b) {
   const char* units[] = {"B", "KB", "MB", "GB", "TB"};
   double v = double(b);

@@ -28,6 +28,9 @@ using cpvs::jsonString;
 /// "1.23 MB" style.
 std::string humanBytes(uint64_t bytes);
 
+/// "12.3s", "4m05s", "2h10m".
+std::string formatSeconds(double seconds);
+
 /// A progress display: a bar with stage, counts and ETA on a terminal, plain log lines
 /// (at most every 10 % or 5 s) otherwise.
 class ProgressDisplay {

@@ -96,17 +96,6 @@ void note(bool quiet, const std::string& text) {
   if (!quiet) std::fprintf(stderr, "%s\n", text.c_str());
 }
 
-std::string formatSeconds(double s) {
-  char buf[32];
-  if (s < 60)
-    std::snprintf(buf, sizeof buf, "%.1fs", s);
-  else if (s < 3600)
-    std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
-  else
-    std::snprintf(buf, sizeof buf, "%dh%02dm", int(s) / 3600, int(s) / 60 % 60);
-  return buf;
-}
-
 /// Stage times summed by name, in the pipeline's order, then any others by name.
 std::vector<std::pair<std::string, double>> stagesOf(const JobStatus& s) {
   std::map<std::string, double> sum;

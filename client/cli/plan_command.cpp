@@ -2,12 +2,14 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "bake_flags.h"
 #include "bundle_text.h"
 #include "cpvs/bake/bake_lights.h"
 #include "cli_util.h"
 #include "commands.h"
+#include "cpvs/bake/bake_estimate.h"
 #include "cpvs/bake/bake_plan.h"
 #include "cpvs/bake/bake_scene.h"
 #include "cpvs/bake/tile_plan.h"
@@ -24,9 +26,32 @@ struct PlanArgs {
   LightFlags lights;
   OptionFlags options;
   std::string coveragePng;
-  bool json = false;
+  bool json = false, noEstimate = false;
   int threads = 0;
 };
+
+/// The estimate as text: what was sampled, the tiles' seconds and the DAG's bytes.
+std::string estimateText(const BakeEstimate& e) {
+  char buf[512];
+  if (e.sampledTiles == 0) {
+    std::snprintf(buf, sizeof buf, "cost: no tile to render: %llu tiles all lit, %.2f s in all\n",
+                  static_cast<unsigned long long>(e.tiles), e.tileSeconds);
+    return buf;
+  }
+  std::snprintf(buf, sizeof buf,
+                "cost, measured (%zu of the %llu tiles to render baked now, %.2f s):\n"
+                "  tiles: about %s of work on this machine, one tile after another (the bake overlaps two)\n"
+                "  DAG:   about %s (the sampled sub-DAGs' bytes per triangle, for every tile)\n",
+                e.sampledTiles, static_cast<unsigned long long>(e.renderedTiles), e.sampleSeconds,
+                formatSeconds(e.tileSeconds).c_str(), humanBytes(uint64_t(e.dagBytes)).c_str());
+  return buf;
+}
+
+std::string estimateJson(const BakeEstimate& e) {
+  return "{\"tiles\": " + std::to_string(e.tiles) + ", \"rendered_tiles\": " + std::to_string(e.renderedTiles) +
+         ", \"sampled_tiles\": " + std::to_string(e.sampledTiles) + ", \"sample_seconds\": " + jsonNumber(e.sampleSeconds) +
+         ", \"tile_seconds\": " + jsonNumber(e.tileSeconds) + ", \"dag_bytes\": " + std::to_string(uint64_t(e.dagBytes)) + "}";
+}
 
 // The grid seen from the sun, at most 1024 pixels a side: tiles no triangle touches
 // (black), tiles no receiver reads (dark grey), tiles to render (light grey), and over
@@ -92,15 +117,21 @@ int runPlan(const PlanArgs& a) {
   SceneStats stats;
   const Scene scene = openScene(a.scene, &stats);
   const OrthoGrid grid = makeGrid(scene, frame, log2R);
-  std::optional<Scene> opaque;
-  const RasterScene raster(sunCasters(scene, opaque), grid);
-  const ReceiverSet reads(scene, grid, receivers);
-  const BakePlan plan = planBake(scene, stats, options, receivers, raster, reads, declaredMedia(a.options));
+  const BakeScene prepared(scene, grid, options.renderer, a.threads, receivers);
+  const BakePlan plan =
+      planBake(scene, stats, options, receivers, prepared.raster(), prepared.receivers(), declaredMedia(a.options));
   if (!a.coveragePng.empty()) writeCoveragePng(a.coveragePng, scene, grid, options, receivers, plan);
-  if (a.json)
-    std::cout << planJson(plan) << "\n";
-  else
+  std::optional<BakeEstimate> estimate;
+  if (!a.noEstimate) estimate = estimateBake(prepared, options);
+  if (a.json) {
+    std::string json = planJson(plan);
+    // The artifact records the plan; the estimate stands beside it here.
+    if (estimate) json.insert(json.rfind('}'), ", \"estimate\": " + estimateJson(*estimate));
+    std::cout << json << "\n";
+  } else {
     std::cout << planText(plan);
+    if (estimate) std::cout << estimateText(*estimate);
+  }
   return 0;
 }
 
@@ -117,7 +148,10 @@ void addPlanCommand(CLI::App& app, int& status) {
   addLightFlags(c, a->lights);
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R, as for bake")->capture_default_str();
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
-  c->add_flag("--json", a->json, "Print the plan as JSON (what the artifact records)");
+  c->add_flag("--json", a->json, "Print the plan as JSON (what the artifact records, with \"estimate\" beside it)");
+  c->add_flag("--no-estimate", a->noEstimate,
+              "Skip the cost estimate (by default a few of the bake's own tiles are baked to price the rest: "
+              "seconds of tile work and DAG bytes)");
   addThreadsFlag(c, a->threads);
   c->add_option("--coverage-png", a->coveragePng,
                 "Also draw the grid from the sun: tiles no triangle touches (black), tiles no receiver reads (dark "

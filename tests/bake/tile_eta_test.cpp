@@ -1,7 +1,8 @@
 // The bake's ETA: TileEta fits a tile's seconds to a fixed part and a part per triangle
 // and predicts the tiles left exactly when costs follow that law; noise that would make
 // either part negative is clamped; tiles no triangle reaches cost nothing; tileWork
-// counts a real scene's triangles per tile; bakeGrid reports the estimate.
+// counts a real scene's triangles per tile; bakeGrid reports the estimate; the plan's
+// estimate samples the bake's own tiles.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <random>
 
 #include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_estimate.h"
 #include "cpvs/bake/bake_scene.h"
 #include "cpvs/bake/tile_eta.h"
 #include "cpvs/light/ortho_grid.h"
@@ -141,6 +143,36 @@ TEST(TileEta, TheBakeReportsSecondsLeft) {
   EXPECT_GE(reports[reports.size() / 2].secondsLeft, 0);
   EXPECT_EQ(reports.back().secondsLeft, 0);
   EXPECT_EQ(reports.back().done, reports.back().total);
+}
+
+// The plan's estimate bakes a quarter of the tiles to render (3 to 8) and prices every
+// tile; asked to sample every tile, its bytes are exactly the sub-DAGs' sum.
+TEST(BakeEstimate, SamplesTheBakesOwnTilesAndPricesEveryTile) {
+  const Scene city = makeProceduralCity(4, 2);
+  const OrthoGrid grid = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), 9);
+  const BakeScene scene(city, grid, Renderer::Raster);
+  BakeOptions options;
+  options.log2TileSize = 6;
+  const TilePlan plan(9, 6);
+  const std::vector<uint32_t> work = tileWork(scene, plan);
+  const uint64_t rendered = uint64_t(std::count_if(work.begin(), work.end(), [](uint32_t w) { return w > 0; }));
+  ASSERT_GT(rendered, 12u);
+  ASSERT_LT(rendered, plan.count());
+  const BakeEstimate e = estimateBake(scene, options);
+  EXPECT_EQ(e.tiles, plan.count());
+  EXPECT_EQ(e.renderedTiles, rendered);
+  EXPECT_EQ(e.sampledTiles, std::clamp<uint64_t>(rendered / 4, 3, 8));
+  EXPECT_GT(e.tileSeconds, 0);
+  const Dag dag = bakeGrid(scene, options);
+  EXPECT_GT(e.dagBytes, 0.3 * double(dag.bytes()));
+  EXPECT_LT(e.dagBytes, 3.0 * double(dag.bytes()));
+
+  const BakeEstimate all = estimateBake(scene, options, 1000);
+  EXPECT_EQ(all.sampledTiles, rendered);
+  double sum = 0;
+  for (uint64_t i = 0; i < plan.count(); ++i)
+    if (work[i] > 0) sum += double(bakeTile(scene, plan.tile(i).x, plan.tile(i).y, options).bytes());
+  EXPECT_NEAR(all.dagBytes, sum, 1e-9 * sum);
 }
 
 }  // namespace

@@ -227,7 +227,8 @@ TEST_F(Cli, ReceiversAreDeclaredInspectedAndVerified) {
            path("s1.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_EQ(readFile(path("s1.cpvs")), readFile(path("s.cpvs")));
-  const std::string planOf = "plan city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json" + sampled;
+  const std::string planOf =
+      "plan city:3 --sun-elevation 35 --sun-azimuth 20 -r 256 --tile-size 64 --json --no-estimate" + sampled;
   r = cpvs(planOf + " --threads 1");
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_EQ(r.out, cpvs(planOf).out);
@@ -330,9 +331,23 @@ TEST_F(Cli, SegmentsAndFogReadTheGridInTheAir) {
   plan = parse(r);
   EXPECT_FALSE(plan["media"][0]["offered"].get<bool>());
   EXPECT_NE(plan["media"][0]["reason"].get<std::string>().find("leave the air undefined"), std::string::npos);
-  r = cpvs("plan city:3 --sun-dir 0.3,-1,0.2 -r 256 --json");
+  r = cpvs("plan city:3 --sun-dir 0.3,-1,0.2 -r 256 --tile-size 32 --json");
   ASSERT_EQ(r.status, 0) << r.out;
-  EXPECT_TRUE(parse(r)["media"].empty()) << "no medium declared, none offered";
+  plan = parse(r);
+  EXPECT_TRUE(plan["media"].empty()) << "no medium declared, none offered";
+  // Beside the plan, its cost: some of the bake's own tiles baked to price the rest.
+  EXPECT_EQ(plan["estimate"]["tiles"], 64);
+  EXPECT_GE(plan["estimate"]["sampled_tiles"].get<int>(), 3) << r.out;
+  EXPECT_GT(plan["estimate"]["tile_seconds"].get<double>(), 0);
+  EXPECT_GT(plan["estimate"]["dag_bytes"].get<uint64_t>(), 0u);
+  r = cpvs("plan city:3 --sun-dir 0.3,-1,0.2 -r 256");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("cost, measured ("), std::string::npos) << r.out;
+  EXPECT_EQ(cpvs("plan city:3 --sun-dir 0.3,-1,0.2 -r 256 --no-estimate").out.find("cost, measured"), std::string::npos);
+  // An output that names a folder is refused before any work.
+  r = cpvs("bake city:3 --sun-dir 0.3,-1,0.2 -r 64 -o " + path(""));
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("is a folder"), std::string::npos) << r.out;
   r = cpvs("bake city:3 --sun-dir 0.3,-1,0.2 -r 64 -q --medium 0.02,0.005 -o " + path("fog.cpvs"));
   ASSERT_EQ(r.status, 0) << r.out;
   r = cpvs("inspect --json " + path("fog.cpvs"));
@@ -391,7 +406,7 @@ TEST_F(Cli, AreaLightsAreBakedAsVplsAndAnswerSoftly) {
 
 TEST_F(Cli, PlanSaysWhatABakeComputesAndTheBakeRecordsIt) {
   std::ofstream(path("lights.gltf")) << "{\"asset\": {\"version\": \"2.0\"}, \"extensionsUsed\": [\"KHR_lights_punctual\"], \"extensions\": {\"KHR_lights_punctual\": {\"lights\": [{\"type\": \"directional\", \"name\": \"sun\", \"color\": [1, 1, 1]}, {\"type\": \"point\", \"name\": \"lamp\"}, {\"type\": \"spot\", \"name\": \"torch\", \"spot\": {\"innerConeAngle\": 0.2, \"outerConeAngle\": 0.5}}]}}, \"scenes\": [{\"nodes\": [0, 1, 2, 3]}], \"scene\": 0, \"nodes\": [{\"mesh\": 0, \"name\": \"ground\"}, {\"name\": \"sunNode\", \"rotation\": [-0.7071068, 0, 0, 0.7071068], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 0}}}, {\"name\": \"lampNode\", \"translation\": [1, 2, 3], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 1}}}, {\"name\": \"torchNode\", \"translation\": [0, 5, 0], \"extensions\": {\"KHR_lights_punctual\": {\"light\": 2}}}], \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}}]}], \"buffers\": [{\"byteLength\": 36, \"uri\": \"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAAAAAAAAAAAAAIA/AACAPwAAAAAAAAAA\"}], \"bufferViews\": [{\"buffer\": 0, \"byteLength\": 36}], \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 3, \"type\": \"VEC3\", \"min\": [0, 0, 0], \"max\": [1, 0, 1]}]}";
-  CliRun r = cpvs("plan " + path("lights.gltf") + " --sun-dir 0,-1,0 -r 1K --json");
+  CliRun r = cpvs("plan " + path("lights.gltf") + " --sun-dir 0,-1,0 -r 1K --json --no-estimate");
   ASSERT_EQ(r.status, 0) << r.out;
   const json plan = parse(r);
   ASSERT_EQ(plan["lights"].size(), 3u);

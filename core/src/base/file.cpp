@@ -45,6 +45,7 @@ void checkOutputFolder(const std::string& path, const std::string& flag) {
   namespace fs = std::filesystem;
   const fs::path folder = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
   std::error_code ec;
+  if (fs::is_directory(fs::status(path, ec))) throw InputError(flag + " " + path + ": is a folder; name a file in it");
   const fs::file_status st = fs::status(folder, ec);
   if (!fs::exists(st))
     throw InputError(flag + " " + path + ": the folder " + folder.string() + " does not exist");

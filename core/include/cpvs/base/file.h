@@ -15,7 +15,8 @@ namespace cpvs {
 void writeFileAtomic(const std::string& path, const std::vector<uint8_t>& bytes);
 
 /// InputError, starting with `flag` and naming `path`, unless the folder that would hold
-/// the file at `path` exists and this process may create files in it: checked before
+/// the file at `path` exists and this process may create files in it and `path` is not a
+/// folder itself: checked before
 /// long work, so that a typo in an output path costs nothing.
 void checkOutputFolder(const std::string& path, const std::string& flag);
 
