@@ -17,6 +17,8 @@
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/bake/bake.h"
+#include "cpvs/bake/tile_cache.h"
+#include "cpvs/bake/tile_key.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/psv/translucent_tree.h"
 #include "cpvs/scene/source.h"
@@ -32,6 +34,8 @@ struct BakeArgs {
   int pointerGrid = kMaxGridLevels;
   OptionFlags options;
   int threads = 0;
+  std::string tileCache;
+  uint64_t tileCacheMb = 4096;
   bool zstd = true, json = false, quiet = false;
 };
 
@@ -50,7 +54,7 @@ std::string summaryJson(const BakeArgs& a, const Scene& scene, const SceneStats&
     << ", \"undefined\": " << jsonString(optionName(art.options.undefinedRule))
     << ", \"renderer\": " << jsonString(optionName(art.options.renderer))
     << ", \"tile_size\": " << (1u << art.options.log2TileSize) << "},\n  \"receivers\": "
-    << receiversJson(art.options, art.receiverHash) << ",\n  \"tiles\": " << tiles << ",\n  \"tiles_skipped\": " << st.tilesSkipped
+    << receiversJson(art.options, art.receiverHash) << ",\n  \"tiles\": " << tiles << ",\n  \"tiles_skipped\": " << st.tilesSkipped << ",\n  \"tiles_reused\": " << st.tilesReused
     << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"file_bytes\": " << fileBytes
     << ",\n  \"shadow_map_bytes\": " << R * R * 2
     << ",\n  \"ratio_to_shadow_map\": " << jsonNumber(double(R * R * 2) / double(std::max<uint64_t>(1, dag.bytes())))
@@ -86,6 +90,9 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
   std::printf("  receivers: %s\n", receiversText(art.options, art.receiverHash).c_str());
   std::printf("  tiles not rendered (no triangle, or no receiver's reads): %llu of %llu\n",
               static_cast<unsigned long long>(st.tilesSkipped), static_cast<unsigned long long>(tiles));
+  if (!a.tileCache.empty())
+    std::printf("  tiles taken from the tile cache %s: %llu of %llu\n", a.tileCache.c_str(),
+                static_cast<unsigned long long>(st.tilesReused), static_cast<unsigned long long>(tiles));
   std::printf("\n  %-11s %10s\n", "stage", "seconds");
   for (const char* name : kStageNames)
     if (auto it = st.seconds.find(name); it != st.seconds.end()) std::printf("  %-11s %10.3f\n", name, it->second);
@@ -113,6 +120,7 @@ void printSummary(const BakeArgs& a, const Scene& scene, const SceneStats& ss, c
 
 // `--spot`, `--point`, `--lights`: a light bundle.
 int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point totalStart) {
+  if (!a.tileCache.empty()) throw InputError("--tile-cache keeps a sun bake's tiles: a light bundle bakes every tile");
   checkNoSunWithLights(a.sun);
   if (!a.options.media.empty()) throw InputError("--medium: media are read through a sun's grid, not a light bundle's");
   const BakeOptions opt = optionsOf(a.options);
@@ -198,7 +206,14 @@ int runBake(const BakeArgs& a) {
   art.sceneHash = sceneHash(scene);
   art.receiverHash = receiverHash(receivers);
   art.plan = planJson(planBake(scene, ss, opt, receivers, prepared.raster(), prepared.receivers(), declaredMedia(a.options)));
-  art.dag = bakeGrid(prepared, opt, &st, [&](const Progress& p) { return progress.update(p); });
+  std::optional<TileCache> cache;
+  if (!a.tileCache.empty()) {
+    cache.emplace(a.tileCache, a.tileCacheMb << 20);
+    if (!tileKey(prepared, opt, 0, 0) && !a.quiet && !a.json)
+      spdlog::warn("--tile-cache: tiles are kept for the raster renderer, receivers everywhere and compressed DAGs "
+                   "only: this bake bakes every tile");
+  }
+  art.dag = bakeGrid(prepared, opt, &st, [&](const Progress& p) { return progress.update(p); }, cache ? &*cache : nullptr);
   progress.finish();
   if (hasTranslucentMeshes(scene)) {
     start = std::chrono::steady_clock::now();
@@ -240,6 +255,13 @@ void addBakeCommand(CLI::App& app, int& status) {
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8)");
   addThreadsFlag(c, a->threads);
   c->add_flag("!--no-zstd", a->zstd, "Store the levels uncompressed");
+  c->add_option("--tile-cache", a->tileCache,
+                "A folder of tiles' sub-DAGs kept under the content that decides them (the triangles reaching the "
+                "tile, the grid, the options): a bake after an edit takes every tile the edit did not reach from "
+                "here and bakes only the rest, the same bytes as a full bake (sun bakes with the raster renderer and "
+                "receivers everywhere; other bakes bake every tile)");
+  c->add_option("--tile-cache-mb", a->tileCacheMb, "What the tile cache may hold, least recently used out first")
+      ->capture_default_str();
   c->add_flag("--json", a->json, "Print the summary as JSON on stdout");
   c->add_flag("--quiet,-q", a->quiet, "No progress output");
   c->callback([a, &status] { status = runBake(*a); });

@@ -11,7 +11,9 @@
 #include "cpvs/bake/column_masks.h"
 #include "cpvs/bake/insert_tile.h"
 #include "cpvs/bake/min_max_pyramid.h"
+#include "cpvs/bake/tile_cache.h"
 #include "cpvs/bake/tile_eta.h"
+#include "cpvs/bake/tile_key.h"
 #include "cpvs/base/error.h"
 #include "cpvs/dag/compress.h"
 #include "cpvs/dag/assemble_roots.h"
@@ -94,7 +96,8 @@ std::vector<uint32_t> tileWork(const BakeScene& scene, const TilePlan& plan) {
   });
 }
 
-Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* times, const ProgressFn& progress) {
+Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* times, const ProgressFn& progress,
+             TileCache* cache) {
   StageTimes local;
   StageTimes& st = times ? *times : local;
   const TilePlan plan(scene.log2Resolution(), options.log2TileSize);
@@ -116,6 +119,7 @@ Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* tim
     Dag dag;
     StageTimes times;
     double seconds = 0;
+    bool reused = false;
   };
   const auto bakeStart = std::chrono::steady_clock::now();
   double tileSeconds = 0;  // summed over tiles: more than the wall time when they overlap
@@ -134,8 +138,22 @@ Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* tim
                 b->index = i;
                 const auto start = std::chrono::steady_clock::now();
                 const TileCoord tile = plan.tile(i);
+                const std::optional<Hash128> key = cache ? tileKey(scene, options, tile.x, tile.y) : std::nullopt;
+                if (key)
+                  if (std::optional<Dag> kept = cache->find(*key, tile.x, tile.y, options)) {
+                    b->dag = std::move(*kept);
+                    b->reused = true;
+                    ++b->times.tilesReused;
+                    b->seconds = secondsSince(start);
+                    return b;
+                  }
                 b->dag = bakeTile(scene, tile.x, tile.y, options, &b->times);
                 b->seconds = secondsSince(start);
+                if (key) {
+                  const auto encodeStart = std::chrono::steady_clock::now();
+                  cache->store(*key, b->dag);
+                  b->times.add("encode", secondsSince(encodeStart));
+                }
                 return b;
               }) &
           tbb::make_filter<std::shared_ptr<Baked>, void>(tbb::filter_mode::serial_in_order, [&](std::shared_ptr<Baked> b) {
@@ -143,9 +161,12 @@ Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* tim
             const auto start = std::chrono::steady_clock::now();
             merger.add(std::move(b->dag));
             st.add("merge", secondsSince(start));
-            tileSeconds += b->seconds;
+            if (!b->reused) tileSeconds += b->seconds;
             if (progress) {
-              eta->finished(b->index, b->seconds);
+              if (b->reused)
+                eta->skipped(b->index);
+              else
+                eta->finished(b->index, b->seconds);
               // The fit is in one tile's seconds; tiles overlapping finish that much sooner.
               const double left = eta->secondsLeft();
               const double overlap = tileSeconds > 0 ? secondsSince(bakeStart) / tileSeconds : 1;

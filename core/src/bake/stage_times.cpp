@@ -22,6 +22,7 @@ void StageTimes::add(const StageTimes& o) {
   insert.culledNodes += o.insert.culledNodes;
   insert.culledLeaves += o.insert.culledLeaves;
   tilesSkipped += o.tilesSkipped;
+  tilesReused += o.tilesReused;
 }
 
 }  // namespace cpvs

@@ -43,6 +43,14 @@ void TileEta::finished(size_t tile, double seconds) {
   law_ = TileCostLaw::fit(sums_);
 }
 
+void TileEta::skipped(size_t tile) {
+  CPVS_CHECK(tile < work_.size() && !done_[tile]);
+  done_[tile] = true;
+  if (work_[tile] == 0) return;
+  --leftTiles_;
+  leftWork_ -= work_[tile];
+}
+
 double TileEta::secondsLeft() const {
   if (!law_) return -1;
   return std::max(0.0, law_->seconds(double(leftTiles_), leftWork_));

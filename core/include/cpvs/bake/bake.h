@@ -14,6 +14,8 @@
 
 namespace cpvs {
 
+class TileCache;
+
 /// Bakes one tile column: renders its texel depths, resolves the 8x8 column masks,
 /// inserts the voxels and compresses the result into a sub-DAG with hashes whose roots are
 /// the tile's blocks (R / T of them). A tile nothing touches is not rendered: its masks
@@ -37,12 +39,14 @@ std::vector<uint32_t> tileWork(const BakeScene& scene, const TilePlan& plan);
 std::vector<uint32_t> tileWork(const RasterScene& raster, const TilePlan& plan,
                                const std::function<bool(uint64_t tile)>& rendered);
 
-/// Bakes the whole grid: every tile (bakeTile), merged as they complete (StreamingMerger),
-/// then the levels above the tile roots. Tiles run one after another, each stage inside
-/// parallel (two tiles at once were measured slower on two cores: 6.6 s against 5.2 s for
-/// the city at 8K). Throws Cancelled when `progress` returns false; its reports carry the
-/// seconds left as TileEta estimates them from the tiles done.
+/// Bakes the whole grid: every tile (bakeTile), merged in the plan's order as they
+/// complete (StreamingMerger), then the levels above the tile roots. Tiles are pipelined,
+/// two in flight, each stage inside parallel too; the bytes do not depend on it. Throws
+/// Cancelled when `progress` returns false; its reports carry the seconds left as TileEta
+/// estimates them from the tiles done. With a `cache`, a tile whose key (tile_key.h) is
+/// there is taken from it instead of baked, and every tile baked is stored (times's
+/// tilesReused counts the first).
 Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* times = nullptr,
-             const ProgressFn& progress = nullptr);
+             const ProgressFn& progress = nullptr, TileCache* cache = nullptr);
 
 }  // namespace cpvs

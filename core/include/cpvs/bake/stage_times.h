@@ -30,6 +30,8 @@ struct StageTimes {
   InsertStats insert;
   /// Tiles that needed no rendering: no triangle touches them, or no receiver reads them.
   uint64_t tilesSkipped = 0;
+  /// Tiles taken from a tile cache (tile_cache.h) instead of baked.
+  uint64_t tilesReused = 0;
   /// Adds `s` seconds to a stage of kStageNames (an unknown name is a bug: CPVS_CHECK).
   void add(const std::string& stage, double s);
   /// Adds everything another bake's times hold (grids baked side by side: their

@@ -39,6 +39,9 @@ class TileEta {
 
   /// Tile `tile` took `seconds`.
   void finished(size_t tile, double seconds);
+  /// Tile `tile` is done without its work (taken from a tile cache): no longer left, and
+  /// not a sample of the law.
+  void skipped(size_t tile);
   /// Seconds the tiles not yet finished should take; negative until two tiles with work
   /// have finished (nothing to fit yet).
   double secondsLeft() const;

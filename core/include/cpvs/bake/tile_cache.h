@@ -1,0 +1,45 @@
+// Tiles' sub-DAGs kept in a folder under their keys (tile_key.h), so that the next bake
+// of an edited scene takes every tile no edit reached from here instead of baking it. A
+// file per tile (the sub-DAG file a worker sends, checked as the coordinator checks it);
+// bounded in bytes, the least recently used going first; kept across runs. A file that
+// does not read back is a miss, never an error: the tile is baked again.
+#pragma once
+
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+
+#include "cpvs/bake/options.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/dag/dag.h"
+
+namespace cpvs {
+
+class TileCache {
+ public:
+  /// Creates `folder` if needed; InputError when it cannot. `maxBytes`: what the folder may
+  /// hold (older tiles are removed past it).
+  TileCache(std::string folder, uint64_t maxBytes);
+
+  /// The sub-DAG stored under `key` for tile (tileX, tileY), canonical and hashed as
+  /// `options` bake, or none.
+  std::optional<Dag> find(const Hash128& key, uint64_t tileX, uint64_t tileY, const BakeOptions& options);
+  /// Stores `dag` under `key` (written whole, then renamed), then trims the folder to its
+  /// bound. A disk that refuses the write loses only the cache's copy.
+  void store(const Hash128& key, const Dag& dag);
+
+  uint64_t hits() const { return hits_; }
+  uint64_t misses() const { return misses_; }
+
+ private:
+  /// Counts the folder's tiles and removes the least recently used past the bound.
+  void trim();
+  std::string folder_;
+  uint64_t maxBytes_;
+  std::mutex mutex_;  // tiles are found and stored from the bake's threads
+  uint64_t hits_ = 0, misses_ = 0;
+  uint64_t total_ = 0;  // bytes in the folder, as last counted plus what was stored since
+};
+
+}  // namespace cpvs

@@ -1,0 +1,88 @@
+#include "cpvs/bake/tile_cache.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <system_error>
+#include <vector>
+
+#include "cpvs/base/error.h"
+#include "cpvs/base/file.h"
+#include "cpvs/io/sub_dag_file.h"
+
+namespace cpvs {
+
+namespace fs = std::filesystem;
+
+TileCache::TileCache(std::string folder, uint64_t maxBytes) : folder_(std::move(folder)), maxBytes_(maxBytes) {
+  std::error_code ec;
+  fs::create_directories(folder_, ec);
+  if (!fs::is_directory(folder_, ec)) throw InputError("tile cache " + folder_ + ": cannot make the folder");
+  trim();
+}
+
+std::optional<Dag> TileCache::find(const Hash128& key, uint64_t tileX, uint64_t tileY, const BakeOptions& options) {
+  const std::string path = folder_ + "/" + key.hex() + ".cpvt";
+  std::error_code ec;
+  try {
+    if (!fs::exists(path, ec)) throw InputError("absent");
+    const std::vector<uint8_t> bytes = readFile(path);
+    Dag dag = decodeSubDag(bytes.data(), bytes.size(), path, options.compress != CompressMode::None, options.hash);
+    checkTileRoots(dag, tileX, tileY, options.log2TileSize, path);
+    fs::last_write_time(path, fs::file_time_type::clock::now(), ec);  // recently used
+    std::lock_guard lock(mutex_);
+    ++hits_;
+    return dag;
+  } catch (const InputError&) {  // absent, torn or not this tile's: baked again
+    std::lock_guard lock(mutex_);
+    ++misses_;
+    return std::nullopt;
+  }
+}
+
+void TileCache::store(const Hash128& key, const Dag& dag) {
+  const std::vector<uint8_t> bytes = encodeSubDag(dag, false);  // fast to write and read: a cache trades disk for time
+  const std::string path = folder_ + "/" + key.hex() + ".cpvt";
+  const std::string part = path + ".part";
+  {
+    std::ofstream out(part, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    if (!out) {
+      std::error_code ec;
+      fs::remove(part, ec);
+      return;
+    }
+  }
+  std::error_code ec;
+  fs::rename(part, path, ec);
+  if (ec) fs::remove(part, ec);
+  std::lock_guard lock(mutex_);
+  total_ += bytes.size();
+  if (total_ > maxBytes_) trim();
+}
+
+void TileCache::trim() {
+  struct Entry {
+    fs::file_time_type used;
+    uint64_t bytes;
+    fs::path path;
+  };
+  std::vector<Entry> entries;
+  uint64_t total = 0;
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(folder_, ec)) {
+    if (e.path().extension() != ".cpvt") continue;
+    const uint64_t size = e.file_size(ec);
+    if (ec) continue;
+    entries.push_back({e.last_write_time(ec), size, e.path()});
+    total += size;
+  }
+  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.used < b.used; });
+  for (const Entry& e : entries) {
+    if (total <= maxBytes_) break;
+    if (fs::remove(e.path, ec)) total -= e.bytes;
+  }
+  total_ = total;
+}
+
+}  // namespace cpvs
