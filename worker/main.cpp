@@ -98,7 +98,12 @@ int main(int argc, char** argv) {
   config.workerId = std::string(host) + ":" + std::to_string(getpid());
   app.add_option("--server", config.server.address, "Coordinator HOST:PORT (required but with --check)");
   app.add_option("--slots", config.slots, "Tiles baked at once")->capture_default_str()->check(CLI::Range(1, 256));
-  app.add_option("--cache", config.cacheDir, "Folder for fetched scenes")->capture_default_str();
+  app.add_option("--cache", config.cacheDir, "Folder for fetched scenes (and baked tiles, in tiles/)")->capture_default_str();
+  app.add_option("--tile-cache-mb", config.tileCacheMb,
+                 "MiB of baked tiles kept under the content that decides them, so that a tile leased again (an "
+                 "edited scene's unchanged tiles, a resubmitted bake) is sent without baking; least recently used "
+                 "out; 0: none")
+      ->capture_default_str();
   app.add_option("--token", config.server.token, "Bearer token (default: $CPVS_TOKEN)");
   app.add_option("--ca", config.server.caFile, "PEM roots to trust: use TLS");
   app.add_option("--cert", config.server.certFile,

@@ -19,6 +19,7 @@
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/net/chunked_stream.h"
+#include "cpvs/bake/tile_key.h"
 #include "cpvs/net/convert.h"
 #include "cpvs/net/model_convert.h"
 #include "cpvs/net/receiver_declaration.h"
@@ -57,6 +58,8 @@ TileWorker::TileWorker(WorkerConfig config) : config_(std::move(config)), metric
   fs::create_directories(config_.cacheDir);
   std::error_code ec;
   fs::remove(alivePath(config_.cacheDir), ec);  // an earlier run's contact is not this one's
+  if (config_.tileCacheMb > 0)
+    tileCache_ = std::make_unique<TileCache>((fs::path(config_.cacheDir) / "tiles").string(), config_.tileCacheMb << 20);
 }
 
 std::string alivePath(const std::string& cacheDir) { return (fs::path(cacheDir) / ".alive").string(); }
@@ -191,10 +194,23 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     auto prepared = bakeScene(lease.scene_hash(), lease.grid(), options.renderer, lease.options().receivers(),
                               {lease.exclude().begin(), lease.exclude().end()});
     StageTimes times;
-    Dag dag = bakeTile(*prepared, lease.tile_x(), lease.tile_y(), options, &times);
-    auto start = std::chrono::steady_clock::now();
-    std::vector<uint8_t> encoded = encodeSubDag(dag, true);
-    times.add("encode", secondsSince(start));
+    const std::optional<Hash128> key =
+        tileCache_ ? tileKey(*prepared, options, lease.tile_x(), lease.tile_y()) : std::nullopt;
+    std::optional<std::vector<uint8_t>> kept =
+        key ? tileCache_->findFile(*key, lease.tile_x(), lease.tile_y(), options) : std::nullopt;
+    std::vector<uint8_t> encoded;
+    if (kept) {  // this tile's content was baked before, here: its sub-DAG as it was sent then
+      encoded = std::move(*kept);
+      ++tilesReused_;
+      spdlog::info("tile {} of job {}: its content was baked before, sent from the tile cache", lease.tile_index(),
+                   lease.job_id());
+    } else {
+      Dag dag = bakeTile(*prepared, lease.tile_x(), lease.tile_y(), options, &times);
+      auto start = std::chrono::steady_clock::now();
+      encoded = encodeSubDag(dag, true);
+      times.add("encode", secondsSince(start));
+      if (key) tileCache_->storeFile(*key, encoded);
+    }
     if (abandoning_) {
       stopRenewing();
       bool held;

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "cpvs/bake/bake_scene.h"
+#include "cpvs/bake/tile_cache.h"
 #include "cpvs/scene/isolated_import.h"
 #include "cpvs/scene/source.h"
 #include "cpvs/v1/farm.grpc.pb.h"
@@ -27,6 +28,10 @@ struct WorkerConfig {
   std::string workerId;    // for the coordinator's logs
   int maxTiles = 0;        // stop after this many tiles (0 = never; for tests)
   int threads = 0;         // threads per bake, Embree's and the DAG construction's (0 = all cores)
+  /// Tiles' sub-DAGs kept in cacheDir/tiles under the content that decides them
+  /// (tile_key.h): a tile leased again, by this job or another, is sent from there
+  /// instead of baked. At most this many MiB, least recently used out; 0: none kept.
+  uint64_t tileCacheMb = 4096;
   /// How fetched scene files are imported: in cpvs-import's sandbox (cpvs-worker's
   /// default), or in this process when it names no helper (tests that embed a worker).
   ImportLimits import;
@@ -54,6 +59,8 @@ class TileWorker {
     abandoning_ = true;
   }
   uint64_t tilesDone() const { return tilesDone_; }
+  /// Of the tiles done, those sent from the tile cache without baking.
+  uint64_t tilesReused() const { return tilesReused_; }
   /// Leases granted to this worker (a tile's completion is counted once its reply is
   /// read, which may be after the job it finished is done).
   uint64_t tilesLeased() const { return tilesStarted_; }
@@ -97,7 +104,8 @@ class TileWorker {
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<pb::Workers::Stub> stub_;
   std::atomic<bool> stopping_{false}, abandoning_{false};
-  std::atomic<uint64_t> tilesDone_{0}, tilesStarted_{0};
+  std::atomic<uint64_t> tilesDone_{0}, tilesStarted_{0}, tilesReused_{0};
+  std::unique_ptr<TileCache> tileCache_;  // null when tileCacheMb is 0
   std::atomic<int64_t> lastContactMs_{-5000};
   std::mutex cacheMutex_, fetchMutex_;
   std::map<std::string, std::shared_ptr<CachedScene>> cache_;

@@ -402,6 +402,55 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
   farm.server.shutdown(1);
 }
 
+// A worker keeps the tiles it bakes under the content that decides them (tile_key.h):
+// the same bake submitted again is sent whole from its tile cache, an edited scene's
+// tiles the edit did not reach too, and each artifact is the local bake's; the cache
+// survives the worker's restart.
+TEST(InProcessFarm, AWorkerSendsTheTilesItBakedBeforeFromItsTileCache) {
+  TempDir dir("cpvs_in_process_tile_cache");
+  const Scene city = openScene("city:3:4");
+  Scene edited = city;
+  appendBox(edited, {1, 0, 1}, {3, 2, 3});  // a kiosk on a street corner
+  finalizeScene(edited);
+  const std::string before = dir / "city.obj", after = dir / "edited.obj";
+  writeObj(before, city);
+  writeObj(after, edited);
+  InProcessFarm farm(dir / "data");
+  auto submit = [&](const std::string& file, const std::string& id) {
+    net::BakeSpec spec;
+    spec.sceneHash = farm.client.uploadScene(file).sceneHash;
+    spec.sun = Vec3{0.3, -1, 0.2};
+    spec.resolution = "256";
+    spec.options.tileSize = 64;
+    const client::JobStatus done = farm.client.watch(farm.client.submit(id, spec).jobId);
+    EXPECT_EQ(done.state, client::JobState::Done) << done.error;
+    farm.client.download(done.jobId, dir / (id + ".cpvs"));
+    return done.tilesTotal - done.tilesUntouched - done.tilesUnread;  // leased
+  };
+  uint64_t leased = 0, reused = 0;
+  for (int run = 0; run < 2; ++run) {  // the second worker restarts on the first one's cache
+    worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
+    wc.threads = 2;
+    worker::TileWorker tileWorker(wc);
+    std::thread workerThread([&] { tileWorker.run(); });
+    const std::string id = "city-" + std::to_string(run);
+    leased = submit(before, id);
+    EXPECT_EQ(readFile(dir / (id + ".cpvs")), encodeCpvs(localBakeOf(before), true));
+    if (run == 0) EXPECT_EQ(tileWorker.tilesReused(), 0u);
+    if (run == 1) EXPECT_EQ(tileWorker.tilesReused(), leased) << "every tile was baked by the worker before";
+    if (run == 1) {
+      reused = tileWorker.tilesReused();
+      const uint64_t editLeased = submit(after, "edited");
+      EXPECT_EQ(readFile(dir / "edited.cpvs"), encodeCpvs(localBakeOf(after), true));
+      const uint64_t editReused = tileWorker.tilesReused() - reused;
+      EXPECT_GT(editReused, 0u);
+      EXPECT_LT(editReused, editLeased) << "the kiosk's tiles are baked";
+    }
+    tileWorker.stop();
+    workerThread.join();
+  }
+}
+
 TEST(InProcessFarm, UnknownJobsAndRefusalsAreTheirKinds) {
   TempDir dir("cpvs_in_process_refusals");
   InProcessFarm farm(dir / "data");

@@ -1,6 +1,9 @@
 #include "cpvs/bake/tile_cache.h"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <system_error>
@@ -22,14 +25,27 @@ TileCache::TileCache(std::string folder, uint64_t maxBytes) : folder_(std::move(
 }
 
 std::optional<Dag> TileCache::find(const Hash128& key, uint64_t tileX, uint64_t tileY, const BakeOptions& options) {
+  return read(key, tileX, tileY, options, nullptr);
+}
+
+std::optional<std::vector<uint8_t>> TileCache::findFile(const Hash128& key, uint64_t tileX, uint64_t tileY,
+                                                        const BakeOptions& options) {
+  std::vector<uint8_t> bytes;
+  if (!read(key, tileX, tileY, options, &bytes)) return std::nullopt;
+  return bytes;
+}
+
+std::optional<Dag> TileCache::read(const Hash128& key, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
+                                   std::vector<uint8_t>* bytesOut) {
   const std::string path = folder_ + "/" + key.hex() + ".cpvt";
   std::error_code ec;
   try {
     if (!fs::exists(path, ec)) throw InputError("absent");
-    const std::vector<uint8_t> bytes = readFile(path);
+    std::vector<uint8_t> bytes = readFile(path);
     Dag dag = decodeSubDag(bytes.data(), bytes.size(), path, options.compress != CompressMode::None, options.hash);
     checkTileRoots(dag, tileX, tileY, options.log2TileSize, path);
     fs::last_write_time(path, fs::file_time_type::clock::now(), ec);  // recently used
+    if (bytesOut) *bytesOut = std::move(bytes);
     std::lock_guard lock(mutex_);
     ++hits_;
     return dag;
@@ -40,10 +56,13 @@ std::optional<Dag> TileCache::find(const Hash128& key, uint64_t tileX, uint64_t 
   }
 }
 
-void TileCache::store(const Hash128& key, const Dag& dag) {
-  const std::vector<uint8_t> bytes = encodeSubDag(dag, false);  // fast to write and read: a cache trades disk for time
+void TileCache::store(const Hash128& key, const Dag& dag) { storeFile(key, encodeSubDag(dag, false)); }
+
+void TileCache::storeFile(const Hash128& key, const std::vector<uint8_t>& bytes) {
   const std::string path = folder_ + "/" + key.hex() + ".cpvt";
-  const std::string part = path + ".part";
+  // Its own name per write: two bakes may store one key at once (two jobs' equal tiles).
+  static std::atomic<uint64_t> writes{0};
+  const std::string part = path + "." + std::to_string(::getpid()) + "-" + std::to_string(writes++) + ".part";
   {
     std::ofstream out(part, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));

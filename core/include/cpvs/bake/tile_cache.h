@@ -9,6 +9,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "cpvs/bake/options.h"
 #include "cpvs/base/hash.h"
@@ -25,14 +26,24 @@ class TileCache {
   /// The sub-DAG stored under `key` for tile (tileX, tileY), canonical and hashed as
   /// `options` bake, or none.
   std::optional<Dag> find(const Hash128& key, uint64_t tileX, uint64_t tileY, const BakeOptions& options);
-  /// Stores `dag` under `key` (written whole, then renamed), then trims the folder to its
-  /// bound. A disk that refuses the write loses only the cache's copy.
+  /// The same as the sub-DAG file's bytes (encodeSubDag), checked as find checks them: what
+  /// a worker sends without decoding it again.
+  std::optional<std::vector<uint8_t>> findFile(const Hash128& key, uint64_t tileX, uint64_t tileY,
+                                               const BakeOptions& options);
+  /// Stores `dag` under `key` (uncompressed: a cache trades disk for time), then trims
+  /// the folder to its bound.
   void store(const Hash128& key, const Dag& dag);
+  /// Stores a sub-DAG file's bytes under `key` (written whole, then renamed), then trims
+  /// the folder to its bound. A disk that refuses the write loses only the cache's copy.
+  void storeFile(const Hash128& key, const std::vector<uint8_t>& bytes);
 
   uint64_t hits() const { return hits_; }
   uint64_t misses() const { return misses_; }
 
  private:
+  /// Reads and checks the file of `key`: the Dag, or none (a miss, counted).
+  std::optional<Dag> read(const Hash128& key, uint64_t tileX, uint64_t tileY, const BakeOptions& options,
+                          std::vector<uint8_t>* bytes);
   /// Counts the folder's tiles and removes the least recently used past the bound.
   void trim();
   std::string folder_;
