@@ -226,7 +226,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     }
     // The lease is renewed while the result is sent, and sent again (a coordinator
     // restarting, or out of disk for a while): it must not expire under a finished tile.
-    deliverResult(lease, encoded, times.seconds);
+    deliverResult(lease, encoded, times.seconds, kept.has_value());
     stopRenewing();
     ++tilesDone_;
     metrics_.tileEnded("returned", times.seconds);
@@ -249,7 +249,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
 }
 
 void TileWorker::deliverResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
-                               const std::map<std::string, double>& stages) {
+                               const std::map<std::string, double>& stages, bool reused) {
   // A baked tile is not thrown away because the coordinator is briefly unreachable (a
   // restart keeps the lease in its store, and CompleteTile may be sent again): retried
   // with backoff for up to two minutes, then given up as before (R17).
@@ -257,7 +257,7 @@ void TileWorker::deliverResult(const pb::TileLease& lease, const std::vector<uin
   int backoffMs = 200;
   for (;;) {
     try {
-      sendResult(lease, encoded, stages);
+      sendResult(lease, encoded, stages, reused);
       return;
     } catch (const Unreachable& e) {
       if (abandoning_ || std::chrono::steady_clock::now() + std::chrono::milliseconds(backoffMs) > giveUp) throw;
@@ -270,7 +270,7 @@ void TileWorker::deliverResult(const pb::TileLease& lease, const std::vector<uin
 }
 
 void TileWorker::sendResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
-                            const std::map<std::string, double>& stages) {
+                            const std::map<std::string, double>& stages, bool reused) {
   grpc::ClientContext ctx;
   net::prepare(ctx, config_.server, 600);
   pb::CompleteReply reply;
@@ -282,6 +282,7 @@ void TileWorker::sendResult(const pb::TileLease& lease, const std::vector<uint8_
                                          chunk.set_lease_id(lease.lease_id());
                                          chunk.set_total_size(encoded.size());
                                          chunk.set_checksum(contentHash(encoded.data(), encoded.size()).hex());
+                                         chunk.set_reused(reused);
                                          for (const auto& [stage, seconds] : stages) {
                                            auto* s = chunk.add_stages();
                                            s->set_stage(stage);

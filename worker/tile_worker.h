@@ -95,9 +95,9 @@ class TileWorker {
   std::string fetchSceneOnce(const std::string& sceneHash);
   /// sendResult, again with backoff while the coordinator is unreachable.
   void deliverResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
-                     const std::map<std::string, double>& stages);
+                     const std::map<std::string, double>& stages, bool reused);
   void sendResult(const pb::TileLease& lease, const std::vector<uint8_t>& encoded,
-                  const std::map<std::string, double>& stages);
+                  const std::map<std::string, double>& stages, bool reused);
   void release(const pb::TileLease& lease, const std::string& reason, pb::FailKind kind = pb::FAIL_TILE);
 
   WorkerConfig config_;

@@ -130,6 +130,7 @@ std::string statusJson(const JobStatus& s, const std::string& indent, bool withO
     << in << "\"tiles_done\": " << s.tilesDone << ",\n"
     << in << "\"tiles_untouched\": " << s.tilesUntouched << ",\n"
     << in << "\"tiles_unread\": " << s.tilesUnread << ",\n"
+    << in << "\"tiles_reused\": " << s.tilesReused << ",\n"
     << in << "\"bytes\": " << s.bytes << ",\n"
     << in << "\"file_bytes\": " << s.fileBytes << ",\n"
     << in << "\"peak_merge_bytes\": " << s.peakMergeBytes << ",\n"
@@ -174,6 +175,10 @@ void printDone(const JobStatus& s) {
     std::printf("  %llu tiles all lit, never leased: %llu touched by no triangle, %llu read by no receiver\n",
                 static_cast<unsigned long long>(s.tilesUntouched + s.tilesUnread),
                 static_cast<unsigned long long>(s.tilesUntouched), static_cast<unsigned long long>(s.tilesUnread));
+  if (s.tilesReused > 0)
+    std::printf("  %llu tiles sent from the workers' tile caches (their content was baked before), %llu baked\n",
+                static_cast<unsigned long long>(s.tilesReused),
+                static_cast<unsigned long long>(s.tilesTotal - s.tilesUntouched - s.tilesUnread - s.tilesReused));
   auto stages = stagesOf(s);
   if (!stages.empty()) {
     std::printf("\n  %-10s %10s\n", "stage", "seconds");

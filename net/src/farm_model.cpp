@@ -219,6 +219,7 @@ JobStatus modelOf(const pb::JobStatus& p) {
   s.tilesDone = p.tiles_done();
   s.tilesUntouched = p.tiles_untouched();
   s.tilesUnread = p.tiles_unread();
+  s.tilesReused = p.tiles_reused();
   for (const auto& st : p.stages()) s.stages.push_back({st.stage(), st.seconds()});
   s.secondsElapsed = p.seconds_elapsed();
   s.etaSeconds = p.eta_seconds();

@@ -65,7 +65,14 @@ std::optional<pb::JobStatus> JobService::knownRequest(const pb::SubmitBakeReques
   // Request ids are one namespace: another client's says nothing about its job.
   if (!access.sees(existing->owner))
     throw FarmError(ErrorKind::AlreadyExists, "request_id " + request.request_id() + " is taken; use another");
-  if (!sameMessage(bakeSpecOf(*existing), request.spec()))
+  // Compared as the model writes specs (defaults dropped, lights' colours filled in): a
+  // job stored as its client sent it, before specs crossed the model, is the same job.
+  pb::BakeSpec stored = bakeSpecOf(*existing);
+  try {
+    stored = net::toProto(net::modelOf(stored));
+  } catch (const InputError&) {  // not a spec the model reads: compared as it is
+  }
+  if (!sameMessage(stored, request.spec()))
     throw FarmError(ErrorKind::AlreadyExists,
                     "request_id " + request.request_id() + " was used for a different job (" + existing->id + ")");
   return toStatus(*existing);
@@ -111,6 +118,7 @@ pb::JobStatus JobService::toStatus(const JobRecord& j) const {
   s.set_tiles_done(j.tilesDone);
   s.set_tiles_untouched(j.tilesUntouched);
   s.set_tiles_unread(j.tilesUnread);
+  s.set_tiles_reused(j.tilesReused);
   for (const auto& [stage, seconds] : j.stages) {
     auto* st = s.add_stages();
     st->set_stage(stage);

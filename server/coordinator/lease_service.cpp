@@ -162,14 +162,14 @@ pb::RenewReply LeaseService::renew(const std::string& leaseId) {
 }
 
 bool LeaseService::completeTile(const std::string& leaseId, const std::string& encoded,
-                                const std::map<std::string, double>& stages) {
-  const bool taken = takeResult(leaseId, encoded, stages);
+                                const std::map<std::string, double>& stages, bool reused) {
+  const bool taken = takeResult(leaseId, encoded, stages, reused);
   metrics_.tileReturned(taken, stages, encoded.size());
   return taken;
 }
 
 bool LeaseService::takeResult(const std::string& leaseId, const std::string& encoded,
-                              const std::map<std::string, double>& stages) {
+                              const std::map<std::string, double>& stages, bool reused) {
   auto l = store_.lease(leaseId);
   if (!l) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
   auto j = store_.job(l->jobId, false);
@@ -208,7 +208,7 @@ bool LeaseService::takeResult(const std::string& leaseId, const std::string& enc
   failpoint("tile-written");
   double seconds = 0;  // the worker's, what the ETA fits
   for (const auto& [stage, s] : stages) seconds += s;
-  if (!store_.completeTile(l->jobId, l->tile, seconds)) return false;
+  if (!store_.completeTile(l->jobId, l->tile, seconds, reused)) return false;
   failpoint("tile-acknowledged");
   {
     std::lock_guard workersLock(workersMutex_);

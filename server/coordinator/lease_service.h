@@ -50,7 +50,9 @@ class LeaseService {
   /// before the rest of the stream is read.
   void checkResultLease(const std::string& leaseId);
   /// A tile's sub-DAG, validated; false when another result for the tile was taken.
-  bool completeTile(const std::string& leaseId, const std::string& encoded, const std::map<std::string, double>& stages);
+  /// `reused`: the worker sent the tile from its tile cache (counted, kept out of the ETA).
+  bool completeTile(const std::string& leaseId, const std::string& encoded, const std::map<std::string, double>& stages,
+                    bool reused = false);
   /// A tile given back. Only FAIL_TILE counts against the tile's attempts; FAIL_WORKER
   /// and FAIL_SCENE_DAMAGED quarantine the worker (the latter after the coordinator
   /// checked its stored copy of the scene); FAIL_INTERRUPTED costs nothing.
@@ -63,7 +65,8 @@ class LeaseService {
 
  private:
   void reaperLoop();
-  bool takeResult(const std::string& leaseId, const std::string& encoded, const std::map<std::string, double>& stages);
+  bool takeResult(const std::string& leaseId, const std::string& encoded, const std::map<std::string, double>& stages,
+                  bool reused);
   /// Notes a worker's failure (under workersMutex_) and quarantines it when due.
   void noteWorkerFailure(const std::string& workerId, bool quarantineNow);
 

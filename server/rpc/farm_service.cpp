@@ -292,6 +292,7 @@ grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerR
     const uint64_t total = chunk.total_size();
     const std::string checksum = chunk.checksum();
     if (total == 0) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "result size 0 is out of range");
+    const bool reused = chunk.reused();
     std::map<std::string, double> stages;
     for (const auto& s : chunk.stages()) {
       if (!(s.seconds() >= 0 && s.seconds() < 1e7))
@@ -315,7 +316,7 @@ grpc::Status WorkerService::CompleteTile(grpc::ServerContext* ctx, grpc::ServerR
                                                            std::to_string(total) + " bytes");
     if (contentHash(data.data(), data.size()).hex() != checksum)
       return grpc::Status(grpc::StatusCode::DATA_LOSS, "result does not match its checksum");
-    out->set_accepted(c_.leases().completeTile(leaseId, data, stages));
+    out->set_accepted(c_.leases().completeTile(leaseId, data, stages, reused));
     return grpc::Status::OK;
   });
 }

@@ -122,8 +122,9 @@ constexpr int kOptionsColumn = 16;
 /// protobuf, and the scenes they name in columns of their own (jobs.receiver_scene,
 /// tracks.scene_hash and receiver_scene), not found by searching the specs' bytes; 12: each tile's work (the
 /// triangles that reach it) and the seconds its worker spent, for the ETA (0 in an
-/// upgraded store: its jobs' ETA counts tiles).
-constexpr int kSchemaVersion = 12;
+/// upgraded store: its jobs' ETA counts tiles); 13: whether a worker sent each tile from
+/// its tile cache (tiles.reused; 0 in an upgraded store).
+constexpr int kSchemaVersion = 13;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -352,6 +353,7 @@ FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
       exec("ALTER TABLE tiles ADD COLUMN work INTEGER NOT NULL DEFAULT 0");
       exec("ALTER TABLE tiles ADD COLUMN seconds REAL NOT NULL DEFAULT 0");
     }
+    if (upgradable && version <= 12) exec("ALTER TABLE tiles ADD COLUMN reused INTEGER NOT NULL DEFAULT 0");
     if (upgradable && version <= 8) {
       // A sun job's grid moves from the jobs table's columns to its job_grids row.
       if (version == 8) {
@@ -384,7 +386,7 @@ FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
   exec(
       "CREATE TABLE IF NOT EXISTS tiles(job_id TEXT REFERENCES jobs(id), idx INTEGER, state INTEGER, attempts "
       "INTEGER, lease_id TEXT, deadline_ms INTEGER, last_error TEXT, failed_by TEXT, work INTEGER NOT NULL DEFAULT 0, "
-      "seconds REAL NOT NULL DEFAULT 0, PRIMARY KEY(job_id, idx))");
+      "seconds REAL NOT NULL DEFAULT 0, reused INTEGER NOT NULL DEFAULT 0, PRIMARY KEY(job_id, idx))");
   exec("CREATE INDEX IF NOT EXISTS tiles_by_state ON tiles(state, job_id)");
   // A job's next queued tile in tile order, without walking the tiles done before it.
   exec("CREATE INDEX IF NOT EXISTS tiles_by_job_state ON tiles(job_id, state, idx)");
@@ -563,13 +565,14 @@ void FarmStore::fillJobCounts(JobRecord& j, bool withCounts) {
   g.text(1, j.id);
   while (g.step()) j.grids.push_back(readGrid(g));
   if (!withCounts) return;
-  Statement d(db_, "SELECT COUNT(*), COALESCE(SUM(state = 4), 0), COALESCE(SUM(state = 5), 0) FROM tiles "
-                   "WHERE job_id = ? AND state IN (2, 4, 5)");
+  Statement d(db_, "SELECT COUNT(*), COALESCE(SUM(state = 4), 0), COALESCE(SUM(state = 5), 0), "
+                   "COALESCE(SUM(state = 2 AND reused = 1), 0) FROM tiles WHERE job_id = ? AND state IN (2, 4, 5)");
   d.text(1, j.id);
   d.step();
   j.tilesDone = uint64_t(d.i64(0));
   j.tilesUntouched = uint64_t(d.i64(1));
   j.tilesUnread = uint64_t(d.i64(2));
+  j.tilesReused = uint64_t(d.i64(3));
   Statement st(db_, "SELECT stage, seconds FROM job_stages WHERE job_id = ?");
   st.text(1, j.id);
   while (st.step()) j.stages[st.str(0)] = st.f64(1);
@@ -790,11 +793,11 @@ std::optional<TileState> FarmStore::tileState(const std::string& jobId, uint64_t
   return TileState(s.i64(0));
 }
 
-bool FarmStore::completeTile(const std::string& jobId, uint64_t tile, double seconds) {
+bool FarmStore::completeTile(const std::string& jobId, uint64_t tile, double seconds, bool reused) {
   std::lock_guard lock(mutex_);
-  Statement s(db_,
-              "UPDATE tiles SET state = 2, lease_id = NULL, seconds = ? WHERE job_id = ? AND idx = ? AND state IN (0, 1)");
-  s.bind(1, seconds).text(2, jobId).bind(3, int64_t(tile));
+  Statement s(db_, "UPDATE tiles SET state = 2, lease_id = NULL, seconds = ?, reused = ? WHERE job_id = ? AND idx = ? AND "
+                   "state IN (0, 1)");
+  s.bind(1, seconds).bind(2, int64_t(reused)).text(3, jobId).bind(4, int64_t(tile));
   s.run();
   return sqlite3_changes(db_) > 0;
 }
@@ -805,7 +808,7 @@ TileCosts FarmStore::tileCosts(const std::string& jobId) {
   // do: two index ranges of (job, state).
   Statement s(db_,
               "SELECT COUNT(*), TOTAL(work), TOTAL(work * work), TOTAL(seconds), TOTAL(work * seconds) FROM tiles "
-              "WHERE job_id = ? AND state = 2 AND work > 0 AND seconds > 0");
+              "WHERE job_id = ? AND state = 2 AND work > 0 AND seconds > 0 AND reused = 0");
   s.text(1, jobId);
   TileCosts c;
   if (s.step()) c.done = {double(s.i64(0)), s.f64(1), s.f64(2), s.f64(3), s.f64(4)};

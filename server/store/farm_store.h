@@ -103,6 +103,7 @@ struct JobRecord {
   uint64_t tilesTotal = 0, tilesDone = 0;  // the grid's and options' TilePlan; done from the tiles
   uint64_t tilesUntouched = 0;             // of tilesDone, those no triangle touches
   uint64_t tilesUnread = 0;                // of tilesDone, those no declared receiver reads
+  uint64_t tilesReused = 0;                // of tilesDone, those a worker sent from its tile cache
   uint64_t bytes = 0, fileBytes = 0, peakMergeBytes = 0;
   std::map<std::string, double> stages;
 
@@ -237,7 +238,7 @@ class FarmStore {
   std::optional<TileState> tileState(const std::string& jobId, uint64_t tile);
   /// Marks the tile done unless it already is, with the seconds its worker spent on it;
   /// returns whether this call did.
-  bool completeTile(const std::string& jobId, uint64_t tile, double seconds = 0);
+  bool completeTile(const std::string& jobId, uint64_t tile, double seconds = 0, bool reused = false);
   /// Returns the tile of a failed lease to the queue when that lease is still the tile's
   /// current one, noting its worker as the one that failed it last; returns the tile's
   /// attempts so far (the lease's not counted when `counts` is false), nullopt when the

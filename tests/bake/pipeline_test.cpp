@@ -279,6 +279,13 @@ TEST_P(ScenePipeline, BakesAreDeterministic) {
   }
   a.sceneHash = b.sceneHash = sceneHash(scene_);
   EXPECT_EQ(encodeCpvs(a, true), encodeCpvs(b, true));
+  // Embree's renderer keeps its texel slices per thread: two tiles in flight must not
+  // share them.
+  BakeOptions embree = a.options;
+  embree.renderer = Renderer::Embree;
+  const Dag pipelined = bakeWith(scene_, a.grid, embree);
+  tbb::global_control oneThread(tbb::global_control::max_allowed_parallelism, 1);
+  expectSameDag(pipelined, bakeWith(scene_, a.grid, embree));
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -108,6 +108,11 @@ TEST_F(TileCacheTest, AnEditedSceneReusesTheTilesItDidNotReachAndGivesAFullBakes
     testing::expectSameDag(b.dag, fullBake(edited, sun_, options_));
     EXPECT_EQ(b.dag.bytes(), fullBake(edited, sun_, options_).bytes());
   }
+  // A grid smaller than the tile size: one tile, the grid's own size, kept too.
+  BakeOptions wide = options_;
+  wide.log2TileSize = 12;
+  (void)bakeThrough(cache, base, sun_, wide);
+  EXPECT_EQ(bakeThrough(cache, base, sun_, wide).reused, 1u);
   // Another sun: another grid, nothing to take.
   const Vec3 otherSun{-0.2, -1, 0.35};
   const CachedBake turned = bakeThrough(cache, base, otherSun, options_);

@@ -1,6 +1,7 @@
 #include "cpvs/bake/bake.h"
 
 #include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <chrono>
@@ -119,6 +120,7 @@ Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* tim
     Dag dag;
     StageTimes times;
     double seconds = 0;
+    std::optional<Hash128> key;  // with a cache, where it can vouch for the tile
     bool reused = false;
   };
   const auto bakeStart = std::chrono::steady_clock::now();
@@ -138,25 +140,31 @@ Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* tim
                 b->index = i;
                 const auto start = std::chrono::steady_clock::now();
                 const TileCoord tile = plan.tile(i);
-                const std::optional<Hash128> key = cache ? tileKey(scene, options, tile.x, tile.y) : std::nullopt;
-                if (key)
-                  if (std::optional<Dag> kept = cache->find(*key, tile.x, tile.y, options)) {
+                b->key = cache ? tileKey(scene, options, tile.x, tile.y) : std::nullopt;
+                if (b->key)
+                  if (std::optional<Dag> kept = cache->find(*b->key, tile.x, tile.y, options)) {
                     b->dag = std::move(*kept);
                     b->reused = true;
                     ++b->times.tilesReused;
                     b->seconds = secondsSince(start);
                     return b;
                   }
-                b->dag = bakeTile(scene, tile.x, tile.y, options, &b->times);
+                // Isolated: a thread waiting inside this tile's parallel loops must not take
+                // up the other tile in flight, whose stages would share its thread's scratch
+                // buffers (BakeScene::columnMasks keeps its texel slices per thread).
+                tbb::this_task_arena::isolate(
+                    [&] { b->dag = bakeTile(scene, tile.x, tile.y, options, &b->times); });
                 b->seconds = secondsSince(start);
-                if (key) {
-                  const auto encodeStart = std::chrono::steady_clock::now();
-                  cache->store(*key, b->dag);
-                  b->times.add("encode", secondsSince(encodeStart));
-                }
                 return b;
               }) &
           tbb::make_filter<std::shared_ptr<Baked>, void>(tbb::filter_mode::serial_in_order, [&](std::shared_ptr<Baked> b) {
+            // Stored here, not where it was baked: a tile still baking when the bake is
+            // cancelled comes out cut short, and only tiles that reach this stage are whole.
+            if (b->key && !b->reused) {
+              const auto encodeStart = std::chrono::steady_clock::now();
+              cache->store(*b->key, b->dag);
+              b->times.add("encode", secondsSince(encodeStart));
+            }
             st.add(b->times);
             const auto start = std::chrono::steady_clock::now();
             merger.add(std::move(b->dag));

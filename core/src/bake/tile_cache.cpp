@@ -11,6 +11,7 @@
 
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
+#include "cpvs/bake/tile_plan.h"
 #include "cpvs/io/sub_dag_file.h"
 
 namespace cpvs {
@@ -21,6 +22,9 @@ TileCache::TileCache(std::string folder, uint64_t maxBytes) : folder_(std::move(
   std::error_code ec;
   fs::create_directories(folder_, ec);
   if (!fs::is_directory(folder_, ec)) throw InputError("tile cache " + folder_ + ": cannot make the folder");
+  // What a write cut short by a crash left (this process is the folder's one writer).
+  for (const fs::directory_entry& e : fs::directory_iterator(folder_, ec))
+    if (e.path().extension() == ".part") fs::remove(e.path(), ec);
   trim();
 }
 
@@ -43,7 +47,8 @@ std::optional<Dag> TileCache::read(const Hash128& key, uint64_t tileX, uint64_t 
     if (!fs::exists(path, ec)) throw InputError("absent");
     std::vector<uint8_t> bytes = readFile(path);
     Dag dag = decodeSubDag(bytes.data(), bytes.size(), path, options.compress != CompressMode::None, options.hash);
-    checkTileRoots(dag, tileX, tileY, options.log2TileSize, path);
+    // The tile size as baked: at most the grid (TilePlan clamps it).
+    checkTileRoots(dag, tileX, tileY, TilePlan(dag.log2Resolution, options.log2TileSize).log2TileSize(), path);
     fs::last_write_time(path, fs::file_time_type::clock::now(), ec);  // recently used
     if (bytesOut) *bytesOut = std::move(bytes);
     std::lock_guard lock(mutex_);
@@ -97,8 +102,10 @@ void TileCache::trim() {
     total += size;
   }
   std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.used < b.used; });
+  // Down to 7/8 of the bound, so that a full folder is not counted again at every store.
+  const uint64_t target = total > maxBytes_ ? maxBytes_ - maxBytes_ / 8 : maxBytes_;
   for (const Entry& e : entries) {
-    if (total <= maxBytes_) break;
+    if (total <= target) break;
     if (fs::remove(e.path, ec)) total -= e.bytes;
   }
   total_ = total;

@@ -114,6 +114,7 @@ struct JobStatus {
   uint64_t tilesTotal = 0, tilesDone = 0;
   uint64_t tilesUntouched = 0;  // of tilesDone, those no triangle touches (never leased)
   uint64_t tilesUnread = 0;     // of tilesDone, those no declared receiver reads (never leased)
+  uint64_t tilesReused = 0;     // of tilesDone, those a worker sent from its tile cache (not baked)
   std::vector<StageSeconds> stages;  // summed over tiles, plus the coordinator's merge and write
   double secondsElapsed = 0;
   double etaSeconds = -1;       // < 0: unknown
