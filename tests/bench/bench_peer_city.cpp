@@ -4,7 +4,10 @@
 // peer's figures. The peer (loinesg/voxelized-shadows-improved, GL on a CPU rasterizer) is
 // not part of this project: its figures are the ones measured beside ours on a 2-core
 // machine (docs/measured.md, "The peer's city against the peer") and are printed as such,
-// never re-measured here. A program that prints, not a test: nothing here fails.
+// never re-measured here. Then an edit: one building moved, re-baked through the tile
+// cache the original bake filled, against a full bake of the edited city (the files must
+// match); with --with-256k, the procedural city at 256K. A program that prints, not a
+// test: nothing here fails.
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -15,6 +18,7 @@
 #include <thread>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -74,6 +78,35 @@ Run bake(const std::vector<std::string>& args, const std::string& stdoutPath) {
   return r;
 }
 
+/// The city with one building and its roof moved by (3, 0, 2) metres: every vertex listed
+/// under those objects shifted (the file's other lines as they are). False when the file
+/// names neither.
+bool writeMovedBuilding(const std::string& from, const std::string& to) {
+  std::ifstream in(from);
+  std::ofstream out(to);
+  std::string line, object;
+  bool moved = false;
+  while (std::getline(in, line)) {
+    if (line.rfind("o ", 0) == 0) object = line.substr(2);
+    if ((object == "004_building_01" || object == "071_building_01_roof") && line.rfind("v ", 0) == 0) {
+      std::istringstream v(line.substr(2));
+      double x = 0, y = 0, z = 0;
+      v >> x >> y >> z;
+      char buf[128];
+      std::snprintf(buf, sizeof buf, "v %.17g %.17g %.17g", x + 3, y, z + 2);
+      line = buf;
+      moved = true;
+    }
+    out << line << "\n";
+  }
+  return moved && bool(out);
+}
+
+std::vector<uint8_t> fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
 std::string mb(double bytes) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.2f MB", bytes / 1e6);
@@ -83,21 +116,30 @@ std::string mb(double bytes) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<std::string> resolutions{"4K", "16K", "64K"};
+  std::vector<std::string> resolutions{"4K", "16K", "64K"}, editResolutions{"16K", "64K"};
   std::string scene = cpvs::testing::sharedScenesDir() + "/loinesg-city/city.obj";
+  bool with256k = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--resolutions" && i + 1 < argc) {
       resolutions.clear();
       std::stringstream list(argv[++i]);
       for (std::string r; std::getline(list, r, ',');) resolutions.push_back(r);
+    } else if (a == "--edit-resolutions" && i + 1 < argc) {
+      editResolutions.clear();
+      std::stringstream list(argv[++i]);
+      for (std::string r; std::getline(list, r, ',');) editResolutions.push_back(r);
     } else if (a == "--scene" && i + 1 < argc) {
       scene = argv[++i];
+    } else if (a == "--with-256k") {
+      with256k = true;
     } else {
       std::fprintf(stderr,
-                   "usage: bench_peer_city [--resolutions 4K,16K,64K] [--scene city.obj]\n"
+                   "usage: bench_peer_city [--resolutions 4K,16K,64K] [--edit-resolutions 16K,64K] [--with-256k]\n"
+                   "                       [--scene city.obj]\n"
                    "Bakes the peer's city with `cpvs bake` (receivers everywhere and surfaces) and prints the table\n"
-                   "against the peer's figures.\n");
+                   "against the peer's figures; then one building moved, re-baked through a tile cache against a\n"
+                   "full bake; with --with-256k, the procedural city at 256K (minutes).\n");
       return 2;
     }
   }
@@ -144,6 +186,49 @@ int main(int argc, char** argv) {
       std::fflush(stdout);
       fs::remove(out);
     }
+  // An edit: one building moved, baked through a tile cache the original filled, against a
+  // full bake of the edited city; the files must be the same.
+  const std::string moved = (dir / "city-moved.obj").string();
+  if (!editResolutions.empty() && writeMovedBuilding(scene, moved)) {
+    std::printf("\n## One building moved (004_building_01 and its roof, by 3, 0, 2), receivers everywhere\n\n");
+    std::printf("| R | first bake, cache written s | the edit through the cache s | tiles taken | full bake of the edit s | "
+                "edit / full | same file |\n| --- | --- | --- | --- | --- | --- | --- |\n");
+    for (const std::string& R : editResolutions) {
+      const std::string cache = (dir / ("tiles-" + R)).string();
+      auto args = [&](const std::string& file, const std::string& out, bool cached) {
+        std::vector<std::string> v{CPVS_CLI, "bake", file, "--sun-dir", kPeerSun, "--resolution", R, "--json", "-o", out};
+        if (cached) v.insert(v.end(), {"--tile-cache", cache});
+        return v;
+      };
+      const std::string a = (dir / "a.cpvs").string(), b = (dir / "b.cpvs").string(), c = (dir / "c.cpvs").string();
+      const Run first = bake(args(scene, a, true), (dir / "out.json").string());
+      const Run edit = bake(args(moved, b, true), (dir / "out.json").string());
+      const Run full = bake(args(moved, c, false), (dir / "out.json").string());
+      if (first.status || edit.status || full.status || edit.out.is_discarded()) {
+        std::printf("| %s | failed | | | | | |\n", R.c_str());
+        continue;
+      }
+      std::printf("| %s | %.2f | %.2f | %llu of %llu | %.2f | %.0f %% | %s |\n", R.c_str(), first.wall, edit.wall,
+                  static_cast<unsigned long long>(edit.out["tiles_reused"].get<uint64_t>()),
+                  static_cast<unsigned long long>(edit.out["tiles"].get<uint64_t>()), full.wall,
+                  100 * edit.wall / full.wall, fileBytes(b) == fileBytes(c) ? "yes" : "NO");
+      std::fflush(stdout);
+      fs::remove_all(cache);
+      for (const std::string& f : {a, b, c}) fs::remove(f);
+    }
+  }
+  if (with256k) {
+    const std::string out = (dir / "city-256k.cpvs").string();
+    const Run r = bake({CPVS_CLI, "bake", "city", "--sun-elevation", "35", "--sun-azimuth", "30", "--resolution", "256K",
+                        "--json", "-o", out},
+                       (dir / "out.json").string());
+    if (r.status == 0 && !r.out.is_discarded())
+      std::printf("\nThe procedural city at 256K (sun elevation 35, azimuth 30): %.1f s (target 120 s), DAG %s, peak "
+                  "RSS %.2f GB\n",
+                  r.wall, mb(r.out["bytes"].get<double>()).c_str(), double(r.maxRssKb) / 1e6);
+    fs::remove(out);
+  }
+  std::printf("\nAt the peer's own grid (16K x 16K x 4096 slices) there is no row: `cpvs bake` makes cubic grids only.\n");
   std::printf("\nThe peer's figures (measured beside ours on a 2-core machine, docs/measured.md): ");
   for (const PeerRun& p : kPeer)
     std::printf("%s %.2f%s s, %llu B; ", p.resolution, p.secondsLow,
