@@ -199,7 +199,8 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     std::optional<std::vector<uint8_t>> kept =
         key ? tileCache_->findFile(*key, lease.tile_x(), lease.tile_y(), options) : std::nullopt;
     std::vector<uint8_t> encoded;
-    if (kept) {  // this tile's content was baked before, here: its sub-DAG as it was sent then
+    const bool reused = kept.has_value();
+    if (reused) {  // this tile's content was baked before, here: its sub-DAG as it was sent then
       encoded = std::move(*kept);
       ++tilesReused_;
       spdlog::info("tile {} of job {}: its content was baked before, sent from the tile cache", lease.tile_index(),
@@ -226,7 +227,7 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     }
     // The lease is renewed while the result is sent, and sent again (a coordinator
     // restarting, or out of disk for a while): it must not expire under a finished tile.
-    deliverResult(lease, encoded, times.seconds, kept.has_value());
+    deliverResult(lease, encoded, times.seconds, reused);
     stopRenewing();
     ++tilesDone_;
     metrics_.tileEnded("returned", times.seconds);

@@ -126,13 +126,23 @@ TEST(TileEta, TileWorkCountsTheTrianglesOfEachTile) {
   EXPECT_LT(rendered, plan.count()) << "the city leaves some tiles untouched";
 }
 
+/// The procedural city on a 512³ grid in 64 tiles of 64².
+struct SmallCity {
+  Scene city = makeProceduralCity(4, 2);
+  OrthoGrid grid = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), 9);
+  BakeScene scene{city, grid, Renderer::Raster};
+  BakeOptions options = [] {
+    BakeOptions o;
+    o.log2TileSize = 6;
+    return o;
+  }();
+};
+
 // bakeGrid reports the estimate: unknown at first, then known, and nothing left at the end.
 TEST(TileEta, TheBakeReportsSecondsLeft) {
-  const Scene city = makeProceduralCity(4, 2);
-  const OrthoGrid grid = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), 9);
-  const BakeScene scene(city, grid, Renderer::Raster);
-  BakeOptions options;
-  options.log2TileSize = 6;
+  const SmallCity city;
+  const BakeScene& scene = city.scene;
+  const BakeOptions& options = city.options;
   std::vector<Progress> reports;
   (void)bakeGrid(scene, options, nullptr, [&](const Progress& p) {
     reports.push_back(p);
@@ -148,11 +158,9 @@ TEST(TileEta, TheBakeReportsSecondsLeft) {
 // The plan's estimate bakes a quarter of the tiles to render (3 to 8) and prices every
 // tile; asked to sample every tile, its bytes are exactly the sub-DAGs' sum.
 TEST(BakeEstimate, SamplesTheBakesOwnTilesAndPricesEveryTile) {
-  const Scene city = makeProceduralCity(4, 2);
-  const OrthoGrid grid = makeGrid(city, LightFrame::fromDirection({0.3, -1, 0.2}), 9);
-  const BakeScene scene(city, grid, Renderer::Raster);
-  BakeOptions options;
-  options.log2TileSize = 6;
+  const SmallCity city;
+  const BakeScene& scene = city.scene;
+  const BakeOptions& options = city.options;
   const TilePlan plan(9, 6);
   const std::vector<uint32_t> work = tileWork(scene, plan);
   const uint64_t rendered = uint64_t(std::count_if(work.begin(), work.end(), [](uint32_t w) { return w > 0; }));

@@ -18,7 +18,6 @@
 #include <thread>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -26,6 +25,7 @@
 #include <vector>
 
 #include "bench_common.h"
+#include "cpvs/base/file.h"
 #include "scene_testing.h"
 
 namespace {
@@ -100,11 +100,6 @@ bool writeMovedBuilding(const std::string& from, const std::string& to) {
     out << line << "\n";
   }
   return moved && bool(out);
-}
-
-std::vector<uint8_t> fileBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 std::string mb(double bytes) {
@@ -211,7 +206,7 @@ int main(int argc, char** argv) {
       std::printf("| %s | %.2f | %.2f | %llu of %llu | %.2f | %.0f %% | %s |\n", R.c_str(), first.wall, edit.wall,
                   static_cast<unsigned long long>(edit.out["tiles_reused"].get<uint64_t>()),
                   static_cast<unsigned long long>(edit.out["tiles"].get<uint64_t>()), full.wall,
-                  100 * edit.wall / full.wall, fileBytes(b) == fileBytes(c) ? "yes" : "NO");
+                  100 * edit.wall / full.wall, cpvs::readFile(b) == cpvs::readFile(c) ? "yes" : "NO");
       std::fflush(stdout);
       fs::remove_all(cache);
       for (const std::string& f : {a, b, c}) fs::remove(f);

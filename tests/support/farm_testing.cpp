@@ -50,7 +50,7 @@ net::BakeSpec InProcessFarm::uploadAndSpec(const std::string& objPath, const std
 }
 
 pb::JobStatus InProcessFarm::submitMessage(const std::string& requestId, const pb::BakeSpec& spec) {
-  auto stub = pb::Farm::NewStub(grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+  auto stub = pb::Farm::NewStub(net::makeChannel(connection()));
   pb::SubmitBakeRequest request;
   request.set_request_id(requestId);
   *request.mutable_spec() = spec;
