@@ -122,7 +122,10 @@ void addOptionFlags(CLI::App* c, OptionFlags& o, const std::string& tileHelp) {
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   c->add_option("--compress", o.compress, "Compression: topdown (§4.2), bottomup (§4.1), none (as inserted)")
       ->check(CLI::IsMember(namesOf<CompressMode>()))->capture_default_str();
-  c->add_option("--undefined", o.undefinedRule, "Undefined voxels: new (§3.4 masks) or old (mixed -> shadowed)")
+  c->add_option("--undefined", o.undefinedRule,
+                "Undefined voxels: aligned (the new rule, with every 8-slice slab of a column that its texels allow "
+                "wholly lit or wholly shadowed: fewer nodes), new (§3.4: fewest masks per 8x8 column) or old (mixed "
+                "-> shadowed)")
       ->check(CLI::IsMember(namesOf<UndefinedRule>()))->capture_default_str();
   c->add_option("--renderer", o.renderer,
                 "Depth maps: raster (exact rasterization, fast) or embree (a ray per texel); they differ only on "

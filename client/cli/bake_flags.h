@@ -68,7 +68,7 @@ void checkNoSunWithLights(const SunFlags& sun);
 /// --closed, --exit, --cull, --compress, --undefined, --renderer, --tile-size.
 struct OptionFlags {
   std::string closed = optionName(ClosedMode::Auto), exit = optionName(ExitMode::Exact), cull = "on",
-              compress = optionName(CompressMode::TopDown), undefinedRule = optionName(UndefinedRule::New),
+              compress = optionName(CompressMode::TopDown), undefinedRule = optionName(UndefinedRule::Aligned),
               renderer = optionName(BakeOptions{}.renderer);
   int tileSize = 1 << kDefaultLog2TileSize;
   std::string receivers = optionName(ReceiverKind::Everywhere);

@@ -128,7 +128,8 @@ static_assert(int(ClosedMode::Auto) == pb::CLOSED_AUTO && int(ClosedMode::On) ==
 static_assert(int(ExitMode::Exact) == pb::EXIT_EXACT && int(ExitMode::Approx) == pb::EXIT_APPROX);
 static_assert(int(CompressMode::TopDown) == pb::COMPRESS_TOPDOWN && int(CompressMode::BottomUp) == pb::COMPRESS_BOTTOMUP &&
               int(CompressMode::None) == pb::COMPRESS_NONE);
-static_assert(int(UndefinedRule::New) == pb::UNDEFINED_NEW && int(UndefinedRule::Old) == pb::UNDEFINED_OLD);
+static_assert(int(UndefinedRule::New) == pb::UNDEFINED_NEW && int(UndefinedRule::Old) == pb::UNDEFINED_OLD &&
+              int(UndefinedRule::Aligned) == pb::UNDEFINED_ALIGNED);
 static_assert(int(Renderer::Embree) == pb::RENDERER_EMBREE && int(Renderer::Raster) == pb::RENDERER_RASTER);
 static_assert(pb::Renderer_ARRAYSIZE == int(OptionNames<Renderer>::kNames.size()) &&
               pb::ClosedMode_ARRAYSIZE == int(OptionNames<ClosedMode>::kNames.size()) &&
@@ -245,7 +246,7 @@ BakeOptions fromProto(const pb::BakeOptions& p) {
   o.exit = ExitMode(p.exit());
   o.cull = !p.no_cull();
   o.compress = CompressMode(p.compress());
-  o.undefinedRule = UndefinedRule(p.undefined_rule());
+  if (p.has_undefined_rule()) o.undefinedRule = UndefinedRule(p.undefined_rule());
   o.renderer = p.has_renderer() ? Renderer(p.renderer()) : BakeOptions{}.renderer;
   o.log2TileSize = p.tile_size() == 0 ? kDefaultLog2TileSize : log2TileSizeOf(p.tile_size(), "options.tile_size");
   if (p.has_receivers()) {

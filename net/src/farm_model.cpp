@@ -133,7 +133,7 @@ pb::BakeOptions toProto(const JobOptions& o) {
   p.set_exit(pb::ExitMode(o.exit));
   p.set_no_cull(!o.cull);
   p.set_compress(pb::CompressMode(o.compress));
-  p.set_undefined_rule(pb::UndefinedRule(o.undefinedRule));
+  if (o.undefinedRule) p.set_undefined_rule(pb::UndefinedRule(*o.undefinedRule));
   p.set_tile_size(o.tileSize);
   if (o.renderer) p.set_renderer(pb::Renderer(*o.renderer));
   if (o.receivers) *p.mutable_receivers() = toProto(*o.receivers);
@@ -146,7 +146,7 @@ JobOptions modelOf(const pb::BakeOptions& p) {
   o.exit = optionOf<ExitMode>(p.exit(), "options.exit");
   o.cull = !p.no_cull();
   o.compress = optionOf<CompressMode>(p.compress(), "options.compress");
-  o.undefinedRule = optionOf<UndefinedRule>(p.undefined_rule(), "options.undefined_rule");
+  if (p.has_undefined_rule()) o.undefinedRule = optionOf<UndefinedRule>(p.undefined_rule(), "options.undefined_rule");
   o.tileSize = p.tile_size();
   if (p.has_renderer()) o.renderer = optionOf<Renderer>(p.renderer(), "options.renderer");
   if (p.has_receivers()) o.receivers = modelOf(p.receivers());

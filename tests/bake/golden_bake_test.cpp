@@ -38,6 +38,7 @@ struct GoldenBake {
 // kernels differ by instruction set, so no golden bake uses it.
 const GoldenBake kBakes[] = {
     {"city-1K", "city", false, "--sun-dir 0.3,-1,0.25 --resolution 1K"},
+    {"city-1K-new-rule", "city", false, "--sun-dir 0.3,-1,0.25 --resolution 1K --undefined new"},
     {"bunny-2K", "stanford-bunny/bunny.obj", true,
      "--sun-elevation 40 --sun-azimuth 120 --resolution 2K --compress bottomup --tile-size 512"},
     {"house-2K", "openarena/oa_shouse.obj", true,

@@ -36,7 +36,7 @@ TEST(BakeOptions, NamesRoundTripAndUnknownNamesAreRefused) {
     EXPECT_STREQ(e.what(), "--compress: 'zip' is not one of topdown, bottomup, none");
   }
   EXPECT_EQ(describe(BakeOptions{}),
-            "closed auto, exit exact, cull on, compress topdown, undefined new, renderer raster, tile 4096");
+            "closed auto, exit exact, cull on, compress topdown, undefined aligned, renderer raster, tile 4096");
 }
 
 TEST(BakeOptions, OneTileSizeRule) {

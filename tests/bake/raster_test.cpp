@@ -251,6 +251,57 @@ TEST(ColumnTransitions, EqualThePlainStatement) {
   }
 }
 
+// The aligned rule: the new rule's plain statement on the narrowed ranges, every narrowed
+// range inside its texel's own, and every 8-slice slab that all 64 texels allow lit (or
+// shadowed) wholly lit (or shadowed), voxel by voxel.
+TEST(ColumnTransitions, TheAlignedRuleFillsWholeSlabsInsideEachTexelsRange) {
+  std::mt19937 rng(17);
+  for (int trial = 0; trial < 3000; ++trial) {
+    const uint32_t R = 1u << (3 + rng() % 12);
+    uint32_t lo[64], hi[64];
+    const uint32_t base = rng() % R, spread = trial % 3 == 0 ? 12 : R;
+    for (int t = 0; t < 64; ++t) {
+      lo[t] = rng() % 7 == 0 ? R : std::min(R, base + uint32_t(rng() % spread)) % (R + 1);
+      hi[t] = std::min(R, lo[t] + (rng() % 3 == 0 ? 0 : uint32_t(rng() % spread)));
+      if (trial % 5 == 0) hi[t] = rng() % 2 ? R : hi[t];
+    }
+    uint32_t nlo[64], nhi[64];
+    alignedRanges(lo, hi, R, nlo, nhi);
+    uint32_t maxLo = 0, minHi = R;
+    for (int t = 0; t < 64; ++t) {
+      ASSERT_LE(lo[t], nlo[t]);
+      ASSERT_LE(nlo[t], nhi[t]);
+      ASSERT_LE(nhi[t], hi[t]);
+      maxLo = std::max(maxLo, lo[t]);
+      minHi = std::min(minHi, hi[t]);
+    }
+    std::vector<uint32_t> slices, wantSlices;
+    std::vector<uint64_t> masks, wantMasks;
+    uint32_t first = 0, full = 0, wantFirst = 0, wantFull = 0;
+    columnTransitions(lo, hi, R, UndefinedRule::Aligned, slices, masks, first, full);
+    columnTransitions(nlo, nhi, R, UndefinedRule::New, wantSlices, wantMasks, wantFirst, wantFull);
+    ASSERT_EQ(slices, wantSlices);
+    ASSERT_EQ(masks, wantMasks);
+    ASSERT_EQ(first, wantFirst);
+    ASSERT_EQ(full, wantFull);
+    // Voxel by voxel: each texel's constraint, and the whole slabs.
+    for (uint32_t slab = 0; slab < R; slab += 8) {
+      const bool allLit = slab + 8 <= minHi, allShadowed = slab >= maxLo;
+      for (uint32_t k = slab; k < slab + 8; ++k) {
+        uint64_t m = 0;
+        for (size_t i = 0; i < slices.size() && slices[i] <= k; ++i) m = masks[i];
+        for (int t = 0; t < 64; ++t) {
+          const bool shadowed = m >> t & 1;
+          if (k < lo[t]) ASSERT_FALSE(shadowed) << "texel " << t << " slice " << k;
+          if (k >= hi[t]) ASSERT_TRUE(shadowed) << "texel " << t << " slice " << k;
+        }
+        if (allLit) ASSERT_EQ(m, 0u) << "slab " << slab;
+        if (allShadowed && !allLit) ASSERT_EQ(m, ~uint64_t(0)) << "slab " << slab;
+      }
+    }
+  }
+}
+
 Scene translated(Scene scene, const Vec3& by) {
   for (Vec3& p : scene.positions) p = p + by;
   return scene;

@@ -261,6 +261,34 @@ INSTANTIATE_TEST_SUITE_P(Suns, ReceiversTest,
                                            Case{{0.05, -1, -0.02}, 8}, Case{{0.2, 0.9, -0.3}, 7},
                                            Case{{1, -0.1, 0.05}, 8}));
 
+// Declared receivers only free voxels, and the aligned rule fills the freed ones towards
+// whole slabs and shared columns: on real levels, towns and cities under suns of every
+// side, a bake for surfaces is no larger than the bake for everywhere (whose every voxel
+// is one valid filling of what surfaces frees). Suns straight down an axis are not among
+// them: there a whole city's everywhere DAG is a few flat planes (docs/measured.md).
+TEST(Receivers, ASurfacesBakeIsNoLargerThanEverywhereOnRealScenes) {
+  const std::string shared = testing::sharedScenesDir();
+  ASSERT_FALSE(shared.empty()) << "the shared scenes are beside the project after deploy/setup.sh";
+  const char* scenes[] = {"openarena/oa_shouse.obj", "openarena/ctf_compromise.obj", "flightgear/zone_maisons.obj",
+                          "loinesg-city/city.obj", "stanford-bunny/bunny.obj", "city:8", "landscape"};
+  const Vec3 suns[] = {{-0.31, -1, 0.22}, {0.505259, -0.379456, 0.775066}, {0.7, -0.3, -0.2}};
+  for (const char* name : scenes) {
+    const std::string path = std::string(name).find('/') == std::string::npos ? name : shared + "/" + name;
+    const Scene scene = openScene(path);
+    for (const Vec3& sun : suns) {
+      SCOPED_TRACE(std::string(name) + " sun " + std::to_string(sun.x) + "," + std::to_string(sun.y) + "," +
+                   std::to_string(sun.z));
+      const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection(sun), 9);
+      BakeOptions options;
+      ReceiverDeclaration surfaces;
+      surfaces.kind = ReceiverKind::Surfaces;
+      const uint64_t everywhere = bytesOf(bake(scene, grid, options, {}), grid);
+      const uint64_t declared = bytesOf(bake(scene, grid, options, surfaces), grid);
+      EXPECT_LE(declared, everywhere);
+    }
+  }
+}
+
 // Declared receivers of local lights: on each grid of a spot light and of a point light's
 // cube (over the same geometry, from above it, grazing it and inside it), every voxel that
 // a declared receiver's lookup reads has the value its texel's classification requires,

@@ -113,7 +113,7 @@ TEST(FarmModel, ASpecCrossesBothWaysUnchanged) {
   EXPECT_EQ(model.pointerGrid, 3u);
   EXPECT_TRUE(MessageDifferencer::Equals(toProto(model), full)) << toProto(model).DebugString();
 
-  // Sun angles, and absent options stay absent (no renderer, no receivers, no pointer grid).
+  // Sun angles, and absent options stay absent (no renderer, no undefined rule, no receivers, no pointer grid).
   pb::BakeSpec sun;
   sun.set_scene_hash(std::string(32, 'b'));
   sun.mutable_sun_angles()->set_elevation_deg(40);
@@ -127,6 +127,9 @@ TEST(FarmModel, ASpecCrossesBothWaysUnchanged) {
   const pb::BakeSpec back = toProto(sunModel);
   EXPECT_TRUE(MessageDifferencer::Equals(back, sun)) << back.DebugString();
   EXPECT_FALSE(back.options().has_renderer());
+  EXPECT_FALSE(back.options().has_undefined_rule());
+  EXPECT_FALSE(sunModel.options.undefinedRule);
+  EXPECT_EQ(bakeOptionsOf(sunModel.options).undefinedRule, UndefinedRule::Aligned);
   EXPECT_FALSE(back.options().has_receivers());
   EXPECT_FALSE(back.has_pointer_grid());
 }

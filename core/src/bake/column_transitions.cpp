@@ -3,7 +3,8 @@
 // must be shadowed (the smallest hi), then shadows every texel that may be shadowed
 // (lo <= k) and keeps that mask until a lit texel must turn (the next smallest hi among
 // the lit bits). The old rule shadows every texel as soon as it may be, once the column
-// can no longer be all lit. Each step compares the 64 texels at once: an open surface
+// can no longer be all lit. The aligned rule is the new one on narrowed ranges (see
+// columnTransitions). Each step compares the 64 texels at once: an open surface
 // gives a column up to 64 transitions.
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "bake/column_transitions.cpp"
@@ -73,9 +74,35 @@ namespace cpvs {
 
 HWY_EXPORT(ColumnTransitionsImpl);
 
+void alignedRanges(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, uint32_t outLo[64], uint32_t outHi[64]) {
+  uint32_t maxLo = 0, minHi = R;
+  for (int t = 0; t < 64; ++t) {
+    maxLo = std::max(maxLo, lo[t]);
+    minHi = std::min(minHi, std::max(lo[t], hi[t]));
+  }
+  // Every texel may be lit below litEnd and shadowed from shadowStart, both multiples of
+  // 8: the column's 8-slice slabs there become whole lit or shadowed children of its
+  // level-0 nodes, and no texel's transition falls inside them.
+  const uint32_t litEnd = minHi & ~7u, shadowStart = (maxLo + 7) & ~7u;
+  for (int t = 0; t < 64; ++t) {
+    if (shadowStart <= litEnd) {
+      outLo[t] = outHi[t] = litEnd;  // one transition for the whole column (none at R)
+    } else {
+      outLo[t] = std::max(lo[t], litEnd);
+      outHi[t] = std::max(outLo[t], std::min(std::max(lo[t], hi[t]), shadowStart));
+    }
+  }
+}
+
 void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, UndefinedRule rule,
                        std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
                        uint32_t& fullShadow) {
+  if (rule == UndefinedRule::Aligned) {
+    uint32_t narrowLo[64], narrowHi[64];
+    alignedRanges(lo, hi, R, narrowLo, narrowHi);
+    return HWY_DYNAMIC_DISPATCH(ColumnTransitionsImpl)(narrowLo, narrowHi, R, UndefinedRule::New, slices, masks,
+                                                       firstShadow, fullShadow);
+  }
   HWY_DYNAMIC_DISPATCH(ColumnTransitionsImpl)(lo, hi, R, rule, slices, masks, firstShadow, fullShadow);
 }
 

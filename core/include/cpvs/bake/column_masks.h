@@ -40,6 +40,14 @@ void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R,
                        std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
                        uint32_t& fullShadow);
 
+/// The aligned rule's ranges for one 8x8 column (texel t: lit before lo[t], shadowed from
+/// hi[t]; hi < lo reads as hi = lo): narrowed so that the column is wholly lit below the
+/// last multiple of 8 that every texel allows lit, and wholly shadowed from the first
+/// multiple of 8 that every texel allows shadowed; where every texel allows one common
+/// multiple of 8, lit up to the last such and shadowed from it. Every narrowed range lies
+/// inside its texel's own. The aligned rule is the new rule on these.
+void alignedRanges(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, uint32_t outLo[64], uint32_t outHi[64]);
+
 /// The masks of a width x height block that no surface touches: every column all lit.
 void litColumnMasks(uint32_t width, uint32_t height, uint32_t R, ColumnMasks& out);
 

@@ -28,6 +28,7 @@ enum class ExitMode : uint8_t {
 enum class UndefinedRule : uint8_t {
   New = 0,  // §3.4: per 8x8 column, the fewest masks that describe the transitions
   Old = 1,  // Sintorn et al.: lit or shadowed where homogeneous, else shadowed
+  Aligned = 2,  // the new rule, each column wholly lit or shadowed in every 8-slice slab its texels allow
 };
 
 /// How the depth maps are rendered. Both follow the same classification and tie rules;
@@ -82,7 +83,7 @@ struct BakeOptions {
   ExitMode exit = ExitMode::Exact;
   bool cull = true;
   CompressMode compress = CompressMode::TopDown;
-  UndefinedRule undefinedRule = UndefinedRule::New;
+  UndefinedRule undefinedRule = UndefinedRule::Aligned;
   int log2TileSize = kDefaultLog2TileSize;
   HashKind hash = HashKind::Xxh3;
   Renderer renderer = Renderer::Raster;
@@ -108,7 +109,7 @@ struct OptionNames<ExitMode> {
 template <>
 struct OptionNames<UndefinedRule> {
   static constexpr const char* kFlag = "undefined";
-  static constexpr std::array<const char*, 2> kNames{"new", "old"};
+  static constexpr std::array<const char*, 3> kNames{"new", "old", "aligned"};
 };
 template <>
 struct OptionNames<CompressMode> {
