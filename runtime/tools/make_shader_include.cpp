@@ -41,6 +41,8 @@ int main(int argc, char** argv) {
       << "#define CPVS_HEADER_INTERNAL_LEVELS " << word(offsetof(PackedHeader, internalLevels)) << "u\n"
       << "#define CPVS_HEADER_GRID_LEVELS " << word(offsetof(PackedHeader, gridLevels)) << "u\n"
       << "#define CPVS_HEADER_GRID_WORD " << word(offsetof(PackedHeader, gridWord)) << "u\n"
+      << "#define CPVS_HEADER_LEAF_WORD " << word(offsetof(PackedHeader, leafWord)) << "u\n"
+      << "#define CPVS_HEADER_LEAF_REFS " << word(offsetof(PackedHeader, leafRefs)) << "u\n"
       << "#define CPVS_MAX_PCF " << kMaxPcfWidth << "u\n"
       << "#define CPVS_RECIP_BITS " << kRecipBits << "\n\n"
       << "// offsetReciprocal(i) of lookup_mapping.h\n"

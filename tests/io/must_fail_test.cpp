@@ -121,7 +121,8 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
   auto word = [](uint32_t k) { return kWords + 4 * size_t(k); };
   // Field k of the packed header, and the first child of the first node of a level.
   auto field = [&](size_t offset) { return kWords + offset; };
-  const uint32_t level0Child = h.levelWord[0] + 1, level1Child = h.levelWord[1] + 1;
+  const uint32_t level1Child = h.levelWord[1] + 1;
+  ASSERT_EQ(h.leafRefs, 1u);
   ASSERT_NE(packed.words()[h.levelWord[0]] & 0xAAAA, 0u);  // the first nodes have a kRef child
   ASSERT_NE(packed.words()[h.levelWord[1]] & 0xAAAA, 0u);
 
@@ -160,9 +161,14 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
        "a level beyond the root is not empty"},
       {"child code 3", [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[0]), get<uint32_t>(b, word(h.levelWord[0])) | 3); },
        "invalid child code"},
-      {"code word above 16 bits", [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[0]), get<uint32_t>(b, word(h.levelWord[0])) | 0x10000); },
+      {"code word above 16 bits", [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[1]), get<uint32_t>(b, word(h.levelWord[1])) | 0x10000); },
        "invalid child code"},
-      {"leaf offset", [=](Bytes& b) { put<uint32_t>(b, word(level0Child), h.leafWord + 1); }, "a child offset is not a leaf"},
+      // Level 0 names leaves by 16-bit index (a pool this small): its first child's index
+      // is the high half of the node's first word.
+      {"leaf index", [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[0]), get<uint32_t>(b, word(h.levelWord[0])) | 0xFFFF0000u); },
+       "a child offset is not a leaf"},
+      {"leaf references", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, leafRefs)), 2); },
+       "leaf references 2 do not fit"},
       {"node offset", [=](Bytes& b) { put<uint32_t>(b, word(level1Child), h.levelWord[0] + 1); },
        "not a node of the level below"},
       {"pointer grid", [=](Bytes& b) { put<uint32_t>(b, word(h.gridWord), get<uint32_t>(b, word(h.gridWord)) ^ 1); },
@@ -182,7 +188,10 @@ TEST(MustFail, CpvsVersion1FieldsDamagedBehindAValidChecksum) {
   ASSERT_EQ(get<uint32_t>(valid, 4), 1u);
   const CpvsArtifact art = decodeCpvs(valid.data(), valid.size(), "v1.cpvs");
   EXPECT_EQ(art.grid.log2Resolution, 8);
-  EXPECT_EQ(art.dag.bytes(), 45236u);  // as the version 1 build printed it
+  // 45,236 bytes as the version 1 build printed it; 34,348 since level 0 names its leaves
+  // by 16-bit index.
+  EXPECT_EQ(art.dag.bytes(), 34348u);
+  EXPECT_EQ(art.packed.bytes(), 34348u);
   EXPECT_EQ(art.packed.words(), PackedDag(art.dag).words());
   const int levels = int(art.dag.levels.size());
   const size_t payloadSize = kLevelSizes + 16 * size_t(levels), payload = payloadSize + 16;
@@ -255,8 +264,22 @@ TEST(CpvsHeader, ReceiversRoundTripAndVersion2ReadsAsEverywhere) {
   EXPECT_EQ(old.formatVersion, 2u);
   EXPECT_EQ(old.options.receivers, ReceiverKind::Everywhere);
   EXPECT_EQ(old.receiverHash, Hash128{});
-  EXPECT_EQ(old.dag.bytes(), 45236u);  // as the version 2 build printed it
-  EXPECT_EQ(old.packed.words(), PackedDag(old.dag).words());
+  // Its words name level 0's leaves by word offset, as every array did then: they read as
+  // they are, 45,236 bytes as the version 2 build printed it, and answer every voxel as
+  // the same DAG packed today (34,348 bytes, leaves by 16-bit index).
+  EXPECT_EQ(old.packed.header().leafRefs, 0u);
+  EXPECT_EQ(old.packed.bytes(), 45236u);
+  EXPECT_EQ(old.packed.words(), packPool(old.dag.leaves, old.dag.levels, {{8, old.dag.roots.front().ref}}, false));
+  const PackedDag today(old.dag);
+  EXPECT_EQ(today.header().leafRefs, 1u);
+  EXPECT_EQ(today.bytes(), 34348u);
+  EXPECT_EQ(today.arrayBytes() + 4 * (old.dag.levels[0].size() + old.dag.levels[0].children.size()) -
+                old.dag.levelBytes(0),
+            old.packed.arrayBytes());
+  for (uint64_t z = 0; z < 256; ++z)
+    for (uint64_t y = 0; y < 256; ++y)
+      for (uint64_t x = 0; x < 256; x += 8)
+        ASSERT_EQ(old.packed.leafSliceMask(x, y, z), today.leafSliceMask(x, y, z)) << x << "," << y << "," << z;
 }
 
 // Byte offsets of the sub-DAG header (sub_dag_file.h).

@@ -526,6 +526,16 @@ TEST(GpuLookups, PeersCityAnswersAsTheCpu) {
   expectNoValidationMessages(device());
 }
 
+// An array written before level 0 named its leaves by 16-bit index (a version 2 file,
+// city:3:7 at 256): the device walks its word offsets as the CPU does.
+TEST(GpuLookups, AnArrayNamingLeavesByWordOffsetAnswersAsTheCpu) {
+  const Baked b{ShadowArtifact::open(CPVS_SOURCE_DIR "/tests/io/data/city-256-v2.cpvs"), openScene("city:3:7"), {}, ""};
+  ASSERT_EQ(b.artifact->packed().header().leafRefs, 0u);
+  GpuShadows gpu(device(), b.artifact);
+  expectGpuMatchesCpu(b, gpu, 20000);
+  expectNoValidationMessages(device());
+}
+
 // A binding limit far below the device's forces the words across several storage
 // bindings; the answers stay the same.
 TEST(GpuLookups, WordsSplitAcrossBindingsAnswerTheSame) {

@@ -1,6 +1,7 @@
 #include "cpvs/dag/dag.h"
 
 #include "cpvs/base/error.h"
+#include "cpvs/dag/packed_layout.h"
 
 namespace cpvs {
 
@@ -39,7 +40,11 @@ size_t Dag::nodeCount() const {
 
 uint64_t Dag::levelBytes(int level) const {
   if (level < 0) return 8 * uint64_t(leaves.size());
-  return 4 * uint64_t(levels[level].size()) + 4 * uint64_t(levels[level].children.size());
+  const InternalLevel& l = levels[size_t(level)];
+  if (level > 0 || !compactLeafRefs(leaves.size())) return 4 * (uint64_t(l.size()) + l.children.size());
+  uint64_t words = 0;
+  for (size_t i = 0; i < l.size(); ++i) words += packedNodeWords(0, l.refCount(i), true);
+  return 4 * words;
 }
 
 uint64_t Dag::bytes() const {

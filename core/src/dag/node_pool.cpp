@@ -5,6 +5,7 @@
 #include <unordered_map>
 
 #include "cpvs/base/error.h"
+#include "cpvs/dag/packed_layout.h"
 
 namespace cpvs {
 
@@ -27,8 +28,10 @@ struct NodeKeyHash {
 }  // namespace
 
 uint64_t NodePool::bytes() const {
+  const bool compact = compactLeafRefs(leaves.size());
   uint64_t b = 8 * uint64_t(leaves.size());
-  for (const InternalLevel& level : levels) b += 4 * (uint64_t(level.size()) + level.children.size());
+  for (size_t l = 0; l < levels.size(); ++l)
+    for (size_t i = 0; i < levels[l].size(); ++i) b += 4 * uint64_t(packedNodeWords(int(l), levels[l].refCount(i), compact));
   return b;
 }
 
@@ -83,7 +86,7 @@ uint64_t reachableBytes(const NodePool& pool, size_t root) {
     const InternalLevel& level = pool.levels[size_t(l)];
     next.clear();
     for (uint32_t i : reached) {
-      bytes += 4 * (1 + uint64_t(level.refCount(i)));
+      bytes += 4 * uint64_t(packedNodeWords(l, level.refCount(i), compactLeafRefs(pool.leaves.size())));
       next.insert(next.end(), level.children.begin() + level.childBegin[i], level.children.begin() + level.childBegin[i + 1]);
     }
     std::sort(next.begin(), next.end());

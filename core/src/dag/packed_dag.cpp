@@ -25,15 +25,18 @@ Dag PackedDag::emptyDag() {
 }
 
 std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::vector<InternalLevel>& levels,
-                               const std::vector<NodePool::Root>& roots) {
+                               const std::vector<NodePool::Root>& roots, std::optional<bool> compactRefs) {
   CPVS_CHECK(!roots.empty());
+  const bool compact = compactRefs.value_or(compactLeafRefs(leaves.size()));
+  CPVS_CHECK(!compact || compactLeafRefs(leaves.size()));
   const int L = int(levels.size());
   CPVS_CHECK(L <= kMaxInternalLevels);
   const size_t N = roots.size();
   std::vector<PackedHeader> h(N, PackedHeader{});
   uint64_t total = uint64_t(kPackedHeaderWords) * N;
   uint64_t nodeWords = 2 * uint64_t(leaves.size());
-  for (const InternalLevel& level : levels) nodeWords += level.size() + level.children.size();
+  for (size_t l = 0; l < levels.size(); ++l)
+    for (size_t i = 0; i < levels[l].size(); ++i) nodeWords += packedNodeWords(int(l), levels[l].refCount(i), compact);
   auto fits = [&] {
     if (total > UINT32_MAX - 2)
       throw InputError("packing a DAG for lookups: more than 2^32 words (" + std::to_string(4 * nodeWords) + " bytes)");
@@ -60,7 +63,7 @@ std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::v
     offset[size_t(l)].resize(level.size());
     for (size_t i = 0; i < level.size(); ++i) {
       offset[size_t(l)][i] = uint32_t(total);
-      total += 1 + level.refCount(i);
+      total += packedNodeWords(l, level.refCount(i), compact);
       fits();
     }
   }
@@ -77,6 +80,7 @@ std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::v
     }
     h[k].leafWord = leafWord;
     h[k].leafCount = uint32_t(leaves.size());
+    h[k].leafRefs = compact ? 1 : 0;
     h[k].wordCount = uint32_t(total);
     const NodeRef root = roots[k].ref;
     h[k].rootCode = root.code;
@@ -87,6 +91,15 @@ std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::v
     const InternalLevel& level = levels[size_t(l)];
     uint32_t at = levelWord[size_t(l)];
     for (size_t i = 0; i < level.size(); ++i) {
+      if (l == 0 && compact) {
+        // Half-words: the codes, then each child's leaf index.
+        uint32_t half = 0;
+        auto put = [&](uint32_t v) { w[at + half / 2] |= v << (16 * (half & 1)), ++half; };
+        put(level.codes[i]);
+        for (uint32_t k = level.childBegin[i]; k < level.childBegin[i + 1]; ++k) put(level.children[k]);
+        at += (half + 1) / 2;
+        continue;
+      }
       w[at++] = level.codes[i];
       for (uint32_t k = level.childBegin[i]; k < level.childBegin[i + 1]; ++k)
         w[at++] = l == 0 ? leafWord + 2 * level.children[k] : offset[size_t(l) - 1][level.children[k]];
@@ -142,8 +155,12 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t N) {
     invalid("the leaves do not end the array");
   // The headers' pointer grids must lie in the array: packing again is then bounded by it.
   if (at > h0.leafWord) invalid("the pointer grids run past the nodes");
+  if (h0.leafRefs > 1 || (h0.leafRefs == 1 && !compactLeafRefs(h0.leafCount)))
+    invalid("leaf references " + std::to_string(h0.leafRefs) + " do not fit " + std::to_string(h0.leafCount) + " leaves");
+  const bool compact = h0.leafRefs == 1;
   for (const PackedHeader& hk : h) {
-    if (hk.leafWord != h0.leafWord || hk.leafCount != h0.leafCount || hk.wordCount != h0.wordCount)
+    if (hk.leafWord != h0.leafWord || hk.leafCount != h0.leafCount || hk.wordCount != h0.wordCount ||
+        hk.leafRefs != h0.leafRefs)
       invalid("the headers disagree on the shared leaves");
     if (hk.rootCode > kRef) invalid("the root code is invalid");
   }
@@ -168,15 +185,19 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t N) {
     starts[size_t(l)].reserve(named->levelNodes[l]);
     for (uint32_t i = 0; i < named->levelNodes[l]; ++i) {
       if (at >= h0.leafWord) invalid("level " + std::to_string(l) + " runs into the leaves");
-      const uint32_t codes = words[at];
+      const bool halves = l == 0 && compact;
+      const uint32_t codes = halves ? words[at] & kCodeWordMask : words[at];
       if (codes > kCodeWordMask || !validCodes(codes)) invalid("a node holds an invalid child code");
       const int refs = refCount(codes);
-      if (at + 1 + uint64_t(refs) > h0.leafWord) invalid("a node runs into the leaves");
+      const uint32_t size = packedNodeWords(l, uint32_t(refs), compact);
+      if (at + uint64_t(size) > h0.leafWord) invalid("a node runs into the leaves");
       starts[size_t(l)].push_back(uint32_t(at));
       level.codes.push_back(uint16_t(codes));
-      for (int k = 0; k < refs; ++k) level.children.push_back(words[at + 1 + k]);
+      for (int k = 0; k < refs; ++k)
+        level.children.push_back(halves ? compactLeafWord(words.data(), uint32_t(at), uint32_t(k), h0.leafWord)
+                                        : words[at + 1 + k]);
       level.childBegin.push_back(uint32_t(level.children.size()));
-      at += 1 + uint64_t(refs);
+      at += size;
     }
   }
   for (const PackedHeader& hk : h)
@@ -206,7 +227,7 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t N) {
 
   // The grids, the padding and every field not parsed above: packing the pool again must
   // give exactly these words.
-  if (packPool(pool.leaves, pool.levels, pool.roots) != words)
+  if (packPool(pool.leaves, pool.levels, pool.roots, compact) != words)
     invalid("the pointer grid or the padding does not match the nodes");
   return pool;
 }
@@ -241,7 +262,10 @@ PackedDag PackedDag::fromWords(std::vector<uint32_t> words, Dag& dag) {
   dag.leaves = std::move(pool.leaves);
   dag.levels = std::move(pool.levels);
   dag.roots.push_back({0, pool.roots.front().ref});
-  return PackedDag(std::make_shared<const std::vector<uint32_t>>(std::move(words)), 0, dag.bytes());
+  uint64_t bytes = dag.bytes();
+  if (h.leafRefs == 0 && compactLeafRefs(dag.leaves.size()))  // an older array: level 0 by word offsets
+    bytes += 4 * (dag.levels[0].size() + dag.levels[0].children.size()) - dag.levelBytes(0);
+  return PackedDag(std::make_shared<const std::vector<uint32_t>>(std::move(words)), 0, bytes);
 }
 
 }  // namespace cpvs

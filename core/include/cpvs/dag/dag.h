@@ -69,8 +69,9 @@ struct Dag {
   /// Resets to an empty DAG with the right number of levels.
   void reset(int log2Res, int log2Root);
   size_t nodeCount() const;
-  /// Bytes of the node data as stored and uploaded: 8 per leaf, 4 per internal node
-  /// header, 4 per child reference.
+  /// Bytes of the node data as stored and uploaded (packed_layout.h): 8 per leaf, 4 per
+  /// internal node header and 4 per child reference, but 2 each at level 0 when the
+  /// leaves are few enough to be named by 16-bit index (a node padded to whole words).
   uint64_t bytes() const;
   uint64_t levelBytes(int level) const;  // -1 = leaves
 };

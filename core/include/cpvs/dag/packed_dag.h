@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "cpvs/base/error.h"
@@ -20,9 +21,11 @@ namespace cpvs {
 /// nodes (top level first) and leaves. Every header's offsets are into the whole array;
 /// its levels are the pool's below its root, its leaves the pool's. One root gives
 /// exactly the layout of a single DAG. Each root's pointer grid has its gridLevels levels
-/// (the most by default). InputError beyond 2^32 words (16 GiB).
+/// (the most by default). Level-0 nodes name their leaves by 16-bit index when `compact`
+/// (by default when the leaves allow it: compactLeafRefs). InputError beyond 2^32 words
+/// (16 GiB).
 std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::vector<InternalLevel>& levels,
-                               const std::vector<NodePool::Root>& roots);
+                               const std::vector<NodePool::Root>& roots, std::optional<bool> compact = std::nullopt);
 /// The pool that packPool packed into `words` for `rootCount` roots, after checking every
 /// header, code, offset and grid entry: packing it again must give exactly `words`.
 /// InputError naming what is wrong otherwise.
@@ -80,7 +83,8 @@ class PackedDag {
       // A node of level l is 2^(l+3) a side; its children half that, but level 0's are
       // its 8x8x1 depth slices.
       if (code != kRef) return {code == kShadowed ? ~uint64_t{0} : 0, level + 2 + (level == 0), level == 0 ? 0 : level + 2, true};
-      at = w[at + 1 + uint32_t(refRank(codes, c))];
+      const uint32_t rank = uint32_t(refRank(codes, c));
+      at = level == 0 && header_.leafRefs ? compactLeafWord(w, at, rank, header_.leafWord) : w[at + 1 + rank];
     }
     CPVS_DCHECK(at + 1 < words_->size());
     return {uint64_t(w[at]) | uint64_t(w[at + 1]) << 32, 3, 0, false};

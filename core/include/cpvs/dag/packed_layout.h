@@ -7,7 +7,11 @@
 //   [PackedHeader][pointer grid: 8^gridLevels words][nodes, top level first][leaves]
 //
 // An internal node is its code word (child_codes.h) followed by one word per kRef child:
-// the word offset of that child (a node one level down; for level 0, a leaf). A leaf is
+// the word offset of that child (a node one level down; for level 0, a leaf). In a pool of
+// at most kMaxCompactLeaves leaves (header field leafRefs = 1) a level-0 node is 16-bit
+// half-words instead: its codes in the low half of its first word, then the index of each
+// kRef child's leaf, low half first, the last word padded with zero; its 8 slices
+// mostly differ, and the half-words halve the level that holds most of a DAG's bytes. A leaf is
 // two words, the low and high halves of its 8x8 mask, at an even offset, so that a GPU
 // binding of an even number of words never splits one. The pointer grid answers the top
 // `gridLevels` levels in one read (seed 000 §6.3): entry (cx, cy, cz) holds the node of
@@ -45,7 +49,8 @@ struct PackedHeader {
   uint32_t rootWord;
   uint32_t levelWord[kMaxInternalLevels];   // first word of level l (l < L; 0 beyond)
   uint32_t levelNodes[kMaxInternalLevels];  // nodes of level l
-  uint32_t reserved[2];                     // zero
+  uint32_t leafRefs;        // 1: level-0 nodes name leaves by 16-bit index (compactLeafRefs); 0: by word offset
+  uint32_t reserved;        // zero
 
   /// The level of the nodes the grid points at: their size is the cell's.
   constexpr int cellLevel() const { return int(internalLevels) - 1 - int(gridLevels); }
@@ -55,6 +60,21 @@ constexpr uint32_t kPackedHeaderWords = 48;
 static_assert(sizeof(PackedHeader) == kPackedHeaderWords * 4, "the header is 48 words");
 static_assert(offsetof(PackedHeader, levelWord) == 40 && offsetof(PackedHeader, levelNodes) == 112,
               "the shader include reads the header by these word offsets");
+
+/// The most leaves a pool may hold for its level-0 nodes to name them by 16-bit index.
+constexpr uint64_t kMaxCompactLeaves = 65536;
+constexpr bool compactLeafRefs(uint64_t leafCount) { return leafCount <= kMaxCompactLeaves; }
+/// Words of an internal node of `level` with `refs` kRef children: one code word and one
+/// word per child, or at level 0 of a compact pool one half-word each.
+constexpr uint32_t packedNodeWords(int level, uint32_t refs, bool compact) {
+  return level == 0 && compact ? (refs + 2) / 2 : 1 + refs;
+}
+/// The word offset of the leaf that kRef child `rank` of the level-0 node at word `at`
+/// names in a compact pool whose leaves start at leafWord.
+constexpr uint32_t compactLeafWord(const uint32_t* w, uint32_t at, uint32_t rank, uint32_t leafWord) {
+  const uint32_t half = 1 + rank;
+  return leafWord + 2 * ((w[at + half / 2] >> (16 * (half & 1))) & 0xFFFFu);
+}
 
 /// Pointer-grid levels for a grid of 2^log2Resolution.
 constexpr int packedGridLevels(int log2Resolution) {
@@ -68,6 +88,8 @@ constexpr uint32_t gridCell(int log2Resolution, int gridLevels, uint64_t x, uint
   return uint32_t((((z >> shift) << gridLevels | (y >> shift)) << gridLevels) | (x >> shift));
 }
 
+static_assert(packedNodeWords(0, 1, true) == 1 && packedNodeWords(0, 2, true) == 2 && packedNodeWords(0, 8, true) == 5 &&
+              packedNodeWords(0, 8, false) == 9 && packedNodeWords(1, 8, true) == 9);
 static_assert(packedGridLevels(3) == 0 && packedGridLevels(8) == 5 && packedGridLevels(20) == 5);
 static_assert(gridCell(12, 5, 4095, 0, 128) == (1u << 10) + 31);
 
