@@ -54,6 +54,13 @@ int runInspect(const InspectArgs& a) {
   if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return inspectBundle(a, bytes);
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   const Dag& dag = art.dag;
+  // Bytes as the file holds them: a file written before level 0 named its leaves by 16-bit
+  // index keeps word offsets there (PackedDag::bytes counts them so).
+  const bool wordOffsets = art.packed.header().leafRefs == 0;
+  auto levelBytes = [&](int l) {
+    return l == 0 && wordOffsets ? 4 * (uint64_t(dag.levels[0].size()) + dag.levels[0].children.size()) : dag.levelBytes(l);
+  };
+  const uint64_t dagBytes = art.packed.bytes();
   const OrthoGrid& g = art.grid;
   uint64_t R = g.resolution();
   const BakeOptions& o = art.options;
@@ -73,7 +80,7 @@ int runInspect(const InspectArgs& a) {
       << ", \"renderer\": " << jsonString(optionName(o.renderer)) << ", \"tile_size\": " << (1u << o.log2TileSize)
       << "},\n  \"receivers\": " << receiversJson(o, art.receiverHash)
       << ",\n  \"plan\": " << (art.plan.empty() ? std::string("null") : art.plan)
-      << ",\n  \"bytes\": " << dag.bytes() << ",\n  \"nodes\": " << dag.nodeCount()
+      << ",\n  \"bytes\": " << dagBytes << ",\n  \"nodes\": " << dag.nodeCount()
       << ",\n  \"shadow_map_bytes\": " << R * R * 2;
     if (const TopTree* t = art.translucent.get())
       s << ",\n  \"translucent\": {\"frusta\": " << t->frustumCount() << ", \"bytes\": " << t->bytes() + 12 * t->frustumCount() << "}";
@@ -81,7 +88,7 @@ int runInspect(const InspectArgs& a) {
     for (int l = -1; l < int(dag.levels.size()); ++l) {
       size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
       s << (l < 0 ? "\n    " : ",\n    ") << "{\"size\": " << (l < 0 ? 1 : (1u << (l + 3))) << ", \"nodes\": " << n
-        << ", \"bytes\": " << dag.levelBytes(l) << "}";
+        << ", \"bytes\": " << levelBytes(l) << "}";
     }
     s << "\n  ]\n}\n";
     std::cout << s.str();
@@ -100,13 +107,13 @@ int runInspect(const InspectArgs& a) {
   std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
   for (int l = -1; l < int(dag.levels.size()); ++l) {
     size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
-    std::printf("  %-10s %12zu %12llu\n", levelLabel(l).c_str(), n, static_cast<unsigned long long>(dag.levelBytes(l)));
+    std::printf("  %-10s %12zu %12llu\n", levelLabel(l).c_str(), n, static_cast<unsigned long long>(levelBytes(l)));
   }
   uint64_t sm = R * R * 2;
-  std::printf("  %-10s %12zu %12llu\n", "total", dag.nodeCount(), static_cast<unsigned long long>(dag.bytes()));
-  std::printf("\n  DAG %s; a 16-bit shadow map of %llu^2 is %s (%.1fx)\n", humanBytes(dag.bytes()).c_str(),
+  std::printf("  %-10s %12zu %12llu\n", "total", dag.nodeCount(), static_cast<unsigned long long>(dagBytes));
+  std::printf("\n  DAG %s; a 16-bit shadow map of %llu^2 is %s (%.1fx)\n", humanBytes(dagBytes).c_str(),
               static_cast<unsigned long long>(R), humanBytes(sm).c_str(),
-              double(sm) / double(std::max<uint64_t>(1, dag.bytes())));
+              double(sm) / double(std::max<uint64_t>(1, dagBytes)));
   if (const TopTree* t = art.translucent.get())
     std::printf("  translucent casters: a TOP tree of %zu frusta beside the DAG, %s (nodes and transmittance); "
                 "lookups multiply the light by it\n",

@@ -246,7 +246,7 @@ BakeOptions fromProto(const pb::BakeOptions& p) {
   o.exit = ExitMode(p.exit());
   o.cull = !p.no_cull();
   o.compress = CompressMode(p.compress());
-  if (p.has_undefined_rule()) o.undefinedRule = UndefinedRule(p.undefined_rule());
+  o.undefinedRule = p.has_undefined_rule() ? UndefinedRule(p.undefined_rule()) : UndefinedRule::New;  // absent: an older client's
   o.renderer = p.has_renderer() ? Renderer(p.renderer()) : BakeOptions{}.renderer;
   o.log2TileSize = p.tile_size() == 0 ? kDefaultLog2TileSize : log2TileSizeOf(p.tile_size(), "options.tile_size");
   if (p.has_receivers()) {

@@ -133,7 +133,7 @@ pb::BakeOptions toProto(const JobOptions& o) {
   p.set_exit(pb::ExitMode(o.exit));
   p.set_no_cull(!o.cull);
   p.set_compress(pb::CompressMode(o.compress));
-  if (o.undefinedRule) p.set_undefined_rule(pb::UndefinedRule(*o.undefinedRule));
+  p.set_undefined_rule(pb::UndefinedRule(o.undefinedRule));
   p.set_tile_size(o.tileSize);
   if (o.renderer) p.set_renderer(pb::Renderer(*o.renderer));
   if (o.receivers) *p.mutable_receivers() = toProto(*o.receivers);
@@ -146,7 +146,8 @@ JobOptions modelOf(const pb::BakeOptions& p) {
   o.exit = optionOf<ExitMode>(p.exit(), "options.exit");
   o.cull = !p.no_cull();
   o.compress = optionOf<CompressMode>(p.compress(), "options.compress");
-  if (p.has_undefined_rule()) o.undefinedRule = optionOf<UndefinedRule>(p.undefined_rule(), "options.undefined_rule");
+  o.undefinedRule = p.has_undefined_rule() ? optionOf<UndefinedRule>(p.undefined_rule(), "options.undefined_rule")
+                                            : UndefinedRule::New;  // an older client's
   o.tileSize = p.tile_size();
   if (p.has_renderer()) o.renderer = optionOf<Renderer>(p.renderer(), "options.renderer");
   if (p.has_receivers()) o.receivers = modelOf(p.receivers());
@@ -164,7 +165,7 @@ pb::BakeSpec toProto(const BakeSpec& s) {
     p.mutable_sun_angles()->set_azimuth_deg(a->azimuthDeg);
   }
   p.set_resolution(s.resolution);
-  if (!(s.options == JobOptions{})) *p.mutable_options() = toProto(s.options);  // absent stays absent
+  *p.mutable_options() = toProto(s.options);  // always: it names the undefined rule (absent there: new)
   p.set_priority(s.priority);
   p.set_name(s.name);
   for (const Light& l : s.lights) *p.add_lights() = toProto(l);
@@ -238,7 +239,7 @@ pb::TrackSpec toProto(const TrackSpec& s) {
   pb::TrackSpec p;
   p.set_scene_hash(s.sceneHash);
   p.set_resolution(s.resolution);
-  if (!(s.options == JobOptions{})) *p.mutable_options() = toProto(s.options);
+  *p.mutable_options() = toProto(s.options);  // always: it names the undefined rule (absent there: new)
   p.set_name(s.name);
   if (const PlacePath* place = std::get_if<PlacePath>(&s.path)) *p.mutable_place() = toProto(*place);
   if (const auto* directions = std::get_if<std::vector<Vec3>>(&s.path)) {
@@ -300,7 +301,10 @@ TrackVersion modelOf(const pb::TrackVersion& p) {
 BakeSpec bakeSpecFromJson(const std::string& json, const std::string& source) {
   const pb::BakeSpec spec = specFromJson(json, source);
   try {
-    return modelOf(spec);
+    BakeSpec model = modelOf(spec);
+    // A job file is written for this version: without a rule, its default.
+    if (!spec.options().has_undefined_rule()) model.options.undefinedRule = JobOptions{}.undefinedRule;
+    return model;
   } catch (const InputError& e) {
     throw InputError(source + ": " + e.what());
   }

@@ -166,6 +166,36 @@ TEST(LightBundle, BakesRoundTripsAndSharesAcrossLights) {
     }
     EXPECT_EQ(encodeBundle(back, zstd), bytes);
   }
+  // A bundle written before level 0 named its leaves by 16-bit index: its pool holds word
+  // offsets there and its grids' bytes count them. It reads, keeps its layout through a
+  // new pointer grid, and answers as the bundle of today.
+  {
+    ASSERT_TRUE(namesLeavesByIndex(*b.pool));
+    const NodePool nodes = parsePackedPool(*b.pool, b.grids.size());
+    LightBundle older = b;
+    older.pool = std::make_shared<const std::vector<uint32_t>>(packPool(nodes.leaves, nodes.levels, nodes.roots, false));
+    for (size_t k = 0; k < older.grids.size(); ++k) older.grids[k].bytes = reachableBytes(nodes, k, false);
+    older.poolBytes = nodes.bytes(false);
+    EXPECT_GT(older.poolBytes, b.poolBytes);
+    EXPECT_EQ((*older.pool)[0], 1u) << "layout version 1";
+    const std::vector<uint8_t> bytes = encodeBundle(older, true);
+    const LightBundle back = decodeBundle(bytes.data(), bytes.size(), "older");
+    EXPECT_FALSE(namesLeavesByIndex(*back.pool));
+    EXPECT_EQ(back.poolBytes, older.poolBytes);
+    const LightBundle regridded = withPointerGrids(back, 2);
+    EXPECT_FALSE(namesLeavesByIndex(*regridded.pool));
+    const std::vector<uint8_t> again = encodeBundle(regridded, true);
+    EXPECT_NO_THROW(decodeBundle(again.data(), again.size(), "older, regridded"));
+    for (size_t k = 0; k < b.grids.size(); ++k) {
+      const PackedDag view = back.dag(k), today = b.dag(k);
+      const uint64_t R = b.grids[k].grid.resolution();
+      for (int i = 0; i < 5000; ++i) {
+        const uint64_t x = rng() % R, y = rng() % R, z = rng() % R;
+        ASSERT_EQ(view.leafSliceMask(x, y, z), today.leafSliceMask(x, y, z)) << "grid " << k;
+      }
+    }
+  }
+
   // The pointer grid at any depth, down to none: another layout of the same nodes (the
   // file round-trips it), the same answer at every voxel and for every lookup.
   const BundleQuery deepest(b);

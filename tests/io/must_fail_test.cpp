@@ -169,6 +169,8 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
        "a child offset is not a leaf"},
       {"leaf references", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, leafRefs)), 2); },
        "leaf references 2 do not fit"},
+      {"layout version 1 with leaf indices", [=](Bytes& b) { put<uint32_t>(b, word(0), 1); },
+       "layout version 1 does not name leaves as its header says"},
       {"node offset", [=](Bytes& b) { put<uint32_t>(b, word(level1Child), h.levelWord[0] + 1); },
        "not a node of the level below"},
       {"pointer grid", [=](Bytes& b) { put<uint32_t>(b, word(h.gridWord), get<uint32_t>(b, word(h.gridWord)) ^ 1); },
@@ -268,10 +270,12 @@ TEST(CpvsHeader, ReceiversRoundTripAndVersion2ReadsAsEverywhere) {
   // they are, 45,236 bytes as the version 2 build printed it, and answer every voxel as
   // the same DAG packed today (34,348 bytes, leaves by 16-bit index).
   EXPECT_EQ(old.packed.header().leafRefs, 0u);
+  EXPECT_EQ(old.packed.header().layoutVersion, 1u);
   EXPECT_EQ(old.packed.bytes(), 45236u);
   EXPECT_EQ(old.packed.words(), packPool(old.dag.leaves, old.dag.levels, {{8, old.dag.roots.front().ref}}, false));
   const PackedDag today(old.dag);
   EXPECT_EQ(today.header().leafRefs, 1u);
+  EXPECT_EQ(today.header().layoutVersion, 2u);
   EXPECT_EQ(today.bytes(), 34348u);
   EXPECT_EQ(today.arrayBytes() + 4 * (old.dag.levels[0].size() + old.dag.levels[0].children.size()) -
                 old.dag.levelBytes(0),

@@ -113,7 +113,7 @@ TEST(FarmModel, ASpecCrossesBothWaysUnchanged) {
   EXPECT_EQ(model.pointerGrid, 3u);
   EXPECT_TRUE(MessageDifferencer::Equals(toProto(model), full)) << toProto(model).DebugString();
 
-  // Sun angles, and absent options stay absent (no renderer, no undefined rule, no receivers, no pointer grid).
+  // Sun angles, and absent options stay absent (no renderer, no receivers, no pointer grid).
   pb::BakeSpec sun;
   sun.set_scene_hash(std::string(32, 'b'));
   sun.mutable_sun_angles()->set_elevation_deg(40);
@@ -125,11 +125,16 @@ TEST(FarmModel, ASpecCrossesBothWaysUnchanged) {
   EXPECT_FALSE(sunModel.options.renderer);
   EXPECT_FALSE(sunModel.options.receivers);
   const pb::BakeSpec back = toProto(sunModel);
-  EXPECT_TRUE(MessageDifferencer::Equals(back, sun)) << back.DebugString();
+  pb::BakeSpec sunAsNew = sun;
+  sunAsNew.mutable_options()->set_undefined_rule(pb::UNDEFINED_NEW);
+  EXPECT_TRUE(MessageDifferencer::Equals(back, sunAsNew)) << back.DebugString();
   EXPECT_FALSE(back.options().has_renderer());
-  EXPECT_FALSE(back.options().has_undefined_rule());
-  EXPECT_FALSE(sunModel.options.undefinedRule);
-  EXPECT_EQ(bakeOptionsOf(sunModel.options).undefinedRule, UndefinedRule::Aligned);
+  // A spec without an undefined rule comes from a client older than the aligned rule,
+  // which could not send new (the zero value): it means new, and says so on its way back.
+  EXPECT_EQ(sunModel.options.undefinedRule, UndefinedRule::New);
+  EXPECT_TRUE(back.options().has_undefined_rule());
+  EXPECT_EQ(back.options().undefined_rule(), pb::UNDEFINED_NEW);
+  EXPECT_EQ(JobOptions{}.undefinedRule, UndefinedRule::Aligned);
   EXPECT_FALSE(back.options().has_receivers());
   EXPECT_FALSE(back.has_pointer_grid());
 }
@@ -139,6 +144,7 @@ TEST(FarmModel, ATrackSpecCrossesBothWaysForEveryPath) {
   t.set_scene_hash(std::string(32, 'c'));
   t.set_resolution("2K");
   *t.mutable_options()->mutable_receivers() = everyReceiverField();
+  t.mutable_options()->set_undefined_rule(pb::UNDEFINED_ALIGNED);  // the model always names it
   t.set_name("day");
   t.set_keyframes_ahead(3);
   t.set_keep_versions(5);
@@ -210,6 +216,10 @@ TEST(FarmModel, AJobFileReadsBackAsItWasWritten) {
     EXPECT_EQ(std::string(e.what()), "bad.json: options.closed: unknown value 7");
   }
   EXPECT_THROW((void)bakeSpecFromJson("{\"no_such_field\": 1}", "bad.json"), InputError);
+  // A job file without an undefined rule takes this version's default; one naming new, new.
+  EXPECT_EQ(bakeSpecFromJson("{\"resolution\": \"1024\"}", "j.json").options.undefinedRule, UndefinedRule::Aligned);
+  EXPECT_EQ(bakeSpecFromJson("{\"options\": {\"undefined_rule\": \"UNDEFINED_NEW\"}}", "j.json").options.undefinedRule,
+            UndefinedRule::New);
 }
 
 TEST(FarmModel, StatusesAndStates) {

@@ -27,8 +27,8 @@ struct NodeKeyHash {
 
 }  // namespace
 
-uint64_t NodePool::bytes() const {
-  const bool compact = compactLeafRefs(leaves.size());
+uint64_t NodePool::bytes(std::optional<bool> compactRefs) const {
+  const bool compact = compactRefs.value_or(compactLeafRefs(leaves.size()));
   uint64_t b = 8 * uint64_t(leaves.size());
   for (size_t l = 0; l < levels.size(); ++l)
     for (size_t i = 0; i < levels[l].size(); ++i) b += 4 * uint64_t(packedNodeWords(int(l), levels[l].refCount(i), compact));
@@ -76,7 +76,8 @@ NodePool shareNodes(const std::vector<const Dag*>& dags) {
   return pool;
 }
 
-uint64_t reachableBytes(const NodePool& pool, size_t root) {
+uint64_t reachableBytes(const NodePool& pool, size_t root, std::optional<bool> compactRefs) {
+  const bool compact = compactRefs.value_or(compactLeafRefs(pool.leaves.size()));
   const NodePool::Root& r = pool.roots.at(root);
   if (r.ref.code != kRef) return 0;
   // Level by level from the root: the nodes reached, each counted once.
@@ -86,7 +87,7 @@ uint64_t reachableBytes(const NodePool& pool, size_t root) {
     const InternalLevel& level = pool.levels[size_t(l)];
     next.clear();
     for (uint32_t i : reached) {
-      bytes += 4 * uint64_t(packedNodeWords(l, level.refCount(i), compactLeafRefs(pool.leaves.size())));
+      bytes += 4 * uint64_t(packedNodeWords(l, level.refCount(i), compact));
       next.insert(next.end(), level.children.begin() + level.childBegin[i], level.children.begin() + level.childBegin[i + 1]);
     }
     std::sort(next.begin(), next.end());

@@ -17,6 +17,10 @@ uint32_t gridEntry(uint32_t code, uint32_t word) {
 
 }  // namespace
 
+bool namesLeavesByIndex(const std::vector<uint32_t>& words) {
+  return words.size() >= kPackedHeaderWords && words[offsetof(PackedHeader, leafRefs) / 4] == 1;
+}
+
 Dag PackedDag::emptyDag() {
   Dag dag;
   dag.reset(kMinLog2Resolution, kMinLog2Resolution);
@@ -44,7 +48,7 @@ std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::v
   for (size_t k = 0; k < N; ++k) {
     const int log2R = roots[k].log2Resolution, Lk = Dag::internalLevels(log2R);
     CPVS_CHECK(Lk >= 1 && Lk <= L);
-    h[k].layoutVersion = kPackedLayoutVersion;
+    h[k].layoutVersion = compact ? kPackedLayoutVersion : 1;  // version 1 arrays are exactly the older layout
     h[k].log2Resolution = uint32_t(log2R);
     h[k].internalLevels = uint32_t(Lk);
     const int G = roots[k].gridLevels < 0 ? packedGridLevels(log2R) : roots[k].gridLevels;
@@ -137,7 +141,7 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t N) {
   for (size_t k = 0; k < N; ++k) {
     std::memcpy(&h[k], words.data() + kPackedHeaderWords * k, sizeof h[k]);
     const std::string which = N == 1 ? "" : " (DAG " + std::to_string(k) + ")";
-    if (h[k].layoutVersion != kPackedLayoutVersion)
+    if (h[k].layoutVersion < 1 || h[k].layoutVersion > kPackedLayoutVersion)
       invalid("layout version " + std::to_string(h[k].layoutVersion) + " is not supported" + which);
     if (h[k].log2Resolution < uint32_t(kMinLog2Resolution) || h[k].log2Resolution > uint32_t(kMaxLog2Resolution))
       invalid("resolution 2^" + std::to_string(h[k].log2Resolution) + " is out of range" + which);
@@ -157,10 +161,12 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t N) {
   if (at > h0.leafWord) invalid("the pointer grids run past the nodes");
   if (h0.leafRefs > 1 || (h0.leafRefs == 1 && !compactLeafRefs(h0.leafCount)))
     invalid("leaf references " + std::to_string(h0.leafRefs) + " do not fit " + std::to_string(h0.leafCount) + " leaves");
+  if (h0.leafRefs + 1 != h0.layoutVersion)
+    invalid("layout version " + std::to_string(h0.layoutVersion) + " does not name leaves as its header says");
   const bool compact = h0.leafRefs == 1;
   for (const PackedHeader& hk : h) {
     if (hk.leafWord != h0.leafWord || hk.leafCount != h0.leafCount || hk.wordCount != h0.wordCount ||
-        hk.leafRefs != h0.leafRefs)
+        hk.leafRefs != h0.leafRefs || hk.layoutVersion != h0.layoutVersion)
       invalid("the headers disagree on the shared leaves");
     if (hk.rootCode > kRef) invalid("the root code is invalid");
   }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "cpvs/dag/dag.h"
@@ -23,8 +24,9 @@ struct NodePool {
   std::vector<InternalLevel> levels;  // as many as the finest DAG has
   std::vector<Root> roots;
 
-  /// Bytes of the node data, as Dag::bytes() counts them.
-  uint64_t bytes() const;
+  /// Bytes of the node data, as Dag::bytes() counts them, level 0 by 16-bit leaf index
+  /// when `compact` (by default when the leaves allow it, as packPool packs them).
+  uint64_t bytes(std::optional<bool> compact = std::nullopt) const;
 };
 
 /// The union of complete DAGs (one root each; any resolutions): leaves and nodes equal in
@@ -33,7 +35,8 @@ struct NodePool {
 /// order.
 NodePool shareNodes(const std::vector<const Dag*>& dags);
 
-/// Bytes of the nodes root `root` reaches: what its DAG alone would hold, compressed.
-uint64_t reachableBytes(const NodePool& pool, size_t root);
+/// Bytes of the nodes root `root` reaches: what its DAG alone would hold, compressed, in
+/// the pool's layout (`compact` as for NodePool::bytes).
+uint64_t reachableBytes(const NodePool& pool, size_t root, std::optional<bool> compact = std::nullopt);
 
 }  // namespace cpvs

@@ -26,6 +26,9 @@ namespace cpvs {
 /// (16 GiB).
 std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::vector<InternalLevel>& levels,
                                const std::vector<NodePool::Root>& roots, std::optional<bool> compact = std::nullopt);
+/// Whether a packed array's level-0 nodes name their leaves by 16-bit index (its first
+/// header's leafRefs; false for an array too short to hold one).
+bool namesLeavesByIndex(const std::vector<uint32_t>& words);
 /// The pool that packPool packed into `words` for `rootCount` roots, after checking every
 /// header, code, offset and grid entry: packing it again must give exactly `words`.
 /// InputError naming what is wrong otherwise.

@@ -29,15 +29,17 @@ namespace cpvs {
 constexpr int kMaxInternalLevels = kMaxLog2Resolution - 2;
 /// How many levels the pointer grid replaces at most: 32^3 entries, 128 KiB.
 constexpr int kMaxGridLevels = 5;
-/// The version of this layout, in every header.
-constexpr uint32_t kPackedLayoutVersion = 1;
+/// The newest version of this layout, in every header: 2 for arrays whose level 0 names
+/// leaves by 16-bit index (leafRefs = 1), 1 for the older layout every other array keeps
+/// (an older reader reads those, and refuses the others by their version).
+constexpr uint32_t kPackedLayoutVersion = 2;
 /// Pointer-grid entries for cells that are homogeneous (above or at the cell level).
 constexpr uint32_t kGridLit = 0xFFFFFFFFu;
 constexpr uint32_t kGridShadowed = 0xFFFFFFFEu;
 
 /// Word 0 of the array. Plain 32-bit words only, so that a shader reads field k as word k.
 struct PackedHeader {
-  uint32_t layoutVersion;   // kPackedLayoutVersion
+  uint32_t layoutVersion;   // 2 when leafRefs, else 1 (kPackedLayoutVersion)
   uint32_t log2Resolution;  // the grid is 2^log2Resolution voxels a side
   uint32_t internalLevels;  // L = log2Resolution - 2: levels 0 (8^3 nodes) .. L-1 (the root)
   uint32_t gridLevels;      // G = min(kMaxGridLevels, L - 1): the grid is 2^G cells a side

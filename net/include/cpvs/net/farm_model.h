@@ -50,7 +50,7 @@ struct JobOptions {
   ExitMode exit = ExitMode::Exact;
   bool cull = true;
   CompressMode compress = CompressMode::TopDown;
-  std::optional<UndefinedRule> undefinedRule;  // absent: the bake's default (aligned)
+  UndefinedRule undefinedRule = UndefinedRule::Aligned;  // always on the wire (absent there: new)
   uint32_t tileSize = 0;              // texels a side; 0: 4096
   std::optional<Renderer> renderer;   // absent: the bake's default (raster)
   std::optional<Receivers> receivers; // absent: everywhere
