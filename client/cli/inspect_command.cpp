@@ -55,11 +55,9 @@ int runInspect(const InspectArgs& a) {
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   const Dag& dag = art.dag;
   // Bytes as the file holds them: a file written before level 0 named its leaves by 16-bit
-  // index keeps word offsets there (PackedDag::bytes counts them so).
-  const bool wordOffsets = art.packed.header().leafRefs == 0;
-  auto levelBytes = [&](int l) {
-    return l == 0 && wordOffsets ? 4 * (uint64_t(dag.levels[0].size()) + dag.levels[0].children.size()) : dag.levelBytes(l);
-  };
+  // index keeps word offsets there.
+  const bool compact = art.packed.header().leafRefs == 1;
+  auto levelBytes = [&](int l) { return dag.levelBytes(l, compact); };
   const uint64_t dagBytes = art.packed.bytes();
   const OrthoGrid& g = art.grid;
   uint64_t R = g.resolution();

@@ -38,18 +38,18 @@ size_t Dag::nodeCount() const {
   return n;
 }
 
-uint64_t Dag::levelBytes(int level) const {
+uint64_t Dag::levelBytes(int level, std::optional<bool> compact) const {
   if (level < 0) return 8 * uint64_t(leaves.size());
   const InternalLevel& l = levels[size_t(level)];
-  if (level > 0 || !compactLeafRefs(leaves.size())) return 4 * (uint64_t(l.size()) + l.children.size());
+  if (level > 0 || !compact.value_or(compactLeafRefs(leaves.size()))) return 4 * (uint64_t(l.size()) + l.children.size());
   uint64_t words = 0;
   for (size_t i = 0; i < l.size(); ++i) words += packedNodeWords(0, l.refCount(i), true);
   return 4 * words;
 }
 
-uint64_t Dag::bytes() const {
+uint64_t Dag::bytes(std::optional<bool> compact) const {
   uint64_t b = levelBytes(-1);
-  for (int i = 0; i < int(levels.size()); ++i) b += levelBytes(i);
+  for (int i = 0; i < int(levels.size()); ++i) b += levelBytes(i, compact);
   return b;
 }
 

@@ -268,9 +268,7 @@ PackedDag PackedDag::fromWords(std::vector<uint32_t> words, Dag& dag) {
   dag.leaves = std::move(pool.leaves);
   dag.levels = std::move(pool.levels);
   dag.roots.push_back({0, pool.roots.front().ref});
-  uint64_t bytes = dag.bytes();
-  if (h.leafRefs == 0 && compactLeafRefs(dag.leaves.size()))  // an older array: level 0 by word offsets
-    bytes += 4 * (dag.levels[0].size() + dag.levels[0].children.size()) - dag.levelBytes(0);
+  const uint64_t bytes = dag.bytes(h.leafRefs == 1);  // an older array names level 0's leaves by word offset
   return PackedDag(std::make_shared<const std::vector<uint32_t>>(std::move(words)), 0, bytes);
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "cpvs/base/hash.h"
@@ -71,9 +72,10 @@ struct Dag {
   size_t nodeCount() const;
   /// Bytes of the node data as stored and uploaded (packed_layout.h): 8 per leaf, 4 per
   /// internal node header and 4 per child reference, but 2 each at level 0 when the
-  /// leaves are few enough to be named by 16-bit index (a node padded to whole words).
-  uint64_t bytes() const;
-  uint64_t levelBytes(int level) const;  // -1 = leaves
+  /// leaves are few enough to be named by 16-bit index (a node padded to whole words);
+  /// `compact` says how level 0 is packed when not by that rule (an older array).
+  uint64_t bytes(std::optional<bool> compact = std::nullopt) const;
+  uint64_t levelBytes(int level, std::optional<bool> compact = std::nullopt) const;  // -1 = leaves
 };
 
 /// Packs a root block position into a key (kRootKeyBits = 21 bits each; positions < 2^21).
