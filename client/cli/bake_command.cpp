@@ -169,18 +169,22 @@ int runBake(const BakeArgs& a) {
   auto totalStart = std::chrono::steady_clock::now();
   const auto limit = threadLimit(a.threads);
   checkOutputFolder(a.out, "--out");
-  if (a.lights.given()) return runLightBake(a, totalStart);
+  if (a.lights.given()) {
+    if (a.options.depthSlices != 0) throw InputError("--depth-slices is the sun's: a light's grids are cubic");
+    return runLightBake(a, totalStart);
+  }
   if (a.pointerGrid != kMaxGridLevels) throw InputError("--pointer-grid is for light bundles (--spot, --point, --lights)");
 
   const BakeOptions opt = optionsOf(a.options);
   int log2R = parseResolution(a.resolution);
+  checkDepthSlices(a.options.depthSlices, log2R, "--depth-slices");
   const LightFrame frame = lightFromFlags(a.sun.dir, a.sun.elevation, a.sun.azimuth);
 
   StageTimes st;
   auto start = std::chrono::steady_clock::now();
   SceneStats ss;
   Scene scene = openScene(a.scene, &ss);
-  OrthoGrid grid = makeGrid(scene, frame, log2R);
+  OrthoGrid grid = makeGrid(scene, frame, log2R, a.options.depthSlices);
   const ReceiverDeclaration receivers = receiversOf(a.options);
   st.add("load", secondsSince(start));
   if (receivers.kind == ReceiverKind::Cameras && receivers.cameraVisibility == CameraVisibility::Sampled) {

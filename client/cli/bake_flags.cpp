@@ -132,6 +132,11 @@ void addOptionFlags(CLI::App* c, OptionFlags& o, const std::string& tileHelp) {
                 "texels whose ray grazes an edge")
       ->check(CLI::IsMember(namesOf<Renderer>()))->capture_default_str();
   c->add_option("--tile-size", o.tileSize, tileHelp)->capture_default_str();
+  c->add_option("--depth-slices", o.depthSlices,
+                "Slices across the scene's depth along the light, at most the resolution (default: the resolution, a "
+                "cubic grid). Fewer are coarser in depth only, as a shadow map of that depth precision: 4096 at 16K "
+                "is the public peer's 16K x 16K x 4096 grid. The grid reaches as far behind the scene, where every "
+                "slice repeats the scene's last");
   addReceiverFlags(c, o);
 }
 

@@ -65,12 +65,13 @@ double footprintOf(const LightFlags& flags, const Scene& scene);
 /// InputError when local lights are asked for with a sun flag.
 void checkNoSunWithLights(const SunFlags& sun);
 
-/// --closed, --exit, --cull, --compress, --undefined, --renderer, --tile-size.
+/// --closed, --exit, --cull, --compress, --undefined, --renderer, --tile-size, --depth-slices.
 struct OptionFlags {
   std::string closed = optionName(ClosedMode::Auto), exit = optionName(ExitMode::Exact), cull = "on",
               compress = optionName(CompressMode::TopDown), undefinedRule = optionName(UndefinedRule::Aligned),
               renderer = optionName(BakeOptions{}.renderer);
   int tileSize = 1 << kDefaultLog2TileSize;
+  uint64_t depthSlices = 0;  // 0: as many as the resolution
   std::string receivers = optionName(ReceiverKind::Everywhere);
   std::vector<std::string> media;  // --medium SIGMA_S,SIGMA_A[,G]: what the plan offers light through
   std::vector<std::string> receiverBoxes, cameraRegions;

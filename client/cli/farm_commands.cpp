@@ -222,6 +222,11 @@ std::string applyOptionFlags(const OptionFlags& options, const CLI::App& c, JobO
   if (given("--compress")) o.compress = flags.compress;
   if (given("--undefined")) o.undefinedRule = flags.undefinedRule;
   if (given("--tile-size")) o.tileSize = uint32_t(1) << flags.log2TileSize;
+  if (given("--depth-slices")) {
+    if (options.depthSlices > (uint64_t(1) << kMaxLog2Resolution))
+      throw InputError("--depth-slices " + std::to_string(options.depthSlices) + " is more than the largest resolution");
+    o.depthSlices = uint32_t(options.depthSlices);
+  }
   if (given("--renderer")) o.renderer = flags.renderer;
   std::string mesh;
   if (given("--receivers") || given("--receiver-box") || given("--receiver-pcf") || given("--ground-layer") ||

@@ -109,14 +109,18 @@ int runLightPlan(const PlanArgs& a) {
 
 int runPlan(const PlanArgs& a) {
   const auto limit = threadLimit(a.threads);  // cameras cast rays, receivers are gathered in parallel
-  if (a.lights.given()) return runLightPlan(a);
+  if (a.lights.given()) {
+    if (a.options.depthSlices != 0) throw InputError("--depth-slices is the sun's: a light's grids are cubic");
+    return runLightPlan(a);
+  }
   const BakeOptions options = optionsOf(a.options);
   const ReceiverDeclaration receivers = receiversOf(a.options);
   const int log2R = parseResolution(a.resolution);
+  checkDepthSlices(a.options.depthSlices, log2R, "--depth-slices");
   const LightFrame frame = lightFromFlags(a.sun.dir, a.sun.elevation, a.sun.azimuth);
   SceneStats stats;
   const Scene scene = openScene(a.scene, &stats);
-  const OrthoGrid grid = makeGrid(scene, frame, log2R);
+  const OrthoGrid grid = makeGrid(scene, frame, log2R, a.options.depthSlices);
   const BakeScene prepared(scene, grid, options.renderer, a.threads, receivers);
   const BakePlan plan =
       planBake(scene, stats, options, receivers, prepared.raster(), prepared.receivers(), declaredMedia(a.options));

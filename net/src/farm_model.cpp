@@ -135,6 +135,7 @@ pb::BakeOptions toProto(const JobOptions& o) {
   p.set_compress(pb::CompressMode(o.compress));
   p.set_undefined_rule(pb::UndefinedRule(o.undefinedRule));
   p.set_tile_size(o.tileSize);
+  p.set_depth_slices(o.depthSlices);
   if (o.renderer) p.set_renderer(pb::Renderer(*o.renderer));
   if (o.receivers) *p.mutable_receivers() = toProto(*o.receivers);
   return p;
@@ -149,6 +150,7 @@ JobOptions modelOf(const pb::BakeOptions& p) {
   o.undefinedRule = p.has_undefined_rule() ? optionOf<UndefinedRule>(p.undefined_rule(), "options.undefined_rule")
                                             : UndefinedRule::New;  // an older client's
   o.tileSize = p.tile_size();
+  o.depthSlices = p.depth_slices();
   if (p.has_renderer()) o.renderer = optionOf<Renderer>(p.renderer(), "options.renderer");
   if (p.has_receivers()) o.receivers = modelOf(p.receivers());
   return o;

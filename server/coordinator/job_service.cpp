@@ -199,13 +199,18 @@ pb::JobStatus JobService::submit(const std::string& requestId, const net::BakeSp
                         std::to_string(limits_.maxTilesPerJob) + " per job (tiles of at least " +
                         std::to_string(smallest) + " texels at this resolution)");
   }
+  try {
+    checkDepthSlices(spec.options().depth_slices(), log2R, "options.depth_slices");
+  } catch (const InputError& e) {
+    throw FarmError(ErrorKind::InvalidArgument, e.what());
+  }
   checkRoom(access);  // before loading the scene, which may take long
   SceneStats stats;
   Scene scene = scenes_.load(spec.scene_hash(), &stats);
   OrthoGrid grid;
   ReceiverDeclaration receivers;
   try {
-    grid = makeGrid(scene, frame, log2R);
+    grid = makeGrid(scene, frame, log2R, spec.options().depth_slices());
     receivers = net::declarationOf(net::modelOf(spec.options().receivers()), [&](const std::string& hash) { return scenes_.load(hash); });
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
@@ -284,6 +289,8 @@ pb::JobStatus JobService::submitBundle(const pb::SubmitBakeRequest& request, con
     throw FarmError(ErrorKind::InvalidArgument,
                     "resolution is the sun's: a light's grids take the light's own resolution, or one planned from "
                     "footprint");
+  if (spec.options().depth_slices() != 0)
+    throw FarmError(ErrorKind::InvalidArgument, "options.depth_slices is the sun's: a light's grids are cubic");
   if (!std::isfinite(spec.footprint()) || spec.footprint() < 0)
     throw FarmError(ErrorKind::InvalidArgument, "footprint must be finite and >= 0 (0: the scene's diagonal / 4096)");
   if (spec.has_pointer_grid() && spec.pointer_grid() > uint32_t(kMaxGridLevels))

@@ -10,6 +10,7 @@
 
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/bake/bake.h"
+#include "cpvs/base/error.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/dag/assemble_roots.h"
 #include "cpvs/dag/merge.h"
@@ -126,6 +127,52 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
     EXPECT_EQ(bad, 0u) << "R=" << R;
     EXPECT_EQ(undefinedOutside, 0u) << "of " << undefinedChecked << " undefined columns checked, R=" << R;
   }
+}
+
+// A grid with fewer depth slices (--depth-slices) is coarser in depth only: the scene's
+// depth range lies in its first D slices, every defined voxel still equals the dense
+// brute force of that grid, and every slice behind the scene repeats the last one (what a
+// lookup behind the grid reads), a power-of-two D and another alike.
+TEST_P(ScenePipeline, FewerDepthSlicesHoldTheSceneInTheFirstOnes) {
+  const int log2R = 6;
+  const uint64_t R = uint64_t(1) << log2R;
+  const LightFrame frame = LightFrame::fromDirection(GetParam().sun);
+  const OrthoGrid cubic = makeGrid(scene_, frame, log2R);
+  for (uint64_t D : {uint64_t(16), uint64_t(24)}) {
+    const OrthoGrid grid = makeGrid(scene_, frame, log2R, D);
+    EXPECT_EQ(grid.extent, cubic.extent);
+    EXPECT_EQ(grid.d0, cubic.d0);
+    EXPECT_NEAR(grid.sliceSize(), cubic.sliceSize() * double(R) / double(D), 1e-12 * cubic.depthExtent);
+    BakeOptions opt;
+    opt.log2TileSize = 5;
+    Dag dag = bakeWith(scene_, grid, opt);
+    expectOptimal(dag);
+    TexelSlices want;
+    std::vector<uint8_t> ambiguous;
+    bruteForceDepths(scene_, grid, ClosedMode::Auto, ExitMode::Exact, want, ambiguous);
+    uint64_t bad = 0, hits = 0, behindDiffers = 0;
+    for (uint64_t y = 0; y < R; ++y)
+      for (uint64_t x = 0; x < R; ++x) {
+        const size_t at = y * R + x;
+        if (want.firstUndefined[at] < R) {
+          ++hits;
+          EXPECT_LT(want.firstUndefined[at], D) << "a hit behind the scene's slices at " << x << "," << y;
+        }
+        const bool last = dagVoxelShadowed(dag, x, y, D - 1);
+        for (uint64_t z = D; z < R; ++z) behindDiffers += dagVoxelShadowed(dag, x, y, z) != last;
+        if (ambiguous[at]) continue;
+        for (uint64_t z = 0; z < R; ++z) {
+          const bool shadowed = dagVoxelShadowed(dag, x, y, z);
+          if (z < want.firstUndefined[at]) bad += shadowed;
+          else if (z >= want.firstShadowed[at]) bad += !shadowed;
+        }
+      }
+    EXPECT_GT(hits, R * R / 10) << "D=" << D;
+    EXPECT_EQ(bad, 0u) << "D=" << D;
+    EXPECT_EQ(behindDiffers, 0u) << "D=" << D;
+  }
+  EXPECT_THROW(makeGrid(scene_, frame, log2R, R + 1), InputError);
+  EXPECT_EQ(makeGrid(scene_, frame, log2R, R).depthExtent, cubic.depthExtent);
 }
 
 // Tile sizes 64, 256 and whole-grid give the same DAG: a voxel's resolved value depends

@@ -55,6 +55,7 @@ pb::BakeSpec everySpecField() {
   o.set_compress(pb::COMPRESS_BOTTOMUP);
   o.set_undefined_rule(pb::UNDEFINED_OLD);
   o.set_tile_size(512);
+  o.set_depth_slices(1024);
   o.set_renderer(pb::RENDERER_EMBREE);
   *o.mutable_receivers() = everyReceiverField();
   s.set_priority(-7);
@@ -102,6 +103,7 @@ TEST(FarmModel, ASpecCrossesBothWaysUnchanged) {
   const pb::BakeSpec full = everySpecField();
   const BakeSpec model = modelOf(full);
   EXPECT_EQ(model.options.tileSize, 512u);
+  EXPECT_EQ(model.options.depthSlices, 1024u);
   ASSERT_TRUE(model.options.receivers);
   EXPECT_EQ(model.options.receivers->cameraPaths.size(), 1u);
   EXPECT_EQ(model.options.receivers->groundSlopeDeg, 30.0);

@@ -92,6 +92,28 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   EXPECT_EQ(done.etaSeconds, 0);
   farmClient.download(submitted.jobId, dir / "farm.cpvs");
   {
+    // A grid with fewer depth slices is made by the coordinator as `cpvs bake` makes it.
+    net::BakeSpec shallow = spec;
+    shallow.options.depthSlices = 96;
+    const client::JobStatus s = farmClient.watch(farmClient.submit("in-process-shallow", shallow).jobId);
+    EXPECT_EQ(s.state, client::JobState::Done) << s.error;
+    farmClient.download(s.jobId, dir / "shallow.cpvs");
+    const Scene scene = loadScene(obj);
+    BakeOptions options;
+    options.log2TileSize = 6;
+    const CpvsArtifact local =
+        testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8, 96), options);
+    EXPECT_EQ(readFile(dir / "shallow.cpvs"), encodeCpvs(local, true));
+    EXPECT_NE(readFile(dir / "shallow.cpvs"), readFile(dir / "farm.cpvs"));
+    shallow.options.depthSlices = 257;
+    try {
+      (void)farmClient.submit("in-process-too-deep", shallow);
+      ADD_FAILURE() << "257 depth slices at 256 were taken";
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find("depth_slices"), std::string::npos) << e.what();
+    }
+  }
+  {
     // What the ETA is fitted to: each rendered tile's triangles, kept at submit, and the
     // seconds its worker reported, kept at its acknowledgement.
     server::FarmStore store(dir / "data/farm.sqlite");

@@ -74,11 +74,19 @@ void checkGrid(const OrthoGrid& g, const std::string& source) {
   if (std::abs(length(g.frame.dir) - 1) > kUnitDirectionTolerance) fail("the light direction is not a unit vector");
 }
 
-OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resolution) {
+void checkDepthSlices(uint64_t depthSlices, int log2Resolution, const std::string& what) {
+  const uint64_t R = uint64_t(1) << log2Resolution;
+  if (depthSlices > R)
+    throw InputError(what + ": " + std::to_string(depthSlices) + " depth slices is more than the resolution, " +
+                     std::to_string(R) + " (0 or " + std::to_string(R) + ": a cubic grid)");
+}
+
+OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resolution, uint64_t depthSlices) {
   if (log2Resolution < kMinLog2Resolution || log2Resolution > kMaxLog2Resolution)
     throw InputError("resolution 2^" + std::to_string(log2Resolution) + " is outside [2^" +
                      std::to_string(kMinLog2Resolution) + ", 2^" +
                      std::to_string(kMaxLog2Resolution) + "]");
+  checkDepthSlices(depthSlices, log2Resolution, "depth slices");
   if (scene.triangleCount() == 0) throw InputError("scene '" + scene.name + "' has no triangles");
   Vec3 lo, hi;
   sceneBounds(scene, lo, hi);
@@ -109,6 +117,9 @@ OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resoluti
   g.v0 = cv - 0.5 * side;
   g.d0 = mn[2] - margin;
   g.depthExtent = (mx[2] - mn[2]) + 2 * margin;
+  // A power-of-two ratio keeps the slice boundaries where the cubic grid of depthSlices
+  // slices has them; any other ratio is one correctly rounded product.
+  if (depthSlices != 0 && depthSlices != g.resolution()) g.depthExtent *= double(g.resolution()) / double(depthSlices);
   // No negative zeros (see LightFrame::fromDirection).
   g.origin = withoutNegativeZeros(g.origin);
   g.u0 += 0.0;

@@ -87,9 +87,17 @@ class OrthoGrid final : public LightGrid {
 };
 
 /// Fits a grid of resolution 2^log2Resolution to the scene as seen along `frame.dir`: the
-/// projected bounds, padded by a small margin, made square in u and v. Throws InputError
-/// for an empty scene or a resolution outside [kMinLog2Resolution, kMaxLog2Resolution].
-OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resolution);
+/// projected bounds, padded by a small margin, made square in u and v. The scene's depth
+/// range spans `depthSlices` slices (0: all R of them). With fewer, each slice is deeper by
+/// R / depthSlices and the grid reaches that much further behind the scene: the scene lies
+/// in an R x R x depthSlices grid (what a shadow map of that depth precision resolves, the
+/// public peer's 16K x 16K x 4096), and the slices behind it repeat its last one, so they
+/// add almost nothing to the DAG. Throws InputError for an empty scene, a resolution outside
+/// [kMinLog2Resolution, kMaxLog2Resolution] or depthSlices above R.
+OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resolution, uint64_t depthSlices = 0);
+
+/// InputError starting with `what` unless `depthSlices` is 0 (all) or in [1, 2^log2Resolution].
+void checkDepthSlices(uint64_t depthSlices, int log2Resolution, const std::string& what);
 
 /// InputError naming `source` unless the grid's fields can be mapped with: a resolution
 /// in range, finite values, positive extents, a unit light direction and frame.

@@ -52,6 +52,7 @@ struct JobOptions {
   CompressMode compress = CompressMode::TopDown;
   UndefinedRule undefinedRule = UndefinedRule::Aligned;  // always on the wire (absent there: new)
   uint32_t tileSize = 0;              // texels a side; 0: 4096
+  uint32_t depthSlices = 0;           // slices across the scene's depth; 0: the resolution
   std::optional<Renderer> renderer;   // absent: the bake's default (raster)
   std::optional<Receivers> receivers; // absent: everywhere
   bool operator==(const JobOptions&) const = default;
