@@ -199,9 +199,11 @@ int runBake(const BakeArgs& a) {
   BakeScene prepared(scene, grid, opt.renderer, a.threads, receivers);
   st.add("load", secondsSince(start));
   if (!a.json && !a.quiet)
-    spdlog::info("{}: {} triangles ({} closed, {} degenerate dropped), resolution {}^3, light ({:.4f}, {:.4f}, {:.4f})",
-                 scene.name, ss.triangles, ss.closedTriangles, ss.degenerateDropped, grid.resolution(), frame.dir.x,
-                 frame.dir.y, frame.dir.z);
+    spdlog::info("{}: {} triangles ({} closed, {} degenerate dropped), resolution {}^2 x {} slices, light ({:.4f}, "
+                 "{:.4f}, {:.4f})",
+                 scene.name, ss.triangles, ss.closedTriangles, ss.degenerateDropped, grid.resolution(),
+                 grid.depthSlices != 0 ? uint64_t(grid.depthSlices) : grid.resolution(), frame.dir.x, frame.dir.y,
+                 frame.dir.z);
 
   ProgressDisplay progress(!a.json && !a.quiet);
   CpvsArtifact art;

@@ -133,10 +133,10 @@ void addOptionFlags(CLI::App* c, OptionFlags& o, const std::string& tileHelp) {
       ->check(CLI::IsMember(namesOf<Renderer>()))->capture_default_str();
   c->add_option("--tile-size", o.tileSize, tileHelp)->capture_default_str();
   c->add_option("--depth-slices", o.depthSlices,
-                "Slices across the scene's depth along the light, at most the resolution (default: the resolution, a "
-                "cubic grid). Fewer are coarser in depth only, as a shadow map of that depth precision: 4096 at 16K "
-                "is the public peer's 16K x 16K x 4096 grid. The grid reaches as far behind the scene, where every "
-                "slice repeats the scene's last");
+                "Slices across the scene's depth along the sun, a power of two up to the resolution (default: the "
+                "resolution, a cubic grid). Fewer are coarser in depth only, as a shadow map of that depth precision: "
+                "4096 at 16K is the public peer's 16K x 16K x 4096 grid. Lookups then offset along the normal by "
+                "slices, as many as on a cubic grid of that depth, reaching as many times further across");
   addReceiverFlags(c, o);
 }
 

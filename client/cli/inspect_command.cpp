@@ -71,7 +71,7 @@ int runInspect(const InspectArgs& a) {
       << jsonNumber(g.origin.x) << ", " << jsonNumber(g.origin.y) << ", " << jsonNumber(g.origin.z)
       << "], \"u0\": " << jsonNumber(g.u0) << ", \"v0\": " << jsonNumber(g.v0) << ", \"d0\": " << jsonNumber(g.d0)
       << ", \"extent\": " << jsonNumber(g.extent) << ", \"depth_extent\": " << jsonNumber(g.depthExtent)
-      << "},\n  \"options\": {\"closed\": " << jsonString(optionName(o.closed))
+      << ", \"depth_slices\": " << (g.depthSlices != 0 ? g.depthSlices : R) << "},\n  \"options\": {\"closed\": " << jsonString(optionName(o.closed))
       << ", \"exit\": " << jsonString(optionName(o.exit)) << ", \"cull\": " << (o.cull ? "true" : "false")
       << ", \"compress\": " << jsonString(optionName(o.compress))
       << ", \"undefined\": " << jsonString(optionName(o.undefinedRule))
@@ -93,8 +93,14 @@ int runInspect(const InspectArgs& a) {
     return 0;
   }
   std::printf("%s: CPVS format %u, %s on disk\n", a.file.c_str(), art.formatVersion, humanBytes(bytes.size()).c_str());
-  std::printf("  resolution   %llu^3 (texel %.6g, slice %.6g world units)\n", static_cast<unsigned long long>(R),
-              g.texelSize(), g.sliceSize());
+  if (g.depthSlices == 0)
+    std::printf("  resolution   %llu^3 (texel %.6g, slice %.6g world units)\n", static_cast<unsigned long long>(R),
+                g.texelSize(), g.sliceSize());
+  else
+    std::printf("  resolution   %llu^2 x %u depth slices over the scene, a %llu^3 DAG whose slices behind it repeat "
+                "its last (texel %.6g, slice %.6g world units)\n",
+                static_cast<unsigned long long>(R), g.depthSlices, static_cast<unsigned long long>(R), g.texelSize(),
+                g.sliceSize());
   std::printf("  light        (%.6f, %.6f, %.6f)\n", g.frame.dir.x, g.frame.dir.y, g.frame.dir.z);
   std::printf("  grid origin  (%.6g, %.6g, %.6g), extent %.6g, depth %.6g\n", g.origin.x, g.origin.y, g.origin.z,
               g.extent, g.depthExtent);

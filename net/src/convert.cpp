@@ -271,6 +271,7 @@ pb::GridSpec toProto(const GridSpec& g) {
     p.set_d0(g.d0);
     p.set_extent(g.extent);
     p.set_depth_extent(g.depthExtent);
+    p.set_depth_slices(g.depthSlices);
   } else {
     *p.mutable_position() = toProto(g.position);
     p.set_tan_half_fov(g.tanHalfFov);
@@ -295,6 +296,7 @@ GridSpec gridSpecOf(const pb::GridSpec& p) {
   g.origin = fromProto(p.origin());
   g.u0 = p.u0(), g.v0 = p.v0(), g.d0 = p.d0();
   g.extent = p.extent(), g.depthExtent = p.depth_extent();
+  g.depthSlices = p.depth_slices();
   g.position = fromProto(p.position());
   g.tanHalfFov = p.tan_half_fov(), g.near = p.near(), g.far = p.far(), g.tanCone = p.tan_cone();
   return g;

@@ -123,8 +123,9 @@ constexpr int kOptionsColumn = 16;
 /// tracks.scene_hash and receiver_scene), not found by searching the specs' bytes; 12: each tile's work (the
 /// triangles that reach it) and the seconds its worker spent, for the ETA (0 in an
 /// upgraded store: its jobs' ETA counts tiles); 13: whether a worker sent each tile from
-/// its tile cache (tiles.reused; 0 in an upgraded store).
-constexpr int kSchemaVersion = 13;
+/// its tile cache (tiles.reused; 0 in an upgraded store); 14: a grid's depth slices
+/// (job_grids.depth_slices; 0, a cubic grid, in an upgraded store).
+constexpr int kSchemaVersion = 14;
 
 Vec3 readVec(const Statement& s, int c) { return {s.f64(c), s.f64(c + 1), s.f64(c + 2)}; }
 
@@ -187,8 +188,8 @@ void bindJob(Statement& s, const JobRecord& j) {
 constexpr const char* kGridColumns =
     "job_id, grid, light, log2_resolution, position_x, position_y, position_z, dir_x, dir_y, dir_z, u_x, u_y, u_z, "
     "v_x, v_y, v_z, tan_half_fov, near, far, tan_cone, closest, projection, origin_x, origin_y, origin_z, u0, v0, "
-    "d0, extent, depth_extent";
-constexpr int kGridColumnCount = 30;
+    "d0, extent, depth_extent, depth_slices";
+constexpr int kGridColumnCount = 31;
 
 /// Table job_grids: a GridSpec's fields, each projection's own zero in the other's rows.
 constexpr const char* kCreateJobGrids =
@@ -198,7 +199,7 @@ constexpr const char* kCreateJobGrids =
     "tan_cone REAL, closest REAL, projection INTEGER NOT NULL DEFAULT 1, origin_x REAL NOT NULL DEFAULT 0, "
     "origin_y REAL NOT NULL DEFAULT 0, origin_z REAL NOT NULL DEFAULT 0, u0 REAL NOT NULL DEFAULT 0, "
     "v0 REAL NOT NULL DEFAULT 0, d0 REAL NOT NULL DEFAULT 0, extent REAL NOT NULL DEFAULT 0, "
-    "depth_extent REAL NOT NULL DEFAULT 0, PRIMARY KEY(job_id, grid))";
+    "depth_extent REAL NOT NULL DEFAULT 0, depth_slices INTEGER NOT NULL DEFAULT 0, PRIMARY KEY(job_id, grid))";
 
 JobGrid readGrid(const Statement& s) {
   JobGrid j;
@@ -222,6 +223,7 @@ JobGrid readGrid(const Statement& s) {
   g.d0 = s.f64(27);
   g.extent = s.f64(28);
   g.depthExtent = s.f64(29);
+  g.depthSlices = uint32_t(s.i64(30));
   return j;
 }
 
@@ -236,6 +238,7 @@ void bindGrid(Statement& s, const std::string& jobId, size_t index, const JobGri
   ++c;
   s.bind(c++, int64_t(g.projection));
   for (double x : {g.origin.x, g.origin.y, g.origin.z, g.u0, g.v0, g.d0, g.extent, g.depthExtent}) s.bind(c++, x);
+  s.bind(c++, int64_t(g.depthSlices));
 }
 
 }  // namespace
@@ -354,6 +357,8 @@ FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
       exec("ALTER TABLE tiles ADD COLUMN seconds REAL NOT NULL DEFAULT 0");
     }
     if (upgradable && version <= 12) exec("ALTER TABLE tiles ADD COLUMN reused INTEGER NOT NULL DEFAULT 0");
+    // Older stores' grids are all cubic. (Before 8 the table is made below, with the column.)
+    if (upgradable && version >= 8) exec("ALTER TABLE job_grids ADD COLUMN depth_slices INTEGER NOT NULL DEFAULT 0");
     if (upgradable && version <= 8) {
       // A sun job's grid moves from the jobs table's columns to its job_grids row.
       if (version == 8) {
@@ -367,7 +372,7 @@ FarmStore::FarmStore(const std::string& path, SpecRewrite rewrite) {
           (std::string("INSERT INTO job_grids(") + kGridColumns + ") "
           "SELECT id, 0, 0, log2_resolution, 0, 0, 0, light_dir_x, light_dir_y, light_dir_z, frame_u_x, frame_u_y, "
           "frame_u_z, frame_v_x, frame_v_y, frame_v_z, 0, 0, 0, 0, NULL, 0, origin_x, origin_y, origin_z, u0, v0, d0, "
-          "extent, depth_extent FROM jobs WHERE length(lights) = 0").c_str());
+          "extent, depth_extent, 0 FROM jobs WHERE length(lights) = 0").c_str());
       for (const char* column : {"light_dir_x", "light_dir_y", "light_dir_z", "frame_u_x", "frame_u_y", "frame_u_z",
                                  "frame_v_x", "frame_v_y", "frame_v_z", "origin_x", "origin_y", "origin_z", "u0", "v0",
                                  "d0", "extent", "depth_extent", "log2_resolution"})

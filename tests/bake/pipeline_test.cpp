@@ -132,13 +132,13 @@ TEST_P(ScenePipeline, EveryDefinedVoxelMatchesDenseReference) {
 // A grid with fewer depth slices (--depth-slices) is coarser in depth only: the scene's
 // depth range lies in its first D slices, every defined voxel still equals the dense
 // brute force of that grid, and every slice behind the scene repeats the last one (what a
-// lookup behind the grid reads), a power-of-two D and another alike.
+// lookup behind the grid reads), at 8 and 32 slices of 64; a D that is not a power of two is refused.
 TEST_P(ScenePipeline, FewerDepthSlicesHoldTheSceneInTheFirstOnes) {
   const int log2R = 6;
   const uint64_t R = uint64_t(1) << log2R;
   const LightFrame frame = LightFrame::fromDirection(GetParam().sun);
   const OrthoGrid cubic = makeGrid(scene_, frame, log2R);
-  for (uint64_t D : {uint64_t(16), uint64_t(24)}) {
+  for (uint64_t D : {uint64_t(8), uint64_t(32)}) {
     const OrthoGrid grid = makeGrid(scene_, frame, log2R, D);
     EXPECT_EQ(grid.extent, cubic.extent);
     EXPECT_EQ(grid.d0, cubic.d0);
@@ -172,6 +172,10 @@ TEST_P(ScenePipeline, FewerDepthSlicesHoldTheSceneInTheFirstOnes) {
     EXPECT_EQ(behindDiffers, 0u) << "D=" << D;
   }
   EXPECT_THROW(makeGrid(scene_, frame, log2R, R + 1), InputError);
+  EXPECT_THROW(makeGrid(scene_, frame, log2R, 24), InputError);  // not a power of two
+  EXPECT_EQ(makeGrid(scene_, frame, log2R, 16).depthSlices, 16u);
+  EXPECT_EQ(makeGrid(scene_, frame, log2R, 16).depthShift(), 2);
+  EXPECT_EQ(makeGrid(scene_, frame, log2R, R).depthSlices, 0u);
   EXPECT_EQ(makeGrid(scene_, frame, log2R, R).depthExtent, cubic.depthExtent);
 }
 

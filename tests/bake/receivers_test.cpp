@@ -177,13 +177,15 @@ uint64_t bytesOf(const Dag& dag, const OrthoGrid& grid) {
 struct Case {
   Vec3 sun;
   int log2R;
+  uint64_t depthSlices = 0;  // a grid coarser in depth: its lookups offset further across
 };
 
 class ReceiversTest : public ::testing::TestWithParam<Case> {};
 
 TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
   const Scene scene = testScene();
-  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection(GetParam().sun), GetParam().log2R);
+  const OrthoGrid grid =
+      makeGrid(scene, LightFrame::fromDirection(GetParam().sun), GetParam().log2R, GetParam().depthSlices);
   const uint32_t R = uint32_t(grid.resolution());
   BakeOptions options;
   options.log2TileSize = GetParam().log2R - 2;  // 16 tiles: reads cross tile borders
@@ -259,7 +261,8 @@ TEST_P(ReceiversTest, EveryDeclaredReadHasItsValueAndTheBakeIsSmaller) {
 INSTANTIATE_TEST_SUITE_P(Suns, ReceiversTest,
                          ::testing::Values(Case{{0.3, -1, 0.25}, 7}, Case{{-0.7, -0.35, 0.4}, 7},
                                            Case{{0.05, -1, -0.02}, 8}, Case{{0.2, 0.9, -0.3}, 7},
-                                           Case{{1, -0.1, 0.05}, 8}));
+                                           Case{{1, -0.1, 0.05}, 8}, Case{{0.3, -1, 0.25}, 7, 32},
+                                           Case{{-0.7, -0.35, 0.4}, 8, 64}, Case{{1, -0.1, 0.05}, 8, 16}));
 
 // Declared receivers only free voxels, and the aligned rule fills the freed ones towards
 // whole slabs and shared columns: on real levels, towns and cities under suns of every

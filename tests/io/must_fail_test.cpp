@@ -96,6 +96,8 @@ std::vector<Case> headerCases() {
       {"non-finite extent", [](Bytes& b) { put<double>(b, kExtent, 1.0 / 0.0); }, "non-finite"},
       {"negative extent", [](Bytes& b) { put<double>(b, kExtent, -1.0); }, "not positive"},
       {"resolution", [](Bytes& b) { put<int32_t>(b, kLog2R, 30); }, "resolution 2^30 is out of range"},
+      {"depth shift beyond the resolution", [](Bytes& b) { put<int32_t>(b, kLog2R, 6 | 7 << 8); }, "names no grid"},
+      {"negative resolution field", [](Bytes& b) { put<int32_t>(b, kLog2R, -1); }, "names no grid"},
       {"closed mode", [](Bytes& b) { b[kOptions] = 3; }, "options hold an unknown value"},
       {"hash kind", [](Bytes& b) { b[kOptions + 5] = 2; }, "options hold an unknown value"},
       {"renderer", [](Bytes& b) { b[kOptions + 6] = 2; }, "options hold an unknown value"},
@@ -238,6 +240,21 @@ TEST(CpvsHeader, RendererRoundTripsAndZeroIsEmbree) {
     EXPECT_EQ(decodeCpvs(bytes.data(), bytes.size(), "r.cpvs").options.renderer, r);
   }
   static_assert(int(Renderer::Embree) == 0);
+}
+
+// A grid with fewer depth slices keeps them: its depth shift is the resolution field's
+// second byte (a reader before them refuses the resolution); a cubic grid's field is as before.
+TEST(CpvsHeader, DepthSlicesRoundTripInTheResolutionField) {
+  CpvsArtifact art = sampleArtifact();
+  EXPECT_EQ(get<int32_t>(encodeCpvs(art, false), kLog2R), 6);
+  for (uint32_t slices : {1u, 16u, 32u}) {
+    art.grid.depthSlices = slices;
+    const Bytes bytes = encodeCpvs(art, false);
+    EXPECT_EQ(get<int32_t>(bytes, kLog2R), 6 | art.grid.depthShift() << 8);
+    const CpvsArtifact back = decodeCpvs(bytes.data(), bytes.size(), "d.cpvs");
+    EXPECT_EQ(back.grid.depthSlices, slices);
+    EXPECT_EQ(back.grid.log2Resolution, 6);
+  }
 }
 
 // The receiver declaration round-trips; a version 2 file (before it) reads as baked for

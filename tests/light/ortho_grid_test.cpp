@@ -101,6 +101,35 @@ TEST(OrthoGrid, NormalOffsetMovesTheLargestVoxelComponentByTheGivenVoxels) {
   EXPECT_EQ(g.offsetVoxel(w, {std::nan(""), 0, 0}, 2.5), g.voxelFromWorld(w));
 }
 
+// On a grid whose slices are 2^s texels deep the offset counts x and y in units of 2^s
+// texels: the largest such component moves the voxels asked for, so a normal across the
+// light moves 2^s times further across, and one along it as many slices as on a cubic grid.
+TEST(OrthoGrid, FewerDepthSlicesCountTheOffsetAcrossInTexelsPerSlice) {
+  OrthoGrid g = sampleGrid(8);
+  g.depthSlices = 64;  // slices 4 texels deep
+  EXPECT_EQ(g.depthShift(), 2);
+  checkGrid(g, "test");
+  const Vec3 w = g.origin + Vec3{1, 2, 3};
+  for (const Vec3& n : {g.frame.u, g.frame.v * -1.0, g.frame.dir * -1.0, Vec3{0.2, 0.3, -0.9}, Vec3{0.9, 0.1, 0.3}}) {
+    const Vec3 d = g.offsetVoxel(w, n, 2.5) - g.voxelFromWorld(w);
+    const double moved = std::max({std::abs(d.x) / 4, std::abs(d.y) / 4, std::abs(d.z)});
+    EXPECT_GE(moved, 2.5 - 1e-9);
+    EXPECT_LE(moved, 2.5 * (1 + 1.0 / 256) + 1e-9);
+    EXPECT_GT(dot(g.worldFromVoxel(g.offsetVoxel(w, n, 2.5)) - w, n), 0);
+  }
+  EXPECT_NEAR(std::abs((g.offsetVoxel(w, g.frame.u, 2.5) - g.voxelFromWorld(w)).x), 10, 0.1);
+  EXPECT_NEAR(std::abs((g.offsetVoxel(w, g.frame.dir, 2.5) - g.voxelFromWorld(w)).z), 2.5, 0.01);
+  // A cubic grid, and the same volume at another side (a shadow map's), offset as before.
+  EXPECT_EQ(g.withSide(100).depthShift(), 0);
+  g.depthSlices = 0;
+  EXPECT_NEAR(std::abs((g.offsetVoxel(w, g.frame.u, 2.5) - g.voxelFromWorld(w)).x), 2.5, 0.01);
+  // Depth slices that are no power of two below the resolution are refused.
+  for (uint32_t bad : {3u, 256u, 512u}) {
+    g.depthSlices = bad;
+    EXPECT_THROW(checkGrid(g, "test"), InputError) << bad;
+  }
+}
+
 // The offset's scale against a plain division, over many magnitudes and every table
 // entry: never below voxels / m, never more than 1/256 above it; 0 outside its range.
 TEST(LookupMapping, NormalOffsetScaleBoundsTheQuotient) {

@@ -57,10 +57,11 @@ struct Baked {
   std::string file;
 };
 
-Baked bake(const std::string& spec, const Vec3& sun, int log2R) {
-  Baked b{nullptr, openScene(spec), sun, ::testing::TempDir() + "runtime-" + std::to_string(log2R) + ".cpvs"};
+Baked bake(const std::string& spec, const Vec3& sun, int log2R, uint64_t depthSlices = 0) {
+  Baked b{nullptr, openScene(spec), sun,
+          ::testing::TempDir() + "runtime-" + std::to_string(log2R) + "-" + std::to_string(depthSlices) + ".cpvs"};
   CpvsArtifact art;
-  art.grid = makeGrid(b.scene, LightFrame::fromDirection(sun), log2R);
+  art.grid = makeGrid(b.scene, LightFrame::fromDirection(sun), log2R, depthSlices);
   art.dag = testing::bakeWith(b.scene, art.grid, art.options);
   art.sceneHash = sceneHash(b.scene);
   writeCpvs(b.file, art, true);
@@ -499,6 +500,15 @@ TEST(GpuLookups, ClosedCityAt16KAnswersAsTheCpu) {
   GpuShadows gpu(device(), b.artifact);
   EXPECT_EQ(gpu.wordBindings(), 1);
   expectGpuMatchesCpu(b, gpu, 200000);
+  expectNoValidationMessages(device());
+}
+
+// Slices 4 texels deep: the device offsets across in units of 4 texels as the CPU does.
+TEST(GpuLookups, FewerDepthSlicesAnswerAsTheCpu) {
+  const Baked b = bake("city", {0.5, -0.4, 0.3}, 12, 1024);
+  ASSERT_EQ(b.artifact->grid().depthShift(), 2);
+  GpuShadows gpu(device(), b.artifact);
+  expectGpuMatchesCpu(b, gpu, 100000);
   expectNoValidationMessages(device());
 }
 

@@ -94,7 +94,7 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
   {
     // A grid with fewer depth slices is made by the coordinator as `cpvs bake` makes it.
     net::BakeSpec shallow = spec;
-    shallow.options.depthSlices = 96;
+    shallow.options.depthSlices = 64;
     const client::JobStatus s = farmClient.watch(farmClient.submit("in-process-shallow", shallow).jobId);
     EXPECT_EQ(s.state, client::JobState::Done) << s.error;
     farmClient.download(s.jobId, dir / "shallow.cpvs");
@@ -102,7 +102,7 @@ TEST(InProcessFarm, ClientCoordinatorAndWorkerInOneProcessGiveTheLocalBytes) {
     BakeOptions options;
     options.log2TileSize = 6;
     const CpvsArtifact local =
-        testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8, 96), options);
+        testing::localArtifact(scene, makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8, 64), options);
     EXPECT_EQ(readFile(dir / "shallow.cpvs"), encodeCpvs(local, true));
     EXPECT_NE(readFile(dir / "shallow.cpvs"), readFile(dir / "farm.cpvs"));
     shallow.options.depthSlices = 257;
@@ -727,6 +727,15 @@ TEST(FarmStore, TypedColumnsRoundTripAndLeasesFollowPriority) {
   EXPECT_EQ(back->grids[0].grid.log2Resolution, 10);
   EXPECT_FALSE(back->isBundle());
   EXPECT_EQ(back->spec, "spec bytes");
+  EXPECT_EQ(back->grids[0].grid.depthSlices, 0u);
+  {
+    // A grid coarser in depth keeps its slices.
+    server::FarmStore other(dir / "other.sqlite");
+    server::JobRecord shallow = sampleJob("shallow", 0, 1);
+    shallow.grids[0].grid.depthSlices = 256;
+    other.createJob(shallow);
+    EXPECT_EQ(other.job("shallow")->grids.at(0).grid.depthSlices, 256u);
+  }
 
   // A light bundle's grids come back in order with every value, an infinite `closest`
   // (a grid no triangle reaches) included.
@@ -792,7 +801,7 @@ void downgradeToSchema8(sqlite3* db) {
   for (const auto& [job, grid] : moved)
     sql += std::string("ALTER TABLE jobs ADD COLUMN ") + job + (std::string(job) == "log2_resolution" ? " INTEGER; " : " REAL; ") +
            "UPDATE jobs SET " + job + " = (SELECT " + grid + " FROM job_grids WHERE job_grids.job_id = jobs.id AND projection = 0); ";
-  sql += "DELETE FROM job_grids WHERE projection = 0; ";
+  sql += "DELETE FROM job_grids WHERE projection = 0; ALTER TABLE job_grids DROP COLUMN depth_slices; ";
   for (const char* column : {"projection", "origin_x", "origin_y", "origin_z", "u0", "v0", "d0", "extent", "depth_extent"})
     sql += std::string("ALTER TABLE job_grids DROP COLUMN ") + column + "; ";
   sql += "ALTER TABLE scenes DROP COLUMN owner; ALTER TABLE jobs DROP COLUMN receiver_scene; "
@@ -877,7 +886,7 @@ TEST(FarmStore, ASchemaTenStoreHasItsSpecsRewrittenAsJson) {
                          "ALTER TABLE jobs DROP COLUMN receiver_scene; ALTER TABLE tracks DROP COLUMN scene_hash; "
                          "ALTER TABLE tracks DROP COLUMN receiver_scene; "
                          "ALTER TABLE tiles DROP COLUMN work; ALTER TABLE tiles DROP COLUMN seconds; ALTER TABLE tiles DROP COLUMN reused; "
-                         "PRAGMA user_version = 10",
+                         "ALTER TABLE job_grids DROP COLUMN depth_slices; PRAGMA user_version = 10",
                          nullptr, nullptr, nullptr),
             SQLITE_OK);
   sqlite3_close(db);
@@ -1232,8 +1241,10 @@ TEST(Convert, OptionsAndGridsRoundTripAndTheWeakHashStaysHome) {
   o.undefinedRule = UndefinedRule::Old;
   o.log2TileSize = 9;
   EXPECT_EQ(net::fromProto(net::toProto(o)), o);
-  const OrthoGrid g = orthoGridOf(sampleJob("x", 0, 1).grids[0].grid, "grid");
+  OrthoGrid g = orthoGridOf(sampleJob("x", 0, 1).grids[0].grid, "grid");
+  g.depthSlices = uint32_t(g.resolution() / 4);  // a grid coarser in depth keeps its slices
   const OrthoGrid back = orthoGridOf(net::gridSpecOf(net::toProto(gridSpecOf(g))), "grid");
+  EXPECT_EQ(back.depthSlices, g.depthSlices);
   EXPECT_EQ(back.origin, g.origin);
   EXPECT_EQ(back.extent, g.extent);
   EXPECT_EQ(back.frame.u, g.frame.u);

@@ -320,6 +320,8 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
   checkReceiverDeclaration(d);
   if (kind_ == ReceiverKind::Everywhere) return;
   const LookupMapping m = grid.lookupMapping();
+  // Offsets reach 2^shift times further across than deep (lookup_mapping.h, offsetExtent).
+  const int shift = grid.depthShift();
   const double rho = 0.5 * (maxPcf_ - 1);  // footprint radius, texels
   const double half = rho + 0.5;           // a column's window: the footprint around a texel
   // A group of lookups: the sweep of their points' offsets, the half-width of their
@@ -370,7 +372,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
     for (int side = 0; side < 2; ++side) {
       if (!(sides & (1 << side))) continue;
       Vec3 nv = mappedDirection(m, side ? -nWorld : nWorld);
-      const double big = std::max({std::fabs(nv.x), std::fabs(nv.y), std::fabs(nv.z)});
+      const double big = offsetExtent(nv, shift);  // the component the lookup's offset measures
       if (!(big > 0) || !std::isfinite(big)) continue;
       // A ring per pair of filter widths (1-3, 5-7, 9): a wide filter's offset and window
       // are not a narrow one's, and bounding all together pins texels that none reads
@@ -402,7 +404,8 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
     }
   }
 
-  // Volumes: any point inside, any normal: reads within the offset's cube, over the
+  // Volumes: any point inside, any normal: reads within the offset's box (2^shift times
+  // wider than deep), over the
   // footprint, hulled per part.
   if (d.volume.triangleCount() != 0) {
     const std::vector<uint32_t> parts = volumeParts(d.volume);
@@ -413,7 +416,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
       Span plane{};
       plane.planar = fitPlane(v, plane);
       const double g = std::fabs(plane.gx) + std::fabs(plane.gy);
-      const double window = half + cube;
+      const double window = half + std::ldexp(cube, shift);
       add(plane, v, {{{Vec3{}}, window, -g * window - cube, g * window + cube}}, false, cube, 0, 0, parts[t]);
     }
   }
@@ -428,7 +431,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
       throw InputError("receivers: a ground layer " + std::to_string(d.groundLayer) +
                        " scene units tall is taller than twice the scene's grid (" + std::to_string(tallest) + ")");
     const double cube = normalOffsetVoxels(maxPcf_) * kOffsetExcess;
-    const double window = half + cube;
+    const double window = half + std::ldexp(cube, shift);
     const Vec3 bottom{0, d.groundLayerFrom, 0};
     const Vec3 up = mappedDirection(m, Vec3{0, d.groundLayer - d.groundLayerFrom, 0});
     for (size_t t = 0; t < scene.triangleCount(); ++t) {

@@ -34,6 +34,7 @@ std::optional<Hash128> tileKey(const BakeScene& scene, const BakeOptions& option
   h.add(uint32_t(1));  // the key's own version: a change to what decides a tile bumps it
   h.add(g.frame.dir), h.add(g.frame.u), h.add(g.frame.v), h.add(g.log2Resolution), h.add(g.origin);
   h.add(g.u0), h.add(g.v0), h.add(g.d0), h.add(g.extent), h.add(g.depthExtent), h.add(g.side());
+  if (g.depthSlices != 0) h.add(g.depthSlices);  // the receivers' offsets (a cubic grid keeps its keys)
   h.add(uint8_t(options.closed)), h.add(uint8_t(options.exit)), h.add(options.cull), h.add(uint8_t(options.compress));
   h.add(uint8_t(options.undefinedRule)), h.add(options.log2TileSize), h.add(uint8_t(options.hash));
   h.add(uint8_t(options.renderer)), h.add(uint8_t(options.receivers)), h.add(options.receiverPcf);

@@ -39,7 +39,10 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   w.put(g.d0);
   w.put(g.extent);
   w.put(g.depthExtent);
-  w.put<int32_t>(g.log2Resolution);
+  // The depth shift of a grid with fewer depth slices (OrthoGrid::depthShift) in the
+  // resolution's second byte: a reader that predates it refuses the file's resolution
+  // rather than offset its lookups as on a cubic grid.
+  w.put<int32_t>(g.log2Resolution | (a.grid.depthShift() << 8));
   putOptions(w, a.options, a.sceneHash);
   putReceiversAndPlan(w, a.options, a.receiverHash, a.plan);
   putWordSection(w, PackedDag(dag).words(), zstd);
@@ -73,7 +76,14 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
   spec.d0 = h.get<double>("header");
   spec.extent = h.get<double>("header");
   spec.depthExtent = h.get<double>("header");
-  spec.log2Resolution = h.get<int32_t>("header");
+  const int32_t resolutionField = h.get<int32_t>("header");
+  spec.log2Resolution = resolutionField & 0xFF;
+  const int32_t shift = resolutionField >> 8;
+  if (shift != 0) {
+    if (shift < 0 || shift > spec.log2Resolution)
+      h.fail("the resolution field " + std::to_string(resolutionField) + " names no grid");
+    spec.depthSlices = uint32_t(1) << (spec.log2Resolution - shift);
+  }
   try {
     a.grid = orthoGridOf(spec, source);
   } catch (const InputError& e) {

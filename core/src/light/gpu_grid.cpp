@@ -14,7 +14,9 @@ GpuGrid gpuGridOf(const GridSpec& spec, const std::string& what, uint32_t header
   g.firstBoundary = firstBoundary;
   g.light = light;
   if (spec.projection == Projection::Orthographic) {
-    g.mapping = orthoGridOf(spec, what).lookupMapping();
+    const OrthoGrid o = orthoGridOf(spec, what);
+    g.mapping = o.lookupMapping();
+    g.depthShift = uint32_t(o.depthShift());
     return g;
   }
   const PerspectiveGrid p = perspectiveGridOf(spec, what);

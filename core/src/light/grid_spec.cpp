@@ -36,6 +36,7 @@ GridSpec gridSpecOf(const OrthoGrid& g) {
   s.origin = g.origin;
   s.u0 = g.u0, s.v0 = g.v0, s.d0 = g.d0;
   s.extent = g.extent, s.depthExtent = g.depthExtent;
+  s.depthSlices = g.depthSlices;
   return s;
 }
 
@@ -58,6 +59,7 @@ OrthoGrid orthoGridOf(const GridSpec& s, const std::string& what) {
   g.origin = s.origin;
   g.u0 = s.u0, g.v0 = s.v0, g.d0 = s.d0;
   g.extent = s.extent, g.depthExtent = s.depthExtent;
+  g.depthSlices = s.depthSlices;
   checkGrid(g, what);
   return g;
 }

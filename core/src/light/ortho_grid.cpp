@@ -1,6 +1,7 @@
 #include "cpvs/light/ortho_grid.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <string>
 
@@ -59,7 +60,7 @@ uint32_t OrthoGrid::sliceOfDepth(double t) const { return texelMapping(origin).s
 double OrthoGrid::depthOf(const Vec3& world) const { return dot(world - origin, frame.dir) - d0; }
 
 Vec3 OrthoGrid::offsetVoxel(const Vec3& world, const Vec3& normal, double voxels) const {
-  return mappedLookup(lookupMapping(), world, normal, voxels);
+  return mappedLookup(lookupMapping(), world, normal, voxels, depthShift());
 }
 
 void checkGrid(const OrthoGrid& g, const std::string& source) {
@@ -72,6 +73,8 @@ void checkGrid(const OrthoGrid& g, const std::string& source) {
   for (const Vec3* v : {&g.frame.dir, &g.frame.u, &g.frame.v, &g.origin})
     if (!isFinite(*v)) fail("the light frame holds a non-finite value");
   if (std::abs(length(g.frame.dir) - 1) > kUnitDirectionTolerance) fail("the light direction is not a unit vector");
+  if (g.depthSlices != 0 && (!std::has_single_bit(g.depthSlices) || g.depthSlices >= g.resolution()))
+    fail(std::to_string(g.depthSlices) + " depth slices is not a power of two below the resolution");
 }
 
 void checkDepthSlices(uint64_t depthSlices, int log2Resolution, const std::string& what) {
@@ -79,6 +82,13 @@ void checkDepthSlices(uint64_t depthSlices, int log2Resolution, const std::strin
   if (depthSlices > R)
     throw InputError(what + ": " + std::to_string(depthSlices) + " depth slices is more than the resolution, " +
                      std::to_string(R) + " (0 or " + std::to_string(R) + ": a cubic grid)");
+  if (depthSlices != 0 && !std::has_single_bit(depthSlices))
+    throw InputError(what + ": " + std::to_string(depthSlices) + " depth slices is not a power of two");
+}
+
+int OrthoGrid::depthShift() const {
+  if (side_ != 0 || depthSlices == 0) return 0;
+  return log2Resolution - std::countr_zero(depthSlices);
 }
 
 OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resolution, uint64_t depthSlices) {
@@ -117,9 +127,11 @@ OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resoluti
   g.v0 = cv - 0.5 * side;
   g.d0 = mn[2] - margin;
   g.depthExtent = (mx[2] - mn[2]) + 2 * margin;
-  // A power-of-two ratio keeps the slice boundaries where the cubic grid of depthSlices
-  // slices has them; any other ratio is one correctly rounded product.
-  if (depthSlices != 0 && depthSlices != g.resolution()) g.depthExtent *= double(g.resolution()) / double(depthSlices);
+  // Slices R / depthSlices times deeper (a power of two: exact), reaching as far behind.
+  if (depthSlices != 0 && depthSlices != g.resolution()) {
+    g.depthExtent *= double(g.resolution()) / double(depthSlices);
+    g.depthSlices = uint32_t(depthSlices);
+  }
   // No negative zeros (see LightFrame::fromDirection).
   g.origin = withoutNegativeZeros(g.origin);
   g.u0 += 0.0;

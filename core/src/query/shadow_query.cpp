@@ -52,7 +52,7 @@ bool ShadowQuery::voxelShadowed(const VoxelCoord& v) const {
 
 VoxelCoord ShadowQuery::voxelOf(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
   const double offset = normalOffsetVoxels(pcf.width());
-  const Vec3 c = spot_ ? spot_->offsetVoxel(p, n, offset) : mappedLookup(mapping_, p, n, offset);
+  const Vec3 c = spot_ ? spot_->offsetVoxel(p, n, offset) : mappedLookup(mapping_, p, n, offset, grid_.depthShift());
   // Behind a spot light (no voxel coordinates): a voxel outside its frustum, where no
   // light reaches, rather than one in front of the grid.
   if (spot_ && std::isnan(c.z)) return {-1, -1, R_};
@@ -62,7 +62,7 @@ VoxelCoord ShadowQuery::voxelOf(const Vec3& p, const Vec3& n, PcfWidth pcf) cons
 Vec3 ShadowQuery::offsetPoint(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
   const double offset = normalOffsetVoxels(pcf.width());
   if (spot_) return spot_->worldFromVoxel(spot_->offsetVoxel(p, n, offset));
-  return grid_.worldFromVoxel(mappedLookup(mapping_, p, n, offset));
+  return grid_.worldFromVoxel(mappedLookup(mapping_, p, n, offset, grid_.depthShift()));
 }
 
 uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
@@ -110,7 +110,7 @@ uint32_t ShadowQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) cons
 
 float ShadowQuery::bilinearVisibility(const Vec3& p, const Vec3& n) const {
   const double offset = kSoftOffsetVoxels;
-  const Vec3 c = spot_ ? spot_->offsetVoxel(p, n, offset) : mappedLookup(mapping_, p, n, offset);
+  const Vec3 c = spot_ ? spot_->offsetVoxel(p, n, offset) : mappedLookup(mapping_, p, n, offset, grid_.depthShift());
   if (std::isnan(c.x) || std::isnan(c.y) || std::isnan(c.z)) return 0;
   const int64_t z = floorToVoxel(c.z);
   // Texel centres are at k + 1/2: the four around the point and its place between them.

@@ -24,7 +24,7 @@ struct GpuGrid {
   uint32_t headerWord;      // the DAG's header in the words it is read from (a bundle's pool: 48 k)
   uint32_t firstBoundary;   // perspective: where its R + 1 slice boundaries start in the bundle's table
   uint32_t light;           // a bundle's grid: its light
-  uint32_t reserved;
+  uint32_t depthShift;      // orthographic: OrthoGrid::depthShift, what lookups offset by (0 else)
 };
 static_assert(sizeof(GpuGrid) == 208, "cpvs_shadow.glsl's CpvsGrid is 208 bytes");
 

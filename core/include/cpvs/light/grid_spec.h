@@ -34,6 +34,7 @@ struct GridSpec {
   // Orthographic.
   Vec3 origin;
   double u0 = 0, v0 = 0, d0 = 0, extent = 0, depthExtent = 0;
+  uint32_t depthSlices = 0;  // OrthoGrid::depthSlices (0: a cubic grid)
   // Perspective.
   Vec3 position;
   double tanHalfFov = 0, near = 0, far = 0, tanCone = 0;

@@ -62,24 +62,36 @@ inline double normalOffsetScale(double m, double voxels) {
   return voxels * double(offsetReciprocal(index)) * power;
 }
 
-/// The lookup point of a query at p with normal n, in voxels (unfloored): p moved along
-/// n until its voxel lies `voxels` voxels further along n's largest voxel component. A
-/// zero, non-finite or vanishing normal gives no offset.
-/// Voxel coordinates `c` moved along `nv`, a normal in voxels, so that nv's largest
-/// component moves `voxels` voxels (normalOffsetScale); `c` for a vanishing, huge or NaN nv.
-inline Vec3 offsetAlongNormal(const Vec3& c, const Vec3& nv, double voxels) {
+/// The largest component of `nv`, a normal in voxels, that the offset moves by its voxels:
+/// x and y counted in units of 2^depthShift texels, z in slices. A grid with fewer depth
+/// slices than texels (OrthoGrid::depthSlices) has slices 2^depthShift texels deep: its
+/// lookups clear their own surface by as many slices as on a cubic grid of that depth,
+/// and move that many times further across (0: a cubic grid, the voxels as they are).
+/// Scaling by a power of two is exact, so every device picks the same component.
+inline double offsetExtent(const Vec3& nv, int depthShift) {
   // The larger of two by one comparison (not fmax): a NaN takes the same branch everywhere.
-  const double ax = std::fabs(nv.x), ay = std::fabs(nv.y), az = std::fabs(nv.z);
+  const double ax = std::ldexp(std::fabs(nv.x), -depthShift), ay = std::ldexp(std::fabs(nv.y), -depthShift);
+  const double az = std::fabs(nv.z);
   const double axy = ax > ay ? ax : ay;
-  const double s = normalOffsetScale(axy > az ? axy : az, voxels);
+  return axy > az ? axy : az;
+}
+
+/// Voxel coordinates `c` moved along `nv`, a normal in voxels, so that nv's largest
+/// component (offsetExtent) moves `voxels` (normalOffsetScale); `c` for a vanishing, huge
+/// or NaN nv.
+inline Vec3 offsetAlongNormal(const Vec3& c, const Vec3& nv, double voxels, int depthShift = 0) {
+  const double s = normalOffsetScale(offsetExtent(nv, depthShift), voxels);
   if (s == 0) return c;
   return {c.x + nv.x * s, c.y + nv.y * s, c.z + nv.z * s};
 }
 
-inline Vec3 mappedLookup(const LookupMapping& m, const Vec3& p, const Vec3& n, double voxels) {
+/// The lookup point of a query at p with normal n, in voxels (unfloored): p moved along
+/// n until its voxel lies `voxels` voxels further along n's largest voxel component
+/// (offsetAlongNormal). A zero, non-finite or vanishing normal gives no offset.
+inline Vec3 mappedLookup(const LookupMapping& m, const Vec3& p, const Vec3& n, double voxels, int depthShift = 0) {
   const Vec3 c = mappedVoxel(m, p);
   if (n == Vec3{}) return c;
-  return offsetAlongNormal(c, mappedDirection(m, n), voxels);
+  return offsetAlongNormal(c, mappedDirection(m, n), voxels, depthShift);
 }
 
 static_assert(offsetReciprocal(0) == 65536 && offsetReciprocal(255) == 32833);

@@ -55,8 +55,14 @@ class OrthoGrid final : public LightGrid {
   double d0 = 0;           // light depth of the near plane, relative to origin
   double extent = 1;       // side of the grid in u and v (world units)
   double depthExtent = 1;  // depth range (world units)
+  // The slices the scene's depth spans (makeGrid's depthSlices), a power of two below the
+  // resolution; 0: all of them (a cubic grid). Lookups offset by it (depthShift).
+  uint32_t depthSlices = 0;
 
   uint64_t resolution() const { return uint64_t(1) << log2Resolution; }
+  /// log2 of resolution / depthSlices: how many texels deep a slice is, as a power of two
+  /// (0 for a cubic grid and for a grid of another side).
+  int depthShift() const;
   /// World size of one texel and one slice of side() cells.
   double texelSize() const { return extent / cells(); }
   double sliceSize() const { return depthExtent / cells(); }
@@ -92,11 +98,13 @@ class OrthoGrid final : public LightGrid {
 /// R / depthSlices and the grid reaches that much further behind the scene: the scene lies
 /// in an R x R x depthSlices grid (what a shadow map of that depth precision resolves, the
 /// public peer's 16K x 16K x 4096), and the slices behind it repeat its last one, so they
-/// add almost nothing to the DAG. Throws InputError for an empty scene, a resolution outside
-/// [kMinLog2Resolution, kMaxLog2Resolution] or depthSlices above R.
+/// add almost nothing to the DAG; the grid keeps depthSlices for its lookups' offsets
+/// (depthShift). Throws InputError for an empty scene, a resolution outside
+/// [kMinLog2Resolution, kMaxLog2Resolution] or depthSlices that checkDepthSlices refuses.
 OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resolution, uint64_t depthSlices = 0);
 
-/// InputError starting with `what` unless `depthSlices` is 0 (all) or in [1, 2^log2Resolution].
+/// InputError starting with `what` unless `depthSlices` is 0 (all) or a power of two up to
+/// 2^log2Resolution.
 void checkDepthSlices(uint64_t depthSlices, int log2Resolution, const std::string& what);
 
 /// InputError naming `source` unless the grid's fields can be mapped with: a resolution
