@@ -98,6 +98,8 @@ std::vector<Case> headerCases() {
       {"resolution", [](Bytes& b) { put<int32_t>(b, kLog2R, 30); }, "resolution 2^30 is out of range"},
       {"depth shift beyond the resolution", [](Bytes& b) { put<int32_t>(b, kLog2R, 6 | 7 << 8); }, "names no grid"},
       {"negative resolution field", [](Bytes& b) { put<int32_t>(b, kLog2R, -1); }, "names no grid"},
+      {"resolution out of range with a depth shift", [](Bytes& b) { put<int32_t>(b, kLog2R, 60 | 1 << 8); },
+       "resolution 2^60 is out of range"},
       {"closed mode", [](Bytes& b) { b[kOptions] = 3; }, "options hold an unknown value"},
       {"hash kind", [](Bytes& b) { b[kOptions + 5] = 2; }, "options hold an unknown value"},
       {"renderer", [](Bytes& b) { b[kOptions + 6] = 2; }, "options hold an unknown value"},

@@ -1,6 +1,7 @@
 #include "cpvs/io/cpvs_file.h"
 
 #include "cpvs/base/error.h"
+#include "cpvs/base/limits.h"
 #include "cpvs/base/text.h"
 #include "cpvs/light/grid_spec.h"
 
@@ -82,7 +83,8 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
   if (shift != 0) {
     if (shift < 0 || shift > spec.log2Resolution)
       h.fail("the resolution field " + std::to_string(resolutionField) + " names no grid");
-    spec.depthSlices = uint32_t(1) << (spec.log2Resolution - shift);
+    // A resolution out of range is refused below (checkGrid) without its slices.
+    if (spec.log2Resolution <= kMaxLog2Resolution) spec.depthSlices = uint32_t(1) << (spec.log2Resolution - shift);
   }
   try {
     a.grid = orthoGridOf(spec, source);
