@@ -126,6 +126,7 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
     }
   }
   p.resolution = grid.resolution();
+  p.depthSlices = grid.depthSlices;
   p.receivers = d.kind;
   p.receiverPcf = d.kind == ReceiverKind::Everywhere ? 0 : d.maxPcf;
 
@@ -299,7 +300,10 @@ std::string planText(const BakePlan& p) {
   std::ostringstream o;
   o << p.scene << ": " << p.triangles << " triangles in " << p.parts << " parts; " << p.closedParts
     << " closed parts (" << p.closedTriangles << " triangles, " << percent(p.closedAreaShare) << " of the area)\n";
-  o << "  grid " << p.resolution << "^3, " << p.tiles << " tiles: " << p.tilesUntouched << " touched by no triangle, "
+  o << "  grid " << p.resolution;
+  if (p.depthSlices != 0) o << "^2 x " << p.depthSlices << " depth slices";
+  else o << "^3";
+  o << ", " << p.tiles << " tiles: " << p.tilesUntouched << " touched by no triangle, "
     << p.tilesUnread << " read by no receiver, " << (p.tiles - p.tilesUntouched - p.tilesUnread) << " to render\n";
   o << "  receivers " << optionName(p.receivers);
   if (p.receivers != ReceiverKind::Everywhere)

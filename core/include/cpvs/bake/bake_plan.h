@@ -27,6 +27,7 @@ struct BakePlan {
   uint64_t triangles = 0, parts = 0, closedParts = 0, closedTriangles = 0;
   double closedAreaShare = 0;  // of the scene's surface area, in closed parts
   uint64_t resolution = 0;
+  uint64_t depthSlices = 0;  // the grid's (OrthoGrid::depthSlices; 0: cubic), for the text only
   ReceiverKind receivers = ReceiverKind::Everywhere;
   int receiverPcf = 0;                 // 0 for everywhere
   uint64_t tiles = 0;
