@@ -11,7 +11,9 @@
 #include <mutex>
 #include <numbers>
 #include <numeric>
+#include <type_traits>
 
+#include "bake/receiver_reads.h"
 #include "cpvs/bake/camera_views.h"
 #include "cpvs/base/error.h"
 #include "cpvs/light/lookup_mapping.h"
@@ -778,7 +780,11 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
     const size_t texels = size_t(rowEnd - rowBegin) * width;
     const uint32_t* lo = slices.firstUndefined.data() + size_t(rowBegin) * width;
     const uint32_t* hi = slices.firstShadowed.data() + size_t(rowBegin) * width;
-    std::vector<uint32_t> newLo(texels, 0), newHi(texels, R_);
+    // Each thread's buffers, reused from band to band (the body starts no nested work, so
+    // no other band runs on this thread meanwhile): fresh ones cost page faults per band.
+    thread_local std::vector<uint32_t> newLo, newHi;
+    newLo.assign(texels, 0);
+    newHi.assign(texels, R_);
     // The reads [a, b] at texel k: a lit slice needed below the old range, a shadowed
     // one at or behind it.
     auto need = [&](size_t k, uint32_t a, uint32_t b) {
@@ -844,6 +850,13 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
             if (!(s.zLo <= s.zHi) || s.zHi < 0) continue;
             const uint32_t a = uint32_t(std::min(top, std::max(0.0, s.zLo))), b = uint32_t(std::min(top, s.zHi));
             for (int64_t x = xa; x <= xb; ++x) fn(row + size_t(x), a, b);
+            continue;
+          }
+          if constexpr (std::is_same_v<std::decay_t<decltype(fn)>, std::decay_t<decltype(need)>>) {
+            // The most common run of all: a surface's reads applied at once (receiver_reads.h).
+            const size_t at = row + size_t(xa);
+            applyPlanarRun({base, s.gx, s.zLo, s.zHi, loOff, hiOff, top, xa, xb}, lo + at, hi + at, newLo.data() + at,
+                           newHi.data() + at);
             continue;
           }
           for (int64_t x = xa; x <= xb; ++x) {

@@ -1,0 +1,24 @@
+// The slices a receiver span reads along a run of one row's columns, applied to the
+// band's freed ranges: the inner loop of ReceiverSet::freeIntervals, compiled for every
+// SIMD target Highway offers and chosen at run time. Private to the bake layer.
+#pragma once
+
+#include <cstdint>
+
+namespace cpvs {
+
+/// One planar span's run: columns x in [xa, xb] of a row, whose plane lies at depth
+/// base + gx (x + 1/2) (in slices), read from loOff to hiOff around it, cut to [zLo, zHi]
+/// and to the slices [0, top].
+struct PlanarRun {
+  double base, gx, zLo, zHi, loOff, hiOff, top;
+  int64_t xa, xb;
+};
+
+/// For each column of the run (element x - xa of the arrays) whose reads [a, b] are not
+/// empty: a lit slice read below the old range [lo, hi) raises newLo to min(b + 1, lo), a
+/// shadowed one at or behind it lowers newHi to max(a, hi). Every target computes the
+/// scalar loop's IEEE operations in its order, so the ranges are the same bits.
+void applyPlanarRun(const PlanarRun& run, const uint32_t* lo, const uint32_t* hi, uint32_t* newLo, uint32_t* newHi);
+
+}  // namespace cpvs
