@@ -58,8 +58,7 @@ std::string estimateJson(const BakeEstimate& e) {
 // them the columns the receivers' lookups reach (orange, counted at min(R, 4096)).
 void writeCoveragePng(const std::string& path, const Scene& scene, const OrthoGrid& grid, const BakeOptions& options,
                       const ReceiverDeclaration& receivers, const BakePlan& plan) {
-  OrthoGrid coarse = grid;
-  coarse.log2Resolution = std::min(grid.log2Resolution, kLog2PlanColumns);
+  const OrthoGrid coarse = grid.withResolution(std::min(grid.log2Resolution, kLog2PlanColumns));
   const std::vector<uint8_t> reached = ReceiverSet(scene, coarse, receivers).reachedColumns();
   const uint64_t C = coarse.resolution(), side = std::min<uint64_t>(C, 1024), per = C / side;
   const uint64_t perSide = TilePlan(grid.log2Resolution, options.log2TileSize).perSide();

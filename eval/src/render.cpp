@@ -25,7 +25,7 @@ std::vector<float> cpvsVisibility(const CameraHits& hits, const ShadowQuery& que
 
 std::vector<float> exactVisibility(const CameraHits& hits, const RayScene& rays, const OrthoGrid& grid) {
   std::vector<float> vis(hits.pixels.size(), 1.0f);
-  const double epsilon = 1e-5 * (grid.extent + grid.depthExtent);
+  const double epsilon = 1e-5 * (grid.extent + grid.sceneDepthExtent());
   tbb::parallel_for(size_t(0), hits.pixels.size(), [&](size_t i) {
     const SurfaceHit& s = hits.pixels[i];
     if (s.hit) vis[i] = exactlyLit(rays, grid, s.point + s.normal * epsilon) ? 1.0f : 0.0f;

@@ -128,10 +128,11 @@ DynamicCasters::DynamicCasters(const ShadowArtifact& artifact, const std::vector
   const PlacedMeshes placed = placeMeshes(meshes);
   triangles_ = placed.indices.size() / 3;
   // Queries come from the baked world and from the casters: the domain holds both.
-  const uint64_t R = grid.resolution();
+  // (On a grid with fewer depth slices, the scene's: no point lies behind them.)
+  const uint64_t R = grid.resolution(), depth = grid.depthSlices != 0 ? grid.depthSlices : R;
   Vec3 lo = grid.worldFromVoxel(Vec3{}), hi = lo;
   for (int c = 1; c < 8; ++c) {
-    const Vec3 corner = grid.worldFromVoxel(Vec3{c & 1 ? double(R) : 0, c & 2 ? double(R) : 0, c & 4 ? double(R) : 0});
+    const Vec3 corner = grid.worldFromVoxel(Vec3{c & 1 ? double(R) : 0, c & 2 ? double(R) : 0, c & 4 ? double(depth) : 0});
     lo = min(lo, corner);
     hi = max(hi, corner);
   }

@@ -769,7 +769,7 @@ TEST(Receivers, AGroundLayerCoversWalkableSurfaces) {
   EXPECT_THROW(checkReceiverDeclaration(d), InputError);
   d.groundSlopeDeg = 45;
   const OrthoGrid grid = makeGrid(s, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
-  d.groundLayer = 2 * std::max(grid.extent, grid.depthExtent) * 1.001;
+  d.groundLayer = 2 * std::max(grid.extent, grid.sceneDepthExtent()) * 1.001;
   EXPECT_THROW(ReceiverSet(s, grid, d), InputError);  // taller than the grid: nobody declares that
   d.groundLayer = 2;
   EXPECT_NO_THROW(ReceiverSet(s, grid, d));

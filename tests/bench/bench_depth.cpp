@@ -118,7 +118,7 @@ void legacyRenderTexelSlices(const RayScene& rays, const OrthoGrid& grid, Closed
   out.firstShadowed.assign(size_t(width) * height, R);
   // Crossings closer than this are one crossing seen twice (Embree's robust mode reports
   // a ray through a shared edge on both triangles).
-  const double dedupT = grid.depthExtent * 1e-6;
+  const double dedupT = grid.sceneDepthExtent() * 1e-6;
   const bool exact = exit == ExitMode::Exact;
   const TexelMapping texels = grid.texelMapping(rays.origin());
 

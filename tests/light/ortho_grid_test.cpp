@@ -119,10 +119,18 @@ TEST(OrthoGrid, FewerDepthSlicesCountTheOffsetAcrossInTexelsPerSlice) {
   }
   EXPECT_NEAR(std::abs((g.offsetVoxel(w, g.frame.u, 2.5) - g.voxelFromWorld(w)).x), 10, 0.1);
   EXPECT_NEAR(std::abs((g.offsetVoxel(w, g.frame.dir, 2.5) - g.voxelFromWorld(w)).z), 2.5, 0.01);
+  // The scene's depth is the first quarter; a coarser count keeps slices 4 texels deep.
+  EXPECT_EQ(g.sceneDepthExtent(), g.depthExtent / 4);
+  EXPECT_EQ(g.withResolution(6).depthSlices, 16u);
+  EXPECT_EQ(g.withResolution(6).depthShift(), 2);
+  EXPECT_EQ(g.withResolution(6).sceneDepthExtent(), g.sceneDepthExtent());
+  EXPECT_EQ(g.withResolution(1).depthSlices, 1u);  // down to one slice
   // A cubic grid, and the same volume at another side (a shadow map's), offset as before.
   EXPECT_EQ(g.withSide(100).depthShift(), 0);
   g.depthSlices = 0;
   EXPECT_NEAR(std::abs((g.offsetVoxel(w, g.frame.u, 2.5) - g.voxelFromWorld(w)).x), 2.5, 0.01);
+  EXPECT_EQ(g.sceneDepthExtent(), g.depthExtent);
+  EXPECT_EQ(g.withResolution(6).depthSlices, 0u);
   // Depth slices that are no power of two below the resolution are refused.
   for (uint32_t bad : {3u, 256u, 512u}) {
     g.depthSlices = bad;

@@ -66,7 +66,7 @@ void bruteForceTexel(const Scene& scene, const OrthoGrid& grid, ClosedMode close
                             uint64_t y, uint32_t& lo, uint32_t& hi, bool& ambiguous) {
   const Vec3 from = grid.worldFromVoxel(Vec3{double(x) + 0.5, double(y) + 0.5, 0.0});
   const double slicesPerUnit = double(grid.resolution()) / grid.depthExtent;
-  bruteForceRay(scene, from, grid.frame.dir, closed, exit, grid.texelMapping(grid.origin), grid.depthExtent * 1e-6,
+  bruteForceRay(scene, from, grid.frame.dir, closed, exit, grid.texelMapping(grid.origin), grid.sceneDepthExtent() * 1e-6,
                 [&](double t) { return t * slicesPerUnit - std::floor(t * slicesPerUnit); }, lo, hi, ambiguous);
 }
 

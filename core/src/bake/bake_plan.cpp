@@ -150,8 +150,7 @@ BakePlan planBake(const Scene& scene, const SceneStats& stats, const BakeOptions
       for (uint32_t cx = 0; cx < p.coverageCells; ++cx)
         p.coverage[size_t(cy) * p.coverageCells + cx] = reads.touchesRectangle(cx * side, cy * side, side, side) ? 1 : 0;
   }
-  OrthoGrid coarse = grid;
-  coarse.log2Resolution = std::min(grid.log2Resolution, kLog2PlanColumns);
+  const OrthoGrid coarse = grid.withResolution(std::min(grid.log2Resolution, kLog2PlanColumns));
   p.columnsSampledSide = coarse.resolution();
   if (d.kind != ReceiverKind::Everywhere) {
     const ReceiverSet counted(scene, coarse, d);

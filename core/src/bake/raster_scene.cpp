@@ -116,7 +116,7 @@ struct RasterScene::Projection {
 };
 
 RasterScene::RasterScene(const Scene& scene, const OrthoGrid& grid)
-    : grid_(grid), log2Resolution_(grid.log2Resolution), tieDistance_(grid.depthExtent * 1e-6) {
+    : grid_(grid), log2Resolution_(grid.log2Resolution), tieDistance_(grid.sceneDepthExtent() * 1e-6) {
   const double R = double(grid.resolution());
   const double toTexel = R / grid.extent;
   depthLimit_ = grid.depthExtent * 1.0001;  // as TexelMapping's far end

@@ -428,7 +428,7 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
   // at a column lie between the two copies' planes, widened as a volume's.
   if (d.groundLayer > 0) {
     // Taller than the grid it would sweep across all of it: no level has such a layer.
-    const double tallest = 2 * std::max(grid.extent, grid.depthExtent);
+    const double tallest = 2 * std::max(grid.extent, grid.sceneDepthExtent());
     if (d.groundLayer > tallest)
       throw InputError("receivers: a ground layer " + std::to_string(d.groundLayer) +
                        " scene units tall is taller than twice the scene's grid (" + std::to_string(tallest) + ")");

@@ -162,7 +162,7 @@ void renderTexels(const RayScene& rays, const Texels& texels, double dedupT, Ski
 void renderTexelSlices(const RayScene& rays, const OrthoGrid& grid, ClosedMode closed, ExitMode exit,
                        uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
                        TexelSlices& out) {
-  renderTexels(rays, grid.texelMapping(rays.origin()), grid.depthExtent * 1e-6, [](uint64_t, uint64_t) { return false; },
+  renderTexels(rays, grid.texelMapping(rays.origin()), grid.sceneDepthExtent() * 1e-6, [](uint64_t, uint64_t) { return false; },
                closed, exit, x0, y0, width, height, out);
 }
 

@@ -91,6 +91,18 @@ int OrthoGrid::depthShift() const {
   return log2Resolution - std::countr_zero(depthSlices);
 }
 
+double OrthoGrid::sceneDepthExtent() const {
+  return depthSlices == 0 ? depthExtent : depthExtent * double(depthSlices) / double(resolution());
+}
+
+OrthoGrid OrthoGrid::withResolution(int log2R) const {
+  OrthoGrid g = *this;
+  g.log2Resolution = log2R;
+  const int shift = depthShift();
+  g.depthSlices = shift == 0 ? 0 : uint32_t(1) << std::max(0, log2R - shift);
+  return g;
+}
+
 OrthoGrid makeGrid(const Scene& scene, const LightFrame& frame, int log2Resolution, uint64_t depthSlices) {
   if (log2Resolution < kMinLog2Resolution || log2Resolution > kMaxLog2Resolution)
     throw InputError("resolution 2^" + std::to_string(log2Resolution) + " is outside [2^" +

@@ -63,6 +63,12 @@ class OrthoGrid final : public LightGrid {
   /// log2 of resolution / depthSlices: how many texels deep a slice is, as a power of two
   /// (0 for a cubic grid and for a grid of another side).
   int depthShift() const;
+  /// The depth the scene spans (world units): depthExtent, of which a grid with fewer
+  /// depth slices holds the scene in the first depthSlices / R.
+  double sceneDepthExtent() const;
+  /// The same volume at resolution 2^log2Resolution (a plan's coarse count), its slices
+  /// as deep against its texels as here (the same depthShift, down to one slice).
+  OrthoGrid withResolution(int log2Resolution) const;
   /// World size of one texel and one slice of side() cells.
   double texelSize() const { return extent / cells(); }
   double sliceSize() const { return depthExtent / cells(); }
