@@ -17,10 +17,8 @@ namespace hn = hwy::HWY_NAMESPACE;
 // One column, as the vector lanes compute it (and every column of a run's tail).
 HWY_INLINE void applyColumn(const PlanarRun& r, int64_t x, size_t i, const uint32_t* lo, const uint32_t* hi,
                             uint32_t* newLo, uint32_t* newHi) {
-  const double z = r.base + r.gx * (double(x) + 0.5);
-  const double lower = std::max(r.zLo, z + r.loOff), upper = std::min(r.zHi, z + r.hiOff);
-  if (!(lower <= upper) || upper < 0) return;
-  const uint32_t a = uint32_t(std::min(r.top, std::max(0.0, lower))), b = uint32_t(std::min(r.top, upper));
+  uint32_t a = 0, b = 0;
+  if (!planarReads(r, x, a, b)) return;
   if (a < lo[i]) newLo[i] = std::max(newLo[i], std::min(b + 1, lo[i]));
   if (b >= hi[i]) newHi[i] = std::min(newHi[i], std::max(a, hi[i]));
 }

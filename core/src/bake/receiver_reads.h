@@ -3,6 +3,7 @@
 // SIMD target Highway offers and chosen at run time. Private to the bake layer.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 
 namespace cpvs {
@@ -14,6 +15,17 @@ struct PlanarRun {
   double base, gx, zLo, zHi, loOff, hiOff, top;
   int64_t xa, xb;
 };
+
+/// The slices [a, b] that column x of the run reads; false when it reads none. The one
+/// statement the scalar loops run and every SIMD target repeats operation for operation.
+inline bool planarReads(const PlanarRun& r, int64_t x, uint32_t& a, uint32_t& b) {
+  const double z = r.base + r.gx * (double(x) + 0.5);
+  const double lower = std::max(r.zLo, z + r.loOff), upper = std::min(r.zHi, z + r.hiOff);
+  if (!(lower <= upper) || upper < 0) return false;
+  a = uint32_t(std::min(r.top, std::max(0.0, lower)));
+  b = uint32_t(std::min(r.top, upper));
+  return true;
+}
 
 /// For each column of the run (element x - xa of the arrays) whose reads [a, b] are not
 /// empty: a lit slice read below the old range [lo, hi) raises newLo to min(b + 1, lo), a

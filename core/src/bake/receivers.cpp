@@ -852,18 +852,16 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
             for (int64_t x = xa; x <= xb; ++x) fn(row + size_t(x), a, b);
             continue;
           }
+          const PlanarRun run{base, s.gx, s.zLo, s.zHi, loOff, hiOff, top, xa, xb};
           if constexpr (std::is_same_v<std::decay_t<decltype(fn)>, std::decay_t<decltype(need)>>) {
             // The most common run of all: a surface's reads applied at once (receiver_reads.h).
             const size_t at = row + size_t(xa);
-            applyPlanarRun({base, s.gx, s.zLo, s.zHi, loOff, hiOff, top, xa, xb}, lo + at, hi + at, newLo.data() + at,
-                           newHi.data() + at);
+            applyPlanarRun(run, lo + at, hi + at, newLo.data() + at, newHi.data() + at);
             continue;
           }
           for (int64_t x = xa; x <= xb; ++x) {
-            const double z = base + s.gx * (double(x) + 0.5);
-            const double lower = std::max(s.zLo, z + loOff), upper = std::min(s.zHi, z + hiOff);
-            if (!(lower <= upper) || upper < 0) continue;
-            fn(row + size_t(x), uint32_t(std::min(top, std::max(0.0, lower))), uint32_t(std::min(top, upper)));
+            uint32_t a = 0, b = 0;
+            if (planarReads(run, x, a, b)) fn(row + size_t(x), a, b);
           }
         }
       }
