@@ -1,0 +1,82 @@
+// DAG-MH (seed 001): an MH's shape stored as a DAG that merges equal subtree shapes
+// whatever their values, its lowest four levels as 85-bit treelets, and its values apart,
+// in preorder, chunked (value_chunks.h). Layouts: NOTES §2.2.3-§2.2.6, words the same on
+// disk and on the GPU.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "cpvs/dagmh/mh.h"
+#include "cpvs/dagmh/value_chunks.h"
+
+namespace cpvs {
+
+/// What an inner node's child is (2 bits per child in its first word).
+enum DagMhChild : uint32_t { kDagMhAbsent = 0, kDagMhEmptyInner = 1, kDagMhFullInner = 2, kDagMhTreelet = 3 };
+
+/// A treelet: the node and the three levels below it (1 + 4 + 16 + 64 nodes), one bit per
+/// node that stores a value, in preorder; the node at depth n on the path l0, l1, l2 is bit
+/// n + 21 l0 + 5 l1 + l2 (l_i = 0 for i >= n). Bits 85..95 are zero.
+constexpr uint32_t kTreeletWords = 3;
+constexpr int kTreeletLevels = 4;
+inline uint32_t treeletBit(int depth, uint32_t l0, uint32_t l1, uint32_t l2) {
+  return uint32_t(depth) + 21 * (depth > 0 ? l0 : 0) + 5 * (depth > 1 ? l1 : 0) + (depth > 2 ? l2 : 0);
+}
+
+/// A skip-list entry (3 words): the node at the skip level, where a lookup starts.
+struct DagMhSkip {
+  uint32_t typePtr = 0;  // bits 0..1: DagMhChild; bits 2..31: the node's word offset
+  uint32_t first = 0;    // index of the node's first value (its own when full)
+  uint32_t last = 0;     // the value index a lookup holds above it
+};
+static_assert(sizeof(DagMhSkip) == 12);
+
+/// The largest skip level, and how many levels above the treelets it stays.
+constexpr int kDagMhSkipLevel = 6;
+
+/// A complete DAG-MH of a 2^log2Side map.
+///
+/// Inner node (words): w0 bits 2c..2c+1 = the type of child c; w1 = the values strictly
+/// below the node; then per child present, in order: its pointer (a word offset in `nodes`
+/// for an inner child, a treelet index for a treelet) and, except for the first, the
+/// values below the node before that child's subtree. Nodes lie level by level from the
+/// root, each level in the order its parents first name them, so every pointer leads
+/// forward and the layout is a function of the shape alone.
+struct DagMh {
+  int log2Side = 0;
+  uint32_t rootType = kDagMhFullInner;  // kDagMhFullInner (at nodes[0]) or kDagMhTreelet (treelet 0)
+  std::vector<uint32_t> nodes;
+  std::vector<uint32_t> treelets;  // kTreeletWords per treelet
+  ValueChunks values;
+  int skipLevel = 0;  // 0: no skip list
+  std::vector<DagMhSkip> skip;
+
+  /// Where the value of texel (x, y) is in the value list.
+  uint32_t valueIndex(uint64_t x, uint64_t y) const;
+  /// The depth stored for texel (x, y): inside its interval.
+  float depth(uint64_t x, uint64_t y) const { return values.value(valueIndex(x, y)); }
+
+  uint64_t innerNodeCount() const;
+  uint64_t treeletCount() const { return treelets.size() / kTreeletWords; }
+  /// Bytes of each part as stored (seed 001's Tables 3 and 4).
+  uint64_t structureBytes() const { return (nodes.size() + treelets.size()) * 4; }
+  uint64_t skipBytes() const { return skip.size() * sizeof(DagMhSkip); }
+  uint64_t bytes() const { return structureBytes() + values.bytes() + skipBytes(); }
+};
+
+/// The values of a hierarchy's full nodes in preorder (children in mhChild order), as
+/// their intervals: what encodeValueChunks chooses within.
+void mhValueIntervals(const Mh& mh, std::vector<float>& lo, std::vector<float>& hi);
+
+/// Encodes a hierarchy: shapes merged, treelets, values chunked, the skip list.
+DagMh encodeDagMh(const Mh& mh);
+
+/// Checks everything a lookup trusts (NOTES §2.4.5): child types and pointers in range and
+/// leading forward to node starts, the counts and prefixes, treelet padding bits, the root,
+/// the chunks' widths and offsets within the factor stream, the skip list against a fresh
+/// descent. Throws FormatError naming `source` and the word.
+void validateDagMh(const DagMh& dag, const std::string& source);
+
+}  // namespace cpvs

@@ -1,0 +1,441 @@
+#include "cpvs/dagmh/dag_mh.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <unordered_map>
+
+#include "cpvs/base/error.h"
+
+namespace cpvs {
+
+namespace {
+
+// The level of the treelets' roots: the lowest four levels, or the whole map when it has
+// fewer.
+int treeletLevel(int log2Side) { return std::max(0, log2Side - (kTreeletLevels - 1)); }
+
+// A skip list where it pays (NOTES §2.2.6): a level near the root, above the treelets.
+int skipLevelFor(int log2Side) { return std::clamp(log2Side - 5, 0, kDagMhSkipLevel); }
+
+// Words an inner node of w0 `types` takes: two, then a pointer per child present and a
+// prefix count per child after the first.
+uint32_t innerWords(uint32_t types) {
+  uint32_t present = 0;
+  for (int c = 0; c < 4; ++c) present += ((types >> (2 * c)) & 3) != kDagMhAbsent;
+  return present == 0 ? 2 : 2 * present + 1;
+}
+uint32_t pointerWord(uint32_t k) { return k == 0 ? 2 : 2 * k + 1; }
+uint32_t prefixWord(uint32_t k) { return 2 * k + 2; }
+
+uint32_t treeletValues(const uint32_t* t) {
+  return uint32_t(std::popcount(t[0]) + std::popcount(t[1]) + std::popcount(t[2]));
+}
+// Set bits of the treelet before bit i.
+uint32_t treeletRank(const uint32_t* t, uint32_t i) {
+  uint32_t n = 0;
+  for (uint32_t w = 0; w < i / 32; ++w) n += uint32_t(std::popcount(t[w]));
+  if (i % 32) n += uint32_t(std::popcount(t[i / 32] & ((1u << (i % 32)) - 1)));
+  return n;
+}
+bool treeletHas(const uint32_t* t, uint32_t i) { return t[i / 32] >> (i % 32) & 1; }
+
+// Where a lookup stands: the node it is at and the value indices it holds.
+struct Descent {
+  uint32_t type = kDagMhAbsent, ptr = 0;
+  uint32_t first = 0;  // the node's first value index
+  uint32_t last = 0;   // the value a lookup returns if nothing below stores one
+  int level = 0;
+};
+
+Descent rootDescent(const DagMh& dag) {
+  Descent d;
+  d.type = dag.rootType;
+  return d;
+}
+
+// Descends inner nodes towards texel (x, y) down to `stopLevel`, or to a treelet or an
+// absent child. The loop is bounded by the levels, whatever the words say.
+void descend(const DagMh& dag, Descent& d, uint64_t x, uint64_t y, int stopLevel) {
+  while (d.level < stopLevel && (d.type == kDagMhFullInner || d.type == kDagMhEmptyInner)) {
+    uint32_t base = d.first;
+    if (d.type == kDagMhFullInner) {
+      d.last = d.first;
+      ++base;
+    }
+    const uint32_t* node = dag.nodes.data() + d.ptr;
+    const uint32_t c = mhChild(x, y, dag.log2Side - d.level - 1);
+    const uint32_t type = (node[0] >> (2 * c)) & 3;
+    ++d.level;
+    d.type = type;
+    if (type == kDagMhAbsent) {
+      d.ptr = d.first = 0;
+      return;
+    }
+    uint32_t k = 0;
+    for (uint32_t o = 0; o < c; ++o) k += ((node[0] >> (2 * o)) & 3) != kDagMhAbsent;
+    d.ptr = node[pointerWord(k)];
+    d.first = base + (k == 0 ? 0 : node[prefixWord(k)]);
+  }
+}
+
+// The value index of texel (x, y) once the descent has stopped.
+uint32_t finish(const DagMh& dag, const Descent& d, uint64_t x, uint64_t y) {
+  if (d.type == kDagMhAbsent) return d.last;
+  if (d.type != kDagMhTreelet) return d.type == kDagMhFullInner ? d.first : d.last;
+  const uint32_t* t = dag.treelets.data() + size_t(d.ptr) * kTreeletWords;
+  const int below = dag.log2Side - d.level;
+  uint32_t l[3] = {0, 0, 0};
+  for (int n = 0; n < below; ++n) l[n] = mhChild(x, y, below - n - 1);
+  for (int n = below; n >= 0; --n) {
+    const uint32_t i = treeletBit(n, l[0], l[1], l[2]);
+    if (treeletHas(t, i)) return d.first + treeletRank(t, i);
+  }
+  return d.last;
+}
+
+struct WordsHash {
+  size_t operator()(const std::vector<uint32_t>& w) const {
+    uint64_t h = 0x9E3779B97F4A7C15ull;
+    for (uint32_t v : w) h = (h ^ v) * 0x100000001B3ull + (h >> 29);
+    return size_t(h);
+  }
+};
+struct TreeletHash {
+  size_t operator()(const std::array<uint32_t, 3>& t) const {
+    return size_t((uint64_t(t[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(t[1]) * 0xC2B2AE3D27D4EB4Full) ^
+                  (uint64_t(t[2]) * 0x165667B19E3779F9ull));
+  }
+};
+
+// A node as its parent sees it.
+struct ChildRef {
+  uint32_t type = kDagMhAbsent;
+  uint32_t id = 0;      // a pool index (before the final layout)
+  uint32_t values = 0;  // in its subtree, its own included
+};
+
+// The unique shapes of one level of inner nodes, their pointers still pool indices.
+struct LevelPool {
+  std::vector<std::vector<uint32_t>> nodes;
+  std::unordered_map<std::vector<uint32_t>, uint32_t, WordsHash> index;
+  uint32_t add(std::vector<uint32_t>&& words) {
+    const auto [it, added] = index.try_emplace(words, uint32_t(nodes.size()));
+    if (added) nodes.push_back(std::move(words));
+    return it->second;
+  }
+};
+
+uint32_t checkedValues(uint64_t v) {
+  if (v > UINT32_MAX) throw InputError("a DAG-MH holds at most 2^32 - 1 values");
+  return uint32_t(v);
+}
+
+}  // namespace
+
+uint32_t DagMh::valueIndex(uint64_t x, uint64_t y) const {
+  Descent d = rootDescent(*this);
+  if (skipLevel > 0) {
+    const int shift = log2Side - skipLevel;
+    const DagMhSkip& e = skip[size_t(y >> shift) << skipLevel | size_t(x >> shift)];
+    d.type = e.typePtr & 3;
+    d.ptr = e.typePtr >> 2;
+    d.first = e.first;
+    d.last = e.last;
+    d.level = skipLevel;
+  }
+  descend(*this, d, x, y, log2Side);
+  return finish(*this, d, x, y);
+}
+
+uint64_t DagMh::innerNodeCount() const {
+  uint64_t n = 0;
+  for (size_t at = 0; at < nodes.size(); at += innerWords(nodes[at])) ++n;
+  return n;
+}
+
+void mhValueIntervals(const Mh& mh, std::vector<float>& lo, std::vector<float>& hi) {
+  lo.clear();
+  hi.clear();
+  struct Item {
+    int level;
+    uint32_t x, y;
+  };
+  std::vector<Item> stack{{0, 0, 0}};
+  while (!stack.empty()) {
+    const Item it = stack.back();
+    stack.pop_back();
+    const MhState s = mh.state(it.level, it.x, it.y);
+    if (s == MhState::Absent) continue;
+    if (s == MhState::Full) {
+      lo.push_back(mh.lo(it.level, it.x, it.y));
+      hi.push_back(mh.hi(it.level, it.x, it.y));
+    }
+    if (it.level == mh.log2Side() || !mh.hasFull(it.level, it.x, it.y)) continue;
+    for (int c = 3; c >= 0; --c)
+      stack.push_back({it.level + 1, 2 * it.x + uint32_t(c & 1), 2 * it.y + uint32_t(c >> 1)});
+  }
+}
+
+DagMh encodeDagMh(const Mh& mh) {
+  const int L = mh.log2Side(), t = treeletLevel(L), below = L - t;
+  DagMh dag;
+  dag.log2Side = L;
+
+  // Treelets: every node at level t that is not absent, its bits in preorder.
+  const uint32_t tside = mh.side(t);
+  std::vector<std::array<uint32_t, 3>> bits(size_t(tside) * tside);
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, tside, std::max(1u, 256u / tside)), [&](const auto& rows) {
+    for (uint32_t y = rows.begin(); y != rows.end(); ++y)
+      for (uint32_t x = 0; x < tside; ++x) {
+        std::array<uint32_t, 3>& b = bits[size_t(y) * tside + x];
+        b = {0, 0, 0};
+        if (mh.state(t, x, y) == MhState::Absent) continue;
+        // Depth n holds 4^n nodes; node j of depth n has path digits j's base-4 digits.
+        for (int n = 0; n <= below; ++n)
+          for (uint32_t j = 0; j < (1u << (2 * n)); ++j) {
+            uint32_t l[3] = {0, 0, 0}, nx = x, ny = y;
+            for (int d = 0; d < n; ++d) {
+              l[d] = (j >> (2 * (n - 1 - d))) & 3;
+              nx = 2 * nx + (l[d] & 1);
+              ny = 2 * ny + (l[d] >> 1);
+            }
+            if (mh.state(t + n, nx, ny) == MhState::Full) {
+              const uint32_t i = treeletBit(n, l[0], l[1], l[2]);
+              b[i / 32] |= 1u << (i % 32);
+            }
+          }
+      }
+  });
+  std::unordered_map<std::array<uint32_t, 3>, uint32_t, TreeletHash> treeletIndex;
+  std::vector<std::array<uint32_t, 3>> treeletPool;
+  std::vector<ChildRef> refs(bits.size());
+  for (uint32_t y = 0; y < tside; ++y)
+    for (uint32_t x = 0; x < tside; ++x) {
+      const size_t i = size_t(y) * tside + x;
+      if (mh.state(t, x, y) == MhState::Absent) continue;
+      const auto [it, added] = treeletIndex.try_emplace(bits[i], uint32_t(treeletPool.size()));
+      if (added) treeletPool.push_back(bits[i]);
+      refs[i] = {kDagMhTreelet, it->second, treeletValues(bits[i].data())};
+    }
+
+  // Inner levels bottom-up; each node's words name its children by pool index.
+  std::vector<LevelPool> pools{size_t(t)};
+  for (int l = t - 1; l >= 0; --l) {
+    const uint32_t n = mh.side(l);
+    std::vector<ChildRef> up(size_t(n) * n);
+    for (uint32_t y = 0; y < n; ++y)
+      for (uint32_t x = 0; x < n; ++x) {
+        const MhState s = mh.state(l, x, y);
+        if (s == MhState::Absent) continue;
+        std::vector<uint32_t> words{0, 0};
+        uint64_t values = 0;
+        for (uint32_t c = 0; c < 4; ++c) {
+          const ChildRef& ch = refs[size_t(2 * y + (c >> 1)) * (2 * n) + 2 * x + (c & 1)];
+          if (ch.type == kDagMhAbsent) continue;
+          words[0] |= ch.type << (2 * c);
+          words.push_back(ch.id);
+          if (words.size() > 3) words.push_back(uint32_t(values));
+          values += ch.values;
+        }
+        words[1] = checkedValues(values);
+        const uint32_t id = pools[size_t(l)].add(std::move(words));
+        up[size_t(y) * n + x] = {s == MhState::Full ? kDagMhFullInner : kDagMhEmptyInner, id,
+                                 checkedValues(values + (s == MhState::Full))};
+      }
+    refs = std::move(up);
+  }
+
+  // The final layout: level by level from the root, each in the order of first mention.
+  if (t == 0) {
+    dag.rootType = kDagMhTreelet;
+    dag.treelets.assign(treeletPool[0].begin(), treeletPool[0].end());
+  } else {
+    dag.rootType = kDagMhFullInner;
+    std::vector<uint32_t> order{0};  // pool indices of the current level, in layout order
+    std::vector<std::vector<uint32_t>> offsets{size_t(t)};  // per level: pool index -> word offset
+    std::vector<uint32_t> treeletOrder(treeletPool.size(), UINT32_MAX);
+    uint32_t treelets = 0;
+    uint64_t at = 0;
+    for (int l = 0; l < t; ++l) {
+      LevelPool& pool = pools[size_t(l)];
+      offsets[size_t(l)].assign(pool.nodes.size(), UINT32_MAX);
+      for (uint32_t id : order) {
+        offsets[size_t(l)][id] = uint32_t(at);
+        at += pool.nodes[id].size();
+      }
+      if (at >= (uint64_t(1) << 30)) throw InputError("a DAG-MH's inner nodes exceed 2^30 words");
+      std::vector<uint32_t> next;
+      std::vector<uint8_t> seen(l + 1 < t ? pools[size_t(l) + 1].nodes.size() : 0, 0);
+      for (uint32_t id : order) {
+        const std::vector<uint32_t>& w = pool.nodes[id];
+        for (uint32_t k = 0, c = 0; c < 4; ++c) {
+          const uint32_t type = (w[0] >> (2 * c)) & 3;
+          if (type == kDagMhAbsent) continue;
+          const uint32_t child = w[pointerWord(k++)];
+          if (type == kDagMhTreelet) {
+            if (treeletOrder[child] == UINT32_MAX) treeletOrder[child] = treelets++;
+          } else if (!seen[child]) {
+            seen[child] = 1;
+            next.push_back(child);
+          }
+        }
+      }
+      order = std::move(next);
+    }
+    // Write the words with the pointers made final.
+    for (int l = 0; l < t; ++l) {
+      std::vector<std::pair<uint32_t, uint32_t>> byOffset;
+      for (uint32_t id = 0; id < offsets[size_t(l)].size(); ++id) byOffset.push_back({offsets[size_t(l)][id], id});
+      std::sort(byOffset.begin(), byOffset.end());
+      for (const auto& [offset, id] : byOffset) {
+        CPVS_CHECK(offset == dag.nodes.size());
+        std::vector<uint32_t> w = pools[size_t(l)].nodes[id];
+        for (uint32_t k = 0, c = 0; c < 4; ++c) {
+          const uint32_t type = (w[0] >> (2 * c)) & 3;
+          if (type == kDagMhAbsent) continue;
+          uint32_t& p = w[pointerWord(k++)];
+          p = type == kDagMhTreelet ? treeletOrder[p] : offsets[size_t(l) + 1][p];
+        }
+        dag.nodes.insert(dag.nodes.end(), w.begin(), w.end());
+      }
+    }
+    dag.treelets.resize(size_t(treelets) * kTreeletWords);
+    for (size_t id = 0; id < treeletPool.size(); ++id)
+      if (treeletOrder[id] != UINT32_MAX)
+        std::copy(treeletPool[id].begin(), treeletPool[id].end(), dag.treelets.begin() + size_t(treeletOrder[id]) * kTreeletWords);
+  }
+
+  std::vector<float> lo, hi;
+  mhValueIntervals(mh, lo, hi);
+  dag.values = encodeValueChunks(lo.data(), hi.data(), lo.size());
+
+  dag.skipLevel = skipLevelFor(L);
+  if (dag.skipLevel > 0) {
+    const uint32_t n = 1u << dag.skipLevel;
+    const int shift = L - dag.skipLevel;
+    dag.skip.resize(size_t(n) * n);
+    for (uint32_t y = 0; y < n; ++y)
+      for (uint32_t x = 0; x < n; ++x) {
+        Descent d = rootDescent(dag);
+        descend(dag, d, uint64_t(x) << shift, uint64_t(y) << shift, dag.skipLevel);
+        dag.skip[size_t(y) * n + x] = {d.ptr << 2 | d.type, d.first, d.last};
+      }
+  }
+  return dag;
+}
+
+namespace {
+
+[[noreturn]] void invalid(const std::string& source, const std::string& what) {
+  throw FormatError(source + ": invalid DAG-MH: " + what);
+}
+
+}  // namespace
+
+void validateDagMh(const DagMh& dag, const std::string& source) {
+  const int L = dag.log2Side;
+  if (L < 0 || L > 20) invalid(source, "resolution 2^" + std::to_string(L));
+  const int t = treeletLevel(L);
+  const size_t treeletCount = dag.treelets.size() / kTreeletWords;
+  if (dag.treelets.size() % kTreeletWords) invalid(source, "a treelet pool of " + std::to_string(dag.treelets.size()) + " words");
+  // Treelets: the padding bits and, near a small map's texels, the depths it lacks.
+  const int below = L - t;
+  for (size_t i = 0; i < treeletCount; ++i) {
+    const uint32_t* tw = dag.treelets.data() + i * kTreeletWords;
+    if (tw[2] >> (85 - 64)) invalid(source, "treelet " + std::to_string(i) + " sets bits beyond 85");
+    if (treeletValues(tw) == 0) invalid(source, "treelet " + std::to_string(i) + " stores nothing");
+    for (uint32_t b = 0; b < 85 && below < 3; ++b) {
+      const int depth = b == 0 ? 0 : (b - 1) % 21 == 0 ? 1 : ((b - 1) % 21 - 1) % 5 == 0 ? 2 : 3;
+      if (depth > below && treeletHas(tw, b)) invalid(source, "treelet " + std::to_string(i) + " sets a level below the texels");
+    }
+  }
+  uint64_t total = 0;
+  if (dag.rootType == kDagMhTreelet) {
+    if (t != 0 || treeletCount != 1 || !dag.nodes.empty()) invalid(source, "a treelet root above four levels");
+    if (!treeletHas(dag.treelets.data(), 0)) invalid(source, "the root stores no value");
+    total = treeletValues(dag.treelets.data());
+  } else {
+    if (dag.rootType != kDagMhFullInner || t == 0 || dag.nodes.empty()) invalid(source, "root type " + std::to_string(dag.rootType));
+    // Node starts, levels (pointers lead forward, so one pass in order sees every parent
+    // before its child), then the counts from the bottom up.
+    std::vector<int32_t> level(dag.nodes.size(), -1);
+    std::vector<uint8_t> treeletUsed(treeletCount, 0);
+    std::vector<size_t> starts;
+    level[0] = 0;
+    for (size_t at = 0; at < dag.nodes.size();) {
+      const uint32_t types = dag.nodes[at];
+      if (types >> 8) invalid(source, "node word " + std::to_string(at) + " sets reserved bits");
+      const uint32_t size = innerWords(types);
+      if (at + size > dag.nodes.size()) invalid(source, "node word " + std::to_string(at) + " runs past the pool");
+      if (level[at] < 0) invalid(source, "node word " + std::to_string(at) + " is not reached from the root");
+      starts.push_back(at);
+      for (uint32_t k = 0, c = 0; c < 4; ++c) {
+        const uint32_t type = (types >> (2 * c)) & 3;
+        if (type == kDagMhAbsent) continue;
+        const uint32_t p = dag.nodes[at + pointerWord(k++)];
+        const int childLevel = level[at] + 1;
+        if (type == kDagMhTreelet) {
+          if (childLevel != t || p >= treeletCount) invalid(source, "node word " + std::to_string(at) + " names a treelet out of place");
+          treeletUsed[p] = 1;
+        } else {
+          if (childLevel >= t || p <= at || p >= dag.nodes.size() || (level[p] >= 0 && level[p] != childLevel))
+            invalid(source, "node word " + std::to_string(at) + " names node " + std::to_string(p) + " out of place");
+          level[p] = childLevel;
+        }
+      }
+      for (uint32_t w = 1; w < size; ++w)
+        if (at + w < level.size() && level[at + w] >= 0) invalid(source, "a pointer into node word " + std::to_string(at));
+      at += size;
+    }
+    for (size_t i = 0; i < treeletCount; ++i)
+      if (!treeletUsed[i]) invalid(source, "treelet " + std::to_string(i) + " is not reached from the root");
+    std::vector<uint64_t> below(dag.nodes.size(), 0);
+    for (auto it = starts.rbegin(); it != starts.rend(); ++it) {
+      const size_t at = *it;
+      const uint32_t types = dag.nodes[at];
+      uint64_t values = 0;
+      for (uint32_t k = 0, c = 0; c < 4; ++c) {
+        const uint32_t type = (types >> (2 * c)) & 3;
+        if (type == kDagMhAbsent) continue;
+        if (k > 0 && dag.nodes[at + prefixWord(k)] != values) invalid(source, "node word " + std::to_string(at) + ": a wrong prefix count");
+        const uint32_t p = dag.nodes[at + pointerWord(k++)];
+        values += type == kDagMhTreelet ? treeletValues(dag.treelets.data() + size_t(p) * kTreeletWords)
+                                        : below[p] + (type == kDagMhFullInner);
+      }
+      if (values != dag.nodes[at + 1]) invalid(source, "node word " + std::to_string(at) + ": a wrong value count");
+      below[at] = values;
+    }
+    total = below[0] + 1;
+  }
+  // Values: as many as the tree stores, chunk widths and factor bytes in the stream.
+  const ValueChunks& v = dag.values;
+  if (v.count != total) invalid(source, std::to_string(v.count) + " values for a tree of " + std::to_string(total));
+  if (v.chunks.size() != (v.count + kValuesPerChunk - 1) / kValuesPerChunk) invalid(source, "the chunk count");
+  if (v.factors.size() < kFactorStreamPadding) invalid(source, "a factor stream without its padding");
+  const uint64_t streamBytes = v.factors.size() - kFactorStreamPadding;
+  for (size_t i = 0; i < v.chunks.size(); ++i) {
+    const ValueChunk& c = v.chunks[i];
+    const uint64_t inChunk = std::min<uint64_t>(kValuesPerChunk, v.count - i * kValuesPerChunk);
+    if (inChunk < 32 && c.bitmap >> inChunk) invalid(source, "chunk " + std::to_string(i) + " marks values past the end");
+    const uint64_t bits = uint64_t(std::popcount(c.bitmap)) * c.factorBits();
+    if (c.factorByte() + (bits + 7) / 8 > streamBytes) invalid(source, "chunk " + std::to_string(i) + "'s factors run past the stream");
+  }
+  // The skip list is what a descent finds.
+  if (dag.skipLevel != skipLevelFor(L)) invalid(source, "skip level " + std::to_string(dag.skipLevel));
+  const uint32_t n = dag.skipLevel > 0 ? 1u << dag.skipLevel : 0;
+  if (dag.skip.size() != size_t(n) * n) invalid(source, "the skip list's size");
+  for (uint32_t y = 0; y < n; ++y)
+    for (uint32_t x = 0; x < n; ++x) {
+      Descent d = rootDescent(dag);
+      const int shift = L - dag.skipLevel;
+      descend(dag, d, uint64_t(x) << shift, uint64_t(y) << shift, dag.skipLevel);
+      const DagMhSkip& e = dag.skip[size_t(y) * n + x];
+      if (e.typePtr != (d.ptr << 2 | d.type) || e.first != d.first || e.last != d.last)
+        invalid(source, "skip entry " + std::to_string(x) + "," + std::to_string(y));
+    }
+}
+
+}  // namespace cpvs

@@ -1,0 +1,181 @@
+#include "cpvs/dagmh/value_chunks.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "cpvs/base/error.h"
+
+// Compiled with -ffp-contract=off: base + step * i must round as the decoder, the GPU
+// (precise) and the encoder's own check round it.
+
+namespace cpvs {
+
+namespace {
+
+// The largest factor a grid may use: float(i) is exact below 2^24, so base + step * i is
+// one rounding of an exact product and sum.
+constexpr uint32_t kMaxGridBits = 24;
+
+float decodeFactor(const ValueChunk& c, uint32_t iv) {
+  if (c.factorBits() == kRawFactorBits) return std::bit_cast<float>(iv);
+  return c.base + c.step * float(iv);
+}
+
+bool contains(float lo, float hi, float v) { return lo <= v && v <= hi; }
+
+float midpoint(float lo, float hi) {
+  const float m = 0.5f * lo + 0.5f * hi;  // never overflows
+  return contains(lo, hi, m) ? m : lo;
+}
+
+// The point most intervals contain: the middle of the intersection of those that contain
+// the lowest-count-maximizing lower end (the maximal overlap always starts at a lower end).
+float representativeOf(const float* lo, const float* hi, uint32_t n) {
+  uint32_t best = 0;
+  float bestLo = 0, bestHi = 0;
+  for (uint32_t k = 0; k < n; ++k) {
+    const float p = lo[k];
+    uint32_t count = 0;
+    float iLo = -std::numeric_limits<float>::max(), iHi = std::numeric_limits<float>::max();
+    for (uint32_t m = 0; m < n; ++m)
+      if (contains(lo[m], hi[m], p)) {
+        ++count;
+        iLo = std::max(iLo, lo[m]);
+        iHi = std::min(iHi, hi[m]);
+      }
+    if (count > best || (count == best && p < bestLo)) {
+      best = count;
+      bestLo = iLo;
+      bestHi = iHi;
+    }
+  }
+  return midpoint(bestLo, bestHi);
+}
+
+// Grid factors for the values `which` of the chunk, or false when no grid of at most
+// kMaxGridBits fits every interval.
+bool fitGrid(const float* lo, const float* hi, const uint32_t* which, uint32_t m, float& base, float& step,
+             uint32_t* factors) {
+  base = lo[which[0]];
+  step = std::numeric_limits<float>::max();
+  for (uint32_t j = 0; j < m; ++j) {
+    base = std::min(base, lo[which[j]]);
+    step = std::min(step, hi[which[j]] - lo[which[j]]);
+  }
+  for (int attempt = 0; attempt < 4; ++attempt, step = std::nextafter(step, 0.0f)) {
+    if (!(step > 0) || !std::isfinite(step)) return false;
+    bool fits = true;
+    for (uint32_t j = 0; j < m && fits; ++j) {
+      const float a = lo[which[j]], b = hi[which[j]];
+      const double ideal = std::ceil((double(a) - double(base)) / double(step));
+      if (!(ideal < double(1u << kMaxGridBits))) return false;
+      fits = false;
+      for (const double candidate : {ideal, ideal - 1, ideal + 1}) {
+        if (candidate < 0 || candidate >= double(1u << kMaxGridBits)) continue;
+        const uint32_t i = uint32_t(candidate);
+        if (contains(a, b, base + step * float(i))) {
+          factors[j] = i;
+          fits = true;
+          break;
+        }
+      }
+    }
+    if (fits) return true;
+  }
+  return false;
+}
+
+class BitWriter {
+ public:
+  explicit BitWriter(std::vector<uint8_t>& out) : out_(out) {}
+  // Starts a chunk's factors on a byte boundary; returns its byte offset.
+  uint64_t alignToByte() {
+    bits_ = (bits_ + 7) & ~uint64_t(7);
+    return bits_ / 8;
+  }
+  void put(uint32_t value, uint32_t width) {
+    out_.resize(size_t((bits_ + width + 7) / 8 + 8), 0);
+    for (uint32_t b = 0; b < width; ++b, ++bits_)
+      if (value >> b & 1) out_[size_t(bits_ / 8)] |= uint8_t(1u << (bits_ % 8));
+  }
+  void finish() { out_.resize(size_t((bits_ + 7) / 8 + kFactorStreamPadding), 0); }
+
+ private:
+  std::vector<uint8_t>& out_;
+  uint64_t bits_ = 0;
+};
+
+}  // namespace
+
+float ValueChunks::value(uint64_t index) const {
+  const ValueChunk& c = chunks[size_t(index / kValuesPerChunk)];
+  const uint32_t k = uint32_t(index % kValuesPerChunk);
+  if (!(c.bitmap >> k & 1)) return c.representative;
+  const uint32_t j = uint32_t(std::popcount(c.bitmap & ((1u << k) - 1)));
+  const uint32_t width = c.factorBits();
+  const uint64_t bit = uint64_t(j) * width;
+  uint64_t window = 0;
+  std::memcpy(&window, factors.data() + c.factorByte() + bit / 8, sizeof window);
+  window >>= bit % 8;
+  return decodeFactor(c, uint32_t(width == 32 ? window : window & ((uint64_t(1) << width) - 1)));
+}
+
+ValueChunks encodeValueChunks(const float* lo, const float* hi, size_t count) {
+  for (size_t k = 0; k < count; ++k)
+    if (!std::isfinite(lo[k]) || !std::isfinite(hi[k]) || lo[k] > hi[k])
+      throw InputError("DAG-MH value " + std::to_string(k) + " has no valid interval [" + std::to_string(lo[k]) +
+                       ", " + std::to_string(hi[k]) + "]");
+  ValueChunks out;
+  out.count = count;
+  out.chunks.resize((count + kValuesPerChunk - 1) / kValuesPerChunk);
+  BitWriter writer(out.factors);
+  uint32_t which[kValuesPerChunk], factors[kValuesPerChunk];
+  for (size_t ci = 0; ci < out.chunks.size(); ++ci) {
+    ValueChunk& c = out.chunks[ci];
+    const size_t first = ci * kValuesPerChunk;
+    const uint32_t n = uint32_t(std::min<size_t>(kValuesPerChunk, count - first));
+    const float* clo = lo + first;
+    const float* chi = hi + first;
+    c.representative = representativeOf(clo, chi, n);
+    uint32_t m = 0;
+    for (uint32_t k = 0; k < n; ++k)
+      if (!contains(clo[k], chi[k], c.representative)) {
+        c.bitmap |= 1u << k;
+        which[m++] = k;
+      }
+    const uint64_t byte = writer.alignToByte();
+    if (byte >= kMaxFactorStreamBytes)
+      throw InputError("a DAG-MH of " + std::to_string(count) + " values needs a factor stream beyond 128 MiB");
+    uint32_t width = 1;
+    if (m > 0) {
+      if (fitGrid(clo, chi, which, m, c.base, c.step, factors)) {
+        width = std::max(1, int(std::bit_width(*std::max_element(factors, factors + m))));
+      } else {
+        width = kRawFactorBits;
+        c.base = c.step = 0;
+        for (uint32_t j = 0; j < m; ++j) factors[j] = std::bit_cast<uint32_t>(midpoint(clo[which[j]], chi[which[j]]));
+      }
+      for (uint32_t j = 0; j < m; ++j) writer.put(factors[j], width);
+    }
+    c.meta = uint32_t(byte) << 5 | (width - 1);
+  }
+  writer.finish();
+  return out;
+}
+
+ValueChunkStats valueChunkStats(const ValueChunks& values) {
+  ValueChunkStats s;
+  s.values = values.count;
+  for (const ValueChunk& c : values.chunks) {
+    const uint32_t f = uint32_t(std::popcount(c.bitmap));
+    s.factors += f;
+    if (c.factorBits() == kRawFactorBits) s.rawFactors += f;
+    s.factorBitsTotal += uint64_t(f) * c.factorBits();
+  }
+  return s;
+}
+
+}  // namespace cpvs

@@ -1,0 +1,267 @@
+// DAG-MH against brute force: every texel's depth inside its interval (seed 001's
+// "lossless"), the structure's value index against the plain MH, chunks against their
+// intervals, merged shapes unique, corrupt structures refused.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <set>
+
+#include "cpvs/base/error.h"
+#include "cpvs/dagmh/dag_mh.h"
+
+namespace cpvs {
+namespace {
+
+// A dual-depth map like a scene's seen from the sun: boxes of constant depth on a sloped
+// ground, a gap to the next surface that is zero (open geometry), small or large, and
+// texels nothing covers.
+TexelIntervals sceneLikeIntervals(uint32_t side, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  TexelIntervals t;
+  t.side = side;
+  t.lo.resize(t.texels());
+  t.hi.resize(t.texels());
+  const float R = float(side);
+  for (uint32_t y = 0; y < side; ++y)
+    for (uint32_t x = 0; x < side; ++x) {
+      const size_t i = size_t(y) * side + x;
+      t.lo[i] = 0.7f * R + 0.05f * float(x) + 0.02f * float(y);  // the ground
+      t.hi[i] = t.lo[i];
+    }
+  std::uniform_int_distribution<uint32_t> pos(0, side - 1);
+  std::uniform_real_distribution<float> unit(0, 1);
+  const int boxes = int(side / 2 + 3);
+  for (int b = 0; b < boxes; ++b) {
+    const uint32_t x0 = pos(rng), y0 = pos(rng);
+    const uint32_t w = 1 + pos(rng) / 4, h = 1 + pos(rng) / 4;
+    const float top = unit(rng) * 0.6f * R;
+    const float gap = unit(rng) < 0.3f ? 0.0f : unit(rng) * 0.2f * R;
+    for (uint32_t y = y0; y < std::min(side, y0 + h); ++y)
+      for (uint32_t x = x0; x < std::min(side, x0 + w); ++x) {
+        const size_t i = size_t(y) * side + x;
+        if (top < t.lo[i]) {
+          t.hi[i] = std::min(t.lo[i], top + gap);
+          t.lo[i] = top;
+        }
+      }
+  }
+  for (int hole = 0; hole < 3; ++hole) {
+    const uint32_t x0 = pos(rng), y0 = pos(rng);
+    for (uint32_t y = y0; y < std::min(side, y0 + side / 8 + 1); ++y)
+      for (uint32_t x = x0; x < std::min(side, x0 + side / 8 + 1); ++x) {
+        t.lo[size_t(y) * side + x] = R;
+        t.hi[size_t(y) * side + x] = kNoCasterDepth;
+      }
+  }
+  return t;
+}
+
+// Intervals with no structure at all: the worst case for merging.
+TexelIntervals randomIntervals(uint32_t side, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> depth(0, float(side)), width(0, 4);
+  TexelIntervals t;
+  t.side = side;
+  for (size_t i = 0; i < t.texels(); ++i) {
+    const float a = depth(rng);
+    t.lo.push_back(a);
+    t.hi.push_back(rng() % 4 == 0 ? a : a + width(rng));
+  }
+  return t;
+}
+
+void expectLossless(const TexelIntervals& texels) {
+  SCOPED_TRACE("side " + std::to_string(texels.side));
+  const Mh mh(texels);
+  const DagMh dag = encodeDagMh(mh);
+  ASSERT_NO_THROW(validateDagMh(dag, "test"));
+  std::vector<float> lo, hi;
+  mhValueIntervals(mh, lo, hi);
+  ASSERT_EQ(lo.size(), dag.values.count);
+  uint64_t wrong = 0;
+  for (uint32_t y = 0; y < texels.side; ++y)
+    for (uint32_t x = 0; x < texels.side; ++x) {
+      const size_t i = size_t(y) * texels.side + x;
+      const float a = texels.lo[i], b = texels.hi[i];
+      // The plain MH is lossless, the DAG finds the same node, its stored value is in
+      // the node's interval and so in the texel's.
+      const float m = mh.lookup(x, y);
+      const uint32_t index = dag.valueIndex(x, y);
+      const float z = dag.depth(x, y);
+      if (!(a <= m && m <= b) || index >= lo.size() || 0.5f * lo[index] + 0.5f * hi[index] != m || !(a <= z && z <= b))
+        if (++wrong < 5)
+          ADD_FAILURE() << "texel " << x << "," << y << " [" << a << ", " << b << "]: MH " << m << ", DAG-MH " << z
+                        << " (value " << index << ")";
+    }
+  EXPECT_EQ(wrong, 0u);
+}
+
+TEST(ValueChunks, EveryDecodedValueLiesInItsInterval) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<float> depth(0, 4096);
+  for (const size_t count : {size_t(0), size_t(1), size_t(31), size_t(32), size_t(33), size_t(5000)}) {
+    std::vector<float> lo, hi;
+    for (size_t k = 0; k < count; ++k) {
+      const float a = depth(rng);
+      const int kind = int(rng() % 5);
+      lo.push_back(a);
+      hi.push_back(kind == 0 ? a : kind == 1 ? std::nextafter(a, 1e9f) : kind == 2 ? kNoCasterDepth : a + float(rng() % 100));
+    }
+    const ValueChunks v = encodeValueChunks(lo.data(), hi.data(), count);
+    ASSERT_EQ(v.count, count);
+    ASSERT_EQ(v.chunks.size(), (count + 31) / 32);
+    for (size_t k = 0; k < count; ++k) {
+      const float z = v.value(k);
+      ASSERT_TRUE(lo[k] <= z && z <= hi[k]) << "value " << k << " " << z << " outside [" << lo[k] << ", " << hi[k] << "]";
+    }
+    const ValueChunks again = encodeValueChunks(lo.data(), hi.data(), count);
+    EXPECT_EQ(again.factors, v.factors);
+    EXPECT_EQ(std::memcmp(again.chunks.data(), v.chunks.data(), v.chunks.size() * sizeof(ValueChunk)), 0);
+  }
+}
+
+TEST(ValueChunks, AChunkThatOneDepthSuitsStoresNoFactor) {
+  std::vector<float> lo(32), hi(32);
+  for (int k = 0; k < 32; ++k) {
+    lo[size_t(k)] = float(k);
+    hi[size_t(k)] = 100.0f;
+  }
+  const ValueChunks v = encodeValueChunks(lo.data(), hi.data(), 32);
+  EXPECT_EQ(v.chunks[0].bitmap, 0u);
+  EXPECT_EQ(v.chunks[0].factorBits(), 1u);
+  EXPECT_EQ(v.factors.size(), kFactorStreamPadding);
+  for (int k = 0; k < 32; ++k) EXPECT_TRUE(v.value(size_t(k)) >= 31.0f);
+}
+
+TEST(ValueChunks, FactorsOnAGridUseFewBits) {
+  // Two clusters no single depth suits: the second is a grid of width-2 intervals.
+  std::vector<float> lo, hi;
+  for (int k = 0; k < 20; ++k) {
+    lo.push_back(1000);
+    hi.push_back(1001);
+  }
+  for (int k = 0; k < 12; ++k) {
+    lo.push_back(float(10 * k));
+    hi.push_back(float(10 * k + 2));
+  }
+  const ValueChunks v = encodeValueChunks(lo.data(), hi.data(), 32);
+  EXPECT_EQ(std::popcount(v.chunks[0].bitmap), 12);
+  EXPECT_LE(v.chunks[0].factorBits(), 6u);
+  for (size_t k = 0; k < 32; ++k) EXPECT_TRUE(lo[k] <= v.value(k) && v.value(k) <= hi[k]);
+}
+
+TEST(ValueChunks, BadIntervalsAreRefused) {
+  const float lo[2] = {1, NAN}, hi[2] = {0, 1};
+  EXPECT_THROW(encodeValueChunks(lo, hi, 1), InputError);
+  EXPECT_THROW(encodeValueChunks(lo + 1, hi + 1, 1), InputError);
+}
+
+TEST(Mh, EveryTexelFindsADepthInItsIntervalExhaustively) {
+  for (uint32_t side = 1; side <= 512; side *= 2) {
+    expectLossless(sceneLikeIntervals(side, side));
+    if (side <= 128) expectLossless(randomIntervals(side, side + 1));
+  }
+}
+
+TEST(Mh, AMapOfFourKTexelsIsLosslessEverywhere) { expectLossless(sceneLikeIntervals(4096, 11)); }
+
+TEST(Mh, TheRuleOfTheFourChildren) {
+  // Two of four children share a depth range, two others another: the node covers the
+  // lower ends' best (ties: the lowest child) and the others are full.
+  TexelIntervals t;
+  t.side = 2;
+  t.lo = {0, 5, 0.5f, 5.5f};
+  t.hi = {1, 6, 1.5f, 7};
+  const Mh mh(t);
+  EXPECT_EQ(mh.covered(0, 0, 0), 0b0101);
+  EXPECT_FLOAT_EQ(mh.lo(0, 0, 0), 0.5f);
+  EXPECT_FLOAT_EQ(mh.hi(0, 0, 0), 1.0f);
+  EXPECT_EQ(mh.state(1, 1, 0), MhState::Full);
+  EXPECT_EQ(mh.state(1, 0, 0), MhState::Absent);
+  EXPECT_FLOAT_EQ(mh.lookup(0, 0), 0.75f);
+  EXPECT_FLOAT_EQ(mh.lookup(1, 1), 6.25f);
+  t.lo = {0, 0, 0, NAN};
+  EXPECT_THROW(Mh{t}, InputError);
+}
+
+TEST(DagMh, TreeletBitsArePreorder) {
+  EXPECT_EQ(treeletBit(0, 3, 3, 3), 0u);
+  EXPECT_EQ(treeletBit(1, 2, 3, 3), 1u + 21 * 2);
+  EXPECT_EQ(treeletBit(2, 1, 3, 0), 2u + 21 + 15);
+  EXPECT_EQ(treeletBit(3, 3, 3, 3), 84u);
+}
+
+TEST(DagMh, EqualShapesAreStoredOnce) {
+  const TexelIntervals texels = sceneLikeIntervals(1024, 5);
+  const DagMh dag = encodeDagMh(Mh(texels));
+  std::set<std::vector<uint32_t>> treelets, nodes;
+  for (size_t i = 0; i < dag.treelets.size(); i += kTreeletWords)
+    EXPECT_TRUE(treelets.insert({dag.treelets.begin() + long(i), dag.treelets.begin() + long(i + kTreeletWords)}).second);
+  // Nodes by content, pointers included: the layout makes equal children equal pointers.
+  // The node with no child (a value its whole subtree inherits) is merged within a level,
+  // not across: pointers lead from a level to the next.
+  std::vector<uint32_t> node;
+  uint64_t childless = 0;
+  for (size_t at = 0; at < dag.nodes.size();) {
+    uint32_t present = 0;
+    for (int c = 0; c < 4; ++c) present += ((dag.nodes[at] >> (2 * c)) & 3) != kDagMhAbsent;
+    const size_t size = present == 0 ? 2 : 2 * present + 1;
+    if (present == 0)
+      ++childless;
+    else
+      EXPECT_TRUE(nodes.insert({dag.nodes.begin() + long(at), dag.nodes.begin() + long(at + size)}).second) << "node " << at;
+    at += size;
+  }
+  EXPECT_LE(childless, 10u - 3u);  // one per inner level at most
+  EXPECT_EQ(nodes.size() + childless, dag.innerNodeCount());
+  EXPECT_GT(dag.innerNodeCount(), 0u);
+  EXPECT_EQ(dag.skipLevel, 5);
+  // Merging pays: fewer treelets than the 128^2 places they stand.
+  EXPECT_LT(dag.treeletCount(), 128u * 128u / 2);
+}
+
+TEST(DagMh, TheSameIntervalsGiveTheSameBytes) {
+  const TexelIntervals texels = sceneLikeIntervals(256, 9);
+  const DagMh a = encodeDagMh(Mh(texels)), b = encodeDagMh(Mh(texels));
+  EXPECT_EQ(a.nodes, b.nodes);
+  EXPECT_EQ(a.treelets, b.treelets);
+  EXPECT_EQ(a.values.factors, b.values.factors);
+}
+
+TEST(DagMh, CorruptWordsAreRefusedOrStayInBounds) {
+  const TexelIntervals texels = sceneLikeIntervals(128, 3);
+  const DagMh good = encodeDagMh(Mh(texels));
+  std::mt19937_64 rng(13);
+  int refused = 0;
+  for (int trial = 0; trial < 600; ++trial) {
+    DagMh bad = good;
+    const int part = trial % 4;
+    std::vector<uint32_t>& words = part == 0 ? bad.nodes : part == 1 ? bad.treelets : bad.nodes;
+    if (part == 2) {
+      bad.values.chunks[rng() % bad.values.chunks.size()].meta ^= uint32_t(1) << (rng() % 32);
+    } else if (part == 3) {
+      bad.skip[rng() % bad.skip.size()].typePtr ^= uint32_t(1) << (rng() % 32);
+    } else {
+      words[rng() % words.size()] ^= uint32_t(1) << (rng() % 32);
+    }
+    try {
+      validateDagMh(bad, "bad");
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("bad: invalid DAG-MH"), std::string::npos);
+      ++refused;
+      continue;
+    }
+    // Accepted: a change lookups may read (a treelet bit, a count they skip), never out
+    // of bounds (the sanitizer run checks).
+    for (uint32_t y = 0; y < 128; y += 3)
+      for (uint32_t x = 0; x < 128; x += 3) (void)bad.depth(x, y);
+  }
+  EXPECT_GT(refused, 300);
+}
+
+}  // namespace
+}  // namespace cpvs
