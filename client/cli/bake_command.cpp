@@ -17,6 +17,9 @@
 #include "cpvs/bake/tile_plan.h"
 #include "cpvs/base/parse.h"
 #include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_dag_mh.h"
+#include "cpvs/io/dmh_file.h"
+#include "dag_mh_text.h"
 #include "cpvs/bake/tile_cache.h"
 #include "cpvs/bake/tile_key.h"
 #include "cpvs/io/cpvs_file.h"
@@ -28,7 +31,7 @@ namespace cpvs::cli {
 namespace {
 
 struct BakeArgs {
-  std::string scene, out, resolution = "4K";
+  std::string scene, out, resolution = "4K", format = "cpvs";
   SunFlags sun;
   LightFlags lights;
   int pointerGrid = kMaxGridLevels;
@@ -165,10 +168,70 @@ int runLightBake(const BakeArgs& a, const std::chrono::steady_clock::time_point 
   return 0;
 }
 
+// `--format dagmh`: the sun's shadows as a DAG-MH (seed 001).
+int runDagMhBake(const BakeArgs& a, const std::chrono::steady_clock::time_point totalStart) {
+  if (a.lights.given()) throw InputError("--format dagmh bakes the sun: local lights bake into a light bundle (--format cpvs)");
+  if (!a.tileCache.empty()) throw InputError("--tile-cache keeps a CPVS bake's tiles, not a DAG-MH's");
+  if (a.options.depthSlices != 0) throw InputError("--depth-slices: a DAG-MH stores float depths on a cubic grid");
+  if (!a.options.media.empty()) throw InputError("--medium is read through a CPVS, not a DAG-MH");
+  if (a.pointerGrid != kMaxGridLevels) throw InputError("--pointer-grid is for light bundles (--spot, --point, --lights)");
+  const BakeOptions opt = optionsOf(a.options);
+  const ReceiverDeclaration receivers = receiversOf(a.options);
+  const int log2R = parseResolution(a.resolution);
+  if (log2R > kMaxLog2DagMhResolution)
+    throw InputError("--resolution " + a.resolution + ": a DAG-MH is baked up to " +
+                     std::to_string(1u << kMaxLog2DagMhResolution) + " texels a side");
+  const LightFrame frame = lightFromFlags(a.sun.dir, a.sun.elevation, a.sun.azimuth);
+  StageTimes st;
+  auto start = std::chrono::steady_clock::now();
+  SceneStats ss;
+  const Scene scene = openScene(a.scene, &ss);
+  DmhArtifact art;
+  art.grid = makeGrid(scene, frame, log2R);
+  art.options = opt;
+  art.sceneHash = sceneHash(scene);
+  art.receiverHash = receiverHash(receivers);
+  st.add("load", secondsSince(start));
+  if (!a.json && !a.quiet)
+    spdlog::info("{}: {} triangles ({} closed), a DAG-MH of {}^2 texels for receivers {}, light ({:.4f}, {:.4f}, {:.4f})",
+                 scene.name, ss.triangles, ss.closedTriangles, art.grid.resolution(), optionName(opt.receivers),
+                 frame.dir.x, frame.dir.y, frame.dir.z);
+  ProgressDisplay progress(!a.json && !a.quiet);
+  art.dag = bakeDagMh(scene, art.grid, opt, receivers, a.threads, &st, [&](const Progress& p) { return progress.update(p); });
+  progress.finish();
+  start = std::chrono::steady_clock::now();
+  const std::vector<uint8_t> bytes = encodeDmh(art, a.zstd);
+  writeFileAtomic(a.out, bytes);
+  st.add("write", secondsSince(start));
+  const double total = secondsSince(totalStart);
+  if (a.json) {
+    std::cout << "{\n  \"scene\": " << jsonString(scene.name) << ",\n  \"scene_hash\": " << jsonString(art.sceneHash.hex())
+              << ",\n  \"triangles\": " << ss.triangles << ",\n  " << dagMhJsonFields(art) << ",\n  \"file_bytes\": "
+              << bytes.size() << ",\n  \"seconds_total\": " << jsonNumber(total) << ",\n  \"stages\": {";
+    bool first = true;
+    for (const auto& [k, v] : st.seconds) {
+      std::cout << (first ? "" : ", ") << jsonString(k) << ": " << jsonNumber(v);
+      first = false;
+    }
+    std::cout << "},\n  \"out\": " << jsonString(a.out) << "\n}\n";
+    return 0;
+  }
+  std::printf("\nBaked %s (%zu triangles, %zu closed) as a DAG-MH of %llu^2 texels in %.2f s\n", scene.name.c_str(),
+              ss.triangles, ss.closedTriangles, static_cast<unsigned long long>(art.grid.resolution()), total);
+  std::printf("  receivers: %s\n\n  %-11s %10s\n", receiversText(opt, art.receiverHash).c_str(), "stage", "seconds");
+  for (const char* name : {"load", "cameras", "render", "receivers", "hierarchy", "compress", "write"})
+    if (auto it = st.seconds.find(name); it != st.seconds.end()) std::printf("  %-11s %10.3f\n", name, it->second);
+  std::printf("  %-11s %10.3f\n\n%s  file: %s\n\nWrote %s\n", "total", total, dagMhTable(art.dag).c_str(),
+              humanBytes(bytes.size()).c_str(), a.out.c_str());
+  std::printf("Look at it: cpvs inspect %s\n", a.out.c_str());
+  return 0;
+}
+
 int runBake(const BakeArgs& a) {
   auto totalStart = std::chrono::steady_clock::now();
   const auto limit = threadLimit(a.threads);
   checkOutputFolder(a.out, "--out");
+  if (a.format == "dagmh") return runDagMhBake(a, totalStart);
   if (a.lights.given()) {
     if (a.options.depthSlices != 0) throw InputError("--depth-slices is the sun's: a light's grids are cubic");
     return runLightBake(a, totalStart);
@@ -249,7 +312,13 @@ void addBakeCommand(CLI::App& app, int& status) {
       "bake", "Bake the sun shadows of a scene into a .cpvs file, or its local lights (--spot, --point, --lights) "
               "into a light bundle, in this process");
   c->add_option("scene", a->scene, "Scene file (glTF/GLB, OBJ, DAE, PLY, FBX, STL, ...), city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]] (generated)")->required();
-  c->add_option("--out,-o", a->out, "Output .cpvs file")->required();
+  c->add_option("--out,-o", a->out, "Output file: .cpvs (or a light bundle), .dmh with --format dagmh")->required();
+  c->add_option("--format", a->format,
+                "What to bake the sun into: cpvs (voxels, exact for every point --receivers declares) or dagmh (a "
+                "DAG-encoded shadow map, seed 001: the same answers as the CPVS for the receivers declared, in fewer "
+                "bytes; up to 16K)")
+      ->check(CLI::IsMember({"cpvs", "dagmh"}))
+      ->capture_default_str();
   addSunFlags(c, a->sun);
   c->add_option("--resolution,-r", a->resolution, "Grid resolution R (voxels a side): 1024, 4K, 16K, ... 1M")
       ->capture_default_str();

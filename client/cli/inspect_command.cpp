@@ -10,6 +10,8 @@
 #include "commands.h"
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/io/dmh_file.h"
+#include "dag_mh_text.h"
 
 namespace cpvs::cli {
 
@@ -49,8 +51,35 @@ int inspectBundle(const InspectArgs& a, const std::vector<uint8_t>& bytes) {
   return 0;
 }
 
+// A DAG-MH: its header and its composition (seed 001's Tables 3 and 4).
+int inspectDagMh(const InspectArgs& a, const std::vector<uint8_t>& bytes) {
+  const DmhArtifact art = decodeDmh(bytes.data(), bytes.size(), a.file);
+  const OrthoGrid& g = art.grid;
+  if (a.json) {
+    std::cout << "{\n  \"file\": " << jsonString(a.file) << ",\n  \"format_version\": " << kDmhFormatVersion
+              << ",\n  \"file_bytes\": " << bytes.size() << ",\n  \"scene_hash\": " << jsonString(art.sceneHash.hex())
+              << ",\n  \"light_dir\": [" << jsonNumber(g.frame.dir.x) << ", " << jsonNumber(g.frame.dir.y) << ", "
+              << jsonNumber(g.frame.dir.z) << "],\n  \"receiver_declaration\": " << receiversJson(art.options, art.receiverHash)
+              << ",\n  " << dagMhJsonFields(art) << "\n}\n";
+    return 0;
+  }
+  std::printf("%s: DAG-MH format %u (a DAG-encoded shadow map, seed 001), %s on disk\n", a.file.c_str(), kDmhFormatVersion,
+              humanBytes(bytes.size()).c_str());
+  std::printf("  resolution   %llu^2 texels, depths in %llu slices (texel %.6g, slice %.6g world units)\n",
+              static_cast<unsigned long long>(g.resolution()), static_cast<unsigned long long>(g.resolution()),
+              g.texelSize(), g.sliceSize());
+  std::printf("  light        (%.6f, %.6f, %.6f)\n", g.frame.dir.x, g.frame.dir.y, g.frame.dir.z);
+  std::printf("  scene hash   %s\n", art.sceneHash.hex().c_str());
+  std::printf("  options      closed=%s exit=%s\n", optionName(art.options.closed), optionName(art.options.exit));
+  std::printf("  receivers    %s\n", receiversText(art.options, art.receiverHash).c_str());
+  std::printf("  structure    treelets of 4 levels, skip list at level %d; values in chunks of %u\n\n%s",
+              art.dag.skipLevel, kValuesPerChunk, dagMhTable(art.dag).c_str());
+  return 0;
+}
+
 int runInspect(const InspectArgs& a) {
   auto bytes = readFile(a.file);
+  if (isDmh(bytes.data(), bytes.size())) return inspectDagMh(a, bytes);
   if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return inspectBundle(a, bytes);
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   const Dag& dag = art.dag;
@@ -133,8 +162,8 @@ void addInspectCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<InspectArgs>();
   CLI::App* c = app.add_subcommand(
       "inspect", "Show the header, options, and nodes and bytes per level of a .cpvs file, and its translucent "
-                 "casters' tree (a light bundle: its lights with their bytes)");
-  c->add_option("file", a->file, ".cpvs file")->required();
+                 "casters' tree (a light bundle: its lights with their bytes; a .dmh: its structure and values)");
+  c->add_option("file", a->file, ".cpvs or .dmh file")->required();
   c->add_flag("--json", a->json, "Print as JSON");
   c->callback([a, &status] { status = runInspect(*a); });
 }

@@ -18,6 +18,8 @@
 #include "cpvs/base/error.h"
 #include "cpvs/eval/verify.h"
 #include "cpvs/io/bundle_file.h"
+#include "cpvs/io/dmh_file.h"
+#include "cpvs/bake/bake_scene.h"
 #include "cpvs/psv/translucent_tree.h"
 #include "cpvs/query/bundle_query.h"
 #include "cpvs/raytrace/ray_scene.h"
@@ -188,9 +190,51 @@ TranslucentCheck checkTranslucent(const CpvsArtifact& art, const Scene& scene, c
   return c;
 }
 
+// A DAG-MH: its lookups at the receivers it serves, against the exact shadows.
+int verifyDagMh(const VerifyArgs& a, const std::vector<uint8_t>& bytes) {
+  DmhArtifact art = decodeDmh(bytes.data(), bytes.size(), a.file);
+  const Scene scene = openMatchingScene(a.scene, art.sceneHash);
+  const ReceiverDeclaration receivers = bakedReceivers(a, art.options, art.receiverHash);
+  std::optional<Scene> opaque;
+  const Scene& casters = sunCasters(scene, opaque);
+  const RayScene rays(casters, art.grid.origin);
+  const DagMhQuery q(art.grid, std::move(art.dag));
+  const auto samples = sampleReceivers(scene, rays, art.options.closed, art.grid.frame.dir, receivers, a.samples, a.seed);
+  std::optional<TopTree> tree;
+  const VerifyResult r =
+      verifyDagMhSamples(q, art.options.closed, rays, samples, oraclesFor(a, casters, PsvLight::sun(art.grid.frame.dir), tree));
+  if (a.json) {
+    std::cout << "{\n  \"file\": " << jsonString(a.file) << ",\n  \"format\": \"dagmh\",\n  \"scene\": "
+              << jsonString(a.scene) << ",\n  \"receivers\": " << jsonString(optionName(receivers.kind))
+              << ",\n  \"samples\": " << r.samples << ",\n  \"skipped_inside_closed\": " << r.insideClosed
+              << ",\n  \"near_boundary\": " << r.nearBoundary
+              << ",\n  \"mismatch_near_boundary\": " << jsonNumber(r.fractionNearBoundary())
+              << ",\n  \"mismatch_elsewhere\": " << jsonNumber(r.fractionElsewhere())
+              << ",\n  \"mismatch_near_boundary_count\": " << r.mismatchNearBoundary
+              << ",\n  \"mismatch_elsewhere_count\": " << r.mismatchElsewhere << ",\n  \"reference\": "
+              << jsonString(a.reference) << "\n}\n";
+  } else {
+    std::printf("%s (a DAG-MH) against %s: %llu receiver points compared (%llu skipped: offset point inside closed "
+                "geometry)\n  receivers: %s\n",
+                a.file.c_str(), a.scene.c_str(), static_cast<unsigned long long>(r.samples),
+                static_cast<unsigned long long>(r.insideClosed), receiversText(art.options, art.receiverHash).c_str());
+    std::printf("  near a shadow boundary (within one voxel): %llu points, %llu mismatches = %.4f%% of all\n",
+                static_cast<unsigned long long>(r.nearBoundary), static_cast<unsigned long long>(r.mismatchNearBoundary),
+                100.0 * r.fractionNearBoundary());
+    std::printf("  elsewhere: %llu mismatches = %.4f%%\n", static_cast<unsigned long long>(r.mismatchElsewhere),
+                100.0 * r.fractionElsewhere());
+    for (const auto& e : r.elsewhereExamples)
+      std::printf("    mismatch at (%.9g, %.9g, %.9g) normal (%.4f, %.4f, %.4f)\n", e.point.x, e.point.y, e.point.z,
+                  e.normal.x, e.normal.y, e.normal.z);
+    printOracles(a, r);
+  }
+  return r.mismatchElsewhere == 0 && r.oraclesDisagreeElsewhere == 0 ? 0 : 1;
+}
+
 int runVerify(const VerifyArgs& a) {
   if (a.samples == 0) throw InputError("--samples must be at least 1");
   const std::vector<uint8_t> bytes = readFile(a.file);
+  if (isDmh(bytes.data(), bytes.size())) return verifyDagMh(a, bytes);
   if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return verifyBundle(a, bytes);
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   Scene scene = openMatchingScene(a.scene, art);
@@ -292,7 +336,7 @@ void addVerifyCommand(CLI::App& app, int& status) {
   CLI::App* c = app.add_subcommand(
       "verify", "Compare CPVS lookups with exact shadow rays at points sampled on the scene (exit 1 if any mismatch "
                 "lies away from a shadow boundary)");
-  c->add_option("file", a->file, ".cpvs file")->required();
+  c->add_option("file", a->file, ".cpvs or .dmh file")->required();
   c->add_option("scene", a->scene, "The scene it was baked from (file, city[:BLOCKS[:SEED]] or landscape[:SIZE[:SEED]])")->required();
   c->add_option("--samples,-n", a->samples, "Surface points to compare")->capture_default_str();
   c->add_option("--seed", a->seed, "Sampling seed")->capture_default_str();

@@ -48,17 +48,22 @@ VerifyResult verifyBundleGrid(const BundleQuery& query, size_t grid, ClosedMode 
                        oracles);
 }
 
-VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const RayScene& rays,
-                           const std::vector<SurfaceSample>& samples, const ExactOracles& oracles) {
-  const LightGrid& g = query.lightGrid();
-  const PerspectiveGrid* spot = query.spot();
+namespace {
+
+// The comparison of any binary lookup with the exact answer: `offsetPoint(s)` is the
+// world point a lookup from sample s is made at, `lookupLit(s)` its answer. `sun` or
+// `spot` (with its cone) is the light.
+template <class OffsetPoint, class LookupLit>
+VerifyResult verifyLookups(const LightGrid& g, const OrthoGrid* sun, const PerspectiveGrid* spot, double tanCone,
+                           ClosedMode closed, const RayScene& rays, const std::vector<SurfaceSample>& samples,
+                           const ExactOracles& oracles, OffsetPoint offsetPoint, LookupLit lookupLit) {
   CPVS_CHECK(oracles.psv || !oracles.psvOnly);
-  auto toLight = [&](const Vec3& p) { return spot ? shadowRayTo(*spot, p) : shadowRayTo(query.grid(), p); };
+  auto toLight = [&](const Vec3& p) { return spot ? shadowRayTo(*spot, p) : shadowRayTo(*sun, p); };
   auto embreeLit = [&](const Vec3& p) {
-    return spot ? exactlyLit(rays, *spot, query.tanCone(), p) : exactlyLit(rays, query.grid(), p);
+    return spot ? exactlyLit(rays, *spot, tanCone, p) : exactlyLit(rays, *sun, p);
   };
   auto psvLit = [&](const Vec3& p) {
-    if (spot && (!spot->insideCone(p, query.tanCone()) || !(spot->depthOf(p) < spot->far()))) return false;
+    if (spot && (!spot->insideCone(p, tanCone) || !(spot->depthOf(p) < spot->far()))) return false;
     return !oracles.psv->shadowed(p);
   };
   auto exactlyLitAt = [&](const Vec3& p) { return oracles.psvOnly ? psvLit(p) : embreeLit(p); };
@@ -79,7 +84,7 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
   VerifyResult result;
   tbb::parallel_for(size_t(0), samples.size(), [&](size_t i) {
     const SurfaceSample& s = samples[i];
-    Vec3 q = query.offsetPoint(s.point, s.normal, 1);
+    const Vec3 q = offsetPoint(s);
     const ShadowRay ray = toLight(q);
     if (rays.closedNesting(q, ray.dir, ray.length, closed) > 0) {  // no query can come from there
       ++inside;
@@ -88,7 +93,7 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
     ++used;
     bool exact = exactlyLitAt(q);
     lit += exact;
-    bool cpvs = !query.voxelShadowed(query.voxelOf(s.point, s.normal, 1));
+    const bool cpvs = lookupLit(s);
     const Vec3 qv = g.voxelFromWorld(q);
     bool isNear = false;
     for (const Vec3& o : neighbours)
@@ -139,6 +144,24 @@ VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const Ra
   result.oraclesDisagreeNearBoundary = disagreeNear;
   result.oraclesDisagreeElsewhere = disagreeElse;
   return result;
+}
+
+}  // namespace
+
+VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const RayScene& rays,
+                           const std::vector<SurfaceSample>& samples, const ExactOracles& oracles) {
+  return verifyLookups(
+      query.lightGrid(), query.spot() ? nullptr : &query.grid(), query.spot(), query.tanCone(), closed, rays, samples,
+      oracles, [&](const SurfaceSample& s) { return query.offsetPoint(s.point, s.normal, 1); },
+      [&](const SurfaceSample& s) { return !query.voxelShadowed(query.voxelOf(s.point, s.normal, 1)); });
+}
+
+VerifyResult verifyDagMhSamples(const DagMhQuery& query, ClosedMode closed, const RayScene& rays,
+                                const std::vector<SurfaceSample>& samples, const ExactOracles& oracles) {
+  return verifyLookups(
+      query.grid(), &query.grid(), nullptr, 0, closed, rays, samples, oracles,
+      [&](const SurfaceSample& s) { return query.grid().worldFromVoxel(query.lookupVoxel(s.point, s.normal, 1)); },
+      [&](const SurfaceSample& s) { return query.litTexels(s.point, s.normal, 1) == 1; });
 }
 
 }  // namespace cpvs

@@ -44,6 +44,10 @@ std::optional<BenchScene> openBenchScene(const std::string& spec, const std::str
     path = testing::sharedScenesDir() + "/assimp-testmodels/2CylinderEngine.glb";
   } else if (spec == "shouse") {
     path = testing::sharedScenesDir() + "/openarena/oa_shouse.obj";
+  } else if (spec == "peercity") {
+    path = testing::sharedScenesDir() + "/loinesg-city/city.obj";
+  } else if (spec == "maisons") {
+    path = testing::sharedScenesDir() + "/flightgear/zone_maisons.obj";
   } else if (spec == "haus") {
     path = testing::sharedScenesDir() + "/assimp-testmodels/AC14-FZK-Haus.ifc";
   } else if (spec == "city" || spec.starts_with("city:") || spec == "landscape" || spec.starts_with("landscape:")) {

@@ -26,7 +26,7 @@ struct BenchScene {
   std::string kind;
 };
 
-/// Resolves a name (bunny, teapots, shouse, engine: shared scenes beside the project; city or
+/// Resolves a name (bunny, teapots, shouse, engine, haus, peercity, maisons: shared scenes beside the project; city or
 /// city:BLOCKS[:SEED]: procedural) or a path. Returns nothing, after a line on stderr and
 /// one in `notes`, when a file is absent, so that a checkout without the shared scenes
 /// still benchmarks the city.

@@ -107,6 +107,45 @@ TEST_F(Cli, InspectTextNamesTheLevels) {
   EXPECT_NE(r.out.find("compress=topdown"), std::string::npos) << r.out;
 }
 
+// --format dagmh: a .dmh for the receivers declared, its composition, its verification.
+TEST_F(Cli, DagMhBakesInspectsAndVerifies) {
+  const std::string sun = " --sun-elevation 35 --sun-azimuth 20 -r 256 ";
+  CliRun r = cpvs("bake city:3 --format dagmh --receivers surfaces" + sun + "--json -o " + path("d.dmh"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const json b = parse(r);
+  EXPECT_EQ(b["format"], "dagmh");
+  EXPECT_EQ(b["receivers"], "surfaces");
+  EXPECT_EQ(b["bytes"].get<uint64_t>(), b["inner_node_bytes"].get<uint64_t>() + b["treelet_bytes"].get<uint64_t>() +
+                                            b["chunk_map_bytes"].get<uint64_t>() + b["factor_bytes"].get<uint64_t>() +
+                                            b["skip_bytes"].get<uint64_t>());
+  for (const char* stage : {"render", "receivers", "hierarchy", "compress", "write"})
+    EXPECT_TRUE(b["stages"].contains(stage)) << stage;
+  CliRun i = cpvs("inspect --json " + path("d.dmh"));
+  ASSERT_EQ(i.status, 0) << i.out;
+  EXPECT_EQ(parse(i)["bytes"], b["bytes"]);
+  EXPECT_EQ(parse(i)["receiver_declaration"]["kind"], "surfaces");
+  CliRun t = cpvs("inspect " + path("d.dmh"));
+  EXPECT_NE(t.out.find("DAG-MH format 1"), std::string::npos) << t.out;
+  EXPECT_NE(t.out.find("treelets"), std::string::npos) << t.out;
+  CliRun v = cpvs("verify --json -n 5000 " + path("d.dmh") + " city:3");
+  ASSERT_EQ(v.status, 0) << v.out;
+  EXPECT_EQ(parse(v)["mismatch_elsewhere_count"], 0);
+  EXPECT_GT(parse(v)["samples"].get<uint64_t>(), 4000u);
+  // What a DAG-MH does not take, said by name.
+  for (const auto& [flags, words] : std::vector<std::pair<std::string, std::string>>{
+           {"--depth-slices 64", "--depth-slices"},
+           {"--tile-cache " + path("cache"), "--tile-cache"},
+           {"--spot 0,10,0:0,-1,0:40", "light bundle"},
+           {"--format png", "--format"}}) {
+    CliRun bad = cpvs("bake city:3 --format dagmh " + flags + sun + "-o " + path("bad.dmh"));
+    EXPECT_NE(bad.status, 0) << flags;
+    EXPECT_NE(bad.out.find(words), std::string::npos) << flags << ": " << bad.out;
+  }
+  CliRun big = cpvs("bake city:3 --format dagmh --sun-dir 0,-1,0 -r 32K -o " + path("big.dmh"));
+  EXPECT_NE(big.status, 0);
+  EXPECT_NE(big.out.find("16384"), std::string::npos) << big.out;
+}
+
 TEST_F(Cli, VerifyJsonContract) {
   CliRun r = cpvs("verify --json -n 5000 " + path("c.cpvs") + " city:3");
   ASSERT_EQ(r.status, 0) << r.out;

@@ -219,7 +219,7 @@ TEST(DagMh, EqualShapesAreStoredOnce) {
   EXPECT_LE(childless, 10u - 3u);  // one per inner level at most
   EXPECT_EQ(nodes.size() + childless, dag.innerNodeCount());
   EXPECT_GT(dag.innerNodeCount(), 0u);
-  EXPECT_EQ(dag.skipLevel, 5);
+  EXPECT_EQ(dag.skipLevel, 3);
   // Merging pays: fewer treelets than the 128^2 places they stand.
   EXPECT_LT(dag.treeletCount(), 128u * 128u / 2);
 }
@@ -233,8 +233,9 @@ TEST(DagMh, TheSameIntervalsGiveTheSameBytes) {
 }
 
 TEST(DagMh, CorruptWordsAreRefusedOrStayInBounds) {
-  const TexelIntervals texels = sceneLikeIntervals(128, 3);
+  const TexelIntervals texels = sceneLikeIntervals(1024, 3);
   const DagMh good = encodeDagMh(Mh(texels));
+  ASSERT_FALSE(good.skip.empty());
   std::mt19937_64 rng(13);
   int refused = 0;
   for (int trial = 0; trial < 600; ++trial) {
@@ -257,8 +258,8 @@ TEST(DagMh, CorruptWordsAreRefusedOrStayInBounds) {
     }
     // Accepted: a change lookups may read (a treelet bit, a count they skip), never out
     // of bounds (the sanitizer run checks).
-    for (uint32_t y = 0; y < 128; y += 3)
-      for (uint32_t x = 0; x < 128; x += 3) (void)bad.depth(x, y);
+    for (uint32_t y = 0; y < 1024; y += 7)
+      for (uint32_t x = 0; x < 1024; x += 7) (void)bad.depth(x, y);
   }
   EXPECT_GT(refused, 300);
 }

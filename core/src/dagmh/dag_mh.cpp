@@ -17,8 +17,9 @@ namespace {
 // fewer.
 int treeletLevel(int log2Side) { return std::max(0, log2Side - (kTreeletLevels - 1)); }
 
-// A skip list where it pays (NOTES §2.2.6): a level near the root, above the treelets.
-int skipLevelFor(int log2Side) { return std::clamp(log2Side - 5, 0, kDagMhSkipLevel); }
+// A skip list where it pays (NOTES §2.2.6): a level near the root, above the treelets,
+// at most 1/4^7 of the texels, so that it stays a small part of the structure.
+int skipLevelFor(int log2Side) { return std::clamp(log2Side - 7, 0, kDagMhSkipLevel); }
 
 // Words an inner node of w0 `types` takes: two, then a pointer per child present and a
 // prefix count per child after the first.

@@ -55,16 +55,11 @@ float representativeOf(const float* lo, const float* hi, uint32_t n) {
   return midpoint(bestLo, bestHi);
 }
 
-// Grid factors for the values `which` of the chunk, or false when no grid of at most
-// kMaxGridBits fits every interval.
-bool fitGrid(const float* lo, const float* hi, const uint32_t* which, uint32_t m, float& base, float& step,
+// Factors on the grid base + step * i for the values `which` of the chunk, or false when
+// some interval holds no point of it below 2^kMaxGridBits (after shrinking the step by a
+// few ulps, for intervals exactly one step wide).
+bool fitGrid(const float* lo, const float* hi, const uint32_t* which, uint32_t m, float base, float& step,
              uint32_t* factors) {
-  base = lo[which[0]];
-  step = std::numeric_limits<float>::max();
-  for (uint32_t j = 0; j < m; ++j) {
-    base = std::min(base, lo[which[j]]);
-    step = std::min(step, hi[which[j]] - lo[which[j]]);
-  }
   for (int attempt = 0; attempt < 4; ++attempt, step = std::nextafter(step, 0.0f)) {
     if (!(step > 0) || !std::isfinite(step)) return false;
     bool fits = true;
@@ -86,6 +81,36 @@ bool fitGrid(const float* lo, const float* hi, const uint32_t* which, uint32_t m
     if (fits) return true;
   }
   return false;
+}
+
+// The grid of fewest bits that fits: a step of the narrowest interval from the lowest
+// start, the power of two below it, or one slice from a whole slice (intervals of whole
+// slices, some of them a single depth: the CPVS's classification). Returns the factor
+// width, 0 when none fits.
+uint32_t bestGrid(const float* lo, const float* hi, const uint32_t* which, uint32_t m, float& base, float& step,
+                  uint32_t* factors) {
+  float lowest = lo[which[0]], narrowest = std::numeric_limits<float>::max();
+  for (uint32_t j = 0; j < m; ++j) {
+    lowest = std::min(lowest, lo[which[j]]);
+    narrowest = std::min(narrowest, hi[which[j]] - lo[which[j]]);
+  }
+  uint32_t best = 0, trial[kValuesPerChunk];
+  // A power of two no wider than the narrowest interval, from a multiple of it: every
+  // interval holds a multiple, and the grid's points are exact floats.
+  const float dyadic = narrowest > 0 ? std::exp2(std::floor(std::log2(narrowest))) : 1.0f;
+  const float candidates[3][2] = {{lowest, narrowest}, {std::floor(lowest / dyadic) * dyadic, dyadic}, {std::floor(lowest), 1.0f}};
+  for (const auto& [b, s] : candidates) {
+    float grid = s;
+    if (!fitGrid(lo, hi, which, m, b, grid, trial)) continue;
+    const uint32_t width = std::max(1u, uint32_t(std::bit_width(*std::max_element(trial, trial + m))));
+    if (best == 0 || width < best) {
+      best = width;
+      base = b;
+      step = grid;
+      std::copy(trial, trial + m, factors);
+    }
+  }
+  return best;
 }
 
 class BitWriter {
@@ -151,9 +176,8 @@ ValueChunks encodeValueChunks(const float* lo, const float* hi, size_t count) {
       throw InputError("a DAG-MH of " + std::to_string(count) + " values needs a factor stream beyond 128 MiB");
     uint32_t width = 1;
     if (m > 0) {
-      if (fitGrid(clo, chi, which, m, c.base, c.step, factors)) {
-        width = std::max(1, int(std::bit_width(*std::max_element(factors, factors + m))));
-      } else {
+      width = bestGrid(clo, chi, which, m, c.base, c.step, factors);
+      if (width == 0) {
         width = kRawFactorBits;
         c.base = c.step = 0;
         for (uint32_t j = 0; j < m; ++j) factors[j] = std::bit_cast<uint32_t>(midpoint(clo[which[j]], chi[which[j]]));

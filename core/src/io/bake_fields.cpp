@@ -3,7 +3,9 @@
 #include <cstring>
 
 #include "cpvs/base/text.h"
+#include "cpvs/base/limits.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/light/grid_spec.h"
 
 namespace cpvs {
 
@@ -89,6 +91,52 @@ std::vector<uint32_t> getWordSection(ByteReader& h, bool zstd, uint64_t minWords
   std::vector<uint32_t> words(count);
   std::memcpy(words.data(), bytes, count * 4);
   return words;
+}
+
+void putOrthoGrid(ByteWriter& w, const OrthoGrid& grid) {
+  // The grid's description (GridSpec), its orthographic fields in their version 1 order.
+  const GridSpec g = gridSpecOf(grid);
+  w.putVec(g.frame.dir);
+  w.putVec(g.frame.u);
+  w.putVec(g.frame.v);
+  w.putVec(g.origin);
+  w.put(g.u0);
+  w.put(g.v0);
+  w.put(g.d0);
+  w.put(g.extent);
+  w.put(g.depthExtent);
+  // The depth shift of a grid with fewer depth slices (OrthoGrid::depthShift) in the
+  // resolution's second byte: a reader that predates it refuses the file's resolution
+  // rather than offset its lookups as on a cubic grid.
+  w.put<int32_t>(g.log2Resolution | (grid.depthShift() << 8));
+}
+
+OrthoGrid getOrthoGrid(ByteReader& h) {
+  GridSpec spec;
+  spec.projection = Projection::Orthographic;
+  spec.frame.dir = h.getVec("header");
+  spec.frame.u = h.getVec("header");
+  spec.frame.v = h.getVec("header");
+  spec.origin = h.getVec("header");
+  spec.u0 = h.get<double>("header");
+  spec.v0 = h.get<double>("header");
+  spec.d0 = h.get<double>("header");
+  spec.extent = h.get<double>("header");
+  spec.depthExtent = h.get<double>("header");
+  const int32_t resolutionField = h.get<int32_t>("header");
+  spec.log2Resolution = resolutionField & 0xFF;
+  const int32_t shift = resolutionField >> 8;
+  if (shift != 0) {
+    if (shift < 0 || shift > spec.log2Resolution)
+      h.fail("the resolution field " + std::to_string(resolutionField) + " names no grid");
+    // A resolution out of range is refused below (checkGrid) without its slices.
+    if (spec.log2Resolution <= kMaxLog2Resolution) spec.depthSlices = uint32_t(1) << (spec.log2Resolution - shift);
+  }
+  try {
+    return orthoGridOf(spec, h.source());
+  } catch (const InputError& e) {
+    throw FormatError(e.what());  // bad bytes, not a bad argument
+  }
 }
 
 }  // namespace cpvs

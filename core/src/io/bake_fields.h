@@ -18,6 +18,9 @@ namespace cpvs {
 /// light bundles at kBundleFormatVersion. Each reader refuses the other's versions by name.
 constexpr ContainerKind kCpvsKind{{'C', 'P', 'V', 'S'}, kBundleFormatVersion, kCpvsOldestFormatVersion, ".cpvs file"};
 
+/// The sun's grid (every version of .cpvs, and .dmh): FormatError for a grid that is not one.
+void putOrthoGrid(ByteWriter& w, const OrthoGrid& grid);
+OrthoGrid getOrthoGrid(ByteReader& h);
 /// The options and the scene hash (every version).
 void putOptions(ByteWriter& w, const BakeOptions& options, const Hash128& sceneHash);
 void getOptions(ByteReader& h, BakeOptions& options, Hash128& sceneHash);

@@ -29,21 +29,7 @@ std::vector<uint8_t> encodeCpvs(const CpvsArtifact& a, bool zstd) {
   ContainerKind kind = kCpvsKind;
   kind.version = kCpvsFormatVersion;
   beginContainer(w, kind, (zstd ? kContainerZstd : 0) | (a.translucent ? kCpvsTranslucent : 0));
-  // The grid's description (GridSpec), its orthographic fields in their version 1 order.
-  const GridSpec g = gridSpecOf(a.grid);
-  w.putVec(g.frame.dir);
-  w.putVec(g.frame.u);
-  w.putVec(g.frame.v);
-  w.putVec(g.origin);
-  w.put(g.u0);
-  w.put(g.v0);
-  w.put(g.d0);
-  w.put(g.extent);
-  w.put(g.depthExtent);
-  // The depth shift of a grid with fewer depth slices (OrthoGrid::depthShift) in the
-  // resolution's second byte: a reader that predates it refuses the file's resolution
-  // rather than offset its lookups as on a cubic grid.
-  w.put<int32_t>(g.log2Resolution | (a.grid.depthShift() << 8));
+  putOrthoGrid(w, a.grid);
   putOptions(w, a.options, a.sceneHash);
   putReceiversAndPlan(w, a.options, a.receiverHash, a.plan);
   putWordSection(w, PackedDag(dag).words(), zstd);
@@ -66,31 +52,7 @@ CpvsArtifact decodeCpvs(const uint8_t* data, size_t size, const std::string& sou
 
   CpvsArtifact a;
   a.formatVersion = version;
-  GridSpec spec;
-  spec.projection = Projection::Orthographic;
-  spec.frame.dir = h.getVec("header");
-  spec.frame.u = h.getVec("header");
-  spec.frame.v = h.getVec("header");
-  spec.origin = h.getVec("header");
-  spec.u0 = h.get<double>("header");
-  spec.v0 = h.get<double>("header");
-  spec.d0 = h.get<double>("header");
-  spec.extent = h.get<double>("header");
-  spec.depthExtent = h.get<double>("header");
-  const int32_t resolutionField = h.get<int32_t>("header");
-  spec.log2Resolution = resolutionField & 0xFF;
-  const int32_t shift = resolutionField >> 8;
-  if (shift != 0) {
-    if (shift < 0 || shift > spec.log2Resolution)
-      h.fail("the resolution field " + std::to_string(resolutionField) + " names no grid");
-    // A resolution out of range is refused below (checkGrid) without its slices.
-    if (spec.log2Resolution <= kMaxLog2Resolution) spec.depthSlices = uint32_t(1) << (spec.log2Resolution - shift);
-  }
-  try {
-    a.grid = orthoGridOf(spec, source);
-  } catch (const InputError& e) {
-    throw FormatError(e.what());  // bad bytes, not a bad argument
-  }
+  a.grid = getOrthoGrid(h);
   const OrthoGrid& g = a.grid;
 
   getOptions(h, a.options, a.sceneHash);

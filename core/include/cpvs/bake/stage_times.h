@@ -14,10 +14,10 @@ namespace cpvs {
 /// Every stage any process reports, in pipeline order: the one list that stage times,
 /// summaries and reports are keyed by. "load" (scene and BVH), "cameras" (sampled camera
 /// visibility) and "write" belong to the command line, "encode" (a tile's sub-DAG bytes)
-/// to a farm worker, "translucent" (the TOP tree of translucent casters) to the command
+/// to a farm worker, "hierarchy" (a DAG-MH's MH) to a DAG-MH bake, "translucent" (the TOP tree of translucent casters) to the command
 /// line and the coordinator.
-inline constexpr std::array<const char*, 11> kStageNames{"load",  "cameras",     "render", "receivers", "masks", "insert",
-                                                         "compress", "merge", "translucent", "encode", "write"};
+inline constexpr std::array<const char*, 12> kStageNames{"load",  "cameras",     "render", "receivers", "masks", "insert",
+                                                         "compress", "merge", "hierarchy", "translucent", "encode", "write"};
 /// The stages bakeGrid reports: render .. merge.
 inline constexpr std::span<const char* const> kBakeGridStages{kStageNames.data() + 2, 6};
 

@@ -9,8 +9,8 @@
 namespace cpvs {
 
 /// Per texel of a side x side map (row-major), the interval [lo, hi] of depths, in the
-/// light grid's slices, that a lookup may compare against: a point in front of lo is lit,
-/// one behind hi is shadowed. lo <= hi, both finite; a texel nothing covers has
+/// light grid's slices, that a lookup may compare against: a voxel at slice k is shadowed
+/// when k >= the stored depth, so the slices below lo are lit, those from hi on shadowed. lo <= hi, both finite; a texel nothing covers has
 /// [R, kNoCasterDepth] (R the grid's slices).
 struct TexelIntervals {
   uint32_t side = 0;

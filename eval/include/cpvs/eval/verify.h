@@ -6,6 +6,7 @@
 
 #include "cpvs/psv/top_tree.h"
 #include "cpvs/query/bundle_query.h"
+#include "cpvs/query/dag_mh_query.h"
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/eval/surface_sampling.h"
@@ -93,5 +94,11 @@ VerifyResult verifyBundleGrid(const BundleQuery& query, size_t grid, ClosedMode 
 /// receivers are, the only points a bake for them answers exactly).
 VerifyResult verifySamples(const ShadowQuery& query, ClosedMode closed, const RayScene& rays,
                            const std::vector<SurfaceSample>& samples, const ExactOracles& oracles = {});
+
+/// The same comparison for binary DAG-MH lookups (the same normal offset; a point is
+/// shadowed when its depth reaches the texel's stored one). Sample the receivers the file
+/// serves: a `surfaces` DAG-MH answers points on surfaces only.
+VerifyResult verifyDagMhSamples(const DagMhQuery& query, ClosedMode closed, const RayScene& rays,
+                                const std::vector<SurfaceSample>& samples, const ExactOracles& oracles = {});
 
 }  // namespace cpvs

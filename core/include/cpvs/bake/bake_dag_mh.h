@@ -1,0 +1,42 @@
+// A DAG-MH bake in one process (seed 001): per texel the depths a stored depth may take,
+// the MH, the DAG of its shapes and its chunked values.
+#pragma once
+
+#include "cpvs/bake/options.h"
+#include "cpvs/bake/receivers.h"
+#include "cpvs/bake/stage_times.h"
+#include "cpvs/bake/texel_slices.h"
+#include "cpvs/base/progress.h"
+#include "cpvs/dagmh/dag_mh.h"
+#include "cpvs/dagmh/texel_intervals.h"
+#include "cpvs/light/ortho_grid.h"
+#include "cpvs/scene/scene.h"
+
+namespace cpvs {
+
+/// The largest DAG-MH baked in one piece: its intervals and hierarchy take about 11 bytes
+/// a texel (3 GB at 16K).
+constexpr int kMaxLog2DagMhResolution = 14;
+
+/// A texel's classification (after the receivers freed what no lookup reads) as the depths
+/// a DAG-MH may store: [firstUndefined, firstShadowed], or up to kNoCasterDepth for a
+/// column with no shadowed voxel. A lookup whose voxel is at slice k is shadowed when
+/// k >= the stored depth, so any depth in it answers every defined voxel as the CPVS of
+/// the same classification: lit below firstUndefined, shadowed from firstShadowed.
+/// `slices` holds texels [x0, x0 + width) x [y0, y0 + height) of `map`.
+void sliceIntervals(const TexelSlices& slices, uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
+                    TexelIntervals& map);
+
+/// Bakes the sun's DAG-MH over `grid` (cubic, 2^3 to 2^kMaxLog2DagMhResolution texels a
+/// side): the scene's opaque casters rasterized (rasterTexelSlices with options.closed and
+/// options.exit), the voxels no declared receiver reads freed (ReceiverSet::freeIntervals),
+/// sliceIntervals, in bands of rows (reported to `progress` as "render"), then the
+/// hierarchy ("hierarchy") and the DAG ("compress"), timed into `times`. Its lookups answer
+/// every voxel the receivers read as the CPVS of the same scene, grid and receivers. The
+/// same bytes for any thread count. InputError for what it cannot bake; Cancelled when
+/// `progress` returns false.
+DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& options,
+                const ReceiverDeclaration& receivers = {}, int threads = 0, StageTimes* times = nullptr,
+                const ProgressFn& progress = nullptr);
+
+}  // namespace cpvs
