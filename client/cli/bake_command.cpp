@@ -316,7 +316,7 @@ void addBakeCommand(CLI::App& app, int& status) {
   c->add_option("--format", a->format,
                 "What to bake the sun into: cpvs (voxels, exact for every point --receivers declares) or dagmh (a "
                 "DAG-encoded shadow map, seed 001: the same answers as the CPVS for the receivers declared, in fewer "
-                "bytes; up to 16K)")
+                "bytes; up to 64K)")
       ->check(CLI::IsMember({"cpvs", "dagmh"}))
       ->capture_default_str();
   addSunFlags(c, a->sun);

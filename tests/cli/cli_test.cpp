@@ -141,9 +141,9 @@ TEST_F(Cli, DagMhBakesInspectsAndVerifies) {
     EXPECT_NE(bad.status, 0) << flags;
     EXPECT_NE(bad.out.find(words), std::string::npos) << flags << ": " << bad.out;
   }
-  CliRun big = cpvs("bake city:3 --format dagmh --sun-dir 0,-1,0 -r 32K -o " + path("big.dmh"));
+  CliRun big = cpvs("bake city:3 --format dagmh --sun-dir 0,-1,0 -r 128K -o " + path("big.dmh"));
   EXPECT_NE(big.status, 0);
-  EXPECT_NE(big.out.find("16384"), std::string::npos) << big.out;
+  EXPECT_NE(big.out.find("65536"), std::string::npos) << big.out;
 }
 
 TEST_F(Cli, VerifyJsonContract) {

@@ -232,6 +232,48 @@ TEST(DagMh, TheSameIntervalsGiveTheSameBytes) {
   EXPECT_EQ(a.values.factors, b.values.factors);
 }
 
+// The texels of one tile, as a map of its own.
+TexelIntervals tileOf(const TexelIntervals& map, uint32_t tileSide, uint32_t tx, uint32_t ty) {
+  TexelIntervals t;
+  t.side = tileSide;
+  for (uint32_t y = 0; y < tileSide; ++y)
+    for (uint32_t x = 0; x < tileSide; ++x) {
+      const size_t i = size_t(ty * tileSide + y) * map.side + tx * tileSide + x;
+      t.lo.push_back(map.lo[i]);
+      t.hi.push_back(map.hi[i]);
+    }
+  return t;
+}
+
+TEST(DagMh, TilesInAnyOrderGiveTheWholeMapsBytes) {
+  std::mt19937_64 rng(21);
+  for (const uint32_t side : {64u, 256u, 1024u}) {
+    const TexelIntervals map = side == 256 ? randomIntervals(side, 4) : sceneLikeIntervals(side, side);
+    const DagMh whole = encodeDagMh(Mh(map));
+    for (const uint32_t tileSide : {16u, 64u, 256u}) {
+      if (tileSide >= side) continue;
+      SCOPED_TRACE("side " + std::to_string(side) + ", tiles of " + std::to_string(tileSide));
+      const uint32_t n = side / tileSide;
+      std::vector<uint32_t> order(n * n);
+      for (uint32_t i = 0; i < n * n; ++i) order[i] = i;
+      std::shuffle(order.begin(), order.end(), rng);
+      DagMhBuilder builder(std::countr_zero(side), std::countr_zero(tileSide));
+      for (const uint32_t i : order) builder.addTile(i % n, i / n, Mh(tileOf(map, tileSide, i % n, i / n)));
+      const DagMh tiled = builder.finish();
+      EXPECT_EQ(tiled.nodes, whole.nodes);
+      EXPECT_EQ(tiled.treelets, whole.treelets);
+      EXPECT_EQ(tiled.values.count, whole.values.count);
+      EXPECT_EQ(tiled.values.factors, whole.values.factors);
+      EXPECT_EQ(std::memcmp(tiled.values.chunks.data(), whole.values.chunks.data(), whole.values.chunks.size() * 20), 0);
+      EXPECT_EQ(tiled.skip.size(), whole.skip.size());
+      EXPECT_NO_THROW(validateDagMh(tiled, "tiled"));
+    }
+  }
+  DagMhBuilder missing(6, 4);
+  EXPECT_THROW(missing.finish(), InputError);
+  EXPECT_THROW(DagMhBuilder(10, 3), InputError);
+}
+
 TEST(DagMh, CorruptWordsAreRefusedOrStayInBounds) {
   const TexelIntervals texels = sceneLikeIntervals(1024, 3);
   const DagMh good = encodeDagMh(Mh(texels));

@@ -8,15 +8,15 @@
 
 namespace cpvs {
 
-void sliceIntervals(const TexelSlices& slices, uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
-                    TexelIntervals& map) {
+void sliceIntervals(const TexelSlices& slices, uint32_t slicesPerColumn, uint64_t x0, uint64_t y0, uint32_t width,
+                    uint32_t height, TexelIntervals& map) {
   CPVS_CHECK(slices.firstUndefined.size() == size_t(width) * height && x0 + width <= map.side && y0 + height <= map.side);
   for (uint32_t y = 0; y < height; ++y)
     for (uint32_t x = 0; x < width; ++x) {
       const size_t from = size_t(y) * width + x, to = (y0 + y) * map.side + x0 + x;
       const uint32_t shadowed = slices.firstShadowed[from];
       map.lo[to] = float(slices.firstUndefined[from]);
-      map.hi[to] = shadowed >= map.side ? kNoCasterDepth : float(shadowed);
+      map.hi[to] = shadowed >= slicesPerColumn ? kNoCasterDepth : float(shadowed);
     }
 }
 
@@ -32,30 +32,45 @@ DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& op
   const BakeScene prepared(scene, grid, Renderer::Raster, threads, receivers);
   st.add("load", secondsSince(start));
 
-  const uint32_t R = uint32_t(grid.resolution());
-  TexelIntervals map;
-  map.side = R;
-  map.lo.resize(map.texels());
-  map.hi.resize(map.texels());
-  // Bands of rows, so that progress moves and cancelling is prompt.
-  const uint32_t band = std::min<uint32_t>(R, 256);
+  // Tile by tile (the hierarchy of a tile depends only on its texels): the memory of one
+  // tile's intervals and hierarchy, whatever the resolution.
+  const int log2Tile = std::min(grid.log2Resolution, kLog2DagMhTileSide);
+  const uint32_t side = 1u << log2Tile, tilesPerSide = uint32_t(grid.resolution() >> log2Tile);
+  DagMhBuilder builder(grid.log2Resolution, log2Tile);
   TexelSlices slices;
-  for (uint32_t y = 0; y < R; y += band) {
-    start = std::chrono::steady_clock::now();
-    rasterTexelSlices(prepared.raster(), options.closed, options.exit, 0, y, R, band, slices);
-    st.add("render", secondsSince(start));
-    start = std::chrono::steady_clock::now();
-    prepared.receivers().freeIntervals(0, y, R, band, slices);
-    sliceIntervals(slices, 0, y, R, band, map);
-    st.add("receivers", secondsSince(start));
-    if (progress && !progress({"render", y / band + 1, R / band})) throw Cancelled();
-  }
-
+  TexelIntervals tile;
+  tile.side = side;
+  for (uint32_t ty = 0; ty < tilesPerSide; ++ty)
+    for (uint32_t tx = 0; tx < tilesPerSide; ++tx) {
+      const uint64_t x0 = uint64_t(tx) * side, y0 = uint64_t(ty) * side;
+      tile.lo.resize(tile.texels());
+      tile.hi.resize(tile.texels());
+      if (prepared.touchesTile(tx, ty, log2Tile)) {
+        start = std::chrono::steady_clock::now();
+        rasterTexelSlices(prepared.raster(), options.closed, options.exit, x0, y0, side, side, slices);
+        st.add("render", secondsSince(start));
+        start = std::chrono::steady_clock::now();
+        prepared.receivers().freeIntervals(x0, y0, side, side, slices);
+        sliceIntervals(slices, uint32_t(grid.resolution()), 0, 0, side, side, tile);
+        st.add("receivers", secondsSince(start));
+      } else {  // nothing casts there, or nothing reads it: all lit, as rendering it gives
+        ++st.tilesSkipped;
+        std::fill(tile.lo.begin(), tile.lo.end(), float(grid.resolution()));
+        std::fill(tile.hi.begin(), tile.hi.end(), kNoCasterDepth);
+      }
+      start = std::chrono::steady_clock::now();
+      const Mh mh(std::move(tile));
+      st.add("hierarchy", secondsSince(start));
+      start = std::chrono::steady_clock::now();
+      builder.addTile(tx, ty, mh);
+      st.add("compress", secondsSince(start));
+      if (progress && !progress({"tiles", uint64_t(ty) * tilesPerSide + tx + 1, uint64_t(tilesPerSide) * tilesPerSide}))
+        throw Cancelled();
+      tile = TexelIntervals{};
+      tile.side = side;
+    }
   start = std::chrono::steady_clock::now();
-  const Mh mh(std::move(map));
-  st.add("hierarchy", secondsSince(start));
-  start = std::chrono::steady_clock::now();
-  DagMh dag = encodeDagMh(mh);
+  DagMh dag = builder.finish();
   st.add("compress", secondsSince(start));
   return dag;
 }

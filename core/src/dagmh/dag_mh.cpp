@@ -180,10 +180,33 @@ void mhValueIntervals(const Mh& mh, std::vector<float>& lo, std::vector<float>& 
   }
 }
 
-DagMh encodeDagMh(const Mh& mh) {
-  const int L = mh.log2Side(), t = treeletLevel(L), below = L - t;
-  DagMh dag;
-  dag.log2Side = L;
+// The unique shapes so far: inner nodes per level of the map, treelets.
+struct DagMhBuilder::Pools {
+  std::vector<LevelPool> levels;
+  std::unordered_map<std::array<uint32_t, 3>, uint32_t, TreeletHash> treeletIndex;
+  std::vector<std::array<uint32_t, 3>> treeletPool;
+};
+
+DagMhBuilder::DagMhBuilder(int log2Side, int log2TileSide)
+    : log2Side_(log2Side), log2TileSide_(std::min(log2Side, log2TileSide)), tileLevel_(log2Side - log2TileSide_),
+      treeletLevel_(treeletLevel(log2Side)), pools_(std::make_unique<Pools>()) {
+  CPVS_CHECK(log2Side >= 0 && log2Side <= 20 && log2TileSide >= 0);
+  // Tiles of more than one treelet level, so that a tile root is an inner node.
+  if (tileLevel_ > 0 && tileLevel_ >= treeletLevel_)
+    throw InputError("DAG-MH tiles of 2^" + std::to_string(log2TileSide_) + " texels are too small: at least 16 a side");
+  pools_->levels.resize(size_t(treeletLevel_));
+  tiles_.resize(size_t(1) << (2 * tileLevel_));
+}
+
+DagMhBuilder::~DagMhBuilder() = default;
+
+void DagMhBuilder::addTile(uint64_t tileX, uint64_t tileY, const Mh& mh) {
+  const uint64_t tilesPerSide = uint64_t(1) << tileLevel_;
+  CPVS_CHECK(mh.log2Side() == log2TileSide_ && tileX < tilesPerSide && tileY < tilesPerSide);
+  Tile& tile = tiles_[size_t(tileY * tilesPerSide + tileX)];
+  if (tile.added) throw InputError("DAG-MH tile " + std::to_string(tileX) + "," + std::to_string(tileY) + " added twice");
+  // Local level l of the tile is level tileLevel_ + l of the map.
+  const int t = treeletLevel_ - tileLevel_, below = log2Side_ - treeletLevel_;
 
   // Treelets: every node at level t that is not absent, its bits in preorder.
   const uint32_t tside = mh.side(t);
@@ -210,20 +233,21 @@ DagMh encodeDagMh(const Mh& mh) {
           }
       }
   });
-  std::unordered_map<std::array<uint32_t, 3>, uint32_t, TreeletHash> treeletIndex;
-  std::vector<std::array<uint32_t, 3>> treeletPool;
   std::vector<ChildRef> refs(bits.size());
   for (uint32_t y = 0; y < tside; ++y)
     for (uint32_t x = 0; x < tside; ++x) {
       const size_t i = size_t(y) * tside + x;
       if (mh.state(t, x, y) == MhState::Absent) continue;
-      const auto [it, added] = treeletIndex.try_emplace(bits[i], uint32_t(treeletPool.size()));
-      if (added) treeletPool.push_back(bits[i]);
+      const auto [it, added] = pools_->treeletIndex.try_emplace(bits[i], uint32_t(pools_->treeletPool.size()));
+      if (added) pools_->treeletPool.push_back(bits[i]);
       refs[i] = {kDagMhTreelet, it->second, treeletValues(bits[i].data())};
     }
+  if (t == 0) {  // the whole map is one treelet: its root
+    tile.node = refs[0].id;
+    tile.valuesBelow = refs[0].values - 1;
+  }
 
   // Inner levels bottom-up; each node's words name its children by pool index.
-  std::vector<LevelPool> pools{size_t(t)};
   for (int l = t - 1; l >= 0; --l) {
     const uint32_t n = mh.side(l);
     std::vector<ChildRef> up(size_t(n) * n);
@@ -242,26 +266,93 @@ DagMh encodeDagMh(const Mh& mh) {
           values += ch.values;
         }
         words[1] = checkedValues(values);
-        const uint32_t id = pools[size_t(l)].add(std::move(words));
+        const uint32_t id = pools_->levels[size_t(tileLevel_ + l)].add(std::move(words));
         up[size_t(y) * n + x] = {s == MhState::Full ? kDagMhFullInner : kDagMhEmptyInner, id,
                                  checkedValues(values + (s == MhState::Full))};
+        if (l == 0) {
+          tile.node = id;
+          tile.valuesBelow = values;
+        }
       }
     refs = std::move(up);
   }
+  // The root's state is the map's to decide: its interval, whether anything below stores a
+  // value, and the values below it in preorder.
+  tile.lo = mh.lo(0, 0, 0);
+  tile.hi = mh.hi(0, 0, 0);
+  tile.hasFull = mh.hasFull(0, 0, 0);
+  mhValueIntervals(mh, tile.valueLo, tile.valueHi);
+  tile.valueLo.erase(tile.valueLo.begin());  // the root's own, always first
+  tile.valueHi.erase(tile.valueHi.begin());
+  tile.added = true;
+}
+
+DagMh DagMhBuilder::finish() {
+  for (size_t i = 0; i < tiles_.size(); ++i)
+    if (!tiles_[i].added) throw InputError("DAG-MH tile " + std::to_string(i) + " was never added");
+  const int L = log2Side_, t = treeletLevel_, T = tileLevel_;
+  DagMh dag;
+  dag.log2Side = L;
+
+  // The hierarchy above the tiles, from their roots.
+  const uint32_t tilesPerSide = 1u << T;
+  TexelIntervals roots;
+  roots.side = tilesPerSide;
+  std::vector<uint8_t> rootsHaveFull;
+  for (const Tile& tile : tiles_) {
+    roots.lo.push_back(tile.lo);
+    roots.hi.push_back(tile.hi);
+    rootsHaveFull.push_back(tile.hasFull);
+  }
+  const Mh top(std::move(roots), std::move(rootsHaveFull));
+  std::vector<ChildRef> refs(tiles_.size());
+  for (uint32_t y = 0; y < tilesPerSide; ++y)
+    for (uint32_t x = 0; x < tilesPerSide; ++x) {
+      const Tile& tile = tiles_[size_t(y) * tilesPerSide + x];
+      const MhState s = top.state(T, x, y);
+      if (s == MhState::Absent) continue;
+      const bool full = s == MhState::Full;
+      refs[size_t(y) * tilesPerSide + x] = {T == t ? kDagMhTreelet : full ? kDagMhFullInner : kDagMhEmptyInner, tile.node,
+                                            checkedValues(tile.valuesBelow + full)};
+    }
+  for (int l = T - 1; l >= 0; --l) {
+    const uint32_t n = top.side(l);
+    std::vector<ChildRef> up(size_t(n) * n);
+    for (uint32_t y = 0; y < n; ++y)
+      for (uint32_t x = 0; x < n; ++x) {
+        const MhState s = top.state(l, x, y);
+        if (s == MhState::Absent) continue;
+        std::vector<uint32_t> words{0, 0};
+        uint64_t values = 0;
+        for (uint32_t c = 0; c < 4; ++c) {
+          const ChildRef& ch = refs[size_t(2 * y + (c >> 1)) * (2 * n) + 2 * x + (c & 1)];
+          if (ch.type == kDagMhAbsent) continue;
+          words[0] |= ch.type << (2 * c);
+          words.push_back(ch.id);
+          if (words.size() > 3) words.push_back(uint32_t(values));
+          values += ch.values;
+        }
+        words[1] = checkedValues(values);
+        up[size_t(y) * n + x] = {s == MhState::Full ? kDagMhFullInner : kDagMhEmptyInner,
+                                 pools_->levels[size_t(l)].add(std::move(words)), checkedValues(values + (s == MhState::Full))};
+      }
+    refs = std::move(up);
+  }
+  const uint32_t rootId = refs[0].id;
 
   // The final layout: level by level from the root, each in the order of first mention.
   if (t == 0) {
     dag.rootType = kDagMhTreelet;
-    dag.treelets.assign(treeletPool[0].begin(), treeletPool[0].end());
+    dag.treelets.assign(pools_->treeletPool[rootId].begin(), pools_->treeletPool[rootId].end());
   } else {
     dag.rootType = kDagMhFullInner;
-    std::vector<uint32_t> order{0};  // pool indices of the current level, in layout order
+    std::vector<uint32_t> order{rootId};  // pool indices of the current level, in layout order
     std::vector<std::vector<uint32_t>> offsets{size_t(t)};  // per level: pool index -> word offset
-    std::vector<uint32_t> treeletOrder(treeletPool.size(), UINT32_MAX);
+    std::vector<uint32_t> treeletOrder(pools_->treeletPool.size(), UINT32_MAX);
     uint32_t treelets = 0;
     uint64_t at = 0;
     for (int l = 0; l < t; ++l) {
-      LevelPool& pool = pools[size_t(l)];
+      LevelPool& pool = pools_->levels[size_t(l)];
       offsets[size_t(l)].assign(pool.nodes.size(), UINT32_MAX);
       for (uint32_t id : order) {
         offsets[size_t(l)][id] = uint32_t(at);
@@ -269,7 +360,7 @@ DagMh encodeDagMh(const Mh& mh) {
       }
       if (at >= (uint64_t(1) << 30)) throw InputError("a DAG-MH's inner nodes exceed 2^30 words");
       std::vector<uint32_t> next;
-      std::vector<uint8_t> seen(l + 1 < t ? pools[size_t(l) + 1].nodes.size() : 0, 0);
+      std::vector<uint8_t> seen(l + 1 < t ? pools_->levels[size_t(l) + 1].nodes.size() : 0, 0);
       for (uint32_t id : order) {
         const std::vector<uint32_t>& w = pool.nodes[id];
         for (uint32_t k = 0, c = 0; c < 4; ++c) {
@@ -286,14 +377,17 @@ DagMh encodeDagMh(const Mh& mh) {
       }
       order = std::move(next);
     }
-    // Write the words with the pointers made final.
+    // Write the words with the pointers made final (shapes only tiles that lie under an
+    // absent node named are left out).
+    dag.nodes.reserve(size_t(at));
     for (int l = 0; l < t; ++l) {
       std::vector<std::pair<uint32_t, uint32_t>> byOffset;
-      for (uint32_t id = 0; id < offsets[size_t(l)].size(); ++id) byOffset.push_back({offsets[size_t(l)][id], id});
+      for (uint32_t id = 0; id < offsets[size_t(l)].size(); ++id)
+        if (offsets[size_t(l)][id] != UINT32_MAX) byOffset.push_back({offsets[size_t(l)][id], id});
       std::sort(byOffset.begin(), byOffset.end());
       for (const auto& [offset, id] : byOffset) {
         CPVS_CHECK(offset == dag.nodes.size());
-        std::vector<uint32_t> w = pools[size_t(l)].nodes[id];
+        std::vector<uint32_t> w = pools_->levels[size_t(l)].nodes[id];
         for (uint32_t k = 0, c = 0; c < 4; ++c) {
           const uint32_t type = (w[0] >> (2 * c)) & 3;
           if (type == kDagMhAbsent) continue;
@@ -304,13 +398,37 @@ DagMh encodeDagMh(const Mh& mh) {
       }
     }
     dag.treelets.resize(size_t(treelets) * kTreeletWords);
-    for (size_t id = 0; id < treeletPool.size(); ++id)
+    for (size_t id = 0; id < pools_->treeletPool.size(); ++id)
       if (treeletOrder[id] != UINT32_MAX)
-        std::copy(treeletPool[id].begin(), treeletPool[id].end(), dag.treelets.begin() + size_t(treeletOrder[id]) * kTreeletWords);
+        std::copy(pools_->treeletPool[id].begin(), pools_->treeletPool[id].end(), dag.treelets.begin() + size_t(treeletOrder[id]) * kTreeletWords);
   }
 
+  // The values in preorder: the hierarchy above the tiles, each tile's in its place.
   std::vector<float> lo, hi;
-  mhValueIntervals(mh, lo, hi);
+  struct Item {
+    int level;
+    uint32_t x, y;
+  };
+  std::vector<Item> stack{{0, 0, 0}};
+  while (!stack.empty()) {
+    const Item it = stack.back();
+    stack.pop_back();
+    const MhState s = top.state(it.level, it.x, it.y);
+    if (s == MhState::Absent) continue;
+    if (s == MhState::Full) {
+      lo.push_back(top.lo(it.level, it.x, it.y));
+      hi.push_back(top.hi(it.level, it.x, it.y));
+    }
+    if (it.level == T) {
+      const Tile& tile = tiles_[size_t(it.y) * tilesPerSide + it.x];
+      lo.insert(lo.end(), tile.valueLo.begin(), tile.valueLo.end());
+      hi.insert(hi.end(), tile.valueHi.begin(), tile.valueHi.end());
+      continue;
+    }
+    if (!top.hasFull(it.level, it.x, it.y)) continue;
+    for (int c = 3; c >= 0; --c)
+      stack.push_back({it.level + 1, 2 * it.x + uint32_t(c & 1), 2 * it.y + uint32_t(c >> 1)});
+  }
   dag.values = encodeValueChunks(lo.data(), hi.data(), lo.size());
 
   dag.skipLevel = skipLevelFor(L);
@@ -326,6 +444,12 @@ DagMh encodeDagMh(const Mh& mh) {
       }
   }
   return dag;
+}
+
+DagMh encodeDagMh(const Mh& mh) {
+  DagMhBuilder builder(mh.log2Side(), mh.log2Side());
+  builder.addTile(0, 0, mh);
+  return builder.finish();
 }
 
 namespace {

@@ -14,24 +14,29 @@
 
 namespace cpvs {
 
-/// The largest DAG-MH baked in one piece: its intervals and hierarchy take about 11 bytes
-/// a texel (3 GB at 16K).
-constexpr int kMaxLog2DagMhResolution = 14;
+/// The largest DAG-MH a bake makes (its values and shapes are held until the end).
+constexpr int kMaxLog2DagMhResolution = 16;
+/// Texels a side of the tiles a bake builds the hierarchy in, one at a time.
+constexpr int kLog2DagMhTileSide = 11;
 
 /// A texel's classification (after the receivers freed what no lookup reads) as the depths
 /// a DAG-MH may store: [firstUndefined, firstShadowed], or up to kNoCasterDepth for a
-/// column with no shadowed voxel. A lookup whose voxel is at slice k is shadowed when
+/// column with no shadowed voxel (firstShadowed = slicesPerColumn, the grid's resolution).
+/// A lookup whose voxel is at slice k is shadowed when
 /// k >= the stored depth, so any depth in it answers every defined voxel as the CPVS of
 /// the same classification: lit below firstUndefined, shadowed from firstShadowed.
 /// `slices` holds texels [x0, x0 + width) x [y0, y0 + height) of `map`.
-void sliceIntervals(const TexelSlices& slices, uint64_t x0, uint64_t y0, uint32_t width, uint32_t height,
-                    TexelIntervals& map);
+void sliceIntervals(const TexelSlices& slices, uint32_t slicesPerColumn, uint64_t x0, uint64_t y0, uint32_t width,
+                    uint32_t height, TexelIntervals& map);
 
 /// Bakes the sun's DAG-MH over `grid` (cubic, 2^3 to 2^kMaxLog2DagMhResolution texels a
-/// side): the scene's opaque casters rasterized (rasterTexelSlices with options.closed and
-/// options.exit), the voxels no declared receiver reads freed (ReceiverSet::freeIntervals),
-/// sliceIntervals, in bands of rows (reported to `progress` as "render"), then the
-/// hierarchy ("hierarchy") and the DAG ("compress"), timed into `times`. Its lookups answer
+/// side), tile by tile (DagMhBuilder, tiles of 2^kLog2DagMhTileSide): the scene's opaque
+/// casters rasterized (rasterTexelSlices with options.closed and options.exit; "render"),
+/// the voxels no declared receiver reads freed (ReceiverSet::freeIntervals) and
+/// sliceIntervals ("receivers"), the tile's hierarchy ("hierarchy") and its shapes merged
+/// ("compress", with the levels above the tiles and the values at the end), timed into
+/// `times`; a tile nothing casts on or no receiver reads is all lit, not rendered
+/// (times->tilesSkipped). Progress is reported per tile ("tiles"). Its lookups answer
 /// every voxel the receivers read as the CPVS of the same scene, grid and receivers. The
 /// same bytes for any thread count. InputError for what it cannot bake; Cancelled when
 /// `progress` returns false.

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,41 @@ struct DagMh {
 /// The values of a hierarchy's full nodes in preorder (children in mhChild order), as
 /// their intervals: what encodeValueChunks chooses within.
 void mhValueIntervals(const Mh& mh, std::vector<float>& lo, std::vector<float>& hi);
+
+/// Builds a DAG-MH tile by tile: a node's subtree depends only on what lies below it
+/// (mh.h), so each tile's hierarchy is built and its shapes merged on its own, and the
+/// hierarchy above the tiles is built from their roots at the end (NOTES §2.5). The bytes
+/// depend neither on the tile size nor on the order tiles are added in: the same as
+/// encodeDagMh of the whole map's hierarchy.
+class DagMhBuilder {
+ public:
+  /// A map of 2^log2Side texels a side in tiles of 2^log2TileSide (at least 16 texels
+  /// when there is more than one tile; InputError otherwise).
+  DagMhBuilder(int log2Side, int log2TileSide);
+  ~DagMhBuilder();
+  DagMhBuilder(const DagMhBuilder&) = delete;
+  DagMhBuilder& operator=(const DagMhBuilder&) = delete;
+
+  /// Merges tile (tileX, tileY)'s hierarchy (of the tile's side) in.
+  void addTile(uint64_t tileX, uint64_t tileY, const Mh& tile);
+  /// The DAG-MH, once every tile is in (InputError otherwise): the levels above the tiles,
+  /// the layout, the values in preorder chunked, the skip list.
+  DagMh finish();
+
+ private:
+  struct Pools;
+  struct Tile {
+    bool added = false;
+    uint32_t node = 0;         // the root's shape: a pool index at the tiles' level
+    uint64_t valuesBelow = 0;  // values strictly below the root
+    float lo = 0, hi = 0;      // the root's interval
+    bool hasFull = false;      // whether anything below it stores a value
+    std::vector<float> valueLo, valueHi;  // the intervals of those values, in preorder
+  };
+  int log2Side_, log2TileSide_, tileLevel_, treeletLevel_;
+  std::unique_ptr<Pools> pools_;
+  std::vector<Tile> tiles_;
+};
 
 /// Encodes a hierarchy: shapes merged, treelets, values chunked, the skip list.
 DagMh encodeDagMh(const Mh& mh);
