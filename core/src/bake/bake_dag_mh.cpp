@@ -40,11 +40,12 @@ DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& op
   TexelSlices slices;
   TexelIntervals tile;
   tile.side = side;
+  tile.lo.resize(tile.texels());
+  tile.hi.resize(tile.texels());
+  Mh mh;  // one tile's, its storage reused by the next
   for (uint32_t ty = 0; ty < tilesPerSide; ++ty)
     for (uint32_t tx = 0; tx < tilesPerSide; ++tx) {
       const uint64_t x0 = uint64_t(tx) * side, y0 = uint64_t(ty) * side;
-      tile.lo.resize(tile.texels());
-      tile.hi.resize(tile.texels());
       if (prepared.touchesTile(tx, ty, log2Tile)) {
         start = std::chrono::steady_clock::now();
         rasterTexelSlices(prepared.raster(), options.closed, options.exit, x0, y0, side, side, slices);
@@ -59,15 +60,13 @@ DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& op
         std::fill(tile.hi.begin(), tile.hi.end(), kNoCasterDepth);
       }
       start = std::chrono::steady_clock::now();
-      const Mh mh(std::move(tile));
+      mh.rebuild(tile);
       st.add("hierarchy", secondsSince(start));
       start = std::chrono::steady_clock::now();
       builder.addTile(tx, ty, mh);
       st.add("compress", secondsSince(start));
       if (progress && !progress({"tiles", uint64_t(ty) * tilesPerSide + tx + 1, uint64_t(tilesPerSide) * tilesPerSide}))
         throw Cancelled();
-      tile = TexelIntervals{};
-      tile.side = side;
     }
   start = std::chrono::steady_clock::now();
   DagMh dag = builder.finish();

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <string>
@@ -15,18 +16,10 @@ namespace {
 
 bool contains(float lo, float hi, float v) { return lo <= v && v <= hi; }
 
-// One node from its four children's intervals: which it covers and its own interval.
-void combine(const float lo[4], const float hi[4], float& outLo, float& outHi, uint8_t& covered) {
-  const float gmin = std::max(std::max(lo[0], lo[1]), std::max(lo[2], lo[3]));
-  const float gmax = std::min(std::min(hi[0], hi[1]), std::min(hi[2], hi[3]));
-  if (gmin <= gmax) {
-    outLo = gmin;
-    outHi = gmax;
-    covered = 0xF;
-    return;
-  }
-  // No depth suits all four: the lower end that most children's intervals contain (ties:
-  // the lowest child), and the intersection of those that contain it.
+// One node from its four children's intervals when no depth suits all four: the lower
+// end that most children's intervals contain (ties: the lowest child), and the
+// intersection of those that contain it, which are the children it covers.
+[[gnu::noinline]] void combineApart(const float lo[4], const float hi[4], float& outLo, float& outHi, uint8_t& covered) {
   int best = 0, bestCount = 0;
   for (int c = 0; c < 4; ++c) {
     int count = 0;
@@ -50,21 +43,31 @@ void combine(const float lo[4], const float hi[4], float& outLo, float& outHi, u
 
 }  // namespace
 
-Mh::Mh(TexelIntervals texels, std::vector<uint8_t> bottomHasFull) {
+Mh::Mh(TexelIntervals texels, std::vector<uint8_t> bottomHasFull) { rebuild(texels, std::move(bottomHasFull)); }
+
+void Mh::rebuild(TexelIntervals& texels, std::vector<uint8_t> bottomHasFull) {
   const uint32_t side = texels.side;
   if (side == 0 || !std::has_single_bit(side)) throw InputError("an MH needs a power-of-two side, not " + std::to_string(side));
   CPVS_CHECK(texels.lo.size() == texels.texels() && texels.hi.size() == texels.texels());
   CPVS_CHECK(bottomHasFull.empty() || bottomHasFull.size() == texels.texels());
-  for (size_t i = 0; i < texels.texels(); ++i)
-    if (!std::isfinite(texels.lo[i]) || !std::isfinite(texels.hi[i]) || texels.lo[i] > texels.hi[i])
-      throw InputError("texel " + std::to_string(i % side) + "," + std::to_string(i / side) + " has no valid depth interval [" +
-                       std::to_string(texels.lo[i]) + ", " + std::to_string(texels.hi[i]) + "]");
+  if (levels_.size() != size_t(std::countr_zero(side)) + 1) levels_.clear();
   log2Side_ = std::countr_zero(side);
   levels_.resize(size_t(log2Side_) + 1);
   Level& bottom = levels_.back();
-  bottom.lo = std::move(texels.lo);
-  bottom.hi = std::move(texels.hi);
-  bottom.hasFull = bottomHasFull.empty() ? std::vector<uint8_t>(texels.texels(), 0) : std::move(bottomHasFull);
+  // Swapped, not moved: a caller building tile after tile gets buffers of the same size
+  // back, and no tile allocates (and faults in) its storage anew.
+  std::swap(bottom.lo, texels.lo);
+  std::swap(bottom.hi, texels.hi);
+  texels.lo.resize(bottom.lo.size());
+  texels.hi.resize(bottom.hi.size());
+  // Texels store nothing below them: no flags to read (bottomHasFull, the roots of tiles,
+  // is the exception).
+  const bool texelsAtBottom = bottomHasFull.empty();
+  if (texelsAtBottom)
+    bottom.hasFull.assign(bottom.lo.size(), 0);
+  else
+    bottom.hasFull = std::move(bottomHasFull);
+  std::atomic<bool> invalid{false};
 
   for (int l = log2Side_ - 1; l >= 0; --l) {
     const Level& below = levels_[size_t(l) + 1];
@@ -74,25 +77,53 @@ Mh::Mh(TexelIntervals texels, std::vector<uint8_t> bottomHasFull) {
     level.hi.resize(size_t(n) * n);
     level.covered.resize(size_t(n) * n);
     level.hasFull.resize(size_t(n) * n);
+    float* outLo = level.lo.data();
+    float* outHi = level.hi.data();
+    uint8_t* outCovered = level.covered.data();
+    uint8_t* outHasFull = level.hasFull.data();
+    const bool checkIntervals = l == log2Side_ - 1;
+    const bool readFlags = !(checkIntervals && texelsAtBottom);
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n, std::max(1u, 4096u / n)), [&](const auto& rows) {
-      for (uint32_t y = rows.begin(); y != rows.end(); ++y)
+      bool bad = false;
+      for (uint32_t y = rows.begin(); y != rows.end(); ++y) {
+        const float* lo0 = below.lo.data() + size_t(2 * y) * nb;
+        const float* hi0 = below.hi.data() + size_t(2 * y) * nb;
+        const uint8_t* f0 = below.hasFull.data() + size_t(2 * y) * nb;
         for (uint32_t x = 0; x < n; ++x) {
-          float lo[4], hi[4];
-          bool childHasFull[4];
-          for (uint32_t c = 0; c < 4; ++c) {
-            const size_t b = size_t(2 * y + (c >> 1)) * nb + 2 * x + (c & 1);
-            lo[c] = below.lo[b];
-            hi[c] = below.hi[b];
-            childHasFull[c] = below.hasFull[b] != 0;
-          }
+          const float lo[4] = {lo0[2 * x], lo0[2 * x + 1], lo0[nb + 2 * x], lo0[nb + 2 * x + 1]};
+          const float hi[4] = {hi0[2 * x], hi0[2 * x + 1], hi0[nb + 2 * x], hi0[nb + 2 * x + 1]};
+          if (checkIntervals)
+            for (int c = 0; c < 4; ++c) bad |= !(std::isfinite(lo[c]) && std::isfinite(hi[c]) && lo[c] <= hi[c]);
           const size_t i = size_t(y) * n + x;
-          combine(lo, hi, level.lo[i], level.hi[i], level.covered[i]);
-          bool any = level.covered[i] != 0xF;
-          for (int c = 0; c < 4; ++c) any = any || (level.covered[i] >> c & 1 && childHasFull[c]);
-          level.hasFull[i] = any;
+          // Mostly one depth suits all four children: they are all covered.
+          const float gmin = std::max(std::max(lo[0], lo[1]), std::max(lo[2], lo[3]));
+          const float gmax = std::min(std::min(hi[0], hi[1]), std::min(hi[2], hi[3]));
+          uint8_t covered = 0xF;
+          if (gmin <= gmax) {
+            outLo[i] = gmin;
+            outHi[i] = gmax;
+          } else {
+            combineApart(lo, hi, outLo[i], outHi[i], covered);
+          }
+          outCovered[i] = covered;
+          bool any = covered != 0xF;
+          if (readFlags) {
+            const uint8_t f[4] = {f0[2 * x], f0[2 * x + 1], f0[nb + 2 * x], f0[nb + 2 * x + 1]};
+            for (int c = 0; c < 4; ++c) any = any || (covered >> c & 1 && f[c]);
+          }
+          outHasFull[i] = any;
         }
+      }
+      if (bad) invalid = true;
     });
+    if (invalid) break;
   }
+  if (invalid || side == 1)
+    for (size_t i = 0; i < bottom.lo.size(); ++i)
+      if (!std::isfinite(bottom.lo[i]) || !std::isfinite(bottom.hi[i]) || bottom.lo[i] > bottom.hi[i])
+          throw InputError("texel " + std::to_string(i % side) + "," + std::to_string(i / side) +
+                         " has no valid depth interval [" + std::to_string(bottom.lo[i]) + ", " +
+                         std::to_string(bottom.hi[i]) + "]");
 }
 
 float Mh::value(int level, uint64_t x, uint64_t y) const {

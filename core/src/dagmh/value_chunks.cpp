@@ -1,5 +1,7 @@
 #include "cpvs/dagmh/value_chunks.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -122,9 +124,13 @@ class BitWriter {
     return bits_ / 8;
   }
   void put(uint32_t value, uint32_t width) {
-    out_.resize(size_t((bits_ + width + 7) / 8 + 8), 0);
-    for (uint32_t b = 0; b < width; ++b, ++bits_)
-      if (value >> b & 1) out_[size_t(bits_ / 8)] |= uint8_t(1u << (bits_ % 8));
+    if (out_.size() < size_t(bits_ / 8 + 16)) out_.resize(std::max(out_.size() * 2, size_t(bits_ / 8 + 16)), 0);
+    // Little-endian: the value's bits from bit bits_ % 8 of byte bits_ / 8 on.
+    uint64_t window;
+    std::memcpy(&window, out_.data() + bits_ / 8, 8);
+    window |= uint64_t(width == 32 ? value : value & ((1u << width) - 1)) << (bits_ % 8);
+    std::memcpy(out_.data() + bits_ / 8, &window, 8);
+    bits_ += width;
   }
   void finish() { out_.resize(size_t((bits_ + 7) / 8 + kFactorStreamPadding), 0); }
 
@@ -156,34 +162,45 @@ ValueChunks encodeValueChunks(const float* lo, const float* hi, size_t count) {
   ValueChunks out;
   out.count = count;
   out.chunks.resize((count + kValuesPerChunk - 1) / kValuesPerChunk);
+  // Each chunk on its own, in parallel (its width in `meta` for now, its factors aside);
+  // then the stream, in order.
+  std::vector<uint32_t> factors(out.chunks.size() * kValuesPerChunk);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, out.chunks.size(), 256), [&](const auto& range) {
+    uint32_t which[kValuesPerChunk];
+    for (size_t ci = range.begin(); ci != range.end(); ++ci) {
+      ValueChunk& c = out.chunks[ci];
+      uint32_t* f = factors.data() + ci * kValuesPerChunk;
+      const size_t first = ci * kValuesPerChunk;
+      const uint32_t n = uint32_t(std::min<size_t>(kValuesPerChunk, count - first));
+      const float* clo = lo + first;
+      const float* chi = hi + first;
+      c.representative = representativeOf(clo, chi, n);
+      uint32_t m = 0;
+      for (uint32_t k = 0; k < n; ++k)
+        if (!contains(clo[k], chi[k], c.representative)) {
+          c.bitmap |= 1u << k;
+          which[m++] = k;
+        }
+      uint32_t width = 1;
+      if (m > 0) {
+        width = bestGrid(clo, chi, which, m, c.base, c.step, f);
+        if (width == 0) {
+          width = kRawFactorBits;
+          c.base = c.step = 0;
+          for (uint32_t j = 0; j < m; ++j) f[j] = std::bit_cast<uint32_t>(midpoint(clo[which[j]], chi[which[j]]));
+        }
+      }
+      c.meta = width - 1;
+    }
+  });
   BitWriter writer(out.factors);
-  uint32_t which[kValuesPerChunk], factors[kValuesPerChunk];
   for (size_t ci = 0; ci < out.chunks.size(); ++ci) {
     ValueChunk& c = out.chunks[ci];
-    const size_t first = ci * kValuesPerChunk;
-    const uint32_t n = uint32_t(std::min<size_t>(kValuesPerChunk, count - first));
-    const float* clo = lo + first;
-    const float* chi = hi + first;
-    c.representative = representativeOf(clo, chi, n);
-    uint32_t m = 0;
-    for (uint32_t k = 0; k < n; ++k)
-      if (!contains(clo[k], chi[k], c.representative)) {
-        c.bitmap |= 1u << k;
-        which[m++] = k;
-      }
     const uint64_t byte = writer.alignToByte();
     if (byte >= kMaxFactorStreamBytes)
       throw InputError("a DAG-MH of " + std::to_string(count) + " values needs a factor stream beyond 128 MiB");
-    uint32_t width = 1;
-    if (m > 0) {
-      width = bestGrid(clo, chi, which, m, c.base, c.step, factors);
-      if (width == 0) {
-        width = kRawFactorBits;
-        c.base = c.step = 0;
-        for (uint32_t j = 0; j < m; ++j) factors[j] = std::bit_cast<uint32_t>(midpoint(clo[which[j]], chi[which[j]]));
-      }
-      for (uint32_t j = 0; j < m; ++j) writer.put(factors[j], width);
-    }
+    const uint32_t width = c.meta + 1, m = uint32_t(std::popcount(c.bitmap));
+    for (uint32_t j = 0; j < m; ++j) writer.put(factors[ci * kValuesPerChunk + j], width);
     c.meta = uint32_t(byte) << 5 | (width - 1);
   }
   writer.finish();

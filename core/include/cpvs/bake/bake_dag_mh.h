@@ -17,7 +17,7 @@ namespace cpvs {
 /// The largest DAG-MH a bake makes (its values and shapes are held until the end).
 constexpr int kMaxLog2DagMhResolution = 16;
 /// Texels a side of the tiles a bake builds the hierarchy in, one at a time.
-constexpr int kLog2DagMhTileSide = 11;
+constexpr int kLog2DagMhTileSide = 9;
 
 /// A texel's classification (after the receivers freed what no lookup reads) as the depths
 /// a DAG-MH may store: [firstUndefined, firstShadowed], or up to kNoCasterDepth for a

@@ -34,6 +34,10 @@ class Mh {
   /// node that something below it stores a value: the bottom level is then the roots of
   /// tiles built apart, not texels.
   explicit Mh(TexelIntervals texels, std::vector<uint8_t> bottomHasFull = {});
+  Mh() = default;
+  /// The same, in this hierarchy's storage: `texels` gets back buffers of its size whose
+  /// contents are unspecified, for the next tile of the same side.
+  void rebuild(TexelIntervals& texels, std::vector<uint8_t> bottomHasFull = {});
 
   int log2Side() const { return log2Side_; }
   uint32_t side(int level) const { return 1u << level; }
