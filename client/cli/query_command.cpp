@@ -12,6 +12,8 @@
 #include "cpvs/base/error.h"
 #include "cpvs/bake/bake_plan.h"
 #include "cpvs/io/bundle_file.h"
+#include "cpvs/io/dmh_file.h"
+#include "cpvs/query/dag_mh_query.h"
 #include "cpvs/query/bundle_query.h"
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/runtime/runtime.h"
@@ -205,10 +207,48 @@ int querySegment(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
   return 0;
 }
 
+// A DAG-MH: the same lookups (point or CSV), on the CPU.
+int queryDagMh(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
+  if (a.gpu) throw InputError("--gpu: a DAG-MH is looked up on the CPU (the runtime's shader reads a .cpvs)");
+  if (!a.segment.empty()) throw InputError("--segment: light along a segment is walked in a .cpvs, not a DAG-MH");
+  if (a.soft || a.light != "all") throw InputError("--soft and --light pick a light bundle's lights; " + a.file + " has the sun only");
+  DmhArtifact art = decodeDmh(bytes.data(), bytes.size(), a.file);
+  if (art.options.receivers != ReceiverKind::Everywhere) {
+    std::fprintf(stderr, "note: %s was baked for '%s' receivers (lookups up to PCF %d); a lookup elsewhere may be wrong\n",
+                 a.file.c_str(), optionName(art.options.receivers), int(art.options.receiverPcf));
+    if (a.pcf > art.options.receiverPcf)
+      std::fprintf(stderr, "warning: --pcf %d is wider than the %d %s was baked for: filtered answers may be wrong\n",
+                   a.pcf, int(art.options.receiverPcf), a.file.c_str());
+  }
+  const DagMhQuery q(art.grid, std::move(art.dag));
+  if (!a.point.empty()) {
+    const Vec3 p = parseVec3(a.point, "--point");
+    const Vec3 n = a.normal.empty() ? Vec3{} : parseVec3(a.normal, "--normal");
+    const float vis = q.filtered(p, n, a.pcf);
+    const Vec3 c = q.lookupVoxel(p, n, a.pcf);
+    const VoxelCoord v{floorToVoxel(c.x), floorToVoxel(c.y), floorToVoxel(c.z)};
+    const int64_t R = int64_t(q.grid().resolution());
+    std::printf("%s  visibility %.4g  (voxel %lld, %lld, %lld", vis == 1.0f ? "lit" : (vis == 0.0f ? "shadowed" : "partly lit"),
+                vis, static_cast<long long>(v.x), static_cast<long long>(v.y), static_cast<long long>(v.z));
+    if (v.x >= 0 && v.y >= 0 && v.x < R && v.y < R)
+      std::printf("; the texel's depth %.6g slices", q.dag().depth(uint64_t(v.x), uint64_t(v.y)));
+    std::printf(")\n");
+    return 0;
+  }
+  std::vector<Vec3> points, normals;
+  readPointsCsv(a.pointsCsv, points, normals);
+  std::vector<float> out;
+  q.batch(points, normals, a.pcf, out);
+  std::printf("x,y,z,visibility\n");
+  for (size_t i = 0; i < points.size(); ++i) std::printf("%.9g,%.9g,%.9g,%.6g\n", points[i].x, points[i].y, points[i].z, out[i]);
+  return 0;
+}
+
 int runQuery(const QueryArgs& a) {
   if (!a.segment.empty()) {
     if (!a.point.empty() || !a.pointsCsv.empty()) throw InputError("give one of --point, --points and --segment");
-    return querySegment(a, readFile(a.file));
+    const std::vector<uint8_t> bytes = readFile(a.file);
+    return isDmh(bytes.data(), bytes.size()) ? queryDagMh(a, bytes) : querySegment(a, bytes);
   }
   if (!a.medium.empty()) throw InputError("--medium goes with --segment");
   if (a.point.empty() == a.pointsCsv.empty())
@@ -216,6 +256,7 @@ int runQuery(const QueryArgs& a) {
   if (!a.pointsCsv.empty() && !a.normal.empty())
     throw InputError("--normal goes with --point; in --points files put the normal in columns 4-6");
   const std::vector<uint8_t> bytes = readFile(a.file);
+  if (isDmh(bytes.data(), bytes.size())) return queryDagMh(a, bytes);
   if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return queryBundle(a, bytes);
   if (a.soft) throw InputError("--soft answers a light bundle's area lights; " + a.file + " has the sun only");
   if (a.light != "all") throw InputError("--light picks a light of a light bundle; " + a.file + " has the sun only");
@@ -302,7 +343,7 @@ void addQueryCommand(CLI::App& app, int& status) {
   CLI::App* c = app.add_subcommand(
       "query", "Visibility of the sun (or of each light of a light bundle) at world points: 1 lit, 0 shadowed, a "
                "fraction with --pcf (CSV out for --points)");
-  c->add_option("file", a->file, ".cpvs file")->required();
+  c->add_option("file", a->file, ".cpvs, light bundle or .dmh file")->required();
   c->add_option("--point,-p", a->point, "World point X,Y,Z");
   c->add_option("--normal,-n", a->normal, "Surface normal at the point (applies the normal offset)");
   c->add_option("--points", a->pointsCsv, "CSV file of x,y,z or x,y,z,nx,ny,nz rows");

@@ -15,12 +15,7 @@
 namespace cpvs {
 
 std::vector<float> cpvsVisibility(const CameraHits& hits, const ShadowQuery& query, int pcf) {
-  std::vector<float> vis(hits.pixels.size(), 1.0f);
-  tbb::parallel_for(size_t(0), hits.pixels.size(), [&](size_t i) {
-    const SurfaceHit& s = hits.pixels[i];
-    if (s.hit) vis[i] = query.filtered(s.point, s.normal, pcf);
-  });
-  return vis;
+  return lookupVisibility(hits, query, pcf);
 }
 
 std::vector<float> exactVisibility(const CameraHits& hits, const RayScene& rays, const OrthoGrid& grid) {

@@ -232,6 +232,22 @@ TEST(DagMh, TheSameIntervalsGiveTheSameBytes) {
   EXPECT_EQ(a.values.factors, b.values.factors);
 }
 
+TEST(DagMh, ARectangleReadsAsItsTexels) {
+  std::mt19937_64 rng(8);
+  for (const uint32_t side : {8u, 64u, 1024u}) {
+    const DagMh dag = encodeDagMh(Mh(sceneLikeIntervals(side, side + 7)));
+    for (int trial = 0; trial < 2000; ++trial) {
+      const uint32_t w = 1 + uint32_t(rng() % std::min(side, 9u)), h = 1 + uint32_t(rng() % std::min(side, 9u));
+      const uint64_t x0 = rng() % (side - w + 1), y0 = rng() % (side - h + 1);
+      float got[81];
+      dag.depths(x0, y0, w, h, got);
+      for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 0; x < w; ++x)
+          ASSERT_EQ(got[y * w + x], dag.depth(x0 + x, y0 + y)) << side << ": " << x0 + x << "," << y0 + y;
+    }
+  }
+}
+
 // The texels of one tile, as a map of its own.
 TexelIntervals tileOf(const TexelIntervals& map, uint32_t tileSide, uint32_t tx, uint32_t ty) {
   TexelIntervals t;

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "cpvs/base/error.h"
+#include "dagmh/bit_count.h"
 
 namespace cpvs {
 
@@ -32,13 +33,13 @@ uint32_t pointerWord(uint32_t k) { return k == 0 ? 2 : 2 * k + 1; }
 uint32_t prefixWord(uint32_t k) { return 2 * k + 2; }
 
 uint32_t treeletValues(const uint32_t* t) {
-  return uint32_t(std::popcount(t[0]) + std::popcount(t[1]) + std::popcount(t[2]));
+  return uint32_t(bitCount(t[0]) + bitCount(t[1]) + bitCount(t[2]));
 }
 // Set bits of the treelet before bit i.
 uint32_t treeletRank(const uint32_t* t, uint32_t i) {
   uint32_t n = 0;
-  for (uint32_t w = 0; w < i / 32; ++w) n += uint32_t(std::popcount(t[w]));
-  if (i % 32) n += uint32_t(std::popcount(t[i / 32] & ((1u << (i % 32)) - 1)));
+  for (uint32_t w = 0; w < i / 32; ++w) n += uint32_t(bitCount(t[w]));
+  if (i % 32) n += uint32_t(bitCount(t[i / 32] & ((1u << (i % 32)) - 1)));
   return n;
 }
 bool treeletHas(const uint32_t* t, uint32_t i) { return t[i / 32] >> (i % 32) & 1; }
@@ -149,6 +150,93 @@ uint32_t DagMh::valueIndex(uint64_t x, uint64_t y) const {
   }
   descend(*this, d, x, y, log2Side);
   return finish(*this, d, x, y);
+}
+
+namespace {
+
+// Fills the value indices of the rectangle's texels under the node a descent stands at
+// (its square: side 2^(L - level) from (nx, ny)), recursing into the children that overlap.
+struct RectFill {
+  const DagMh& dag;
+  uint64_t x0, y0, x1, y1;  // the rectangle, exclusive ends
+  uint32_t* out;
+  uint32_t width;
+
+  void visit(const Descent& d, uint64_t nx, uint64_t ny) const {
+    const uint64_t size = uint64_t(1) << (dag.log2Side - d.level);
+    const uint64_t ax = std::max(nx, x0), ay = std::max(ny, y0), bx = std::min(nx + size, x1), by = std::min(ny + size, y1);
+    if (d.type == kDagMhAbsent) {
+      for (uint64_t y = ay; y < by; ++y)
+        for (uint64_t x = ax; x < bx; ++x) out[(y - y0) * width + (x - x0)] = d.last;
+      return;
+    }
+    if (d.type == kDagMhTreelet) {
+      // The treelet's bits in registers, each texel's path read from them.
+      const uint32_t* t = dag.treelets.data() + size_t(d.ptr) * kTreeletWords;
+      const uint64_t low = uint64_t(t[1]) << 32 | t[0];
+      const uint32_t high = t[2];
+      const int below = dag.log2Side - d.level;
+      for (uint64_t y = ay; y < by; ++y)
+        for (uint64_t x = ax; x < bx; ++x) {
+          uint32_t l[3] = {0, 0, 0};
+          for (int n = 0; n < below; ++n) l[n] = mhChild(x, y, below - n - 1);
+          uint32_t index = d.last;
+          for (int n = below; n >= 0; --n) {
+            const uint32_t i = treeletBit(n, l[0], l[1], l[2]);
+            if (i < 64 ? (low >> i & 1) : (high >> (i - 64) & 1)) {
+              const uint64_t before = i < 64 ? low & ((uint64_t(1) << i) - 1) : low;
+              index = d.first + bitCount(uint32_t(before)) + bitCount(uint32_t(before >> 32)) +
+                      (i > 64 ? bitCount(high & ((1u << (i - 64)) - 1)) : 0);
+              break;
+            }
+          }
+          out[(y - y0) * width + (x - x0)] = index;
+        }
+      return;
+    }
+    const uint64_t half = size / 2;
+    for (uint32_t c = 0; c < 4; ++c) {
+      const uint64_t cx = nx + (c & 1) * half, cy = ny + (c >> 1) * half;
+      if (cx >= bx || cy >= by || cx + half <= ax || cy + half <= ay) continue;
+      Descent child = d;
+      descend(dag, child, cx, cy, d.level + 1);
+      visit(child, cx, cy);
+    }
+  }
+};
+
+}  // namespace
+
+void DagMh::depths(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, float* out) const {
+  const uint64_t side = uint64_t(1) << log2Side;
+  CPVS_CHECK(x0 + width <= side && y0 + height <= side && width * height <= 1024);
+  uint32_t indices[1024];
+  // Down to the smallest node holding the whole rectangle (through the skip list when it
+  // lies within one of its nodes), then one visit of what lies below.
+  int level = 0;
+  while (level < log2Side) {
+    const int shift = log2Side - level - 1;
+    if ((x0 >> shift) != ((x0 + width - 1) >> shift) || (y0 >> shift) != ((y0 + height - 1) >> shift)) break;
+    ++level;
+  }
+  Descent d = rootDescent(*this);
+  if (skipLevel > 0 && level >= skipLevel) {
+    const int shift = log2Side - skipLevel;
+    const DagMhSkip& e = skip[size_t(y0 >> shift) << skipLevel | size_t(x0 >> shift)];
+    d = {e.typePtr & 3, e.typePtr >> 2, e.first, e.last, skipLevel};
+  }
+  descend(*this, d, x0, y0, level);
+  const int shift = log2Side - d.level;
+  RectFill{*this, x0, y0, x0 + width, y0 + height, indices, width}.visit(d, (x0 >> shift) << shift, (y0 >> shift) << shift);
+  uint32_t lastIndex = UINT32_MAX;
+  float lastDepth = 0;
+  for (uint32_t i = 0; i < width * height; ++i) {
+    if (indices[i] != lastIndex) {
+      lastIndex = indices[i];
+      lastDepth = values.value(lastIndex);
+    }
+    out[i] = lastDepth;
+  }
 }
 
 uint64_t DagMh::innerNodeCount() const {
@@ -545,7 +633,7 @@ void validateDagMh(const DagMh& dag, const std::string& source) {
     const ValueChunk& c = v.chunks[i];
     const uint64_t inChunk = std::min<uint64_t>(kValuesPerChunk, v.count - i * kValuesPerChunk);
     if (inChunk < 32 && c.bitmap >> inChunk) invalid(source, "chunk " + std::to_string(i) + " marks values past the end");
-    const uint64_t bits = uint64_t(std::popcount(c.bitmap)) * c.factorBits();
+    const uint64_t bits = uint64_t(bitCount(c.bitmap)) * c.factorBits();
     if (c.factorByte() + (bits + 7) / 8 > streamBytes) invalid(source, "chunk " + std::to_string(i) + "'s factors run past the stream");
   }
   // The skip list is what a descent finds.

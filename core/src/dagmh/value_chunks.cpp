@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "cpvs/base/error.h"
+#include "dagmh/bit_count.h"
 
 // Compiled with -ffp-contract=off: base + step * i must round as the decoder, the GPU
 // (precise) and the encoder's own check round it.
@@ -145,7 +146,7 @@ float ValueChunks::value(uint64_t index) const {
   const ValueChunk& c = chunks[size_t(index / kValuesPerChunk)];
   const uint32_t k = uint32_t(index % kValuesPerChunk);
   if (!(c.bitmap >> k & 1)) return c.representative;
-  const uint32_t j = uint32_t(std::popcount(c.bitmap & ((1u << k) - 1)));
+  const uint32_t j = uint32_t(bitCount(c.bitmap & ((1u << k) - 1)));
   const uint32_t width = c.factorBits();
   const uint64_t bit = uint64_t(j) * width;
   uint64_t window = 0;
@@ -199,7 +200,7 @@ ValueChunks encodeValueChunks(const float* lo, const float* hi, size_t count) {
     const uint64_t byte = writer.alignToByte();
     if (byte >= kMaxFactorStreamBytes)
       throw InputError("a DAG-MH of " + std::to_string(count) + " values needs a factor stream beyond 128 MiB");
-    const uint32_t width = c.meta + 1, m = uint32_t(std::popcount(c.bitmap));
+    const uint32_t width = c.meta + 1, m = uint32_t(bitCount(c.bitmap));
     for (uint32_t j = 0; j < m; ++j) writer.put(factors[ci * kValuesPerChunk + j], width);
     c.meta = uint32_t(byte) << 5 | (width - 1);
   }
@@ -211,7 +212,7 @@ ValueChunkStats valueChunkStats(const ValueChunks& values) {
   ValueChunkStats s;
   s.values = values.count;
   for (const ValueChunk& c : values.chunks) {
-    const uint32_t f = uint32_t(std::popcount(c.bitmap));
+    const uint32_t f = uint32_t(bitCount(c.bitmap));
     s.factors += f;
     if (c.factorBits() == kRawFactorBits) s.rawFactors += f;
     s.factorBitsTotal += uint64_t(f) * c.factorBits();

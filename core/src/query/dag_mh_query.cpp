@@ -28,10 +28,19 @@ bool DagMhQuery::voxelShadowed(const VoxelCoord& v) const {
 uint32_t DagMhQuery::litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
   const Vec3 c = lookupVoxel(p, n, pcf);
   const int64_t cx = floorToVoxel(c.x), cy = floorToVoxel(c.y), cz = floorToVoxel(c.z), r = pcf.radius();
-  uint32_t lit = 0;
-  for (int64_t y = cy - r; y <= cy + r; ++y)
-    for (int64_t x = cx - r; x <= cx + r; ++x) lit += !voxelShadowed({x, y, cz});
-  return lit;
+  const uint32_t all = uint32_t(pcf.texels());
+  if (cz < 0) return all;  // in front of the grid
+  // The footprint's texels inside the grid, read in one descent; those outside are lit.
+  const int64_t x0 = std::max<int64_t>(cx - r, 0), y0 = std::max<int64_t>(cy - r, 0);
+  const int64_t x1 = std::min<int64_t>(cx + r + 1, R_), y1 = std::min<int64_t>(cy + r + 1, R_);
+  if (x0 >= x1 || y0 >= y1) return all;
+  const uint32_t w = uint32_t(x1 - x0), h = uint32_t(y1 - y0);
+  float depth[kMaxPcfWidth * kMaxPcfWidth];
+  dag_.depths(uint64_t(x0), uint64_t(y0), w, h, depth);
+  const double k = double(std::min(cz, R_ - 1));
+  uint32_t shadowed = 0;
+  for (uint32_t i = 0; i < w * h; ++i) shadowed += k >= double(depth[i]);
+  return all - shadowed;
 }
 
 void DagMhQuery::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf,

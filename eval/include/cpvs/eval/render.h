@@ -2,6 +2,8 @@
 // difference between the two: how a person checks a bake by eye. Cameras: camera.h.
 #pragma once
 
+#include <tbb/parallel_for.h>
+
 #include <array>
 #include <cstdint>
 #include <string>
@@ -15,8 +17,20 @@
 
 namespace cpvs {
 
-/// Visibility of the sun per pixel (1 lit, 0 shadowed, fractions with PCF) from the CPVS,
-/// with the lookup's normal offset; pixels without a hit get 1.
+/// Visibility of the sun per pixel (1 lit, 0 shadowed, fractions with PCF) from any lookup
+/// with `filtered(p, n, pcf)` (a CPVS's, a DAG-MH's), with its normal offset; pixels
+/// without a hit get 1. Multithreaded.
+template <class Lookup>
+std::vector<float> lookupVisibility(const CameraHits& hits, const Lookup& lookup, int pcf) {
+  const PcfWidth width(pcf);
+  std::vector<float> vis(hits.pixels.size(), 1.0f);
+  tbb::parallel_for(size_t(0), hits.pixels.size(), [&](size_t i) {
+    const SurfaceHit& s = hits.pixels[i];
+    if (s.hit) vis[i] = lookup.filtered(s.point, s.normal, width);
+  });
+  return vis;
+}
+/// The CPVS's.
 std::vector<float> cpvsVisibility(const CameraHits& hits, const ShadowQuery& query, int pcf);
 /// The same from exact Embree shadow rays leaving the surface itself (a tiny offset
 /// against self-intersection, no voxel bias): the ground truth a viewer compares with.
