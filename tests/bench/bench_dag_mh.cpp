@@ -98,7 +98,16 @@ int run(int argc, char** argv) {
         }
         const double cpvsSeconds = secondsSince(start);
         start = Clock::now();
-        DagMh dag = bakeDagMh(s->scene, grid, options, k.declaration, args.threads);
+        DagMh dag;
+        try {
+          dag = bakeDagMh(s->scene, grid, options, k.declaration, args.threads);
+        } catch (const InputError& e) {  // more values than a DAG-MH holds: said in the row
+          std::printf("| %s | %s | %s | %s | refused: %s | | | | %.2f | | | | | |\n", s->label.c_str(),
+                      resolutionLabel(log2R).c_str(), k.label.c_str(), humanBytes(packed.bytes()).c_str(), e.what(),
+                      cpvsSeconds);
+          if (k.declaration.kind == ReceiverKind::Everywhere) everywhereCpvs = packed.bytes();
+          continue;
+        }
         const double dagMhSeconds = secondsSince(start);
         const uint64_t cpvsBytes = packed.bytes(), dagMhBytes = dag.bytes();
         if (k.declaration.kind == ReceiverKind::Everywhere) everywhereCpvs = cpvsBytes;
