@@ -8,9 +8,12 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/query/dag_mh_query.h"
 #include "cpvs/query/shadow_query.h"
+#include "cpvs/bake/bake_dag_mh.h"
 #include "cpvs/eval/shadow_map.h"
 #include "cpvs/eval/verify.h"
 #include "cpvs/raytrace/visibility.h"
@@ -72,6 +75,7 @@ const char* accuracyMethodName(AccuracyMethod m) {
     case AccuracyMethod::ShadowMapEqualBytes: return "shadow map, equal bytes";
     case AccuracyMethod::ShadowMapEqualBytesCpvsOffset: return "shadow map, equal bytes, CPVS offset";
     case AccuracyMethod::ShadowMapFull: return "shadow map, full resolution";
+    case AccuracyMethod::DagMh: return "DAG-MH";
   }
   return "?";
 }
@@ -82,6 +86,7 @@ const char* accuracyMethodKey(AccuracyMethod m) {
     case AccuracyMethod::ShadowMapEqualBytes: return "sm_equal_bytes";
     case AccuracyMethod::ShadowMapEqualBytesCpvsOffset: return "sm_equal_bytes_cpvs_offset";
     case AccuracyMethod::ShadowMapFull: return "sm_full";
+    case AccuracyMethod::DagMh: return "dagmh";
   }
   return "?";
 }
@@ -204,7 +209,34 @@ struct Methods {
   bool full = false;
   uint32_t equalSide = 0;
   AccuracyRow cpvs, eq, eqOff, fullRow;
+  std::optional<DagMhQuery> dagMh;  // the same receivers' DAG-MH, looked up at the CPVS's offset point
+  AccuracyRow dagMhRow;
 };
+
+// The DAG-MH of the same receivers at this resolution, timed; its row filled in.
+void dagMhRow(const Inputs& in, const OrthoGrid& grid, const std::string& label, Methods& m) {
+  AccuracyRow& row = m.dagMhRow;
+  row.method = AccuracyMethod::DagMh;
+  row.log2Resolution = grid.log2Resolution;
+  row.side = grid.resolution();
+  BakeOptions options = in.options.bake;
+  options.receivers = in.options.receivers.kind;
+  options.receiverPcf = uint8_t(in.options.receivers.maxPcf);
+  StageTimes st;
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    DagMh dag = bakeDagMh(in.scene, grid, options, in.options.receivers, 0, &st, [&](const Progress& p) {
+      return !in.progress || in.progress({label + " DAG-MH", p.done, p.total, p.secondsLeft});
+    });
+    row.bakeSeconds = secondsSince(start);
+    row.stageSeconds = st.seconds;
+    row.bytes = dag.bytes();
+    m.dagMh.emplace(grid, std::move(dag));
+  } catch (const InputError& e) {  // beyond what a DAG-MH holds: the row says why
+    row.skipped = true;
+    row.note = std::string("skipped: ") + e.what();
+  }
+}
 
 // The CPVS at this resolution, timed per stage; its row's size and times filled in.
 ShadowQuery bakeRow(const Inputs& in, const OrthoGrid& grid, const std::string& label, AccuracyRow& row) {
@@ -304,6 +336,10 @@ void tallyBinary(const Inputs& in, const OrthoGrid& grid, Methods& m, const Quer
     tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = m.fullMap.filteredAt(atR.points[i], 1) > 0.5f; });
     tally(m.fullRow, atR, answer, texel);
   }
+  if (m.dagMh) {
+    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = m.dagMh->visibility(in.points[i], in.normals[i]) > 0.5f; });
+    tally(m.dagMhRow, atR, answer, texel);
+  }
 }
 
 // PCF of every method against the exact fraction over each lookup's own footprint, at
@@ -317,8 +353,8 @@ void measurePcf(const Inputs& in, const OrthoGrid& grid, const std::string& labe
     constexpr double kNone = -1;  // not compared (inside closed geometry, or no full map)
     constexpr int kArea = kAreaRaysPerTexelSide;
     // Per method, the errors against texel-centre rays [0] and against the area average [1].
-    std::array<std::vector<double>, 2> eCpvs, eEq, eEqOff, eFull;
-    for (auto* e : {&eCpvs, &eEq, &eEqOff, &eFull})
+    std::array<std::vector<double>, 2> eCpvs, eEq, eEqOff, eFull, eDagMh;
+    for (auto* e : {&eCpvs, &eEq, &eEqOff, &eFull, &eDagMh})
       for (auto& v : *e) v.assign(count, kNone);
     forChunks(count, label + " pcf " + std::to_string(pcf), in.report, [&](size_t i) {
       if (!atR.inside[i]) {
@@ -326,10 +362,12 @@ void measurePcf(const Inputs& in, const OrthoGrid& grid, const std::string& labe
         const double cpvs = m.query.filtered(in.points[i], in.normals[i], pcf);
         const double fullLookup = m.full ? double(m.fullMap.filteredAt(q, pcf)) : 0.0;
         const double eqLookup = m.equalBytes.filteredAt(q, pcf);
+        const double dagMh = m.dagMh ? double(m.dagMh->filtered(in.points[i], in.normals[i], pcf)) : 0.0;
         for (int ref = 0; ref < 2; ++ref) {
           const int per = ref == 0 ? 1 : kArea;
           const double exactR = exactFootprintLit(in.rays, grid, uint32_t(R), q, pcf, per);
           eCpvs[ref][i] = pcfError(cpvs, exactR, pcf, per);
+          if (m.dagMh) eDagMh[ref][i] = pcfError(dagMh, exactR, pcf, per);
           if (m.full) eFull[ref][i] = pcfError(fullLookup, exactR, pcf, per);
           eEqOff[ref][i] = pcfError(eqLookup, exactFootprintLit(in.rays, grid, m.equalSide, q, pcf, per), pcf, per);
         }
@@ -355,6 +393,7 @@ void measurePcf(const Inputs& in, const OrthoGrid& grid, const std::string& labe
     summarizeBoth(m.eq, eEq);
     summarizeBoth(m.eqOff, eEqOff);
     summarizeBoth(m.fullRow, eFull);
+    summarizeBoth(m.dagMhRow, eDagMh);
   }
 }
 
@@ -369,11 +408,13 @@ void timeLookups(const Inputs& in, const std::string& label, Methods& m) {
   m.cpvs.nsPerQuery = nsPerQuery(n, minT, [&] { m.query.batch(p, nn, 1, vis); });
   m.eq.nsPerQuery = nsPerQuery(n, minT, [&] { m.equalBytes.batch(p, nn, 1, vis); });
   if (m.full) m.fullRow.nsPerQuery = nsPerQuery(n, minT, [&] { m.fullMap.batch(p, nn, 1, vis); });
+  if (m.dagMh) m.dagMhRow.nsPerQuery = nsPerQuery(n, minT, [&] { m.dagMh->batch(p, nn, 1, vis); });
   for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) {
     const int pcf = kAccuracyPcfWidths[w];
     m.cpvs.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.query.batch(p, nn, pcf, vis); });
     m.eq.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.equalBytes.batch(p, nn, pcf, vis); });
     if (m.full) m.fullRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.fullMap.batch(p, nn, pcf, vis); });
+    if (m.dagMh) m.dagMhRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.dagMh->batch(p, nn, pcf, vis); });
   }
   // The CPVS-offset row looks up the same map the same way, from another point.
   m.eqOff.nsPerQuery = m.eq.nsPerQuery;
@@ -444,14 +485,15 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
     const std::string label = resolutionLabel(grid.resolution());
     AccuracyRow cpvsRow;
     ShadowQuery query = bakeRow(in, grid, label, cpvsRow);
-    Methods m{std::move(query), {}, {}, false, 0, std::move(cpvsRow), {}, {}, {}};
+    Methods m{std::move(query), {}, {}, false, 0, std::move(cpvsRow), {}, {}, {}, std::nullopt, {}};
     baselineRows(in, grid, label, m);
+    dagMhRow(in, grid, label, m);
     QueryPoints atR, atS;
     exactReference(in, grid, label, m, atR, atS);
     tallyBinary(in, grid, m, atR, atS);
     measurePcf(in, grid, label, m, atR, atS);
     timeLookups(in, label, m);
-    for (AccuracyRow* r : {&m.cpvs, &m.eq, &m.eqOff, &m.fullRow}) out.rows.push_back(std::move(*r));
+    for (AccuracyRow* r : {&m.cpvs, &m.eq, &m.eqOff, &m.fullRow, &m.dagMhRow}) out.rows.push_back(std::move(*r));
   }
   out.seconds = secondsSince(totalStart);
   return out;

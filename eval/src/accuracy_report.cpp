@@ -115,7 +115,7 @@ std::string accuracyTable(const AccuracyReport& rep) {
 
 std::string accuracyMarkdown(const AccuracyReport& rep) {
   std::ostringstream o;
-  o << "# Accuracy of CPVS and shadow maps: " << rep.scene << "\n\n";
+  o << "# Accuracy of CPVS, DAG-MH and shadow maps: " << rep.scene << "\n\n";
   o << "Scene `" << rep.scene << "`, " << rep.triangles << " triangles, light direction ("
     << format("%.4f", rep.lightDir.x) << ", " << format("%.4f", rep.lightDir.y) << ", " << format("%.4f", rep.lightDir.z)
     << "); grid " << format("%.6g", rep.extent) << " × " << format("%.6g", rep.extent) << " × "
@@ -154,6 +154,11 @@ std::string accuracyMarkdown(const AccuracyReport& rep) {
        "moves that many). *CPVS* and *shadow map, full resolution* (side R) share the grid's texels and so the same "
        "point; *shadow map, equal bytes* applies the same rule in its own (larger) texels; *shadow map, equal bytes, "
        "CPVS offset* looks the same map up at the CPVS's point, with a bias made for texels R/side times smaller.\n"
+    << "- **DAG-MH**: the shadow map of seed 001 baked for the same receivers (`--format dagmh`): a texel's "
+       "depth between the last slice a lookup needs lit and the first it needs shadowed, looked up at the CPVS's "
+       "query point; a voxel at or behind the depth is shadowed. It answers every voxel the receivers read as the "
+       "CPVS does, so its binary mismatches are the CPVS's; filters may differ where a footprint reaches voxels no "
+       "receiver reads (inside closed geometry).\n"
     << "- **Binary mismatch**: the lookup's answer (lit or shadowed) differs from one exact Embree shadow ray from the "
        "query point towards the light. Query points inside closed geometry (no lookup comes from there) are skipped. "
        "*mismatch* is over all compared samples; the columns ≤1 texel … >8 are the mismatch rate among the samples of "
@@ -180,7 +185,8 @@ std::string accuracyMarkdown(const AccuracyReport& rep) {
        "texel centre (packets of 8) over the grid's u, v extent; a texel shadows a point when the point's quantized "
        "depth is greater than the stored one. *Equal bytes*: side floor(sqrt(DAG bytes / 2)); *full*: side R, "
        "skipped above the byte limit.\n"
-    << "- **Bake s**: CPVS: the whole `bakeGrid` (render, masks, insert, compress, merge); shadow map: its rendering.\n"
+    << "- **Bake s**: CPVS: the whole `bakeGrid` (render, masks, insert, compress, merge); DAG-MH: the whole "
+       "`bakeDagMh` (render, receivers, hierarchy, compress); shadow map: its rendering.\n"
     << "- **ns/lookup**: a batched lookup (`ShadowQuery::batch`, `ShadowMap::batch`: offset included) over all samples, "
        "repeated for at least " << format("%g", rep.timingSeconds)
     << " s after one untimed run, all threads, divided by the number of queries: ns per query = ms per million "
@@ -315,8 +321,8 @@ std::string tickLabel(double v, int kind) {
 std::string accuracySvg(const AccuracyReport& rep) {
   const int W = 1000, H = 490, panelW = 380, panelH = 300, top = 60;
   const int lefts[2] = {90, 580};
-  const char* colours[kAccuracyMethods] = {"#1f77b4", "#d62728", "#ff7f0e", "#2ca02c"};
-  const char* dashes[kAccuracyMethods] = {"", "", "6,4", ""};
+  const char* colours[kAccuracyMethods] = {"#1f77b4", "#d62728", "#ff7f0e", "#2ca02c", "#9467bd"};
+  const char* dashes[kAccuracyMethods] = {"", "", "6,4", "", ""};
 
   double rmin = INFINITY, rmax = 0, tmin = INFINITY, tmax = 0, bmin = INFINITY, bmax = 0;
   bool anyZero = false;

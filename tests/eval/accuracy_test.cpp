@@ -316,6 +316,19 @@ TEST(Accuracy, MismatchFallsWithResolutionOnTheCity) {
     EXPECT_EQ(full.side, r->resolution());
     EXPECT_EQ(full.samples, r->samples);
   }
+  // The DAG-MH of the same receivers answers every defined voxel as the CPVS: they differ
+  // only where a query point's voxel straddles a closed part's surface (undefined, each
+  // resolving it its own way), within two texels of a boundary.
+  for (int k = 0; k < 2; ++k) {
+    const AccuracyRow& cpvs = rep.rows[size_t(k) * kAccuracyMethods];
+    const AccuracyRow& dagMh = rep.rows[size_t(k) * kAccuracyMethods + size_t(AccuracyMethod::DagMh)];
+    ASSERT_EQ(dagMh.method, AccuracyMethod::DagMh);
+    EXPECT_EQ(dagMh.samples, cpvs.samples);
+    for (int b = 2; b < kDistanceBins; ++b) EXPECT_EQ(dagMh.binMismatches[b], cpvs.binMismatches[b]) << "bin " << b;
+    EXPECT_LE(dagMh.mismatchRate(), 1.2 * cpvs.mismatchRate() + 0.001);
+    EXPECT_GT(dagMh.bytes, 0u);
+    EXPECT_GT(dagMh.bakeSeconds, 0.0);
+  }
   // The area-average PCF error falls with resolution for the CPVS.
   EXPECT_LT(rep.rows[kAccuracyMethods].pcfArea[0].meanAbsError, rep.rows[0].pcfArea[0].meanAbsError);
   // A full map over the byte limit is skipped, and says so.

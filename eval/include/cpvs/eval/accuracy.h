@@ -80,8 +80,9 @@ enum class AccuracyMethod : uint8_t {
   ShadowMapEqualBytes = 1,   // 16-bit shadow map of side floor(sqrt(DAG bytes / 2)), its own normal offset
   ShadowMapEqualBytesCpvsOffset = 2,  // the same map, looked up at the CPVS's offset point
   ShadowMapFull = 3,         // 16-bit shadow map of side R (the CPVS's own texels)
+  DagMh = 4,                 // the DAG-MH baked at R for the same receivers (bake_dag_mh.h), the CPVS's offset
 };
-constexpr int kAccuracyMethods = 4;
+constexpr int kAccuracyMethods = 5;
 /// Human name ("CPVS", "shadow map, equal bytes", ...) and CSV key ("cpvs", "sm_equal_bytes", ...).
 const char* accuracyMethodName(AccuracyMethod m);
 const char* accuracyMethodKey(AccuracyMethod m);
@@ -104,8 +105,8 @@ struct AccuracyRow {
   bool skipped = false;
   std::string note;                           // why skipped, or how it shares data with another row
   uint64_t side = 0;                          // texels a side (R for the CPVS)
-  uint64_t bytes = 0;                         // DAG bytes, or side^2 x 2
-  double bakeSeconds = 0;                     // CPVS: whole bake; shadow map: its rendering
+  uint64_t bytes = 0;                         // DAG (or DAG-MH) bytes, or side^2 x 2
+  double bakeSeconds = 0;                     // CPVS, DAG-MH: whole bake; shadow map: its rendering
   std::map<std::string, double> stageSeconds; // CPVS: per bake stage
   uint64_t samples = 0;                       // binary lookups compared
   uint64_t skippedInside = 0;                 // query point inside closed geometry: not compared
@@ -157,8 +158,8 @@ struct AccuracyReport {
   double seconds = 0;                     // the whole measurement
 };
 
-/// Bakes the scene at each resolution (bakeGrid, timed per stage), renders the shadow-map
-/// baselines, and measures every structure on the same `samples` surface points
+/// Bakes the scene at each resolution (bakeGrid, timed per stage; bakeDagMh), renders the
+/// shadow-map baselines, and measures every structure on the same `samples` surface points
 /// (sampleSurfaces: uniform by area, the side a lookup is made from; or sampleCameraViews
 /// when options.cameras are given: what they see, the side they see):
 ///  - binary: the lookup from the point with its normal against exactlyLit at the point it
