@@ -1,17 +1,20 @@
 // libFuzzer target: the .cpvs artifact reader (the level section, the packed section and
-// the light bundle's node pool) and the sub-DAG reader on arbitrary bytes.
+// the light bundle's node pool), the .dmh (DAG-MH) reader and the sub-DAG reader on
+// arbitrary bytes.
 // Both check a checksum first, which random bytes never pass; so every input is also
 // tried with its last 8 bytes replaced by the right checksum, which lets the fuzzer
 // reach the structural validation behind it. Whatever decodes is then walked.
 #include <xxhash.h>
 
 #include <cstdint>
+#include <algorithm>
 #include <cstring>
 #include <vector>
 
 #include "cpvs/base/error.h"
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/io/dmh_file.h"
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/io/sub_dag_file.h"
 
@@ -45,6 +48,20 @@ void tryDecode(const uint8_t* data, size_t size) {
       for (uint64_t v = 0; v < R; v += R / 4 + 1) (void)view.voxelShadowed(v, R - 1 - v, v);
     }
     (void)cpvs::encodeBundle(b, false);
+  } catch (const cpvs::InputError&) {
+  }
+  try {
+    // A DAG-MH: texels and filter footprints across the map read (any word a lookup
+    // follows out of place shows under the sanitizers), and written again.
+    const cpvs::DmhArtifact d = cpvs::decodeDmh(data, size, "fuzz");
+    const uint64_t R = uint64_t(1) << d.dag.log2Side;
+    float footprint[81];
+    for (uint64_t v = 0; v < R; v += R / 8 + 1) {
+      (void)d.dag.depth(v, R - 1 - v);
+      const uint32_t w = uint32_t(std::min<uint64_t>(9, R - v));
+      d.dag.depths(v, v, w, w, footprint);
+    }
+    (void)cpvs::encodeDmh(d, false);
   } catch (const cpvs::InputError&) {
   }
   try {

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the fuzz targets with clang (libFuzzer + ASan + UBSan) into build/fuzz and runs
-# each for SECONDS (default 15). Seeds: small .cpvs files made by the main build's `cpvs`
+# each for SECONDS (default 15). Seeds: small .cpvs and .dmh files made by the main build's `cpvs`
 # (the current format version, one with translucent casters) when it exists, and a version 1 file from tests/io/data. A crash or sanitizer report fails the run and leaves the
 # input in build/fuzz/artifacts/.
 #   bash tests/fuzz/run.sh 15      # the bounded run of the test suite
@@ -23,6 +23,13 @@ if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64.cpvs" ]; then
   "$cli" bake city:1 --sun-dir 0.3,-1,0.2 -r 64 --tile-size 64 -q -o "$out/corpus-cpvs/seed-city64.cpvs" >/dev/null
   "$cli" bake city:1 --sun-dir 0,-1,0 -r 32 --no-zstd -q -o "$out/corpus-cpvs/seed-city32-raw.cpvs" >/dev/null
   "$cli" bake city:1 --sun-dir 0.1,-1,0.5 -r 8 --no-zstd -q -o "$out/corpus-cpvs/seed-city8-raw.cpvs" >/dev/null
+fi
+if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64-raw.dmh" ]; then
+  # DAG-MH files: a one-treelet map, one with inner nodes and a skip list.
+  "$cli" bake city:1 --format dagmh --sun-dir 0.3,-1,0.2 -r 8 --no-zstd -q -o "$out/corpus-cpvs/seed-city8-raw.dmh" >/dev/null
+  "$cli" bake city:1 --format dagmh --receivers surfaces --sun-dir 0.3,-1,0.2 -r 256 --no-zstd -q \
+    -o "$out/corpus-cpvs/seed-city256-raw.dmh" >/dev/null
+  "$cli" bake city:1 --format dagmh --sun-dir 0.1,-1,0.5 -r 64 -q -o "$out/corpus-cpvs/seed-city64-raw.dmh" >/dev/null
 fi
 if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-lamps-raw.cpvs" ]; then
   # A light bundle: a spot light and a point light's cube, small grids.

@@ -21,7 +21,8 @@ cd "$(dirname "$0")/../.."
 TESTS=(base_test light_test spot_light_test light_bundle_test sun_test child_codes_test options_test
        dag_test dag_invariants_test must_fail_test sub_dag_file_test
        scene_test raster_test receivers_test camera_views_test amortized_test
-       pipeline_test hard_cases_test net_test top_tree_test translucent_test tile_eta_test tile_cache_test)
+       pipeline_test hard_cases_test net_test top_tree_test translucent_test tile_eta_test tile_cache_test
+       dag_mh_test dag_mh_bake_test)
 if [ $# -gt 0 ]; then TESTS=("$@"); fi
 
 out=build-asan

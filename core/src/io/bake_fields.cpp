@@ -79,7 +79,7 @@ void getReceiversAndPlan(ByteReader& h, BakeOptions& o, Hash128& receiverHash, s
 void putWordSection(ByteWriter& w, const std::vector<uint32_t>& words, bool zstd) {
   w.put<uint64_t>(words.size());
   std::vector<uint8_t> bytes(words.size() * 4);
-  std::memcpy(bytes.data(), words.data(), bytes.size());
+  if (!words.empty()) std::memcpy(bytes.data(), words.data(), bytes.size());  // a DAG-MH may have no inner node
   writeSection(w, bytes, zstd);
 }
 
@@ -89,7 +89,7 @@ std::vector<uint32_t> getWordSection(ByteReader& h, bool zstd, uint64_t minWords
   std::vector<uint8_t> storage;
   const uint8_t* bytes = readSection(h, zstd, count * 4, what, storage);
   std::vector<uint32_t> words(count);
-  std::memcpy(words.data(), bytes, count * 4);
+  if (count) std::memcpy(words.data(), bytes, count * 4);
   return words;
 }
 
