@@ -24,12 +24,12 @@ if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64.cpvs" ]; then
   "$cli" bake city:1 --sun-dir 0,-1,0 -r 32 --no-zstd -q -o "$out/corpus-cpvs/seed-city32-raw.cpvs" >/dev/null
   "$cli" bake city:1 --sun-dir 0.1,-1,0.5 -r 8 --no-zstd -q -o "$out/corpus-cpvs/seed-city8-raw.cpvs" >/dev/null
 fi
-if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64-raw.dmh" ]; then
+if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64.dmh" ]; then
   # DAG-MH files: a one-treelet map, one with inner nodes and a skip list.
   "$cli" bake city:1 --format dagmh --sun-dir 0.3,-1,0.2 -r 8 --no-zstd -q -o "$out/corpus-cpvs/seed-city8-raw.dmh" >/dev/null
   "$cli" bake city:1 --format dagmh --receivers surfaces --sun-dir 0.3,-1,0.2 -r 256 --no-zstd -q \
     -o "$out/corpus-cpvs/seed-city256-raw.dmh" >/dev/null
-  "$cli" bake city:1 --format dagmh --sun-dir 0.1,-1,0.5 -r 64 -q -o "$out/corpus-cpvs/seed-city64-raw.dmh" >/dev/null
+  "$cli" bake city:1 --format dagmh --sun-dir 0.1,-1,0.5 -r 64 -q -o "$out/corpus-cpvs/seed-city64.dmh" >/dev/null
 fi
 if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-lamps-raw.cpvs" ]; then
   # A light bundle: a spot light and a point light's cube, small grids.

@@ -209,7 +209,7 @@ struct RectFill {
 
 void DagMh::depths(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, float* out) const {
   const uint64_t side = uint64_t(1) << log2Side;
-  CPVS_CHECK(x0 + width <= side && y0 + height <= side && width * height <= 1024);
+  CPVS_CHECK(x0 + width <= side && y0 + height <= side && uint64_t(width) * height <= 1024);
   uint32_t indices[1024];
   // Down to the smallest node holding the whole rectangle (through the skip list when it
   // lies within one of its nodes), then one visit of what lies below.
@@ -574,7 +574,11 @@ void validateDagMh(const DagMh& dag, const std::string& source) {
     if (dag.rootType != kDagMhFullInner || t == 0 || dag.nodes.empty()) invalid(source, "root type " + std::to_string(dag.rootType));
     // Node starts, levels (pointers lead forward, so one pass in order sees every parent
     // before its child), then the counts from the bottom up.
-    std::vector<int32_t> level(dag.nodes.size(), -1);
+    // A skip entry holds 30 bits of a node's offset, as the builder refuses more.
+    if (dag.nodes.size() >= (size_t(1) << 30)) invalid(source, std::to_string(dag.nodes.size()) + " inner node words");
+    // The level of each word a pointer names (-1: none names it; levels fit a byte), so
+    // that a pointer into the middle of a node and a node at two levels are caught.
+    std::vector<int8_t> level(dag.nodes.size(), -1);
     std::vector<uint8_t> treeletUsed(treeletCount, 0);
     std::vector<size_t> starts;
     level[0] = 0;
@@ -596,18 +600,21 @@ void validateDagMh(const DagMh& dag, const std::string& source) {
         } else {
           if (childLevel >= t || p <= at || p >= dag.nodes.size() || (level[p] >= 0 && level[p] != childLevel))
             invalid(source, "node word " + std::to_string(at) + " names node " + std::to_string(p) + " out of place");
-          level[p] = childLevel;
+          level[p] = int8_t(childLevel);
         }
       }
       for (uint32_t w = 1; w < size; ++w)
-        if (at + w < level.size() && level[at + w] >= 0) invalid(source, "a pointer into node word " + std::to_string(at));
+        if (level[at + w] >= 0) invalid(source, "a pointer into node word " + std::to_string(at));
       at += size;
     }
     for (size_t i = 0; i < treeletCount; ++i)
       if (!treeletUsed[i]) invalid(source, "treelet " + std::to_string(i) + " is not reached from the root");
-    std::vector<uint64_t> below(dag.nodes.size(), 0);
-    for (auto it = starts.rbegin(); it != starts.rend(); ++it) {
-      const size_t at = *it;
+    // Values below each node, from the last node back (children lie after their parents);
+    // a child is found among the starts by its offset.
+    std::vector<uint64_t> below(starts.size(), 0);
+    auto nodeIndex = [&](uint32_t p) { return size_t(std::lower_bound(starts.begin(), starts.end(), p) - starts.begin()); };
+    for (size_t n = starts.size(); n-- > 0;) {
+      const size_t at = starts[n];
       const uint32_t types = dag.nodes[at];
       uint64_t values = 0;
       for (uint32_t k = 0, c = 0; c < 4; ++c) {
@@ -616,10 +623,10 @@ void validateDagMh(const DagMh& dag, const std::string& source) {
         if (k > 0 && dag.nodes[at + prefixWord(k)] != values) invalid(source, "node word " + std::to_string(at) + ": a wrong prefix count");
         const uint32_t p = dag.nodes[at + pointerWord(k++)];
         values += type == kDagMhTreelet ? treeletValues(dag.treelets.data() + size_t(p) * kTreeletWords)
-                                        : below[p] + (type == kDagMhFullInner);
+                                        : below[nodeIndex(p)] + (type == kDagMhFullInner);
       }
       if (values != dag.nodes[at + 1]) invalid(source, "node word " + std::to_string(at) + ": a wrong value count");
-      below[at] = values;
+      below[n] = values;
     }
     total = below[0] + 1;
   }

@@ -100,7 +100,7 @@ uint32_t bestGrid(const float* lo, const float* hi, const uint32_t* which, uint3
   uint32_t best = 0, trial[kValuesPerChunk];
   // A power of two no wider than the narrowest interval, from a multiple of it: every
   // interval holds a multiple, and the grid's points are exact floats.
-  const float dyadic = narrowest > 0 ? std::exp2(std::floor(std::log2(narrowest))) : 1.0f;
+  const float dyadic = narrowest > 0 && std::isfinite(narrowest) ? std::ldexp(1.0f, std::ilogb(narrowest)) : 1.0f;
   const float candidates[3][2] = {{lowest, narrowest}, {std::floor(lowest / dyadic) * dyadic, dyadic}, {std::floor(lowest), 1.0f}};
   for (const auto& [b, s] : candidates) {
     float grid = s;

@@ -58,8 +58,8 @@ struct DagMh {
   uint32_t valueIndex(uint64_t x, uint64_t y) const;
   /// The depth stored for texel (x, y): inside its interval.
   float depth(uint64_t x, uint64_t y) const { return values.value(valueIndex(x, y)); }
-  /// The depths of the texels [x0, x0 + width) x [y0, y0 + height) (inside the map), row
-  /// by row into `out`: one descent shared by all of them (a filter's footprint reads the
+  /// The depths of the texels [x0, x0 + width) x [y0, y0 + height) (inside the map, at
+  /// most 1024 of them: a filter's footprint), row by row into `out`: one descent shared by all of them (a filter's footprint reads the
   /// nodes above it once), each value decoded once per run of equal indices.
   void depths(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, float* out) const;
 
