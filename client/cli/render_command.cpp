@@ -308,6 +308,22 @@ int renderDynamic(const RenderArgs& a, const Scene& scene, const OrthoGrid& grid
   return 0;
 }
 
+// The difference picture of binary lookups against the exact shadows, written and said.
+void writeDifference(const std::string& base, const CameraHits& hits, const std::vector<float>& binary,
+                     const std::vector<float>& exact, const Vec3& lightDir, const char* kind) {
+  uint64_t compared = 0, differing = 0;
+  writeBoth(base + "-diff", differenceImage(hits, binary, exact, lightDir, &compared, &differing));
+  std::printf("Wrote %s-reference.png/.exr (exact ray-traced shadows) and %s-diff.png/.exr\n", base.c_str(), base.c_str());
+  std::printf("  %llu of %llu sunward pixels differ (%.3f%%): red = %s darker, blue = %s brighter\n",
+              static_cast<unsigned long long>(differing), static_cast<unsigned long long>(compared),
+              compared ? 100.0 * double(differing) / double(compared) : 0.0, kind, kind);
+}
+
+void printCamera(const Camera& cam) {
+  std::printf("Camera: %.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", cam.eye.x, cam.eye.y, cam.eye.z, cam.target.x,
+              cam.target.y, cam.target.z, cam.fovDeg);
+}
+
 // A DAG-MH: its shadows on the CPU, and with --reference the exact ones and where they differ.
 int renderDagMh(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, int h, const std::string& base) {
   if (a.gpu) throw InputError("--gpu: a DAG-MH is looked up on the CPU (the runtime's shader reads a .cpvs)");
@@ -328,16 +344,9 @@ int renderDagMh(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, i
   if (a.reference) {
     const std::vector<float> exact = exactVisibility(hits, rays, grid);
     writeBoth(base + "-reference", shadeHits(hits, exact, L));
-    const std::vector<float> binary = a.pcf == 1 ? vis : lookupVisibility(hits, q, 1);
-    uint64_t compared = 0, differing = 0;
-    writeBoth(base + "-diff", differenceImage(hits, binary, exact, L, &compared, &differing));
-    std::printf("Wrote %s-reference.png/.exr (exact ray-traced shadows) and %s-diff.png/.exr\n", base.c_str(), base.c_str());
-    std::printf("  %llu of %llu sunward pixels differ (%.3f%%): red = DAG-MH darker, blue = DAG-MH brighter\n",
-                static_cast<unsigned long long>(differing), static_cast<unsigned long long>(compared),
-                compared ? 100.0 * double(differing) / double(compared) : 0.0);
+    writeDifference(base, hits, a.pcf == 1 ? vis : lookupVisibility(hits, q, 1), exact, L, "DAG-MH");
   }
-  std::printf("Camera: %.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", cam.eye.x, cam.eye.y, cam.eye.z, cam.target.x,
-              cam.target.y, cam.target.z, cam.fovDeg);
+  printCamera(cam);
   return 0;
 }
 
@@ -419,17 +428,9 @@ int runRender(const RenderArgs& a) {
     if (translucent) tint = pixelTransmittance(hits, *artifact, nullptr);
     writeBoth(base + "-reference", shadeHits(hits, exact, L, translucent ? &tint : nullptr));
     // The difference compares binary lookups so that a filtered edge is not counted.
-    std::vector<float> binary = a.pcf == 1 ? vis : lookup(1);
-    uint64_t compared = 0, differing = 0;
-    writeBoth(base + "-diff", differenceImage(hits, binary, exact, L, &compared, &differing));
-    std::printf("Wrote %s-reference.png/.exr (exact ray-traced shadows) and %s-diff.png/.exr\n", base.c_str(),
-                base.c_str());
-    std::printf("  %llu of %llu sunward pixels differ (%.3f%%): red = CPVS darker, blue = CPVS brighter\n",
-                static_cast<unsigned long long>(differing), static_cast<unsigned long long>(compared),
-                compared ? 100.0 * double(differing) / double(compared) : 0.0);
+    writeDifference(base, hits, a.pcf == 1 ? vis : lookup(1), exact, L, "CPVS");
   }
-  std::printf("Camera: %.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", cam.eye.x, cam.eye.y, cam.eye.z, cam.target.x,
-              cam.target.y, cam.target.z, cam.fovDeg);
+  printCamera(cam);
   return 0;
 }
 

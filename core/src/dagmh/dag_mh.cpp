@@ -135,6 +135,33 @@ uint32_t checkedValues(uint64_t v) {
   return uint32_t(v);
 }
 
+// The inner nodes of level l of a hierarchy from the refs of the level below (children
+// of node (x, y) at (2x + (c & 1), 2y + (c >> 1))): each present node's words merged into
+// `pool`, naming its children by pool index, and its ref as its parent sees it.
+std::vector<ChildRef> innerLevel(const Mh& mh, int l, const std::vector<ChildRef>& below, LevelPool& pool) {
+  const uint32_t n = mh.side(l);
+  std::vector<ChildRef> up(size_t(n) * n);
+  for (uint32_t y = 0; y < n; ++y)
+    for (uint32_t x = 0; x < n; ++x) {
+      const MhState s = mh.state(l, x, y);
+      if (s == MhState::Absent) continue;
+      std::vector<uint32_t> words{0, 0};
+      uint64_t values = 0;
+      for (uint32_t c = 0; c < 4; ++c) {
+        const ChildRef& ch = below[size_t(2 * y + (c >> 1)) * (2 * n) + 2 * x + (c & 1)];
+        if (ch.type == kDagMhAbsent) continue;
+        words[0] |= ch.type << (2 * c);
+        words.push_back(ch.id);
+        if (words.size() > 3) words.push_back(uint32_t(values));
+        values += ch.values;
+      }
+      words[1] = checkedValues(values);
+      up[size_t(y) * n + x] = {s == MhState::Full ? kDagMhFullInner : kDagMhEmptyInner, pool.add(std::move(words)),
+                               checkedValues(values + (s == MhState::Full))};
+    }
+  return up;
+}
+
 }  // namespace
 
 uint32_t DagMh::valueIndex(uint64_t x, uint64_t y) const {
@@ -335,34 +362,11 @@ void DagMhBuilder::addTile(uint64_t tileX, uint64_t tileY, const Mh& mh) {
     tile.valuesBelow = refs[0].values - 1;
   }
 
-  // Inner levels bottom-up; each node's words name its children by pool index.
-  for (int l = t - 1; l >= 0; --l) {
-    const uint32_t n = mh.side(l);
-    std::vector<ChildRef> up(size_t(n) * n);
-    for (uint32_t y = 0; y < n; ++y)
-      for (uint32_t x = 0; x < n; ++x) {
-        const MhState s = mh.state(l, x, y);
-        if (s == MhState::Absent) continue;
-        std::vector<uint32_t> words{0, 0};
-        uint64_t values = 0;
-        for (uint32_t c = 0; c < 4; ++c) {
-          const ChildRef& ch = refs[size_t(2 * y + (c >> 1)) * (2 * n) + 2 * x + (c & 1)];
-          if (ch.type == kDagMhAbsent) continue;
-          words[0] |= ch.type << (2 * c);
-          words.push_back(ch.id);
-          if (words.size() > 3) words.push_back(uint32_t(values));
-          values += ch.values;
-        }
-        words[1] = checkedValues(values);
-        const uint32_t id = pools_->levels[size_t(tileLevel_ + l)].add(std::move(words));
-        up[size_t(y) * n + x] = {s == MhState::Full ? kDagMhFullInner : kDagMhEmptyInner, id,
-                                 checkedValues(values + (s == MhState::Full))};
-        if (l == 0) {
-          tile.node = id;
-          tile.valuesBelow = values;
-        }
-      }
-    refs = std::move(up);
+  // Inner levels bottom-up; the tile root's state is the map's to decide (below).
+  for (int l = t - 1; l >= 0; --l) refs = innerLevel(mh, l, refs, pools_->levels[size_t(tileLevel_ + l)]);
+  if (t > 0) {  // local level 0 is Full in the tile's own hierarchy: its ref counts its value
+    tile.node = refs[0].id;
+    tile.valuesBelow = refs[0].values - 1;
   }
   // The root's state is the map's to decide: its interval, whether anything below stores a
   // value, and the values below it in preorder.
@@ -403,29 +407,7 @@ DagMh DagMhBuilder::finish() {
       refs[size_t(y) * tilesPerSide + x] = {T == t ? kDagMhTreelet : full ? kDagMhFullInner : kDagMhEmptyInner, tile.node,
                                             checkedValues(tile.valuesBelow + full)};
     }
-  for (int l = T - 1; l >= 0; --l) {
-    const uint32_t n = top.side(l);
-    std::vector<ChildRef> up(size_t(n) * n);
-    for (uint32_t y = 0; y < n; ++y)
-      for (uint32_t x = 0; x < n; ++x) {
-        const MhState s = top.state(l, x, y);
-        if (s == MhState::Absent) continue;
-        std::vector<uint32_t> words{0, 0};
-        uint64_t values = 0;
-        for (uint32_t c = 0; c < 4; ++c) {
-          const ChildRef& ch = refs[size_t(2 * y + (c >> 1)) * (2 * n) + 2 * x + (c & 1)];
-          if (ch.type == kDagMhAbsent) continue;
-          words[0] |= ch.type << (2 * c);
-          words.push_back(ch.id);
-          if (words.size() > 3) words.push_back(uint32_t(values));
-          values += ch.values;
-        }
-        words[1] = checkedValues(values);
-        up[size_t(y) * n + x] = {s == MhState::Full ? kDagMhFullInner : kDagMhEmptyInner,
-                                 pools_->levels[size_t(l)].add(std::move(words)), checkedValues(values + (s == MhState::Full))};
-      }
-    refs = std::move(up);
-  }
+  for (int l = T - 1; l >= 0; --l) refs = innerLevel(top, l, refs, pools_->levels[size_t(l)]);
   const uint32_t rootId = refs[0].id;
 
   // The final layout: level by level from the root, each in the order of first mention.
