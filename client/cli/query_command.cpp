@@ -207,9 +207,16 @@ int querySegment(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
   return 0;
 }
 
-// A DAG-MH: the same lookups (point or CSV), on the CPU.
+// The sun's lookups on the CPU, or (--gpu) on a Vulkan device, which stderr names.
+std::unique_ptr<runtime::ShadowLookups> sunLookups(std::shared_ptr<const runtime::ShadowArtifact> artifact, bool gpu) {
+  auto lookups =
+      std::make_unique<runtime::ShadowLookups>(std::move(artifact), gpu ? runtime::Backend::Gpu : runtime::Backend::Cpu);
+  if (gpu) std::fprintf(stderr, "Looking up on %s\n", lookups->deviceName().c_str());
+  return lookups;
+}
+
+// A DAG-MH: the same lookups (point or CSV), on the CPU or (--gpu) the runtime's device.
 int queryDagMh(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
-  if (a.gpu) throw InputError("--gpu: a DAG-MH is looked up on the CPU (the runtime's shader reads a .cpvs)");
   if (!a.segment.empty()) throw InputError("--segment: light along a segment is walked in a .cpvs, not a DAG-MH");
   if (a.soft || a.light != "all") throw InputError("--soft and --light pick a light bundle's lights; " + a.file + " has the sun only");
   DmhArtifact art = decodeDmh(bytes.data(), bytes.size(), a.file);
@@ -220,11 +227,18 @@ int queryDagMh(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
       std::fprintf(stderr, "warning: --pcf %d is wider than the %d %s was baked for: filtered answers may be wrong\n",
                    a.pcf, int(art.options.receiverPcf), a.file.c_str());
   }
-  const DagMhQuery q(art.grid, std::move(art.dag));
+  auto artifact = std::make_shared<const runtime::ShadowArtifact>(DagMhQuery(art.grid, std::move(art.dag)));
+  const DagMhQuery& q = artifact->dagMh();
+  const std::unique_ptr<runtime::ShadowLookups> lookups = sunLookups(artifact, a.gpu);
+  auto lookup = [&](const std::vector<Vec3>& points, const std::vector<Vec3>& normals, std::vector<float>& out) {
+    lookups->visibility(points, normals, a.pcf, out);
+  };
   if (!a.point.empty()) {
     const Vec3 p = parseVec3(a.point, "--point");
     const Vec3 n = a.normal.empty() ? Vec3{} : parseVec3(a.normal, "--normal");
-    const float vis = q.filtered(p, n, a.pcf);
+    std::vector<float> one;
+    lookup({p}, {n}, one);
+    const float vis = one.at(0);
     const Vec3 c = q.lookupVoxel(p, n, a.pcf);
     const VoxelCoord v{floorToVoxel(c.x), floorToVoxel(c.y), floorToVoxel(c.z)};
     const int64_t R = int64_t(q.grid().resolution());
@@ -238,7 +252,7 @@ int queryDagMh(const QueryArgs& a, const std::vector<uint8_t>& bytes) {
   std::vector<Vec3> points, normals;
   readPointsCsv(a.pointsCsv, points, normals);
   std::vector<float> out;
-  q.batch(points, normals, a.pcf, out);
+  lookup(points, normals, out);
   std::printf("x,y,z,visibility\n");
   for (size_t i = 0; i < points.size(); ++i) std::printf("%.9g,%.9g,%.9g,%.6g\n", points[i].x, points[i].y, points[i].z, out[i]);
   return 0;
@@ -266,20 +280,14 @@ int runQuery(const QueryArgs& a) {
       std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(art.grid, std::move(art.packed)), std::move(art.translucent));
   const bool translucent = artifact->translucent() != nullptr;
   const ShadowQuery& q = artifact->cpu();
-  std::unique_ptr<runtime::ShadowLookups> gpu;
-  if (a.gpu) {
-    gpu = std::make_unique<runtime::ShadowLookups>(artifact, runtime::Backend::Gpu);
-    std::fprintf(stderr, "Looking up on %s\n", gpu->deviceName().c_str());
-  }
+  const std::unique_ptr<runtime::ShadowLookups> lookups = sunLookups(artifact, a.gpu);
   auto lookup = [&](const std::vector<Vec3>& points, const std::vector<Vec3>& normals, std::vector<float>& out) {
-    if (gpu) gpu->visibility(points, normals, a.pcf, out);
-    else q.batch(points, normals, a.pcf, out);
+    lookups->visibility(points, normals, a.pcf, out);
   };
   // The light let through the translucent casters (white without them).
   auto transmittance = [&](const std::vector<Vec3>& points, const std::vector<Vec3>& normals) {
     std::vector<std::array<float, 3>> t;
-    if (gpu) gpu->transmittance(points, normals, t);
-    else runtime::cpuTransmittance(*artifact, points, normals, t);
+    lookups->transmittance(points, normals, t);
     return t;
   };
   if (!a.point.empty()) {

@@ -324,9 +324,9 @@ void printCamera(const Camera& cam) {
               cam.target.y, cam.target.z, cam.fovDeg);
 }
 
-// A DAG-MH: its shadows on the CPU, and with --reference the exact ones and where they differ.
+// A DAG-MH: its shadows on the CPU or (--gpu) the runtime's device, and with --reference
+// the exact ones and where they differ.
 int renderDagMh(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, int h, const std::string& base) {
-  if (a.gpu) throw InputError("--gpu: a DAG-MH is looked up on the CPU (the runtime's shader reads a .cpvs)");
   if (!a.fog.empty() || !a.dynamic.empty()) throw InputError("--fog and --dynamic are drawn with a .cpvs, not a DAG-MH");
   DmhArtifact art = decodeDmh(bytes.data(), bytes.size(), a.file);
   std::optional<Scene> opaque;
@@ -335,16 +335,21 @@ int renderDagMh(const RenderArgs& a, const std::vector<uint8_t>& bytes, int w, i
   const RayScene rays(drawn, art.grid.origin);
   const OrthoGrid grid = art.grid;
   const Vec3 L = grid.frame.dir;
-  const DagMhQuery q(art.grid, std::move(art.dag));
+  auto artifact = std::make_shared<const runtime::ShadowArtifact>(DagMhQuery(art.grid, std::move(art.dag)));
+  const DagMhQuery& q = artifact->dagMh();
+  std::unique_ptr<runtime::ShadowLookups> gpu;
+  if (a.gpu) gpu = std::make_unique<runtime::ShadowLookups>(artifact, runtime::Backend::Gpu);
   const Camera cam = a.camera.empty() ? defaultCamera(drawn, L, double(w) / h) : Camera::parse(a.camera);
   const CameraHits hits = traceCamera(drawn, rays, cam, w, h);
-  const std::vector<float> vis = lookupVisibility(hits, q, a.pcf);
+  auto lookup = [&](int pcf) { return gpu ? gpuVisibility(hits, *gpu, pcf) : lookupVisibility(hits, q, pcf); };
+  const std::vector<float> vis = lookup(a.pcf);
   writeBoth(base, shadeHits(hits, vis, L));
-  std::printf("Wrote %s.png and %s.exr (DAG-MH shadows, PCF %d, looked up on the CPU)\n", base.c_str(), base.c_str(), a.pcf);
+  std::printf("Wrote %s.png and %s.exr (DAG-MH shadows, PCF %d, looked up on %s)\n", base.c_str(), base.c_str(), a.pcf,
+              gpu ? gpu->deviceName().c_str() : "the CPU");
   if (a.reference) {
     const std::vector<float> exact = exactVisibility(hits, rays, grid);
     writeBoth(base + "-reference", shadeHits(hits, exact, L));
-    writeDifference(base, hits, a.pcf == 1 ? vis : lookupVisibility(hits, q, 1), exact, L, "DAG-MH");
+    writeDifference(base, hits, a.pcf == 1 ? vis : lookup(1), exact, L, "DAG-MH");
   }
   printCamera(cam);
   return 0;

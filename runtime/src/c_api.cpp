@@ -181,6 +181,10 @@ void cpvsReleaseShadows(CpvsShadows shadows) { delete shadows; }
 
 int cpvsShadowsOnDevice(CpvsShadows shadows) { return shadows && shadows->lookups->onGpu() ? 1 : 0; }
 
+CpvsShadowsKind cpvsGetShadowsKind(CpvsShadows shadows) {
+  return shadows && shadows->lookups->artifact().kind() == ArtifactKind::DagMh ? CPVS_SHADOWS_DAG_MH : CPVS_SHADOWS_CPVS;
+}
+
 CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* points, const double* normals, int pcf,
                             uint32_t* litTexels) {
   return guarded([&] {
@@ -234,7 +238,7 @@ CpvsStatus cpvsSetDynamicCasters(CpvsShadows shadows, const CpvsCasterMesh* mesh
 CpvsStatus cpvsGetShadowsBuffer(CpvsShadows shadows, CpvsShadowsBuffer which, const void** data, size_t* bytes) {
   return guarded([&] {
     require(shadows != nullptr && data != nullptr && bytes != nullptr, "cpvsGetShadowsBuffer: an argument is null");
-    const std::vector<uint32_t>& words = shadows->lookups->artifact().packed().words();
+    const std::vector<uint32_t>& words = shadows->lookups->artifact().words();
     switch (which) {
       case CPVS_SHADOWS_BUFFER_SUN: *data = shadows->sun.data(), *bytes = shadows->sun.size(); return;
       case CPVS_SHADOWS_BUFFER_WORDS: *data = words.data(), *bytes = words.size() * 4; return;

@@ -1,4 +1,5 @@
-// An artifact on a device: its packed words uploaded as they are, the query pipeline.
+// An artifact on a device: its words (a CPVS's or a DAG-MH's) uploaded as they are, the
+// query pipeline of its kind.
 #include <cstring>
 
 #include "cpvs/base/error.h"
@@ -30,8 +31,11 @@ struct GpuShadows::Impl {
   Impl(GpuDevice::Impl& g, std::shared_ptr<const ShadowArtifact> a)
       : device(g),
         artifact(std::move(a)),
-        kernel(g, artifact->packed().words(), sunGrid(), {}, {queryShaderOneBuffer(), queryShaderEightBuffers(), false, 1},
-               "the DAG") {}
+        kernel(g, artifact->words(), sunGrid(), {}, dagMh() ? QueryKernel::Shaders{dagMhQueryShaderOneBuffer(), dagMhQueryShaderEightBuffers(), false, 1}
+                                                            : QueryKernel::Shaders{queryShaderOneBuffer(), queryShaderEightBuffers(), false, 1},
+               what()) {}
+  bool dagMh() const { return artifact->kind() == ArtifactKind::DagMh; }
+  const char* what() const { return dagMh() ? "the DAG-MH" : "the DAG"; }
   GpuGrid sunGrid() const { return gpuGridOf(gridSpecOf(artifact->grid()), "the artifact's grid"); }
 };
 
@@ -64,6 +68,7 @@ const ShadowArtifact& GpuShadows::artifact() const { return *impl_->artifact; }
 void GpuShadows::segments(const std::vector<Vec3>& from, const std::vector<Vec3>& to, const Medium& medium,
                           std::vector<double>& litFraction, std::vector<float>& inScattering) {
   checkSegmentShape(from.size(), to.size(), medium);
+  checkSegmentKind(*impl_->artifact);
   if (!impl_->segments)
     impl_->segments = std::make_unique<QueryKernel>(impl_->device, impl_->artifact->packed().words(), impl_->sunGrid(),
                                                     std::vector<QueryKernel::Table>{},
@@ -93,8 +98,10 @@ void GpuShadows::setDynamicCasters(std::shared_ptr<const DynamicCasters> casters
     const std::vector<uint8_t> bytes = casters->gpuBytes();
     if (!m.withCasters)
       m.withCasters = std::make_unique<QueryKernel>(
-          m.device, m.artifact->packed().words(), m.sunGrid(), std::vector<QueryKernel::Table>{{kCasterBinding, bytes}},
-          QueryKernel::Shaders{casterShaderOneBuffer(), casterShaderEightBuffers(), false, 1}, "the DAG");
+          m.device, m.artifact->words(), m.sunGrid(), std::vector<QueryKernel::Table>{{kCasterBinding, bytes}},
+          m.dagMh() ? QueryKernel::Shaders{dagMhCasterShaderOneBuffer(), dagMhCasterShaderEightBuffers(), false, 1}
+                    : QueryKernel::Shaders{casterShaderOneBuffer(), casterShaderEightBuffers(), false, 1},
+          m.what());
     else
       m.withCasters->replaceTable(kCasterBinding, bytes);
     const TopTree& tree = casters->tree();

@@ -11,6 +11,7 @@
 #include "cpvs/base/vec3.h"
 #include "cpvs/light/gpu_grid.h"
 #include "cpvs/query/medium.h"
+#include "cpvs/runtime/runtime.h"
 #include "gpu_device_impl.h"
 #include "query_shaders.h"
 
@@ -31,6 +32,8 @@ void checkQueryShape(size_t points, size_t normals, int pcf);
 /// InvalidArgument unless there are as many segment ends as starts and the medium is
 /// valid (checkMedium).
 void checkSegmentShape(size_t starts, size_t ends, const Medium& medium);
+/// InvalidArgument unless the artifact is a CPVS: segments walk its voxels.
+void checkSegmentKind(const ShadowArtifact& artifact);
 
 class QueryKernel {
  public:

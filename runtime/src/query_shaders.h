@@ -34,6 +34,12 @@ SpirvCode lightCasterShaderEightBuffers();
 /// The transmittance of an artifact's translucent casters (cpvs_translucent_query.comp).
 SpirvCode translucentShaderOneBuffer();
 SpirvCode translucentShaderEightBuffers();
+/// An artifact's lookups, with and without dynamic casters, on a DAG-MH's words
+/// (cpvs_query.comp and cpvs_caster_query.comp with CPVS_DAG_MH).
+SpirvCode dagMhQueryShaderOneBuffer();
+SpirvCode dagMhQueryShaderEightBuffers();
+SpirvCode dagMhCasterShaderOneBuffer();
+SpirvCode dagMhCasterShaderEightBuffers();
 /// Dynamic casters' tree inserted on the device (cpvs_caster_build.comp); reads no words.
 SpirvCode casterBuildShader();
 

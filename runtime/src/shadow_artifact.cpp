@@ -8,7 +8,9 @@
 
 #include "cpvs/base/error.h"
 #include "cpvs/base/file.h"
+#include "cpvs/dagmh/dag_mh_words.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/io/dmh_file.h"
 #include "cpvs/runtime/runtime.h"
 #include "query_kernel.h"
 
@@ -31,19 +33,43 @@ auto openWith(const std::string& path, Decode&& decode) {
 
 }  // namespace
 
+const char* artifactKindName(ArtifactKind kind) { return kind == ArtifactKind::DagMh ? "dagmh" : "cpvs"; }
+
 ShadowArtifact::ShadowArtifact(ShadowQuery query, std::shared_ptr<const TopTree> translucent)
     : query_(std::move(query)), translucent_(std::move(translucent)) {
   if (!translucent_) return;
   const TopTree& t = *translucent_;
   if (!t.linked() || t.transmittance().size() != t.frustumCount() || !t.light().directional ||
-      length(t.light().vector - query_.grid().frame.dir) > 1e-9)
+      length(t.light().vector - query_->grid().frame.dir) > 1e-9)
     throw RuntimeError(Status::InvalidArgument,
                        "translucent casters: a tree that is not linked, lacks a transmittance per frustum, or is not "
                        "for the artifact's sun");
 }
 
+ShadowArtifact::ShadowArtifact(DagMhQuery query) : dagMh_(std::move(query)) {
+  try {
+    dagMhWords_ = dagMhWords(dagMh_->dag());
+  } catch (const InputError& e) {
+    throw RuntimeError(Status::InvalidArgument, e.what());
+  }
+}
+
+const ShadowQuery& ShadowArtifact::cpu() const {
+  if (!query_) throw RuntimeError(Status::InvalidArgument, "the artifact is a DAG-MH, not a CPVS");
+  return *query_;
+}
+
+const DagMhQuery& ShadowArtifact::dagMh() const {
+  if (!dagMh_) throw RuntimeError(Status::InvalidArgument, "the artifact is a CPVS, not a DAG-MH");
+  return *dagMh_;
+}
+
 std::shared_ptr<const ShadowArtifact> ShadowArtifact::fromBytes(const std::vector<uint8_t>& bytes, const std::string& source) {
   try {
+    if (isDmh(bytes.data(), bytes.size())) {
+      DmhArtifact a = decodeDmh(bytes.data(), bytes.size(), source);
+      return std::make_shared<const ShadowArtifact>(DagMhQuery(a.grid, std::move(a.dag)));
+    }
     CpvsArtifact a = decodeCpvs(bytes.data(), bytes.size(), source);
     return std::make_shared<const ShadowArtifact>(ShadowQuery(a.grid, std::move(a.packed)), std::move(a.translucent));
   } catch (const InputError& e) {
@@ -74,11 +100,10 @@ void cpuLitTexels(const ShadowArtifact& artifact, const std::vector<Vec3>& point
     throw RuntimeError(Status::InvalidArgument, e.what());
   }
   out.resize(points.size());
-  const ShadowQuery& q = artifact.cpu();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 1024), [&](const auto& range) {
     for (size_t i = range.begin(); i != range.end(); ++i) {
       const Vec3 n = normals.empty() ? Vec3{} : normals[i];
-      out[i] = casters && casters->shadowed(points[i], n) ? 0 : q.litTexels(points[i], n, *width);
+      out[i] = casters && casters->shadowed(points[i], n) ? 0 : artifact.litTexels(points[i], n, *width);
     }
   });
 }
@@ -167,6 +192,12 @@ void ShadowLookups::visibility(const std::vector<Vec3>& points, const std::vecto
   for (size_t i = 0; i < lit.size(); ++i) out[i] = float(lit[i]) / texels;
 }
 
+void checkSegmentKind(const ShadowArtifact& artifact) {
+  if (artifact.kind() != ArtifactKind::Cpvs)
+    throw RuntimeError(Status::InvalidArgument,
+                       "segments (sun shafts) walk a CPVS's voxels; a DAG-MH stores one depth a texel: bake a .cpvs");
+}
+
 void ShadowLookups::segments(const std::vector<Vec3>& from, const std::vector<Vec3>& to, const Medium& medium,
                              std::vector<double>& litFraction, std::vector<float>& inScattering) {
   if (gpu_) {
@@ -174,6 +205,7 @@ void ShadowLookups::segments(const std::vector<Vec3>& from, const std::vector<Ve
     return;
   }
   checkSegmentShape(from.size(), to.size(), medium);
+  checkSegmentKind(*artifact_);
   litFraction.resize(from.size());
   inScattering.resize(from.size());
   const ShadowQuery& q = artifact_->cpu();

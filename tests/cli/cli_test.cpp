@@ -141,6 +141,32 @@ TEST_F(Cli, DagMhBakesInspectsAndVerifies) {
     EXPECT_NE(bad.status, 0) << flags;
     EXPECT_NE(bad.out.find(words), std::string::npos) << flags << ": " << bad.out;
   }
+  // Looked up on the runtime's device (lavapipe here): the CPU's answers.
+  std::ofstream csv(path("d.csv"));
+  csv << "x,y,z,nx,ny,nz\n";
+  for (int i = 0; i < 400; ++i) csv << (i * 7) % 90 << "," << (i % 13) * 3 - 5 << "," << (i * 11) % 90 << ",0,1,0\n";
+  csv.close();
+  CliRun cpuCsv = cpvs("query " + path("d.dmh") + " --points " + path("d.csv") + " --pcf 3");
+  CliRun gpuCsv = cpvs("query " + path("d.dmh") + " --points " + path("d.csv") + " --pcf 3 --gpu");
+  ASSERT_EQ(cpuCsv.status, 0) << cpuCsv.out;
+  ASSERT_EQ(gpuCsv.status, 0) << gpuCsv.out;
+  EXPECT_NE(gpuCsv.out.find("Vulkan"), std::string::npos) << gpuCsv.out;
+  const std::string header = "x,y,z,visibility";
+  ASSERT_NE(gpuCsv.out.find(header), std::string::npos);
+  ASSERT_NE(cpuCsv.out.find(header), std::string::npos);
+  EXPECT_EQ(cpuCsv.out.substr(cpuCsv.out.find(header)), gpuCsv.out.substr(gpuCsv.out.find(header)));  // after the notes
+  EXPECT_NE(cpuCsv.out.find(",0\n"), std::string::npos) << "some points in shadow";
+  // And drawn there: the same picture, to the byte.
+  for (const std::string& gpu : {"", " --gpu"}) {
+    CliRun r = cpvs("render " + path("d.dmh") + " city:3 --size 160x120 --pcf 3" + gpu + " -o " +
+                    path(gpu.empty() ? "d-cpu.png" : "d-gpu.png"));
+    ASSERT_EQ(r.status, 0) << r.out;
+    EXPECT_NE(r.out.find(gpu.empty() ? "the CPU" : "Vulkan"), std::string::npos) << r.out;
+  }
+  std::ifstream x(path("d-cpu.png"), std::ios::binary), y(path("d-gpu.png"), std::ios::binary);
+  const std::string cpuPng((std::istreambuf_iterator<char>(x)), {}), gpuPng((std::istreambuf_iterator<char>(y)), {});
+  EXPECT_GT(cpuPng.size(), 1000u);
+  EXPECT_EQ(cpuPng, gpuPng);
   CliRun big = cpvs("bake city:3 --format dagmh --sun-dir 0,-1,0 -r 128K -o " + path("big.dmh"));
   EXPECT_NE(big.status, 0);
   EXPECT_NE(big.out.find("65536"), std::string::npos) << big.out;

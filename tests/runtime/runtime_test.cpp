@@ -15,7 +15,10 @@
 #include <random>
 
 #include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_dag_mh.h"
 #include "cpvs/bake/bake_lights.h"
+#include "cpvs/dagmh/dag_mh_words.h"
+#include "cpvs/io/dmh_file.h"
 #include "cpvs/eval/surface_sampling.h"
 #include "cpvs/light/area_light.h"
 #include "cpvs/io/cpvs_file.h"
@@ -734,6 +737,151 @@ TEST(GpuLookups, CorruptAndMissingArtifactsAreClearErrors) {
   EXPECT_EQ(cpvsOpenShadows((::testing::TempDir() + "absent.cpvs").c_str(), nullptr, 0, &shadows), CPVS_ERROR_FILE);
   EXPECT_EQ(cpvsOpenShadows(nullptr, nullptr, 0, &shadows), CPVS_ERROR_INVALID_ARGUMENT);
   EXPECT_STREQ(cpvsGetStatusName(CPVS_ERROR_CORRUPT_ARTIFACT), "corrupt-artifact");
+}
+
+// A DAG-MH of the scene for `receivers`, written as a .dmh and opened as a game opens it.
+Baked bakeDagMhFile(const std::string& spec, const Vec3& sun, int log2R, ReceiverKind receivers, int pcf) {
+  Baked b{nullptr, openScene(spec), sun,
+          ::testing::TempDir() + "runtime-dagmh-" + std::to_string(log2R) + "-" + optionName(receivers) + ".dmh"};
+  DmhArtifact art;
+  art.grid = makeGrid(b.scene, LightFrame::fromDirection(sun), log2R);
+  art.options.receivers = receivers;
+  art.options.receiverPcf = uint8_t(pcf);
+  ReceiverDeclaration d;
+  d.kind = receivers;
+  d.maxPcf = pcf;
+  art.receiverHash = receiverHash(d);
+  art.sceneHash = sceneHash(b.scene);
+  art.dag = bakeDagMh(b.scene, art.grid, art.options, d);
+  writeDmh(b.file, art, true);
+  b.artifact = ShadowArtifact::open(b.file);
+  return b;
+}
+
+// Every texel's depth as the device decodes it lies where the CPU's does: for each texel,
+// the voxel centres of the two slices around its depth (the last lit, the first
+// shadowed) answer alike on both.
+void expectEveryTexelAsTheCpu(const Baked& b, GpuShadows& gpu) {
+  const OrthoGrid& g = b.artifact->grid();
+  const DagMh& dag = b.artifact->dagMh().dag();
+  const uint64_t R = g.resolution();
+  std::vector<Vec3> points;
+  for (uint64_t y = 0; y < R; ++y)
+    for (uint64_t x = 0; x < R; ++x) {
+      const float depth = dag.depth(x, y);
+      const double first = std::min(std::ceil(double(depth)), double(R - 1));
+      for (const double k : {first - 1, first})
+        points.push_back(g.worldFromVoxel({double(x) + 0.5, double(y) + 0.5, std::max(k, 0.0) + 0.5}));
+    }
+  std::vector<uint32_t> onGpu, onCpu;
+  gpu.litTexels(points, {}, 1, onGpu);
+  cpuLitTexels(*b.artifact, points, {}, 1, onCpu);
+  EXPECT_EQ(mismatches(onGpu, onCpu), 0u) << points.size() << " texel probes";
+  uint64_t shadowed = 0;
+  for (uint32_t v : onCpu) shadowed += v == 0;
+  EXPECT_GT(shadowed, points.size() / 50);
+  EXPECT_LT(shadowed, points.size() * 49 / 50);
+}
+
+// A DAG-MH (`--format dagmh`) on the device: the same lit counts as DagMhQuery for
+// surface, boundary and outside queries at every filter width, every texel's depth
+// decoded alike, receivers on surfaces (where it compresses most) and everywhere.
+TEST(GpuDagMh, AnswersAsTheCpu) {
+  const Baked surfaces = bakeDagMhFile("city:6", {0.3, -1, 0.2}, 11, ReceiverKind::Surfaces, 9);
+  ASSERT_EQ(surfaces.artifact->kind(), ArtifactKind::DagMh);
+  EXPECT_EQ(surfaces.artifact->words(), dagMhWords(surfaces.artifact->dagMh().dag()));
+  EXPECT_GT(surfaces.artifact->dagMh().dag().skipLevel, 0);
+  GpuShadows gpu(device(), surfaces.artifact);
+  expectGpuMatchesCpu(surfaces, gpu, 100000);
+  expectEveryTexelAsTheCpu(surfaces, gpu);
+  const Baked everywhere = bakeDagMhFile("city:6", {0.3, -1, 0.2}, 10, ReceiverKind::Everywhere, 9);
+  GpuShadows gpu2(device(), everywhere.artifact);
+  expectGpuMatchesCpu(everywhere, gpu2, 50000);
+  expectEveryTexelAsTheCpu(everywhere, gpu2);
+  expectNoValidationMessages(device());
+}
+
+TEST(GpuDagMh, PeersCityAnswersAsTheCpu) {
+  CPVS_SHARED_SCENE_OR_SKIP(path, "loinesg-city/city.obj");
+  const Baked b = bakeDagMhFile(path, {0.505259, -0.379456, 0.775066}, 12, ReceiverKind::Surfaces, 9);
+  GpuShadows gpu(device(), b.artifact);
+  expectGpuMatchesCpu(b, gpu, 100000);
+  expectEveryTexelAsTheCpu(b, gpu);
+  expectNoValidationMessages(device());
+}
+
+// Split across bindings, with dynamic casters, through ShadowLookups and the C API; what
+// a DAG-MH cannot answer (segments) is refused by name.
+TEST(GpuDagMh, SplitWordsCastersTheCApiAndRefusals) {
+  const Baked b = bakeDagMhFile("city:4", {0.4, -1, 0.25}, 11, ReceiverKind::Surfaces, 5);
+  {
+    DeviceOptions options = validated();
+    options.maxBindingBytes = std::bit_floor(b.artifact->words().size() * 4 / 4);
+    auto small = GpuDevice::create(options);
+    GpuShadows gpu(*small, b.artifact);
+    EXPECT_GE(gpu.wordBindings(), 4);
+    expectGpuMatchesCpu(b, gpu, 30000);
+    expectNoValidationMessages(*small);
+  }
+  GpuShadows gpu(device(), b.artifact);
+  const std::vector<CasterMesh> meshes = movingCasters(b, 1.0, false);
+  auto casters = std::make_shared<const DynamicCasters>(*b.artifact, meshes);
+  std::vector<Vec3> points, normals;
+  casterQueries(b, *casters, meshes, points, normals);
+  gpu.setDynamicCasters(casters);
+  std::vector<uint32_t> onGpu, onCpu, baked;
+  gpu.litTexels(points, normals, 3, onGpu);
+  cpuLitTexels(*b.artifact, points, normals, 3, onCpu, casters.get());
+  cpuLitTexels(*b.artifact, points, normals, 3, baked);
+  EXPECT_EQ(mismatches(onGpu, onCpu), 0u);
+  EXPECT_NE(onCpu, baked) << "the casters darken some of the baked light";
+
+  // What walks a CPVS's voxels is refused.
+  const Medium fog{0.01, 0.004, 0.6};
+  std::vector<double> lit;
+  std::vector<float> scattered;
+  for (Backend backend : {Backend::Cpu, Backend::Gpu}) {
+    ShadowLookups lookups(b.artifact, device(), backend);
+    try {
+      lookups.segments({points[0]}, {points[1]}, fog, lit, scattered);
+      ADD_FAILURE() << "segments on a DAG-MH";
+    } catch (const RuntimeError& e) {
+      EXPECT_EQ(e.status(), Status::InvalidArgument);
+      EXPECT_NE(std::string(e.what()).find("DAG-MH"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(b.artifact->cpu(), RuntimeError);
+
+  // The C API opens it as any artifact, says its kind and gives its words.
+  CpvsDeviceDesc desc{nullptr, 1, 0};
+  CpvsDevice dev = nullptr;
+  ASSERT_EQ(cpvsNewDevice(&desc, &dev), CPVS_OK) << cpvsGetLastError();
+  CpvsShadows onDevice = nullptr, onCpuHandle = nullptr;
+  ASSERT_EQ(cpvsOpenShadows(b.file.c_str(), dev, 0, &onDevice), CPVS_OK) << cpvsGetLastError();
+  ASSERT_EQ(cpvsOpenShadows(b.file.c_str(), nullptr, 0, &onCpuHandle), CPVS_OK) << cpvsGetLastError();
+  EXPECT_EQ(cpvsGetShadowsKind(onDevice), CPVS_SHADOWS_DAG_MH);
+  EXPECT_EQ(cpvsShadowsOnDevice(onDevice), 1);
+  std::vector<double> p, n;
+  for (size_t i = 0; i < points.size(); ++i) {
+    p.insert(p.end(), {points[i].x, points[i].y, points[i].z});
+    n.insert(n.end(), {normals[i].x, normals[i].y, normals[i].z});
+  }
+  std::vector<uint32_t> fromDevice(points.size()), fromCpu(points.size());
+  ASSERT_EQ(cpvsQueryShadows(onDevice, points.size(), p.data(), n.data(), 3, fromDevice.data()), CPVS_OK);
+  ASSERT_EQ(cpvsQueryShadows(onCpuHandle, points.size(), p.data(), n.data(), 3, fromCpu.data()), CPVS_OK);
+  EXPECT_EQ(fromDevice, baked);
+  EXPECT_EQ(fromCpu, baked);
+  const void* data = nullptr;
+  size_t bytes = 0;
+  ASSERT_EQ(cpvsGetShadowsBuffer(onDevice, CPVS_SHADOWS_BUFFER_WORDS, &data, &bytes), CPVS_OK);
+  ASSERT_EQ(bytes, b.artifact->words().size() * 4);
+  EXPECT_EQ(std::memcmp(data, b.artifact->words().data(), bytes), 0);
+  EXPECT_EQ(reinterpret_cast<const uint32_t*>(data)[0], kDagMhWordsMagic);
+  cpvsReleaseShadows(onDevice);
+  cpvsReleaseShadows(onCpuHandle);
+  EXPECT_EQ(cpvsGetValidationMessageCount(dev), 0u);
+  cpvsReleaseDevice(dev);
+  expectNoValidationMessages(device());
 }
 
 // Soft shadows on the device: a spot light, then two area lights (a panel over the city

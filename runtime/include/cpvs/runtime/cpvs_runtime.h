@@ -17,7 +17,7 @@ typedef enum CpvsStatus {
   CPVS_OK = 0,
   CPVS_ERROR_INVALID_ARGUMENT = 1, /* a null, out-of-range or inconsistent argument */
   CPVS_ERROR_FILE = 2,             /* a file cannot be read or written */
-  CPVS_ERROR_CORRUPT_ARTIFACT = 3, /* not a valid .cpvs: truncated, damaged, foreign */
+  CPVS_ERROR_CORRUPT_ARTIFACT = 3, /* not a valid .cpvs or .dmh: truncated, damaged, foreign */
   CPVS_ERROR_NO_VULKAN = 4,        /* no Vulkan loader, or no driver behind it */
   CPVS_ERROR_NO_DEVICE = 5,        /* no device, none selected, or none with 64-bit floats */
   CPVS_ERROR_DEVICE_LOST = 6,      /* the device stopped answering */
@@ -55,7 +55,8 @@ size_t cpvsGetValidationMessageCount(CpvsDevice device);
 /* Tests only: every later submission on the device fails as a lost device does. */
 void cpvsSimulateDeviceLossForTests(CpvsDevice device);
 
-/* Opens a .cpvs and uploads it to `device` (NULL: lookups on the CPU). With
+/* Opens a .cpvs or a .dmh (`cpvs bake --format dagmh`) and uploads it to `device` (NULL:
+ * lookups on the CPU), either kind answering the same calls. With
  * CPVS_FALLBACK_CPU, a failed upload leaves the shadows on the CPU instead of failing. */
 CpvsStatus cpvsOpenShadows(const char* path, CpvsDevice device, uint32_t flags, CpvsShadows* shadows);
 /* Fetches a finished farm job's artifact into cacheDir (kept under its content hash;
@@ -65,6 +66,10 @@ CpvsStatus cpvsFetchShadows(const char* address, const char* tokenOrNull, const 
 void cpvsReleaseShadows(CpvsShadows shadows);
 /* 1 when lookups run on the device, 0 on the CPU. */
 int cpvsShadowsOnDevice(CpvsShadows shadows);
+/* What the artifact holds: a CPVS, or a DAG-MH, whose words an engine's shader reads with
+ * CPVS_DAG_MH defined before including cpvs_shadow.glsl. CPVS for NULL. */
+typedef enum CpvsShadowsKind { CPVS_SHADOWS_CPVS = 0, CPVS_SHADOWS_DAG_MH = 1 } CpvsShadowsKind;
+CpvsShadowsKind cpvsGetShadowsKind(CpvsShadows shadows);
 
 /* count queries: points (3 doubles each, world space), normals (3 each, or NULL: no
  * offset), filter width pcf (odd, 1 to 9). litTexels[i] receives how many of the
@@ -76,7 +81,8 @@ CpvsStatus cpvsQueryShadows(CpvsShadows shadows, size_t count, const double* poi
  * to upload: the uniform block CpvsSun (224 bytes: the grid's one record, CpvsGrid, as a
  * light bundle's grids have it, then the log2 of the words per word buffer, 0 here: an
  * engine that splits the words across buffers, CPVS_WORD_BUFFERS > 1, writes its own at
- * byte 208) and the packed words (CpvsWords). Valid while the CpvsShadows lives. */
+ * byte 208) and the words (CpvsWords: a CPVS's, or a DAG-MH's, cpvsGetShadowsKind). Valid
+ * while the CpvsShadows lives. */
 typedef enum CpvsShadowsBuffer {
   CPVS_SHADOWS_BUFFER_SUN = 0,
   CPVS_SHADOWS_BUFFER_WORDS = 1,

@@ -1,5 +1,5 @@
-// cpvs_runtime: what a game or a viewer links to use baked shadows. Open a .cpvs (or
-// fetch a farm job's artifact into a local cache), upload its packed words to a Vulkan
+// cpvs_runtime: what a game or a viewer links to use baked shadows. Open a .cpvs or a
+// .dmh (or fetch a farm job's artifact into a local cache), upload its words to a Vulkan
 // device as they are, and answer batches of shadow queries in a compute shader; or on
 // the CPU, with the same answers, where no device exists. Links the query, dag, io and
 // base layers and the farm client, never the baker. The C API (cpvs_runtime.h) wraps
@@ -11,6 +11,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -21,6 +22,7 @@
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/psv/top_tree.h"
 #include "cpvs/query/bundle_query.h"
+#include "cpvs/query/dag_mh_query.h"
 #include "cpvs/query/medium.h"
 #include "cpvs/query/shadow_query.h"
 
@@ -36,7 +38,7 @@ enum class Status : int {
   Ok = 0,
   InvalidArgument = 1,  // a null, out-of-range or inconsistent argument
   FileError = 2,        // a file cannot be read or written
-  CorruptArtifact = 3,  // the bytes are not a valid .cpvs (truncated, damaged, foreign)
+  CorruptArtifact = 3,  // the bytes are not a valid .cpvs or .dmh (truncated, damaged, foreign)
   NoVulkan = 4,         // no Vulkan loader, or it has no usable driver
   NoDevice = 5,         // no device, none that matches the selection, or one without 64-bit floats
   DeviceLost = 6,       // the device stopped answering (driver reset, removal)
@@ -57,18 +59,37 @@ class RuntimeError : public std::runtime_error {
   Status status_;
 };
 
-/// A baked artifact opened for lookups: its grid, its packed words (as the file holds
-/// them) and the CPU reference over them. Immutable; share it between devices.
+/// What a sun artifact holds: a CPVS (`.cpvs`, voxels), or a DAG-MH (`.dmh`, `cpvs bake
+/// --format dagmh`: a shadow map that answers the declared receivers as the CPVS does).
+enum class ArtifactKind { Cpvs, DagMh };
+
+/// "cpvs" or "dagmh".
+const char* artifactKindName(ArtifactKind kind);
+
+/// A baked sun artifact opened for lookups, of either kind: its grid, the words a device
+/// binds (as the file holds them) and the CPU reference over them. Immutable; share it
+/// between devices.
 class ShadowArtifact {
  public:
-  /// Reads and validates a .cpvs file. FileError when it cannot be read, CorruptArtifact
-  /// when it is not a valid artifact.
+  /// Reads and validates a .cpvs or a .dmh file (told apart by their magic). FileError
+  /// when it cannot be read, CorruptArtifact when it is not a valid artifact.
   static std::shared_ptr<const ShadowArtifact> open(const std::string& path);
   static std::shared_ptr<const ShadowArtifact> fromBytes(const std::vector<uint8_t>& bytes, const std::string& source);
 
-  const OrthoGrid& grid() const { return query_.grid(); }
-  const PackedDag& packed() const { return query_.dag(); }
-  const ShadowQuery& cpu() const { return query_; }
+  ArtifactKind kind() const { return dagMh_ ? ArtifactKind::DagMh : ArtifactKind::Cpvs; }
+  const OrthoGrid& grid() const { return dagMh_ ? dagMh_->grid() : query_->grid(); }
+  /// The words cpvs_shadow.glsl reads (CpvsWords): a CPVS's packed words, or a DAG-MH's
+  /// (dag_mh_words.h; the shader then needs CPVS_DAG_MH).
+  const std::vector<uint32_t>& words() const { return dagMh_ ? dagMhWords_ : query_->dag().words(); }
+  /// A CPVS's DAG and CPU reference; InvalidArgument for a DAG-MH.
+  const PackedDag& packed() const { return cpu().dag(); }
+  const ShadowQuery& cpu() const;
+  /// A DAG-MH's CPU reference; InvalidArgument for a CPVS.
+  const DagMhQuery& dagMh() const;
+  /// Lit texels of the pcf x pcf footprint at (p, n) on the CPU, either kind.
+  uint32_t litTexels(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
+    return dagMh_ ? dagMh_->litTexels(p, n, pcf) : query_->litTexels(p, n, pcf);
+  }
   /// The TOP tree of the scene's translucent casters the file carries (glass, water,
   /// leaves on cards: left out of the CPVS), or null. The light reaching a receiver is
   /// the CPVS's visibility times their transmittance (cpuTransmittance,
@@ -83,9 +104,13 @@ class ShadowArtifact {
   /// InvalidArgument for a translucent casters' tree that is not linked, has no
   /// transmittance for each frustum, or is not for the grid's sun.
   explicit ShadowArtifact(ShadowQuery query, std::shared_ptr<const TopTree> translucent = nullptr);
+  /// A DAG-MH; InvalidArgument when its words would not fit 32-bit indices.
+  explicit ShadowArtifact(DagMhQuery query);
 
  private:
-  ShadowQuery query_;
+  std::optional<ShadowQuery> query_;
+  std::optional<DagMhQuery> dagMh_;
+  std::vector<uint32_t> dagMhWords_;
   std::shared_ptr<const TopTree> translucent_;
 };
 
