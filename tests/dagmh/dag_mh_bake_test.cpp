@@ -15,6 +15,7 @@
 #include "cpvs/eval/surface_sampling.h"
 #include "cpvs/eval/verify.h"
 #include "cpvs/io/dmh_file.h"
+#include "cpvs/io/dmh_tile_file.h"
 #include "cpvs/query/dag_mh_query.h"
 #include "cpvs/query/shadow_query.h"
 #include "cpvs/scene/source.h"
@@ -136,6 +137,40 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"openarena/oa_shouse.obj", {-0.31, -1, 0.22}, ReceiverKind::Everywhere, 9},
                       Case{"loinesg-city/city.obj", {0.505259, -0.379456, 0.775066}, ReceiverKind::Surfaces, 1}),
     [](const auto& info) { return "case" + std::to_string(info.index); });
+
+// A farm's DAG-MH: each farm tile baked by a worker into parts, sent as bytes, merged at
+// the coordinator in any order: the bytes of the bake in one process, for farm tiles
+// larger and smaller than the bake's own.
+TEST(DagMhFarmTiles, MergedInAnyOrderGiveTheLocalBytes) {
+  const Scene scene = openScene("city:5");
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 11);
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Surfaces;
+  BakeOptions options;
+  const DagMh local = bakeDagMh(scene, grid, options, d);
+  const BakeScene prepared(scene, grid, Renderer::Raster, 0, d);
+  std::mt19937_64 rng(5);
+  for (const int log2Farm : {10, 8}) {
+    SCOPED_TRACE("farm tiles of 2^" + std::to_string(log2Farm));
+    options.log2TileSize = log2Farm;
+    const uint64_t n = grid.resolution() >> log2Farm;
+    std::vector<uint64_t> order(n * n);
+    for (uint64_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), rng);
+    DagMhBuilder builder(grid.log2Resolution, dagMhPartLog2(grid.log2Resolution, log2Farm));
+    for (const uint64_t i : order) {
+      const std::vector<uint8_t> bytes = encodeDagMhTiles(bakeDagMhFarmTile(prepared, options, i % n, i / n));
+      for (DagMhTile& part : decodeDagMhTiles(bytes.data(), bytes.size(), "farm tile")) builder.addTile(std::move(part));
+    }
+    const DagMh farm = builder.finish();
+    EXPECT_EQ(farm.nodes, local.nodes);
+    EXPECT_EQ(farm.treelets, local.treelets);
+    EXPECT_EQ(farm.values.factors, local.values.factors);
+    EXPECT_EQ(std::memcmp(farm.values.chunks.data(), local.values.chunks.data(), local.values.chunks.size() * 20), 0);
+    EXPECT_EQ(farm.skip.size(), local.skip.size());
+  }
+  EXPECT_THROW(bakeDagMhFarmTile(prepared, options, 8, 0), InputError);
+}
 
 DmhArtifact smallArtifact() {
   const Scene scene = openScene("city:4");

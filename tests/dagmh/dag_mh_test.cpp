@@ -12,6 +12,7 @@
 
 #include "cpvs/base/error.h"
 #include "cpvs/dagmh/dag_mh.h"
+#include "cpvs/io/dmh_tile_file.h"
 
 namespace cpvs {
 namespace {
@@ -290,6 +291,127 @@ TEST(DagMh, TilesInAnyOrderGiveTheWholeMapsBytes) {
   DagMhBuilder missing(6, 4);
   EXPECT_THROW(missing.finish(), InputError);
   EXPECT_THROW(DagMhBuilder(10, 3), InputError);
+}
+
+// A tile's part sent as bytes (what a farm worker sends) and merged at the other end in
+// any order: the whole map's bytes.
+TEST(DagMh, TilePartsTravelAndKeepTheBytes) {
+  std::mt19937_64 rng(23);
+  for (const uint32_t side : {8u, 256u, 1024u}) {
+    const TexelIntervals map = side == 256 ? randomIntervals(side, 4) : sceneLikeIntervals(side, side);
+    const DagMh whole = encodeDagMh(Mh(map));
+    const uint32_t tileSide = side == 8 ? 8 : side / 4, n = side / tileSide;
+    std::vector<DagMhTile> parts;
+    for (uint32_t i = 0; i < n * n; ++i)
+      parts.push_back(dagMhTile(std::countr_zero(side), i % n, i / n, Mh(tileOf(map, tileSide, i % n, i / n))));
+    std::shuffle(parts.begin(), parts.end(), rng);
+    for (const bool zstd : {false, true}) {
+      const std::vector<uint8_t> bytes = encodeDagMhTiles(parts, zstd);
+      std::vector<DagMhTile> back = decodeDagMhTiles(bytes.data(), bytes.size(), "parts");
+      ASSERT_EQ(back.size(), parts.size());
+      DagMhBuilder builder(std::countr_zero(side), std::countr_zero(tileSide));
+      for (DagMhTile& p : back) builder.addTile(std::move(p));
+      EXPECT_THROW(builder.addTile(dagMhTile(std::countr_zero(side), 0, 0, Mh(tileOf(map, tileSide, 0, 0)))), InputError)
+          << "a tile twice";
+      const DagMh tiled = builder.finish();
+      EXPECT_EQ(tiled.nodes, whole.nodes);
+      EXPECT_EQ(tiled.treelets, whole.treelets);
+      EXPECT_EQ(tiled.values.factors, whole.values.factors);
+      EXPECT_EQ(std::memcmp(tiled.values.chunks.data(), whole.values.chunks.data(), whole.values.chunks.size() * 20), 0);
+    }
+  }
+}
+
+// What a hostile or broken worker could send behind a valid checksum: refused by name
+// before the builder trusts it, or (random words) refused or merged without harm.
+TEST(DagMh, HostilePartsAreRefused) {
+  const TexelIntervals map = randomIntervals(256, 4);
+  const DagMhTile good = dagMhTile(8, 1, 2, Mh(tileOf(map, 64, 1, 2)));
+  ASSERT_NO_THROW(validateDagMhTile(good, "good"));
+  ASSERT_EQ(good.innerLevels(), 3);
+  ASSERT_GT(good.valuesBelow, 10u);
+  auto refused = [](const DagMhTile& t, const std::string& words) {
+    try {
+      validateDagMhTile(t, "part");
+      return ::testing::AssertionFailure() << "accepted";
+    } catch (const FormatError& e) {
+      if (std::string(e.what()).find(words) == std::string::npos) return ::testing::AssertionFailure() << e.what();
+      return ::testing::AssertionSuccess();
+    }
+  };
+  DagMhTile t = good;
+  t.tileX = 4;
+  EXPECT_TRUE(refused(t, "outside the map"));
+  t = good;
+  t.levels.pop_back();
+  EXPECT_TRUE(refused(t, "inner levels"));
+  t = good;
+  t.levels[2][2] = uint32_t(t.treelets.size());  // the first node's first child: no such treelet
+  EXPECT_TRUE(refused(t, "not there"));
+  t = good;
+  t.levels[1][1] += 1;
+  EXPECT_TRUE(refused(t, "value count"));
+  t = good;
+  t.treelets[2] |= 1u << 30;
+  EXPECT_TRUE(refused(t, "padding"));
+  t = good;
+  t.root = 1000000;
+  EXPECT_TRUE(refused(t, "root"));
+  t = good;
+  t.valueLo.pop_back();
+  EXPECT_TRUE(refused(t, "value intervals"));
+  t = good;
+  t.valueHi[3] = std::nanf("");
+  EXPECT_TRUE(refused(t, "interval"));
+  t = good;
+  t.valueLo[4] = t.valueHi[4] + 1;
+  EXPECT_TRUE(refused(t, "interval"));
+  t = good;
+  t.log2TileSide = 3;
+  EXPECT_TRUE(refused(t, "too small"));
+  // Random words: refused, or merged and finished into a DAG-MH that validates.
+  std::mt19937_64 rng(29);
+  int refusals = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    t = good;
+    std::vector<uint32_t>& words = trial % 2 ? t.treelets : t.levels[size_t(rng() % 3)];
+    words[rng() % words.size()] ^= 1u << (rng() % 32);
+    try {
+      validateDagMhTile(t, "part");
+    } catch (const FormatError&) {
+      ++refusals;
+      continue;
+    }
+    DagMhBuilder builder(8, 6);
+    builder.addTile(std::move(t));
+    for (uint32_t i = 0; i < 16; ++i)
+      if (!builder.hasTile(i % 4, i / 4)) builder.addTile(i % 4, i / 4, Mh(tileOf(map, 64, i % 4, i / 4)));
+    EXPECT_NO_THROW(validateDagMh(builder.finish(), "merged"));
+  }
+  EXPECT_GT(refusals, 100);
+  // A pointer to another treelet of as many values: a valid part of another shape, merged
+  // without harm.
+  t = good;
+  auto count = [&](uint32_t i) { return std::popcount(t.treelets[3 * i]) + std::popcount(t.treelets[3 * i + 1]) + std::popcount(t.treelets[3 * i + 2]); };
+  bool swapped = false;
+  for (uint32_t q = 1; q < t.treelets.size() / 3 && !swapped; ++q)
+    if (count(q) == count(t.levels[2][2]) && q != t.levels[2][2]) {
+      t.levels[2][2] = q;
+      swapped = true;
+    }
+  ASSERT_TRUE(swapped);
+  ASSERT_NO_THROW(validateDagMhTile(t, "part"));
+  DagMhBuilder builder(8, 6);
+  builder.addTile(std::move(t));
+  for (uint32_t i = 0; i < 16; ++i)
+    if (!builder.hasTile(i % 4, i / 4)) builder.addTile(i % 4, i / 4, Mh(tileOf(map, 64, i % 4, i / 4)));
+  EXPECT_NO_THROW(validateDagMh(builder.finish(), "merged"));
+  // Damaged bytes: the checksum, a truncation.
+  std::vector<uint8_t> bytes = encodeDagMhTiles({good});
+  bytes[bytes.size() / 2] ^= 4;
+  EXPECT_THROW(decodeDagMhTiles(bytes.data(), bytes.size(), "parts"), FormatError);
+  bytes = encodeDagMhTiles({good});
+  EXPECT_THROW(decodeDagMhTiles(bytes.data(), bytes.size() - 9, "parts"), FormatError);
 }
 
 TEST(DagMh, CorruptWordsAreRefusedOrStayInBounds) {

@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_pipeline.h>
 
+#include <algorithm>
 #include <chrono>
 #include <vector>
 
@@ -23,31 +24,26 @@ void sliceIntervals(const TexelSlices& slices, uint32_t slicesPerColumn, uint64_
     }
 }
 
-DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& options,
-                const ReceiverDeclaration& receivers, int threads, StageTimes* times, const ProgressFn& progress) {
-  if (grid.log2Resolution > kMaxLog2DagMhResolution)
-    throw InputError("a DAG-MH is baked up to " + std::to_string(1u << kMaxLog2DagMhResolution) + " texels a side, not " +
-                     std::to_string(grid.resolution()));
-  if (grid.depthSlices != 0) throw InputError("a DAG-MH's grid is cubic: no depth slices");
-  StageTimes local;
-  StageTimes& st = times ? *times : local;
-  auto start = std::chrono::steady_clock::now();
-  const BakeScene prepared(scene, grid, Renderer::Raster, threads, receivers);
-  st.add("load", secondsSince(start));
+int dagMhPartLog2(int log2Resolution, int log2FarmTile) {
+  return std::min({log2Resolution, log2FarmTile, kLog2DagMhTileSide});
+}
 
-  // Tile by tile (the hierarchy of a tile depends only on its texels): the memory of one
-  // tile's intervals and hierarchy, whatever the resolution.
-  const int log2Tile = std::min(grid.log2Resolution, kLog2DagMhTileSide);
-  const uint32_t side = 1u << log2Tile, tilesPerSide = uint32_t(grid.resolution() >> log2Tile);
-  DagMhBuilder builder(grid.log2Resolution, log2Tile);
-  // Two tiles in flight: one rendered and its hierarchy built (parallel inside) while the
-  // one before is merged into the builder, in order (so the bytes are the sequential
-  // ones). Each in-flight tile has its own buffers, reused by the tiles after it.
+void bakeDagMhTiles(const BakeScene& prepared, const BakeOptions& options, int log2Tile, uint64_t firstX,
+                    uint64_t firstY, uint32_t tilesPerSide, const std::function<void(DagMhTile&&)>& take,
+                    StageTimes& st, const ProgressFn& progress) {
+  const OrthoGrid& grid = prepared.grid();
+  const uint32_t side = 1u << log2Tile;
+  CPVS_CHECK(log2Tile <= grid.log2Resolution && (firstX + tilesPerSide) << log2Tile <= grid.resolution() &&
+             (firstY + tilesPerSide) << log2Tile <= grid.resolution());
+  // Two tiles in flight: one rendered, its hierarchy built and its shapes gathered
+  // (parallel inside) while the one before is handed on, in order (so the bytes are the
+  // sequential ones). Each in-flight tile has its own buffers, reused by the tiles after it.
   struct Work {
-    uint32_t tx = 0, ty = 0;
+    uint64_t tx = 0, ty = 0;
     TexelSlices slices;
     TexelIntervals tile;
     Mh mh;
+    DagMhTile part;
     StageTimes times;
   };
   constexpr size_t kInFlight = 2;
@@ -58,7 +54,7 @@ DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& op
     w.tile.hi.resize(w.tile.texels());
   }
   const uint64_t tiles = uint64_t(tilesPerSide) * tilesPerSide;
-  uint64_t next = 0, merged = 0;
+  uint64_t next = 0, handed = 0;
   tbb::parallel_pipeline(
       kInFlight,
       tbb::make_filter<void, Work*>(tbb::filter_mode::serial_in_order,
@@ -68,15 +64,15 @@ DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& op
                                         return nullptr;
                                       }
                                       Work* w = &works[next % kInFlight];
-                                      w->tx = uint32_t(next % tilesPerSide);
-                                      w->ty = uint32_t(next / tilesPerSide);
+                                      w->tx = firstX + next % tilesPerSide;
+                                      w->ty = firstY + next / tilesPerSide;
                                       ++next;
                                       return w;
                                     }) &
           tbb::make_filter<Work*, Work*>(
               tbb::filter_mode::parallel,
               [&](Work* w) {
-                const uint64_t x0 = uint64_t(w->tx) * side, y0 = uint64_t(w->ty) * side;
+                const uint64_t x0 = w->tx * side, y0 = w->ty * side;
                 auto start = std::chrono::steady_clock::now();
                 if (prepared.touchesTile(w->tx, w->ty, log2Tile)) {
                   rasterTexelSlices(prepared.raster(), options.closed, options.exit, x0, y0, side, side, w->slices);
@@ -93,16 +89,60 @@ DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& op
                 start = std::chrono::steady_clock::now();
                 w->mh.rebuild(w->tile);
                 w->times.add("hierarchy", secondsSince(start));
+                start = std::chrono::steady_clock::now();
+                w->part = dagMhTile(grid.log2Resolution, w->tx, w->ty, w->mh);
+                w->times.add("compress", secondsSince(start));
                 return w;
               }) &
           tbb::make_filter<Work*, void>(tbb::filter_mode::serial_in_order, [&](Work* w) {
-            const auto start = std::chrono::steady_clock::now();
-            builder.addTile(w->tx, w->ty, w->mh);
-            w->times.add("compress", secondsSince(start));
-            ++merged;
-            if (progress && !progress({"tiles", merged, tiles})) throw Cancelled();
+            take(std::move(w->part));
+            ++handed;
+            if (progress && !progress({"tiles", handed, tiles})) throw Cancelled();
           }));
   for (const Work& w : works) st.add(w.times);
+}
+
+std::vector<DagMhTile> bakeDagMhFarmTile(const BakeScene& prepared, const BakeOptions& options, uint64_t tileX,
+                                         uint64_t tileY, StageTimes* times) {
+  const OrthoGrid& grid = prepared.grid();
+  const int log2Farm = std::min(grid.log2Resolution, options.log2TileSize);
+  const int log2Part = dagMhPartLog2(grid.log2Resolution, options.log2TileSize);
+  if (((tileX + 1) << log2Farm) > grid.resolution() || ((tileY + 1) << log2Farm) > grid.resolution())
+    throw InputError("tile " + std::to_string(tileX) + "," + std::to_string(tileY) + " lies outside a grid of " +
+                     std::to_string(grid.resolution()));
+  const uint32_t perSide = 1u << (log2Farm - log2Part);
+  std::vector<DagMhTile> parts;
+  StageTimes local;
+  bakeDagMhTiles(prepared, options, log2Part, tileX * perSide, tileY * perSide, perSide,
+                 [&](DagMhTile&& p) { parts.push_back(std::move(p)); }, times ? *times : local, nullptr);
+  return parts;
+}
+
+DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& options,
+                const ReceiverDeclaration& receivers, int threads, StageTimes* times, const ProgressFn& progress) {
+  if (grid.log2Resolution > kMaxLog2DagMhResolution)
+    throw InputError("a DAG-MH is baked up to " + std::to_string(1u << kMaxLog2DagMhResolution) + " texels a side, not " +
+                     std::to_string(grid.resolution()));
+  if (grid.depthSlices != 0) throw InputError("a DAG-MH's grid is cubic: no depth slices");
+  StageTimes local;
+  StageTimes& st = times ? *times : local;
+  auto start = std::chrono::steady_clock::now();
+  const BakeScene prepared(scene, grid, Renderer::Raster, threads, receivers);
+  st.add("load", secondsSince(start));
+
+  // Tile by tile (the hierarchy of a tile depends only on its texels): the memory of one
+  // tile's intervals and hierarchy, whatever the resolution.
+  const int log2Tile = std::min(grid.log2Resolution, kLog2DagMhTileSide);
+  DagMhBuilder builder(grid.log2Resolution, log2Tile);
+  double merging = 0;
+  bakeDagMhTiles(prepared, options, log2Tile, 0, 0, uint32_t(grid.resolution() >> log2Tile),
+                 [&](DagMhTile&& part) {
+                   const auto start = std::chrono::steady_clock::now();
+                   builder.addTile(std::move(part));
+                   merging += secondsSince(start);
+                 },
+                 st, progress);
+  st.add("compress", merging);
   start = std::chrono::steady_clock::now();
   DagMh dag = builder.finish();
   st.add("compress", secondsSince(start));

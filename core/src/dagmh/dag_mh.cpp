@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <bit>
 #include <unordered_map>
@@ -295,33 +296,45 @@ void mhValueIntervals(const Mh& mh, std::vector<float>& lo, std::vector<float>& 
   }
 }
 
-// The unique shapes so far: inner nodes per level of the map, treelets.
-struct DagMhBuilder::Pools {
+// Unique shapes: inner nodes per level, treelets.
+struct DagMhShapes {
   std::vector<LevelPool> levels;
   std::unordered_map<std::array<uint32_t, 3>, uint32_t, TreeletHash> treeletIndex;
   std::vector<std::array<uint32_t, 3>> treeletPool;
+
+  uint32_t addTreelet(const std::array<uint32_t, 3>& bits) {
+    const auto [it, added] = treeletIndex.try_emplace(bits, uint32_t(treeletPool.size()));
+    if (added) treeletPool.push_back(bits);
+    return it->second;
+  }
 };
 
-DagMhBuilder::DagMhBuilder(int log2Side, int log2TileSide)
-    : log2Side_(log2Side), log2TileSide_(std::min(log2Side, log2TileSide)), tileLevel_(log2Side - log2TileSide_),
-      treeletLevel_(treeletLevel(log2Side)), pools_(std::make_unique<Pools>()) {
-  CPVS_CHECK(log2Side >= 0 && log2Side <= 20 && log2TileSide >= 0);
-  // Tiles of more than one treelet level, so that a tile root is an inner node.
-  if (tileLevel_ > 0 && tileLevel_ >= treeletLevel_)
-    throw InputError("DAG-MH tiles of 2^" + std::to_string(log2TileSide_) + " texels are too small: at least 16 a side");
-  pools_->levels.resize(size_t(treeletLevel_));
-  tiles_.resize(size_t(1) << (2 * tileLevel_));
+namespace {
+
+// The level of the tiles' roots in a map of 2^log2Side in tiles of 2^log2TileSide; tiles
+// of more than one treelet level, so that a tile root is an inner node.
+int checkedTileLevel(int log2Side, int log2TileSide) {
+  const int tileLevel = log2Side - log2TileSide;
+  if (tileLevel > 0 && tileLevel >= treeletLevel(log2Side))
+    throw InputError("DAG-MH tiles of 2^" + std::to_string(log2TileSide) + " texels are too small: at least 16 a side");
+  return tileLevel;
 }
 
-DagMhBuilder::~DagMhBuilder() = default;
+}  // namespace
 
-void DagMhBuilder::addTile(uint64_t tileX, uint64_t tileY, const Mh& mh) {
-  const uint64_t tilesPerSide = uint64_t(1) << tileLevel_;
-  CPVS_CHECK(mh.log2Side() == log2TileSide_ && tileX < tilesPerSide && tileY < tilesPerSide);
-  Tile& tile = tiles_[size_t(tileY * tilesPerSide + tileX)];
-  if (tile.added) throw InputError("DAG-MH tile " + std::to_string(tileX) + "," + std::to_string(tileY) + " added twice");
-  // Local level l of the tile is level tileLevel_ + l of the map.
-  const int t = treeletLevel_ - tileLevel_, below = log2Side_ - treeletLevel_;
+int DagMhTile::innerLevels() const { return treeletLevel(log2Side) - (log2Side - log2TileSide); }
+
+DagMhTile dagMhTile(int log2Side, uint64_t tileX, uint64_t tileY, const Mh& mh) {
+  CPVS_CHECK(log2Side >= 0 && log2Side <= 20 && mh.log2Side() <= log2Side);
+  DagMhTile part;
+  part.log2Side = log2Side;
+  part.log2TileSide = mh.log2Side();
+  part.tileX = tileX;
+  part.tileY = tileY;
+  const int tileLevel = checkedTileLevel(log2Side, part.log2TileSide);
+  CPVS_CHECK((tileX >> tileLevel) == 0 && (tileY >> tileLevel) == 0);
+  // Local level l of the tile is level tileLevel + l of the map.
+  const int t = part.innerLevels(), below = log2Side - treeletLevel(log2Side);
 
   // Treelets: every node at level t that is not absent, its bits in preorder.
   const uint32_t tside = mh.side(t);
@@ -348,34 +361,153 @@ void DagMhBuilder::addTile(uint64_t tileX, uint64_t tileY, const Mh& mh) {
           }
       }
   });
+  DagMhShapes pools;
   std::vector<ChildRef> refs(bits.size());
   for (uint32_t y = 0; y < tside; ++y)
     for (uint32_t x = 0; x < tside; ++x) {
       const size_t i = size_t(y) * tside + x;
       if (mh.state(t, x, y) == MhState::Absent) continue;
-      const auto [it, added] = pools_->treeletIndex.try_emplace(bits[i], uint32_t(pools_->treeletPool.size()));
-      if (added) pools_->treeletPool.push_back(bits[i]);
-      refs[i] = {kDagMhTreelet, it->second, treeletValues(bits[i].data())};
+      refs[i] = {kDagMhTreelet, pools.addTreelet(bits[i]), treeletValues(bits[i].data())};
     }
-  if (t == 0) {  // the whole map is one treelet: its root
-    tile.node = refs[0].id;
-    tile.valuesBelow = refs[0].values - 1;
-  }
+  for (const auto& b : pools.treeletPool) part.treelets.insert(part.treelets.end(), b.begin(), b.end());
 
-  // Inner levels bottom-up; the tile root's state is the map's to decide (below).
-  for (int l = t - 1; l >= 0; --l) refs = innerLevel(mh, l, refs, pools_->levels[size_t(tileLevel_ + l)]);
-  if (t > 0) {  // local level 0 is Full in the tile's own hierarchy: its ref counts its value
-    tile.node = refs[0].id;
-    tile.valuesBelow = refs[0].values - 1;
+  // Inner levels bottom-up; local level 0 is Full in the tile's own hierarchy, so its ref
+  // counts its own value (the map decides the root's state).
+  pools.levels.resize(size_t(t));
+  for (int l = t - 1; l >= 0; --l) refs = innerLevel(mh, l, refs, pools.levels[size_t(l)]);
+  part.levels.resize(size_t(t));
+  for (int l = 0; l < t; ++l)
+    for (const std::vector<uint32_t>& w : pools.levels[size_t(l)].nodes)
+      part.levels[size_t(l)].insert(part.levels[size_t(l)].end(), w.begin(), w.end());
+  part.root = refs[0].id;
+  part.valuesBelow = refs[0].values - 1;
+  part.lo = mh.lo(0, 0, 0);
+  part.hi = mh.hi(0, 0, 0);
+  part.hasFull = mh.hasFull(0, 0, 0);
+  mhValueIntervals(mh, part.valueLo, part.valueHi);
+  part.valueLo.erase(part.valueLo.begin());  // the root's own, always first
+  part.valueHi.erase(part.valueHi.begin());
+  return part;
+}
+
+void validateDagMhTile(const DagMhTile& part, const std::string& source) {
+  auto fail = [&](const std::string& what) {
+    throw FormatError(source + ": invalid DAG-MH tile " + std::to_string(part.tileX) + "," + std::to_string(part.tileY) +
+                      ": " + what);
+  };
+  if (part.log2Side < 0 || part.log2Side > 20 || part.log2TileSide < 0 || part.log2TileSide > part.log2Side)
+    fail("a tile of 2^" + std::to_string(part.log2TileSide) + " in a map of 2^" + std::to_string(part.log2Side));
+  int tileLevel = 0;
+  try {
+    tileLevel = checkedTileLevel(part.log2Side, part.log2TileSide);
+  } catch (const InputError& e) {
+    fail(e.what());
   }
-  // The root's state is the map's to decide: its interval, whether anything below stores a
-  // value, and the values below it in preorder.
-  tile.lo = mh.lo(0, 0, 0);
-  tile.hi = mh.hi(0, 0, 0);
-  tile.hasFull = mh.hasFull(0, 0, 0);
-  mhValueIntervals(mh, tile.valueLo, tile.valueHi);
-  tile.valueLo.erase(tile.valueLo.begin());  // the root's own, always first
-  tile.valueHi.erase(tile.valueHi.begin());
+  if ((part.tileX >> tileLevel) != 0 || (part.tileY >> tileLevel) != 0) fail("the tile lies outside the map");
+  const int t = part.innerLevels();
+  if (part.levels.size() != size_t(t))
+    fail(std::to_string(part.levels.size()) + " inner levels where " + std::to_string(t) + " are");
+  if (part.treelets.size() % kTreeletWords != 0) fail("a partial treelet");
+  // Values in (and below) each shape, bottom-up: a treelet's its bits; an inner node's
+  // its w1, checked against its children's.
+  std::vector<uint64_t> below;
+  for (size_t i = 0; i < part.treelets.size(); i += kTreeletWords) {
+    if (part.treelets[i + 2] >> (85 - 64)) fail("treelet " + std::to_string(i / kTreeletWords) + " has padding bits set");
+    below.push_back(treeletValues(&part.treelets[i]));
+  }
+  for (int l = t - 1; l >= 0; --l) {
+    const std::vector<uint32_t>& words = part.levels[size_t(l)];
+    std::vector<uint64_t> here;
+    for (size_t at = 0; at < words.size();) {
+      const std::string node = "level " + std::to_string(l) + " word " + std::to_string(at);
+      const uint32_t types = words[at];
+      if (types >> 8) fail(node + ": child types 0x" + std::to_string(types));
+      const uint32_t n = innerWords(types);
+      if (at + n > words.size()) fail(node + ": runs past the level's words");
+      uint64_t values = 0;
+      for (uint32_t k = 0, c = 0; c < 4; ++c) {
+        const uint32_t type = (types >> (2 * c)) & 3;
+        if (type == kDagMhAbsent) continue;
+        if ((type == kDagMhTreelet) != (l == t - 1)) fail(node + ": child " + std::to_string(c) + " of the wrong kind");
+        if (k > 0 && words[at + prefixWord(k)] != values) fail(node + ": a wrong prefix count");
+        const uint32_t p = words[at + pointerWord(k++)];
+        if (p >= below.size()) fail(node + ": child " + std::to_string(c) + " names a shape that is not there");
+        values += below[p] + (type == kDagMhFullInner);
+      }
+      if (words[at + 1] != values) fail(node + ": a wrong value count");
+      here.push_back(values);
+      at += n;
+    }
+    below = std::move(here);
+  }
+  if (part.root >= below.size()) fail("the root names a shape that is not there");
+  const uint64_t rootBelow = below[part.root] - (t == 0 ? 1 : 0);  // a treelet counts its own root
+  if (t == 0 && !(part.treelets[kTreeletWords * part.root] & 1)) fail("the root treelet stores no value of its own");
+  if (part.valuesBelow != rootBelow || part.valueLo.size() != rootBelow || part.valueHi.size() != rootBelow)
+    fail(std::to_string(part.valueLo.size()) + " value intervals where the shapes hold " + std::to_string(rootBelow));
+  if (part.hasFull != (rootBelow > 0)) fail("the root says it has values below it and has none, or the reverse");
+  auto interval = [&](float lo, float hi) { return std::isfinite(lo) && std::isfinite(hi) && lo <= hi; };
+  if (!interval(part.lo, part.hi)) fail("the root's interval is not one");
+  for (size_t k = 0; k < part.valueLo.size(); ++k)
+    if (!interval(part.valueLo[k], part.valueHi[k])) fail("value " + std::to_string(k) + "'s interval is not one");
+}
+
+DagMhBuilder::DagMhBuilder(int log2Side, int log2TileSide)
+    : log2Side_(log2Side), log2TileSide_(std::min(log2Side, log2TileSide)),
+      tileLevel_(checkedTileLevel(log2Side, std::min(log2Side, log2TileSide))), treeletLevel_(treeletLevel(log2Side)),
+      pools_(std::make_unique<DagMhShapes>()) {
+  CPVS_CHECK(log2Side >= 0 && log2Side <= 20 && log2TileSide >= 0);
+  pools_->levels.resize(size_t(treeletLevel_));
+  tiles_.resize(size_t(1) << (2 * tileLevel_));
+}
+
+DagMhBuilder::~DagMhBuilder() = default;
+
+bool DagMhBuilder::hasTile(uint64_t tileX, uint64_t tileY) const {
+  const uint64_t tilesPerSide = uint64_t(1) << tileLevel_;
+  return tileX < tilesPerSide && tileY < tilesPerSide && tiles_[size_t(tileY * tilesPerSide + tileX)].added;
+}
+
+void DagMhBuilder::addTile(DagMhTile&& part) {
+  const uint64_t tilesPerSide = uint64_t(1) << tileLevel_;
+  const std::string name = "DAG-MH tile " + std::to_string(part.tileX) + "," + std::to_string(part.tileY);
+  if (part.log2Side != log2Side_ || part.log2TileSide != log2TileSide_ || part.tileX >= tilesPerSide ||
+      part.tileY >= tilesPerSide || part.levels.size() != size_t(treeletLevel_ - tileLevel_))
+    throw InputError(name + " of 2^" + std::to_string(part.log2TileSide) + " texels in a map of 2^" +
+                     std::to_string(part.log2Side) + ", not of this one");
+  Tile& tile = tiles_[size_t(part.tileY * tilesPerSide + part.tileX)];
+  if (tile.added) throw InputError(name + " added twice");
+  // The part's shapes into the map's, bottom-up, its pointers made the map's.
+  std::vector<uint32_t> below(part.treelets.size() / kTreeletWords);
+  for (size_t i = 0; i < below.size(); ++i)
+    below[i] = pools_->addTreelet({part.treelets[3 * i], part.treelets[3 * i + 1], part.treelets[3 * i + 2]});
+  for (int l = int(part.levels.size()) - 1; l >= 0; --l) {
+    const std::vector<uint32_t>& words = part.levels[size_t(l)];
+    LevelPool& pool = pools_->levels[size_t(tileLevel_ + l)];
+    std::vector<uint32_t> ids;
+    for (size_t at = 0; at < words.size();) {
+      const uint32_t n = innerWords(words[at]);
+      CPVS_CHECK(at + n <= words.size());
+      std::vector<uint32_t> w(words.begin() + ptrdiff_t(at), words.begin() + ptrdiff_t(at + n));
+      for (uint32_t k = 0, c = 0; c < 4; ++c)
+        if (((w[0] >> (2 * c)) & 3) != kDagMhAbsent) {
+          uint32_t& p = w[pointerWord(k++)];
+          CPVS_CHECK(p < below.size());
+          p = below[p];
+        }
+      ids.push_back(pool.add(std::move(w)));
+      at += n;
+    }
+    below = std::move(ids);
+  }
+  CPVS_CHECK(part.root < below.size());
+  tile.node = below[part.root];
+  tile.valuesBelow = part.valuesBelow;
+  tile.lo = part.lo;
+  tile.hi = part.hi;
+  tile.hasFull = part.hasFull;
+  tile.valueLo = std::move(part.valueLo);
+  tile.valueHi = std::move(part.valueHi);
   tile.added = true;
 }
 

@@ -2,6 +2,10 @@
 // the MH, the DAG of its shapes and its chunked values.
 #pragma once
 
+#include <functional>
+#include <vector>
+
+#include "cpvs/bake/bake_scene.h"
 #include "cpvs/bake/options.h"
 #include "cpvs/bake/receivers.h"
 #include "cpvs/bake/stage_times.h"
@@ -28,6 +32,25 @@ constexpr int kLog2DagMhTileSide = 9;
 /// `slices` holds texels [x0, x0 + width) x [y0, y0 + height) of `map`.
 void sliceIntervals(const TexelSlices& slices, uint32_t slicesPerColumn, uint64_t x0, uint64_t y0, uint32_t width,
                     uint32_t height, TexelIntervals& map);
+
+/// log2 of the side of the tiles (DagMhTile) a farm tile of 2^log2FarmTile is baked in:
+/// kLog2DagMhTileSide, or less in a smaller grid or farm tile.
+int dagMhPartLog2(int log2Resolution, int log2FarmTile);
+
+/// Bakes the tiles of 2^log2Tile texels [firstX, firstX + tilesPerSide) x [firstY, ...)
+/// (in tiles) of `prepared`'s grid (prepared for the raster renderer) and hands their
+/// parts to `take` in row order: each rendered, freed, its hierarchy built and its shapes
+/// gathered ("render", "receivers", "hierarchy", "compress" into `times`), two at a time.
+/// Progress is reported per tile ("tiles").
+void bakeDagMhTiles(const BakeScene& prepared, const BakeOptions& options, int log2Tile, uint64_t firstX,
+                    uint64_t firstY, uint32_t tilesPerSide, const std::function<void(DagMhTile&&)>& take,
+                    StageTimes& times, const ProgressFn& progress);
+
+/// A farm worker's share of a DAG-MH job: the parts of farm tile (tileX, tileY) (of
+/// options.log2TileSize texels a side), in tiles of dagMhPartLog2, for the coordinator's
+/// DagMhBuilder. InputError for a tile outside the grid.
+std::vector<DagMhTile> bakeDagMhFarmTile(const BakeScene& prepared, const BakeOptions& options, uint64_t tileX,
+                                         uint64_t tileY, StageTimes* times = nullptr);
 
 /// Bakes the sun's DAG-MH over `grid` (cubic, 2^3 to 2^kMaxLog2DagMhResolution texels a
 /// side), tile by tile (DagMhBuilder, tiles of 2^kLog2DagMhTileSide): the scene's opaque

@@ -75,6 +75,41 @@ struct DagMh {
 /// their intervals: what encodeValueChunks chooses within.
 void mhValueIntervals(const Mh& mh, std::vector<float>& lo, std::vector<float>& hi);
 
+/// One tile's part of a DAG-MH on its own, what a farm worker sends (NOTES §2.5): the
+/// unique shapes of the tile's inner levels and treelets, whose pointers name the tile's
+/// own shapes; its root's shape, interval and values; its values' intervals in preorder.
+struct DagMhTile {
+  int log2Side = 0, log2TileSide = 0;  // the map's and the tile's
+  uint64_t tileX = 0, tileY = 0;
+  /// Per local level 0 .. (the treelets' level - 1) the tile's unique inner nodes, words
+  /// one after another (as DagMh::nodes, a pointer naming a node of the level below or a
+  /// treelet by its place in that list).
+  std::vector<std::vector<uint32_t>> levels;
+  std::vector<uint32_t> treelets;  // kTreeletWords each
+  uint32_t root = 0;               // the root's place in levels[0] (in treelets when none)
+  uint64_t valuesBelow = 0;        // values strictly below the root
+  float lo = 0, hi = 0;            // the root's interval
+  bool hasFull = false;            // whether anything below the root stores a value
+  std::vector<float> valueLo, valueHi;  // the intervals of those values, in preorder
+
+  /// The number of local inner levels a tile of this map has.
+  int innerLevels() const;
+};
+
+/// The part of tile (tileX, tileY) of a 2^log2Side map, from the tile's hierarchy.
+/// InputError for a tile smaller than 16 texels a side in a map of more than one tile.
+DagMhTile dagMhTile(int log2Side, uint64_t tileX, uint64_t tileY, const Mh& tile);
+
+/// Checks everything DagMhBuilder::addTile trusts of a part that came from elsewhere:
+/// sizes, child types (inner nodes above, treelets at the treelets' level), pointers to
+/// shapes that exist, value counts and prefixes, treelet padding, the root, as many
+/// finite, ordered value intervals as the root has values below it. FormatError naming
+/// `source` otherwise.
+void validateDagMhTile(const DagMhTile& tile, const std::string& source);
+
+/// The unique shapes of a map or a tile (dag_mh.cpp's).
+struct DagMhShapes;
+
 /// Builds a DAG-MH tile by tile: a node's subtree depends only on what lies below it
 /// (mh.h), so each tile's hierarchy is built and its shapes merged on its own, and the
 /// hierarchy above the tiles is built from their roots at the end (NOTES §2.5). The bytes
@@ -89,14 +124,21 @@ class DagMhBuilder {
   DagMhBuilder(const DagMhBuilder&) = delete;
   DagMhBuilder& operator=(const DagMhBuilder&) = delete;
 
+  int log2Side() const { return log2Side_; }
+  int log2TileSide() const { return log2TileSide_; }
+  /// Merges a tile's part in: its shapes into the map's by content. InputError for a part
+  /// of another map or tile size, or a tile added before (validateDagMhTile first for a
+  /// part from elsewhere).
+  void addTile(DagMhTile&& tile);
   /// Merges tile (tileX, tileY)'s hierarchy (of the tile's side) in.
-  void addTile(uint64_t tileX, uint64_t tileY, const Mh& tile);
+  void addTile(uint64_t tileX, uint64_t tileY, const Mh& tile) { addTile(dagMhTile(log2Side_, tileX, tileY, tile)); }
+  /// Whether tile (tileX, tileY) is in.
+  bool hasTile(uint64_t tileX, uint64_t tileY) const;
   /// The DAG-MH, once every tile is in (InputError otherwise): the levels above the tiles,
   /// the layout, the values in preorder chunked, the skip list.
   DagMh finish();
 
  private:
-  struct Pools;
   struct Tile {
     bool added = false;
     uint32_t node = 0;         // the root's shape: a pool index at the tiles' level
@@ -106,7 +148,7 @@ class DagMhBuilder {
     std::vector<float> valueLo, valueHi;  // the intervals of those values, in preorder
   };
   int log2Side_, log2TileSide_, tileLevel_, treeletLevel_;
-  std::unique_ptr<Pools> pools_;
+  std::unique_ptr<DagMhShapes> pools_;
   std::vector<Tile> tiles_;
 };
 
