@@ -17,6 +17,8 @@
 #include "cpvs/base/hash.h"
 #include "cpvs/base/text.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/bake/bake_dag_mh.h"
+#include "cpvs/io/dmh_tile_file.h"
 #include "cpvs/io/sub_dag_file.h"
 #include "cpvs/net/chunked_stream.h"
 #include "cpvs/bake/tile_key.h"
@@ -194,8 +196,10 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
     auto prepared = bakeScene(lease.scene_hash(), lease.grid(), options.renderer, lease.options().receivers(),
                               {lease.exclude().begin(), lease.exclude().end()});
     StageTimes times;
+    // The tile cache keeps sub-DAGs: a DAG-MH job's tiles are baked each time.
+    const bool dagMh = lease.format() == pb::ARTIFACT_FORMAT_DAG_MH;
     const std::optional<Hash128> key =
-        tileCache_ ? tileKey(*prepared, options, lease.tile_x(), lease.tile_y()) : std::nullopt;
+        tileCache_ && !dagMh ? tileKey(*prepared, options, lease.tile_x(), lease.tile_y()) : std::nullopt;
     std::optional<std::vector<uint8_t>> kept =
         key ? tileCache_->findFile(*key, lease.tile_x(), lease.tile_y(), options) : std::nullopt;
     std::vector<uint8_t> encoded;
@@ -205,6 +209,11 @@ void TileWorker::bakeLeased(const pb::TileLease& lease) {
       ++tilesReused_;
       spdlog::info("tile {} of job {}: its content was baked before, sent from the tile cache", lease.tile_index(),
                    lease.job_id());
+    } else if (dagMh) {  // the parts of a DAG-MH (seed 001) the coordinator's builder merges
+      std::vector<DagMhTile> parts = bakeDagMhFarmTile(*prepared, options, lease.tile_x(), lease.tile_y(), &times);
+      auto start = std::chrono::steady_clock::now();
+      encoded = encodeDagMhTiles(parts, true);
+      times.add("encode", secondsSince(start));
     } else {
       Dag dag = bakeTile(*prepared, lease.tile_x(), lease.tile_y(), options, &times);
       auto start = std::chrono::steady_clock::now();

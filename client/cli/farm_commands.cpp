@@ -122,6 +122,7 @@ std::string statusJson(const JobStatus& s, const std::string& indent, bool withO
     << in << "\"name\": " << jsonString(s.spec.name) << ",\n"
     << in << "\"scene_hash\": " << jsonString(s.spec.sceneHash) << ",\n"
     << in << "\"state\": " << jsonString(net::jobStateName(s.state)) << ",\n"
+    << in << "\"format\": " << jsonString(net::formatName(s.spec.format)) << ",\n"
     << in << "\"priority\": " << s.spec.priority << ",\n"
     << in << "\"resolution\": " << s.resolution << ",\n"
     << in << "\"lights\": " << s.lights << ",\n"
@@ -167,6 +168,10 @@ void printDone(const JobStatus& s) {
                 loggable(s.jobId).c_str(), s.lights, s.lights == 1 ? "" : "s", s.grids,
                 static_cast<unsigned long long>(s.resolution), static_cast<unsigned long long>(s.tilesTotal),
                 s.tilesTotal == 1 ? "" : "s", s.secondsElapsed);
+  else if (s.spec.format == net::ArtifactFormat::DagMh)
+    std::printf("Job %s done: a DAG-MH of %llu^2 texels in %llu tile%s, %.2f s\n", loggable(s.jobId).c_str(),
+                static_cast<unsigned long long>(R), static_cast<unsigned long long>(s.tilesTotal),
+                s.tilesTotal == 1 ? "" : "s", s.secondsElapsed);
   else
     std::printf("Job %s done: %llu^3 in %llu tile%s, %.2f s\n", loggable(s.jobId).c_str(),
                 static_cast<unsigned long long>(R), static_cast<unsigned long long>(s.tilesTotal),
@@ -185,7 +190,8 @@ void printDone(const JobStatus& s) {
     for (const auto& [stage, seconds] : stages) std::printf("  %-10s %10.3f\n", stage.c_str(), seconds);
     std::printf("  (tile stages are summed over the workers)\n");
   }
-  std::printf("\n  DAG: %s (%llu bytes), file: %s, largest merge held: %s\n", humanBytes(s.bytes).c_str(),
+  std::printf("\n  %s: %s (%llu bytes), file: %s, largest merge held: %s\n",
+              s.spec.format == net::ArtifactFormat::DagMh ? "DAG-MH" : "DAG", humanBytes(s.bytes).c_str(),
               static_cast<unsigned long long>(s.bytes), humanBytes(s.fileBytes).c_str(),
               humanBytes(s.peakMergeBytes).c_str());
   if (R > 0 && s.bytes > 0) {
@@ -290,6 +296,7 @@ struct SubmitArgs {
   SunFlags sun;
   LightFlags lights;
   int pointerGrid = kMaxGridLevels;
+  std::string format;
   OptionFlags options;
   int priority = 0;
   bool wait = false, json = false, quiet = false;
@@ -363,7 +370,10 @@ BakeSpec buildSpec(const SubmitArgs& a, const CLI::App& c, std::string& volumeMe
       throw InputError("--pointer-grid " + std::to_string(a.pointerGrid) + ": levels 0 to " + std::to_string(kMaxGridLevels));
     spec.pointerGrid = uint32_t(a.pointerGrid);
   }
+  if (given("--format")) spec.format = net::parseFormat(a.format, "--format");
   if (net::isLightBundle(spec)) {
+    if (spec.format != net::ArtifactFormat::Cpvs)
+      throw InputError("--format dagmh bakes the sun: local lights bake into a light bundle (--format cpvs)");
     checkNoSunWithLights(a.sun);
     if (!std::holds_alternative<std::monostate>(spec.sun))
       throw InputError("local lights make a light bundle: " + a.jobFile + " names a sun too");
@@ -569,13 +579,17 @@ void addSubmitCommand(CLI::App& app, int& status) {
   addLightFlags(c, a->lights);
   c->add_option("--pointer-grid", a->pointerGrid,
                 "Local lights: levels each grid's pointer grid answers in one read, 0 (none) to 5 (default)");
+  c->add_option("--format", a->format,
+                "cpvs (default) or dagmh: the sun's shadows as a DAG-MH (.dmh; as `cpvs bake --format dagmh`: "
+                "cubic grids up to 64K, the raster renderer, no media)");
   addOptionFlags(c, a->options, "Tile size in texels (power of two >= 8): the unit of work of a worker");
   c->add_option("--request-id", a->requestId,
                 "Idempotency key: submitting again with it returns the same job (default: a random id)");
   c->add_option("--priority", a->priority, "Higher runs first; equal priorities share the workers (-1000..1000)");
   c->add_option("--name", a->name, "Free text for listings (default: the scene's name)");
   CLI::Option* waitFlag = c->add_flag("--wait", a->wait, "Follow the job with a progress bar until it ends");
-  c->add_option("--out,-o", a->out, "Download the artifact to this .cpvs file once done")->needs(waitFlag);
+  c->add_option("--out,-o", a->out, "Download the artifact to this file (.cpvs, or .dmh for --format dagmh) once done")
+      ->needs(waitFlag);
   c->add_flag("--json", a->json, "Print the job's status as JSON on stdout (the final one with --wait)");
   c->add_flag("--quiet,-q", a->quiet, "No progress output");
   c->callback([a, c, &status] { runFarmCommand(status, [&] { return runSubmit(*a, *c); }); });
@@ -611,10 +625,11 @@ void addCancelCommand(CLI::App& app, int& status) {
 void addDownloadCommand(CLI::App& app, int& status) {
   auto a = std::make_shared<DownloadArgs>();
   CLI::App* c = app.add_subcommand(
-      "download", "Download the .cpvs of a finished farm job, resuming an interrupted download, checksum verified");
+      "download", "Download the artifact (.cpvs or .dmh) of a finished farm job, resuming an interrupted download, "
+                  "checksum verified");
   addConnectionOptions(c, a->conn);
   c->add_option("job", a->job, "Job id")->required();
-  c->add_option("--out,-o", a->out, "Output .cpvs file (FILE.part while it arrives)")->required();
+  c->add_option("--out,-o", a->out, "Output .cpvs or .dmh file (FILE.part while it arrives)")->required();
   c->add_flag("--quiet,-q", a->quiet, "Print nothing on success");
   c->callback([a, &status] { runFarmCommand(status, [&] { return runDownload(*a); }); });
 }

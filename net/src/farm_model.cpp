@@ -182,6 +182,7 @@ pb::BakeSpec toProto(const BakeSpec& s) {
     q.set_g(m.g);
   }
   for (const AreaLight& a : s.areaLights) *p.add_area_lights() = toProto(a);
+  p.set_format(s.format == ArtifactFormat::DagMh ? pb::ARTIFACT_FORMAT_DAG_MH : pb::ARTIFACT_FORMAT_CPVS);
   return p;
 }
 
@@ -209,7 +210,20 @@ BakeSpec modelOf(const pb::BakeSpec& p) {
   if (p.has_pointer_grid()) s.pointerGrid = p.pointer_grid();
   for (const auto& m : p.media()) s.media.push_back({m.name(), m.scattering(), m.absorption(), m.g()});
   s.areaLights = areaLightsOf(p);
+  switch (p.format()) {
+    case pb::ARTIFACT_FORMAT_CPVS: s.format = ArtifactFormat::Cpvs; break;
+    case pb::ARTIFACT_FORMAT_DAG_MH: s.format = ArtifactFormat::DagMh; break;
+    default: throw InputError("format " + std::to_string(int(p.format())) + " is not one this build knows (cpvs, dagmh)");
+  }
   return s;
+}
+
+const char* formatName(ArtifactFormat f) { return f == ArtifactFormat::DagMh ? "dagmh" : "cpvs"; }
+
+ArtifactFormat parseFormat(const std::string& name, const std::string& what) {
+  if (name == "cpvs") return ArtifactFormat::Cpvs;
+  if (name == "dagmh") return ArtifactFormat::DagMh;
+  throw InputError(what + " '" + name + "': cpvs or dagmh");
 }
 
 JobStatus modelOf(const pb::JobStatus& p) {

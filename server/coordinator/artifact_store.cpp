@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "cpvs/base/file.h"
+#include "cpvs/io/dmh_file.h"
 
 namespace cpvs::server {
 
@@ -46,21 +47,22 @@ std::vector<std::string> ArtifactStore::jobsWithArtifacts() const {
   std::vector<std::string> out;
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(fs::path(dataDir_) / "artifacts", ec))
-    if (entry.path().extension() == ".cpvs") out.push_back(entry.path().stem().string());
+    if (entry.path().extension() == ".cpvs" || entry.path().extension() == ".dmh")
+      out.push_back(entry.path().stem().string());
   return out;
 }
 
-std::string ArtifactStore::artifactPath(const std::string& jobId) const {
-  return (fs::path(dataDir_) / "artifacts" / (jobId + ".cpvs")).string();
+std::string ArtifactStore::artifactPath(const std::string& jobId, bool dagMh) const {
+  return (fs::path(dataDir_) / "artifacts" / (jobId + (dagMh ? ".dmh" : ".cpvs"))).string();
 }
 
 void ArtifactStore::writeArtifact(const std::string& jobId, const std::vector<uint8_t>& bytes) const {
-  writeFileAtomic(artifactPath(jobId), bytes);
+  writeFileAtomic(artifactPath(jobId, isDmh(bytes.data(), bytes.size())), bytes);
 }
 
 void ArtifactStore::removeArtifact(const std::string& jobId) const {
   std::error_code ec;
-  fs::remove(artifactPath(jobId), ec);
+  for (const bool dagMh : {false, true}) fs::remove(artifactPath(jobId, dagMh), ec);
 }
 
 std::string ArtifactStore::withoutDataFolder(std::string text) const {

@@ -25,9 +25,12 @@ class ArtifactStore {
   /// The job ids that have a tile folder.
   std::vector<std::string> jobsWithTiles() const;
 
-  std::string artifactPath(const std::string& jobId) const;
+  /// A job's finished artifact: artifacts/<job>.cpvs, or <job>.dmh for a DAG-MH.
+  std::string artifactPath(const std::string& jobId, bool dagMh = false) const;
+  /// Writes it under the name its bytes' kind (their magic) gives.
   void writeArtifact(const std::string& jobId, const std::vector<uint8_t>& bytes) const;
-  /// Removes an artifact (of a job that ended otherwise while it was written, or pruned).
+  /// Removes an artifact, of either kind (of a job that ended otherwise while it was
+  /// written, or pruned).
   void removeArtifact(const std::string& jobId) const;
   /// The job ids that have an artifact file.
   std::vector<std::string> jobsWithArtifacts() const;

@@ -11,6 +11,7 @@
 
 #include "coordinator/bundle_job.h"
 #include "coordinator/clock.h"
+#include "coordinator/dag_mh_job.h"
 #include "coordinator/stored_spec.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/bake/bake_lights.h"
@@ -166,6 +167,8 @@ pb::JobStatus JobService::submit(const std::string& requestId, const net::BakeSp
   if (spec.name().size() > 256) throw FarmError(ErrorKind::InvalidArgument, "name is longer than 256 characters");
   if (std::abs(spec.priority()) > 1000) throw FarmError(ErrorKind::InvalidArgument, "priority must be in -1000..1000");
   if (net::isLightBundle(spec)) {
+    if (spec.format() != pb::ARTIFACT_FORMAT_CPVS)
+      throw FarmError(ErrorKind::InvalidArgument, "format: a DAG-MH is the sun's; a light bundle is a CPVS");
     if (spec.media_size() > 0)
       throw FarmError(ErrorKind::InvalidArgument, "media are read through a sun's grid: a light bundle takes none");
     return submitBundle(request, access);
@@ -184,6 +187,13 @@ pb::JobStatus JobService::submit(const std::string& requestId, const net::BakeSp
     log2R = parseResolution(spec.resolution());
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, e.what());
+  }
+  if (spec.format() == pb::ARTIFACT_FORMAT_DAG_MH) {
+    try {
+      checkDagMhSpec(spec, options, log2R);
+    } catch (const InputError& e) {
+      throw FarmError(ErrorKind::InvalidArgument, e.what());
+    }
   }
   if (log2R < limits_.minLog2Resolution || log2R > limits_.maxLog2Resolution)
     throw FarmError(ErrorKind::InvalidArgument, "resolution " + spec.resolution() + " is outside this farm's limits (" +
@@ -432,7 +442,7 @@ std::string JobService::artifactPath(const std::string& jobId, std::string* chec
     throw FarmError(ErrorKind::FailedPrecondition,
                     "job " + jobId + " is " + net::jobStateName(net::JobState(int(j.state))) + ", not done");
   if (checksum) *checksum = j.artifactChecksum;
-  return artifacts_.artifactPath(jobId);
+  return artifacts_.artifactPath(jobId, isDagMhJob(j));
 }
 
 void JobService::failJob(const std::string& jobId, const std::string& error) {

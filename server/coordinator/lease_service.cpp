@@ -7,6 +7,7 @@
 #include <cstdlib>
 
 #include "coordinator/bundle_job.h"
+#include "coordinator/dag_mh_job.h"
 #include "coordinator/clock.h"
 #include "coordinator/failpoint.h"
 #include "coordinator/stored_spec.h"
@@ -30,6 +31,19 @@ constexpr int64_t kReaperTickMs = 250, kPauseMs = 1000;
 
 int64_t steadyMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+// A sub-DAG result: it decodes and holds exactly the tile's blocks. InputError naming
+// `source` otherwise.
+void checkSubDag(const JobRecord& j, uint64_t tile, const std::string& encoded, const std::string& source) {
+  const Dag dag = decodeSubDag(reinterpret_cast<const uint8_t*>(encoded.data()), encoded.size(), source,
+                               j.options.compress != CompressMode::None, j.options.hash);
+  const GridTiles tiles = tilesOf(j);
+  const GridTiles::At at = tiles.at(tile);
+  const TilePlan& plan = tiles.plan(at.grid);
+  if (dag.log2Resolution != plan.log2Resolution())
+    throw InputError(source + ": resolution does not match the " + (j.isBundle() ? "tile's grid" : "job"));
+  checkTileRoots(dag, at.tile.x, at.tile.y, plan.log2TileSize(), source);
 }
 
 const char* failKindName(pb::FailKind kind) {
@@ -119,6 +133,7 @@ pb::TileLease LeaseService::lease(const std::string& workerId) {
     *out.mutable_exclude() = lights.lights(int(g.light)).exclude();
   }
   *out.mutable_options() = net::toProto(j->options);
+  if (isDagMhJob(*j)) out.set_format(pb::ARTIFACT_FORMAT_DAG_MH);
   if (j->options.receivers != ReceiverKind::Everywhere) {
     // The declaration (volume, boxes, cameras) lives in the spec as submitted, not in the typed columns.
     *out.mutable_options()->mutable_receivers() = bakeSpecOf(*j).options().receivers();
@@ -174,17 +189,14 @@ bool LeaseService::takeResult(const std::string& leaseId, const std::string& enc
   if (!l) throw FarmError(ErrorKind::NotFound, "no lease " + leaseId);
   auto j = store_.job(l->jobId, false);
   if (!j || isFinal(j->state)) return false;
-  const BakeOptions& options = j->options;
   std::string source = "tile " + std::to_string(l->tile) + " of job " + l->jobId;
   try {
-    Dag dag = decodeSubDag(reinterpret_cast<const uint8_t*>(encoded.data()), encoded.size(), source,
-                           options.compress != CompressMode::None, options.hash);
-    const GridTiles tiles = tilesOf(*j);
-    const GridTiles::At at = tiles.at(l->tile);
-    const TilePlan& plan = tiles.plan(at.grid);
-    if (dag.log2Resolution != plan.log2Resolution())
-      throw InputError(source + ": resolution does not match the " + (j->isBundle() ? "tile's grid" : "job"));
-    checkTileRoots(dag, at.tile.x, at.tile.y, plan.log2TileSize(), source);
+    if (isDagMhJob(*j)) {
+      if (encoded.empty()) throw InputError(source + ": an empty result");
+      dagMhPartsOf(*j, l->tile, std::vector<uint8_t>(encoded.begin(), encoded.end()), source);
+    } else {
+      checkSubDag(*j, l->tile, encoded, source);
+    }
   } catch (const InputError& e) {
     throw FarmError(ErrorKind::InvalidArgument, std::string("rejected result: ") + e.what());
   }

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "coordinator/bundle_job.h"
+#include "coordinator/dag_mh_job.h"
 #include "coordinator/failpoint.h"
 #include "cpvs/bake/bake.h"
 #include "cpvs/bake/tile_plan.h"
@@ -138,6 +139,10 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
     return;
   }
   JobMerge& m = merges_[jobId];
+  if (isDagMhJob(*j)) {
+    mergeDagMhTile(*j, m, tile);
+    return;
+  }
   const GridTiles tiles = tilesOf(*j);
   if (m.grids.empty()) m.grids.resize(tiles.grids());
   const GridTiles::At at = tiles.at(tile);
@@ -179,7 +184,50 @@ void MergeScheduler::mergeOne(const std::string& jobId, uint64_t tile) {
   if (m.merged == j->tilesTotal && finishJob(*j, m)) merges_.erase(jobId);
 }
 
+void MergeScheduler::mergeDagMhTile(const JobRecord& j, JobMerge& m, uint64_t tile) {
+  if (!m.dagMh) m.dagMh = dagMhBuilderOf(j);
+  CPVS_CHECK(!m.dagMhDone);  // every tile is merged once
+  const auto start = std::chrono::steady_clock::now();
+  const std::optional<TileState> state = store_.tileState(j.id, tile);
+  const bool lit = state == TileState::Untouched || state == TileState::Unread;
+  std::vector<DagMhTile> parts;
+  try {
+    const std::string source = "tile " + std::to_string(tile) + " of job " + j.id;
+    parts = dagMhPartsOf(j, tile, lit ? std::vector<uint8_t>{} : artifacts_.readTile(j.id, tile), source);
+  } catch (const InputError& e) {
+    throw TileUnreadable(e.what());
+  }
+  for (DagMhTile& p : parts) m.dagMh->addTile(std::move(p));
+  ++m.merged;
+  failpoint("merge-step");
+  m.peak = std::max(m.peak, m.dagMh->heldBytes());
+  double seconds = secondsSince(start);
+  if (m.merged == j.tilesTotal) {
+    // The levels above the tiles, the layout, the values chunked, the skip list.
+    const auto finish = std::chrono::steady_clock::now();
+    m.dagMhDone = m.dagMh->finish();
+    m.dagMh.reset();
+    seconds += secondsSince(finish);
+  }
+  metrics_.tileMerged(seconds);
+  try {
+    store_.addStageSeconds(j.id, {{"merge", seconds}});
+  } catch (const StoreUnavailable&) {
+  }
+  if (m.merged == j.tilesTotal && finishJob(j, m)) merges_.erase(j.id);
+}
+
 bool MergeScheduler::finishJob(const JobRecord& j, JobMerge& m) {
+  if (m.file.empty() && m.dagMhDone) {  // a DAG-MH job's .dmh
+    const auto start = std::chrono::steady_clock::now();
+    m.dagBytes = m.dagMhDone->bytes();
+    m.file = dmhFileOf(j, std::move(*m.dagMhDone));
+    m.dagMhDone.reset();
+    try {
+      store_.addStageSeconds(j.id, {{"write", secondsSince(start)}});
+    } catch (const StoreUnavailable&) {
+    }
+  }
   if (m.file.empty()) {
     // A sun job's translucent casters (its plan records them when there are some: only then
     // is the scene read), before its DAG is taken: a store that cannot answer now is asked

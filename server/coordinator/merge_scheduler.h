@@ -24,6 +24,7 @@
 #include "cpvs/dag/assemble_roots.h"
 #include "cpvs/dag/merge.h"
 #include "cpvs/dag/streaming_merger.h"
+#include "cpvs/dagmh/dag_mh.h"
 #include "cpvs/scene/scene.h"
 #include "store/farm_store.h"
 
@@ -68,6 +69,8 @@ class MergeScheduler {
   };
   struct JobMerge {
     std::vector<GridMerge> grids;
+    std::unique_ptr<DagMhBuilder> dagMh;  // a DAG-MH job's: its tiles' parts merged as they come
+    std::optional<DagMh> dagMhDone;       // and built once all are in
     uint64_t merged = 0;
     uint64_t peak = 0;
     // The finished artifact, kept until it is written and the job marked done: a full
@@ -87,6 +90,8 @@ class MergeScheduler {
   void failJob(const std::string& jobId, const std::string& why);
   void loop();
   void mergeOne(const std::string& jobId, uint64_t tile);
+  /// A DAG-MH job's tile (mergeOne's): its parts into the job's builder.
+  void mergeDagMhTile(const JobRecord& j, JobMerge& m, uint64_t tile);
   /// Writes the artifact and marks the job done; false when that must be tried again.
   bool finishJob(const JobRecord& job, JobMerge& m);
 

@@ -19,7 +19,9 @@
 #include "cpvs/scene/boxes.h"
 #include "coordinator/coordinator.h"
 #include "cpvs/bake/bake.h"
+#include "cpvs/bake/bake_dag_mh.h"
 #include "cpvs/bake/bake_lights.h"
+#include "cpvs/io/dmh_file.h"
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/query/bundle_query.h"
 #include "cpvs/light/perspective_grid.h"
@@ -419,6 +421,101 @@ TEST(InProcessFarm, ReceiversGiveTheLocalBytes) {
   bad.options.receivers->volumeSceneHash = std::string(32, 'a');
   std::tie(kind, message) = refusal("missing-volume");
   EXPECT_EQ(kind, net::ErrorKind::NotFound) << message;
+  tileWorker.stop();
+  workerThread.join();
+  farm.server.shutdown(1);
+}
+
+// A DAG-MH job (format dagmh): each farm tile baked by a worker into the parts of a
+// DAG-MH, merged at the coordinator as they come, tiles no receiver reads made there;
+// the artifact is the .dmh `cpvs bake --format dagmh` writes, to the byte, and the
+// runtime opens it.
+TEST(InProcessFarm, ADagMhJobGivesTheLocalBytes) {
+  TempDir dir("cpvs_in_process_dagmh");
+  const std::string obj = dir / "city.obj", boxesObj = dir / "boxes.obj";
+  writeObj(obj, openScene("city:2:3"));
+  Scene boxes;  // two boxes far apart: most tiles see no triangle and hold no receiver
+  appendBox(boxes, {-40, 0, -40}, {-36, 6, -36});
+  appendBox(boxes, {36, 0, 36}, {40, 3, 40});
+  finalizeScene(boxes);
+  writeObj(boxesObj, boxes);
+  InProcessFarm farm(dir / "data");
+  worker::WorkerConfig wc = testing::workerConfig(farm.connection(), dir / "cache");
+  wc.workerId = "in-process";
+  worker::TileWorker tileWorker(wc);
+  std::thread workerThread([&] { tileWorker.run(); });
+  const std::string uploaded = farm.client.uploadScene(obj).sceneHash;
+  for (const auto& [file, kind] : std::vector<std::pair<std::string, ReceiverKind>>{
+           {obj, ReceiverKind::Surfaces}, {obj, ReceiverKind::Everywhere}, {boxesObj, ReceiverKind::Surfaces}}) {
+    const Scene loaded = loadScene(file);
+    net::BakeSpec spec;
+    spec.sceneHash = farm.client.uploadScene(file).sceneHash;
+    spec.sun = Vec3{0.3, -1, 0.2};
+    spec.resolution = "2048";
+    spec.options.tileSize = 1024;  // four farm tiles of four parts each
+    spec.format = net::ArtifactFormat::DagMh;
+    ReceiverDeclaration d;
+    d.kind = kind;
+    if (kind != ReceiverKind::Everywhere) {
+      net::Receivers& r = spec.options.receivers.emplace();
+      r.kind = kind;
+      r.maxPcf = 3;
+      d.maxPcf = 3;
+    }
+    const uint64_t leasedBefore = tileWorker.tilesLeased();
+    const client::JobStatus done =
+        farm.client.watch(farm.client.submit("dagmh-" + fs::path(file).stem().string() + "-" + optionName(kind), spec).jobId);
+    ASSERT_EQ(done.state, client::JobState::Done) << done.error;
+    EXPECT_EQ(done.spec.format, net::ArtifactFormat::DagMh);
+    EXPECT_EQ(done.tilesTotal, 4u);
+    EXPECT_EQ(tileWorker.tilesLeased() - leasedBefore, done.tilesTotal - done.tilesUntouched - done.tilesUnread);
+    EXPECT_GT(done.peakMergeBytes, 0u);
+    if (file == boxesObj) {
+      EXPECT_GT(done.tilesUntouched + done.tilesUnread, 0u) << "made by the coordinator, all lit";
+    }
+    farm.client.download(done.jobId, dir / "farm.dmh");
+
+    DmhArtifact local;
+    local.grid = makeGrid(loaded, LightFrame::fromDirection({0.3, -1, 0.2}), 11);
+    local.options.log2TileSize = 10;
+    local.options.receivers = kind;
+    if (kind != ReceiverKind::Everywhere) local.options.receiverPcf = 3;
+    local.sceneHash = sceneHash(loaded);
+    local.receiverHash = receiverHash(d);
+    local.dag = bakeDagMh(loaded, local.grid, local.options, d);
+    EXPECT_EQ(readFile(dir / "farm.dmh"), encodeDmh(local, true)) << optionName(kind);
+    EXPECT_EQ(done.bytes, local.dag.bytes());
+    const auto artifact = runtime::ShadowArtifact::open(dir / "farm.dmh");
+    EXPECT_EQ(artifact->kind(), runtime::ArtifactKind::DagMh);
+  }
+  // What a DAG-MH cannot be is refused at submit, by name.
+  const std::vector<std::pair<std::function<void(net::BakeSpec&)>, std::string>> refusals{
+      {[](net::BakeSpec& s) { s.options.depthSlices = 64; }, "depth_slices"},
+      {[](net::BakeSpec& s) { s.options.renderer = Renderer::Embree; }, "raster"},
+      {[](net::BakeSpec& s) { s.media.push_back({"fog", 0.01, 0.01, 0}); }, "media"},
+      {[](net::BakeSpec& s) {
+         s.sun = std::monostate{};
+         s.resolution.clear();
+         s.lights.push_back(Light{});
+         s.lights.back().kind = LightKind::Point;
+         s.lights.back().position = {0, 5, 0};
+       },
+       "light bundle"}};
+  for (const auto& [change, words] : refusals) {
+    net::BakeSpec bad;
+    bad.sceneHash = uploaded;
+    bad.sun = Vec3{0.3, -1, 0.2};
+    bad.resolution = "256";
+    bad.format = net::ArtifactFormat::DagMh;
+    change(bad);
+    try {
+      farm.client.submit("dagmh-bad-" + words, bad);
+      ADD_FAILURE() << words << ": accepted";
+    } catch (const client::FarmCallError& e) {
+      EXPECT_EQ(e.kind(), net::ErrorKind::InvalidArgument) << e.what();
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+  }
   tileWorker.stop();
   workerThread.join();
   farm.server.shutdown(1);

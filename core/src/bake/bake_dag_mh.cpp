@@ -24,6 +24,33 @@ void sliceIntervals(const TexelSlices& slices, uint32_t slicesPerColumn, uint64_
     }
 }
 
+namespace {
+
+// What a tile nothing casts on, or no receiver reads, holds: all lit, as rendering it gives.
+void fillLit(TexelIntervals& tile, uint64_t resolution) {
+  std::fill(tile.lo.begin(), tile.lo.end(), float(resolution));
+  std::fill(tile.hi.begin(), tile.hi.end(), kNoCasterDepth);
+}
+
+// A farm tile's place and the side of its parts; InputError for a tile outside the grid.
+struct FarmTile {
+  int log2Farm, log2Part;
+  uint32_t partsPerSide;
+};
+FarmTile farmTileOf(int log2Resolution, int log2FarmTile, uint64_t tileX, uint64_t tileY) {
+  FarmTile f;
+  f.log2Farm = std::min(log2Resolution, log2FarmTile);
+  f.log2Part = dagMhPartLog2(log2Resolution, log2FarmTile);
+  f.partsPerSide = 1u << (f.log2Farm - f.log2Part);
+  const uint64_t perSide = uint64_t(1) << (log2Resolution - f.log2Farm);
+  if (tileX >= perSide || tileY >= perSide)
+    throw InputError("tile " + std::to_string(tileX) + "," + std::to_string(tileY) + " lies outside a grid of " +
+                     std::to_string(uint64_t(1) << log2Resolution));
+  return f;
+}
+
+}  // namespace
+
 int dagMhPartLog2(int log2Resolution, int log2FarmTile) {
   return std::min({log2Resolution, log2FarmTile, kLog2DagMhTileSide});
 }
@@ -81,10 +108,9 @@ void bakeDagMhTiles(const BakeScene& prepared, const BakeOptions& options, int l
                   prepared.receivers().freeIntervals(x0, y0, side, side, w->slices);
                   sliceIntervals(w->slices, uint32_t(grid.resolution()), 0, 0, side, side, w->tile);
                   w->times.add("receivers", secondsSince(start));
-                } else {  // nothing casts there, or nothing reads it: all lit, as rendering it gives
+                } else {  // nothing casts there, or nothing reads it
                   ++w->times.tilesSkipped;
-                  std::fill(w->tile.lo.begin(), w->tile.lo.end(), float(grid.resolution()));
-                  std::fill(w->tile.hi.begin(), w->tile.hi.end(), kNoCasterDepth);
+                  fillLit(w->tile, grid.resolution());
                 }
                 start = std::chrono::steady_clock::now();
                 w->mh.rebuild(w->tile);
@@ -104,18 +130,44 @@ void bakeDagMhTiles(const BakeScene& prepared, const BakeOptions& options, int l
 
 std::vector<DagMhTile> bakeDagMhFarmTile(const BakeScene& prepared, const BakeOptions& options, uint64_t tileX,
                                          uint64_t tileY, StageTimes* times) {
-  const OrthoGrid& grid = prepared.grid();
-  const int log2Farm = std::min(grid.log2Resolution, options.log2TileSize);
-  const int log2Part = dagMhPartLog2(grid.log2Resolution, options.log2TileSize);
-  if (((tileX + 1) << log2Farm) > grid.resolution() || ((tileY + 1) << log2Farm) > grid.resolution())
-    throw InputError("tile " + std::to_string(tileX) + "," + std::to_string(tileY) + " lies outside a grid of " +
-                     std::to_string(grid.resolution()));
-  const uint32_t perSide = 1u << (log2Farm - log2Part);
+  const FarmTile f = farmTileOf(prepared.grid().log2Resolution, options.log2TileSize, tileX, tileY);
   std::vector<DagMhTile> parts;
   StageTimes local;
-  bakeDagMhTiles(prepared, options, log2Part, tileX * perSide, tileY * perSide, perSide,
+  bakeDagMhTiles(prepared, options, f.log2Part, tileX * f.partsPerSide, tileY * f.partsPerSide, f.partsPerSide,
                  [&](DagMhTile&& p) { parts.push_back(std::move(p)); }, times ? *times : local, nullptr);
   return parts;
+}
+
+std::vector<DagMhTile> litDagMhFarmTile(int log2Resolution, int log2FarmTile, uint64_t tileX, uint64_t tileY) {
+  const FarmTile f = farmTileOf(log2Resolution, log2FarmTile, tileX, tileY);
+  TexelIntervals lit;
+  lit.side = 1u << f.log2Part;
+  lit.lo.resize(lit.texels());
+  lit.hi.resize(lit.texels());
+  fillLit(lit, uint64_t(1) << log2Resolution);
+  const Mh mh(lit);
+  std::vector<DagMhTile> parts;
+  for (uint32_t y = 0; y < f.partsPerSide; ++y)
+    for (uint32_t x = 0; x < f.partsPerSide; ++x)
+      parts.push_back(dagMhTile(log2Resolution, tileX * f.partsPerSide + x, tileY * f.partsPerSide + y, mh));
+  return parts;
+}
+
+void checkDagMhFarmTile(const std::vector<DagMhTile>& parts, int log2Resolution, int log2FarmTile, uint64_t tileX,
+                        uint64_t tileY, const std::string& source) {
+  const FarmTile f = farmTileOf(log2Resolution, log2FarmTile, tileX, tileY);
+  if (parts.size() != size_t(f.partsPerSide) * f.partsPerSide)
+    throw InputError(source + ": " + std::to_string(parts.size()) + " DAG-MH parts where the tile has " +
+                     std::to_string(size_t(f.partsPerSide) * f.partsPerSide));
+  std::vector<uint8_t> seen(parts.size(), 0);
+  for (const DagMhTile& p : parts) {
+    const uint64_t x = p.tileX - tileX * f.partsPerSide, y = p.tileY - tileY * f.partsPerSide;
+    if (p.log2Side != log2Resolution || p.log2TileSide != f.log2Part || p.tileX < tileX * f.partsPerSide ||
+        p.tileY < tileY * f.partsPerSide || x >= f.partsPerSide || y >= f.partsPerSide || seen[y * f.partsPerSide + x]++)
+      throw InputError(source + ": a DAG-MH part " + std::to_string(p.tileX) + "," + std::to_string(p.tileY) + " of 2^" +
+                       std::to_string(p.log2TileSide) + " texels in a map of 2^" + std::to_string(p.log2Side) +
+                       " is not one of this tile's, or comes twice");
+  }
 }
 
 DagMh bakeDagMh(const Scene& scene, const OrthoGrid& grid, const BakeOptions& options,

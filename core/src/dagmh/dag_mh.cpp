@@ -501,6 +501,8 @@ void DagMhBuilder::addTile(DagMhTile&& part) {
     below = std::move(ids);
   }
   CPVS_CHECK(part.root < below.size());
+  held_ += 8 * part.valueLo.size() + 4 * part.treelets.size() + sizeof(Tile);
+  for (const std::vector<uint32_t>& level : part.levels) held_ += 4 * level.size();
   tile.node = below[part.root];
   tile.valuesBelow = part.valuesBelow;
   tile.lo = part.lo;

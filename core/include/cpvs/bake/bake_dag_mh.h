@@ -3,6 +3,7 @@
 #pragma once
 
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "cpvs/bake/bake_scene.h"
@@ -51,6 +52,15 @@ void bakeDagMhTiles(const BakeScene& prepared, const BakeOptions& options, int l
 /// DagMhBuilder. InputError for a tile outside the grid.
 std::vector<DagMhTile> bakeDagMhFarmTile(const BakeScene& prepared, const BakeOptions& options, uint64_t tileX,
                                          uint64_t tileY, StageTimes* times = nullptr);
+
+/// The parts of a farm tile nothing casts on or no receiver reads (a farm's plan marks
+/// them): all lit, as bakeDagMhFarmTile makes them without rendering.
+std::vector<DagMhTile> litDagMhFarmTile(int log2Resolution, int log2FarmTile, uint64_t tileX, uint64_t tileY);
+
+/// InputError naming `source` unless `parts` are exactly farm tile (tileX, tileY)'s, each
+/// once (what a coordinator checks of a worker's result; validateDagMhTile checks each).
+void checkDagMhFarmTile(const std::vector<DagMhTile>& parts, int log2Resolution, int log2FarmTile, uint64_t tileX,
+                        uint64_t tileY, const std::string& source);
 
 /// Bakes the sun's DAG-MH over `grid` (cubic, 2^3 to 2^kMaxLog2DagMhResolution texels a
 /// side), tile by tile (DagMhBuilder, tiles of 2^kLog2DagMhTileSide): the scene's opaque

@@ -132,6 +132,8 @@ class DagMhBuilder {
   void addTile(DagMhTile&& tile);
   /// Merges tile (tileX, tileY)'s hierarchy (of the tile's side) in.
   void addTile(uint64_t tileX, uint64_t tileY, const Mh& tile) { addTile(dagMhTile(log2Side_, tileX, tileY, tile)); }
+  /// Bytes held so far: the shapes and the tiles' value intervals (a farm's merge memory).
+  uint64_t heldBytes() const { return held_; }
   /// Whether tile (tileX, tileY) is in.
   bool hasTile(uint64_t tileX, uint64_t tileY) const;
   /// The DAG-MH, once every tile is in (InputError otherwise): the levels above the tiles,
@@ -150,6 +152,7 @@ class DagMhBuilder {
   int log2Side_, log2TileSide_, tileLevel_, treeletLevel_;
   std::unique_ptr<DagMhShapes> pools_;
   std::vector<Tile> tiles_;
+  uint64_t held_ = 0;
 };
 
 /// Encodes a hierarchy: shapes merged, treelets, values chunked, the skip list.

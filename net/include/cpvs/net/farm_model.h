@@ -73,6 +73,13 @@ struct MediumSpec {
 
 /// What a job bakes (contract: BakeSpec): a sun (a direction from the sun into the scene,
 /// or angles) at a resolution, or a light bundle (lights, area lights, the scene's own).
+/// What a sun bake makes (contract: ArtifactFormat).
+enum class ArtifactFormat : uint8_t { Cpvs = 0, DagMh = 1 };
+/// "cpvs" or "dagmh", as `cpvs bake --format` names them.
+const char* formatName(ArtifactFormat f);
+/// The format a name gives; InputError naming `what` for another.
+ArtifactFormat parseFormat(const std::string& name, const std::string& what);
+
 struct BakeSpec {
   std::string sceneHash;  // an uploaded scene's content hash, 32 hex digits
   std::variant<std::monostate, Vec3, SunAngles> sun;
@@ -86,6 +93,7 @@ struct BakeSpec {
   std::optional<uint32_t> pointerGrid;
   std::vector<MediumSpec> media;
   std::vector<AreaLight> areaLights;
+  ArtifactFormat format = ArtifactFormat::Cpvs;
 };
 
 /// Whether the spec asks for a light bundle (lights, area lights or the scene's own) rather
