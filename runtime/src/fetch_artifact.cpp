@@ -10,6 +10,7 @@
 #include "cpvs/base/file.h"
 #include "cpvs/base/hash.h"
 #include "cpvs/client/farm_client.h"
+#include "cpvs/io/dmh_file.h"
 #include "cpvs/runtime/runtime.h"
 
 namespace cpvs::runtime {
@@ -29,12 +30,18 @@ std::string fileNameOf(const std::string& jobId) {
   return out;
 }
 
-// The checksum a cached job points at, when its file is there and still matches it.
+// The cached file a job's reference names (HASH.cpvs or HASH.dmh; a bare HASH, as older
+// caches wrote it, is a .cpvs), when it is there and still matches its hash.
 std::string cachedPath(const std::string& cacheDir, const std::string& ref) {
   std::ifstream in(ref);
-  std::string checksum;
-  if (!(in >> checksum)) return {};
-  const std::string path = cacheDir + "/" + checksum + ".cpvs";
+  std::string name;
+  if (!(in >> name)) return {};
+  if (name.find('.') == std::string::npos) name += ".cpvs";
+  const std::string checksum = name.substr(0, name.find('.')), extension = name.substr(checksum.size());
+  if (checksum.size() != 32 || checksum.find_first_not_of("0123456789abcdef") != std::string::npos ||
+      (extension != ".cpvs" && extension != ".dmh"))
+    return {};
+  const std::string path = cacheDir + "/" + name;
   try {
     const std::vector<uint8_t> bytes = readFile(path);
     if (contentHash(bytes.data(), bytes.size()).hex() == checksum) return path;
@@ -67,12 +74,19 @@ std::string fetchArtifact(const FarmAddress& farm, const std::string& jobId, con
   } catch (const InputError& e) {
     throw RuntimeError(Status::CorruptArtifact, e.what());
   }
-  const std::string path = cacheDir + "/" + got.checksum + ".cpvs";
+  // Named by its kind, as the farm names it: a DAG-MH's file is a .dmh.
+  std::string name = got.checksum + ".cpvs";
+  {
+    uint8_t magic[4] = {};
+    std::ifstream head(incoming, std::ios::binary);
+    if (head.read(reinterpret_cast<char*>(magic), 4) && isDmh(magic, 4)) name = got.checksum + ".dmh";
+  }
+  const std::string path = cacheDir + "/" + name;
   if (std::rename(incoming.c_str(), path.c_str()) != 0)
     throw RuntimeError(Status::FileError, "cannot move " + incoming + " to " + path + ": " + std::strerror(errno));
   try {
     syncParentFolder(path);
-    const std::string line = got.checksum + "\n";
+    const std::string line = name + "\n";
     writeFileAtomic(ref, std::vector<uint8_t>(line.begin(), line.end()));
   } catch (const InputError& e) {
     throw RuntimeError(Status::FileError, e.what());

@@ -183,7 +183,7 @@ TEST_F(FarmTest, OneAndThreeWorkersGiveTheLocalBytes) {
 // A light bundle (two spots and a point light: eight grids) baked on the farm: one
 // worker and three give the local bake's bytes, and the job says how many lights and
 // grids it holds.
-TEST_F(FarmTest, ALightBundleOnOneAndThreeWorkersGivesTheLocalBytes) {
+TEST_F(FarmTest, LightBundlesAndADagMhOnOneAndThreeWorkersGiveTheLocalBytes) {
   std::ofstream(path("lamps.json")) << R"({"lights": [
     {"kind": "LIGHT_SPOT", "name": "flood", "position": {"x": 30, "y": 55, "z": 30}, "direction": {"x": 0.2, "y": -1, "z": 0.1},
      "coneDeg": 40, "resolution": "512"},
@@ -250,6 +250,19 @@ TEST_F(FarmTest, ALightBundleOnOneAndThreeWorkersGivesTheLocalBytes) {
   const json streetLocal = described("street-local.cpvs");
   EXPECT_EQ(streetLocal["plan"]["grids"].size(), 6u);
   EXPECT_EQ(described("street.cpvs"), streetLocal);
+
+  // The sun as a DAG-MH (--format dagmh): the workers' parts merged into the local .dmh.
+  const std::string dagMh = " --sun-dir 0.3,-1,0.2 -r 1024 --tile-size 512 --receivers surfaces --format dagmh";
+  ASSERT_EQ(runCli("bake " + path("city.obj") + dagMh + " -q -o " + path("sun-local.dmh")).status, 0);
+  Ran sun = runCli("submit --server " + address + " --token " + kClientToken + " " + path("city.obj") + dagMh +
+                   " --request-id sun-dagmh --wait --json --out " + path("sun.dmh"));
+  ASSERT_EQ(sun.status, 0) << sun.out;
+  j = json::parse(sun.out.substr(sun.out.find('{')));
+  EXPECT_EQ(j["format"], "dagmh");
+  EXPECT_EQ(j["tiles"], 4);
+  EXPECT_EQ(bytesOf(path("sun.dmh")), bytesOf(path("sun-local.dmh")));
+  EXPECT_EQ(runCli("submit --server " + address + " --token " + kClientToken + " " + path("city.obj") +
+                   " --spot 30,55,30:0.2,-1,0.1:40 --format dagmh").status, 2);
 }
 
 // R7, R27: certificates made as an operator makes them; a coordinator, a worker and a

@@ -22,6 +22,11 @@
 #include "cpvs/bake/bake_dag_mh.h"
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/io/dmh_file.h"
+#include "cpvs/io/dmh_tile_file.h"
+#include "cpvs/io/sub_dag_file.h"
+#include "cpvs/base/hash.h"
+#include "cpvs/net/channel.h"
+#include "cpvs/bake/bake_scene.h"
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/query/bundle_query.h"
 #include "cpvs/light/perspective_grid.h"
@@ -487,6 +492,15 @@ TEST(InProcessFarm, ADagMhJobGivesTheLocalBytes) {
     EXPECT_EQ(done.bytes, local.dag.bytes());
     const auto artifact = runtime::ShadowArtifact::open(dir / "farm.dmh");
     EXPECT_EQ(artifact->kind(), runtime::ArtifactKind::DagMh);
+    // A game fetches it into its cache as a .dmh, and finds it there the next time.
+    const runtime::FarmAddress address{farm.server.address(), "", ""};
+    bool fromCache = true;
+    const std::string cached = runtime::fetchArtifact(address, done.jobId, dir / "runtime-cache", &fromCache);
+    EXPECT_FALSE(fromCache);
+    EXPECT_EQ(fs::path(cached).extension(), ".dmh");
+    EXPECT_EQ(readFile(cached), readFile(dir / "farm.dmh"));
+    EXPECT_EQ(runtime::fetchArtifact(address, done.jobId, dir / "runtime-cache", &fromCache), cached);
+    EXPECT_TRUE(fromCache);
   }
   // What a DAG-MH cannot be is refused at submit, by name.
   const std::vector<std::pair<std::function<void(net::BakeSpec&)>, std::string>> refusals{
@@ -518,6 +532,71 @@ TEST(InProcessFarm, ADagMhJobGivesTheLocalBytes) {
   }
   tileWorker.stop();
   workerThread.join();
+  farm.server.shutdown(1);
+}
+
+// A DAG-MH job's lease says its format, and its tile takes only its own parts: a
+// sub-DAG, or the parts of another tile, are refused (and the tile stays to do).
+TEST(InProcessFarm, ADagMhTileTakesOnlyItsOwnParts) {
+  TempDir dir("cpvs_in_process_dagmh_parts");
+  const std::string obj = dir / "city.obj";
+  writeObj(obj, openScene("city:2:3"));
+  InProcessFarm farm(dir / "data");
+  net::BakeSpec spec;
+  spec.sceneHash = farm.client.uploadScene(obj).sceneHash;
+  spec.sun = Vec3{0.3, -1, 0.2};
+  spec.resolution = "256";
+  spec.options.tileSize = 128;
+  spec.format = net::ArtifactFormat::DagMh;
+  const std::string job = farm.client.submit("dagmh-parts", spec).jobId;
+
+  auto workers = pb::Workers::NewStub(net::makeChannel(farm.connection()));
+  pb::LeaseRequest request;
+  request.set_worker_id("by-hand");
+  pb::TileLease lease;
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(workers->LeaseTile(&ctx, request, &lease).ok());
+  }
+  ASSERT_TRUE(lease.granted());
+  EXPECT_EQ(lease.job_id(), job);
+  EXPECT_EQ(lease.format(), pb::ARTIFACT_FORMAT_DAG_MH);
+  auto complete = [&](const std::vector<uint8_t>& bytes) {
+    grpc::ClientContext ctx;
+    pb::CompleteReply reply;
+    auto writer = workers->CompleteTile(&ctx, &reply);
+    pb::TileResultChunk chunk;
+    chunk.set_lease_id(lease.lease_id());
+    chunk.set_total_size(bytes.size());
+    chunk.set_checksum(contentHash(bytes.data(), bytes.size()).hex());
+    chunk.set_data(std::string(bytes.begin(), bytes.end()));
+    writer->Write(chunk);
+    writer->WritesDone();
+    const grpc::Status status = writer->Finish();
+    return std::make_pair(status, reply.accepted());
+  };
+  auto tilesDone = [&] {
+    for (const client::JobStatus& s : farm.client.list(true))
+      if (s.jobId == job) return s.tilesDone;
+    return uint64_t(999);
+  };
+  const Scene scene = loadScene(obj);
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.2}), 8);
+  BakeOptions options = net::fromProto(lease.options());
+  const BakeScene prepared(scene, grid, Renderer::Raster, 0, {});
+  const auto refused = [&](const std::vector<uint8_t>& bytes, const std::string& what) {
+    const auto [status, accepted] = complete(bytes);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << what << ": " << status.error_message();
+    EXPECT_NE(status.error_message().find("rejected result"), std::string::npos) << status.error_message();
+    EXPECT_EQ(tilesDone(), 0u) << what;
+  };
+  refused(encodeSubDag(bakeTileWith(scene, grid, lease.tile_x(), lease.tile_y(), options)), "a sub-DAG");
+  refused(encodeDagMhTiles(bakeDagMhFarmTile(prepared, options, lease.tile_x() ^ 1, lease.tile_y())), "another tile");
+  const auto [status, accepted] =
+      complete(encodeDagMhTiles(bakeDagMhFarmTile(prepared, options, lease.tile_x(), lease.tile_y())));
+  EXPECT_TRUE(status.ok()) << status.error_message();
+  EXPECT_TRUE(accepted);
+  EXPECT_EQ(tilesDone(), 1u);
   farm.server.shutdown(1);
 }
 

@@ -246,7 +246,8 @@ void cpuSoftVisibility(const LightArtifact& artifact, const std::vector<uint32_t
                        const std::vector<Vec3>& points, const std::vector<Vec3>& normals, std::vector<float>& out);
 
 /// Fetches the artifact of a finished farm job into `cacheDir`, where it is kept under
-/// its content hash (XXH3-128, 32 hex digits, ".cpvs"), and returns its path. A job
+/// its content hash (XXH3-128, 32 hex digits, ".cpvs", or ".dmh" for a DAG-MH), and
+/// returns its path. A job
 /// fetched before is answered from the cache, after checking the file against its hash,
 /// without a call to the farm. An interrupted download resumes where it stopped.
 /// FarmError when the farm refuses or cannot be reached (or the job is not done),
