@@ -15,7 +15,10 @@
 #include <vector>
 
 #include "bench_common.h"
+#include "cpvs/bake/bake_dag_mh.h"
+#include "cpvs/base/parse.h"
 #include "cpvs/io/cpvs_file.h"
+#include "cpvs/io/dmh_file.h"
 #include "frame_timing.h"
 #include "cpvs/base/error.h"
 #include "cpvs/eval/camera.h"
@@ -34,6 +37,7 @@ struct Args : CommonArgs {
   int width = 1920, height = 1080;
   bool validation = false;
   std::string save;  // also write each artifact and frame here (for gpu_frame_timing)
+  std::vector<std::string> formats{"cpvs"};
 };
 
 void printUsage() {
@@ -47,7 +51,9 @@ void printUsage() {
       "  --validation on      the Khronos validation layer (slower; for checks)\n"
       "  --repeat N           timed frames per lookup kind (median; default 5)\n"
       "  --threads N          CPU threads (default: all)\n"
-      "  --save DIR           also write each artifact and frame to DIR, for gpu_frame_timing\n");
+      "  --save DIR           also write each artifact and frame to DIR, for gpu_frame_timing\n"
+      "  --formats LIST       cpvs, dagmh or both (default cpvs): a DAG-MH is baked for the surfaces\n"
+      "                       its frame's points lie on, lookups up to 9x9\n");
 }
 
 int run(int argc, char** argv) {
@@ -58,6 +64,11 @@ int run(int argc, char** argv) {
   parseBenchArgs(argc, argv, a, [&](const std::string& option, const std::string& value) {
     if (option == "--device") a.device = value;
     else if (option == "--save") a.save = value;
+    else if (option == "--formats") {
+      a.formats = splitList(value);
+      for (const std::string& f : a.formats)
+        if (f != "cpvs" && f != "dagmh") throw InputError("--formats '" + value + "': cpvs, dagmh or both");
+    }
     else if (option == "--validation") a.validation = value == "on";
     else if (option == "--frame") {
       const size_t x = value.find('x');
@@ -89,11 +100,6 @@ int run(int argc, char** argv) {
     if (!s) continue;
     for (int log2R : a.log2Resolutions) {
       OrthoGrid grid = makeGrid(s->scene, LightFrame::fromDirection(a.sunDir), log2R);
-      CpvsArtifact art;
-      art.grid = grid;
-      art.dag = testing::bakeWith(s->scene, grid, art.options);
-      art.sceneHash = sceneHash(s->scene);
-      auto artifact = std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(grid, PackedDag(art.dag)));
       const RayScene rays(s->scene, grid.origin);
       const double aspect = double(a.width) / a.height;
       const std::vector<Camera> cameras{defaultCamera(s->scene, grid.frame.dir, aspect)};
@@ -102,15 +108,36 @@ int run(int argc, char** argv) {
         frame.points.push_back(p.point);
         frame.normals.push_back(p.normal);
       }
+      const std::string base = a.save + "/" + s->label + "-" + resolutionLabel(log2R);
       if (!a.save.empty()) {
-        // What gpu_frame_timing reads on a machine with a GPU: the artifact and the frame.
-        const std::string base = a.save + "/" + s->label + "-" + resolutionLabel(log2R);
+        // What gpu_frame_timing reads on a machine with a GPU: the artifacts and the frame.
         std::filesystem::create_directories(a.save);
-        writeCpvs(base + ".cpvs", art, true);
         writeFrame(base + ".frame", frame);
         frame = readFrame(base + ".frame");  // time what the other machine will time
       }
-      printTimingRows(s->label, resolutionLabel(log2R), art.dag.bytes(), artifact, frame, device.get(), a.repeat);
+      for (const std::string& format : a.formats) {
+        std::shared_ptr<const runtime::ShadowArtifact> artifact;
+        if (format == "cpvs") {
+          CpvsArtifact art;
+          art.grid = grid;
+          art.dag = testing::bakeWith(s->scene, grid, art.options);
+          art.sceneHash = sceneHash(s->scene);
+          if (!a.save.empty()) writeCpvs(base + ".cpvs", art, true);
+          artifact = std::make_shared<const runtime::ShadowArtifact>(ShadowQuery(grid, PackedDag(art.dag)));
+        } else {
+          DmhArtifact art;
+          art.grid = grid;
+          ReceiverDeclaration surfaces;
+          surfaces.kind = art.options.receivers = ReceiverKind::Surfaces;
+          art.sceneHash = sceneHash(s->scene);
+          art.receiverHash = receiverHash(surfaces);
+          art.dag = bakeDagMh(s->scene, grid, art.options, surfaces);
+          if (!a.save.empty()) writeDmh(base + ".dmh", art, true);
+          artifact = std::make_shared<const runtime::ShadowArtifact>(DagMhQuery(grid, std::move(art.dag)));
+        }
+        printTimingRows(s->label + (format == "dagmh" ? " DAG-MH" : ""), resolutionLabel(log2R), artifact->bytes(),
+                        artifact, frame, device.get(), a.repeat);
+      }
     }
   }
   if (device && a.validation) std::printf("\nValidation messages: %zu\n", device->validationMessages().size());

@@ -172,7 +172,7 @@ void printTimingRows(const std::string& scene, const std::string& resolution, ui
     const double cpu = median(cpuMs), dev = median(devMs);
     auto mib = [](uint64_t b) { return fixed("%.2f MiB", double(b) / (1 << 20)); };
     std::printf("| %s | %s | %s | %s | %.0f | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", scene.c_str(),
-                resolution.c_str(), mib(dagBytes).c_str(), mib(artifact->packed().arrayBytes()).c_str(), n,
+                resolution.c_str(), mib(dagBytes).c_str(), mib(artifact->words().size() * 4).c_str(), n,
                 pcf == 1 ? "binary" : "9x9 PCF", gpu ? fixed("%.3f", dev).c_str() : "-",
                 gpu ? fixed("%.2f", dev * 1e6 / n).c_str() : "-", gpu ? fixed("%.0f", n / (dev * 1e3)).c_str() : "-",
                 gpu ? fixed("%.1f", median(wallMs)).c_str() : "-", fixed("%.1f", cpu).c_str(),

@@ -30,12 +30,12 @@ int main(int argc, char** argv) {
   try {
     std::vector<std::filesystem::path> artifacts, bundles;
     for (const auto& e : std::filesystem::directory_iterator(dir)) {
-      if (e.path().extension() == ".cpvs") artifacts.push_back(e.path());
+      if (e.path().extension() == ".cpvs" || e.path().extension() == ".dmh") artifacts.push_back(e.path());
       if (e.path().extension() == ".lights") bundles.push_back(e.path());
     }
     std::sort(artifacts.begin(), artifacts.end());
     std::sort(bundles.begin(), bundles.end());
-    if (artifacts.empty() && bundles.empty()) throw std::runtime_error("no .cpvs or .lights files in " + dir);
+    if (artifacts.empty() && bundles.empty()) throw std::runtime_error("no .cpvs, .dmh or .lights files in " + dir);
     std::string model = "unknown";
     std::ifstream cpuinfo("/proc/cpuinfo");
     for (std::string line; std::getline(cpuinfo, line);)
@@ -56,8 +56,8 @@ int main(int argc, char** argv) {
       const bench::Frame frame = bench::readFrame(framePath.string());
       const std::string stem = path.stem().string();
       const size_t dash = stem.rfind('-');
-      bench::printTimingRows(stem.substr(0, dash), stem.substr(dash + 1), artifact->packed().bytes(), artifact, frame,
-                             device.get(), repeat);
+      bench::printTimingRows(stem.substr(0, dash) + (artifact->kind() == runtime::ArtifactKind::DagMh ? " DAG-MH" : ""),
+                             stem.substr(dash + 1), artifact->bytes(), artifact, frame, device.get(), repeat);
     }
     if (!artifacts.empty()) bench::printTimingFooter();
     // Dynamic casters over an artifact's frame: NAME.casters beside NAME.cpvs and NAME.frame

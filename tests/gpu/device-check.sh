@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The GPU check: lookups of a 1920x1080 frame on a 16K city artifact, binary and 9x9 PCF,
+# The GPU check: lookups of a 1920x1080 frame on a 16K city artifact, binary and 9x9 PCF
+# (the CPVS, and a DAG-MH of the city for surface receivers),
 # the same frame with 101k dynamic triangles flown over the city (their TOP tree inserted
 # on the device each frame, then the lookups times their shadow), and a 1920x1080 frame
 # of the city's 153 street lamps at 8K (one lookup per pixel and light its tile's culled
@@ -26,7 +27,7 @@ if [ "${1:-}" = prepare ]; then
   rm -rf "$out"
   mkdir -p "$out/lib" "$out/data"
   ninja -C build -j2 bench_lights >/dev/null
-  build/bin/bench_gpu_query --scenes city --resolutions 16K --frame 1920x1080 --repeat 1 --save "$out/data"
+  build/bin/bench_gpu_query --scenes city --resolutions 16K --frame 1920x1080 --repeat 1 --formats cpvs,dagmh --save "$out/data"
   build/bin/bench_lights --resolution 8K --width 1920 --height 1080 --save "$out/data" | tail -n 4
   ninja -C build -j2 bench_psv >/dev/null
   build/bin/bench_psv --frame-scene city --casters city:51 --save-casters "$out/data/city-16K.casters"

@@ -81,6 +81,9 @@ class ShadowArtifact {
   /// The words cpvs_shadow.glsl reads (CpvsWords): a CPVS's packed words, or a DAG-MH's
   /// (dag_mh_words.h; the shader then needs CPVS_DAG_MH).
   const std::vector<uint32_t>& words() const { return dagMh_ ? dagMhWords_ : query_->dag().words(); }
+  /// Bytes of the shadows as stored: the CPVS's packed DAG, or the DAG-MH's structure,
+  /// values and skip list.
+  uint64_t bytes() const { return dagMh_ ? dagMh_->dag().bytes() : query_->dag().bytes(); }
   /// A CPVS's DAG and CPU reference; InvalidArgument for a DAG-MH.
   const PackedDag& packed() const { return cpu().dag(); }
   const ShadowQuery& cpu() const;
