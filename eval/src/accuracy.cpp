@@ -76,6 +76,8 @@ const char* accuracyMethodName(AccuracyMethod m) {
     case AccuracyMethod::ShadowMapEqualBytesCpvsOffset: return "shadow map, equal bytes, CPVS offset";
     case AccuracyMethod::ShadowMapFull: return "shadow map, full resolution";
     case AccuracyMethod::DagMh: return "DAG-MH";
+    case AccuracyMethod::FloatMapFull: return "float map, full resolution";
+    case AccuracyMethod::CpvsEverywhere: return "CPVS, receivers everywhere";
   }
   return "?";
 }
@@ -87,6 +89,8 @@ const char* accuracyMethodKey(AccuracyMethod m) {
     case AccuracyMethod::ShadowMapEqualBytesCpvsOffset: return "sm_equal_bytes_cpvs_offset";
     case AccuracyMethod::ShadowMapFull: return "sm_full";
     case AccuracyMethod::DagMh: return "dagmh";
+    case AccuracyMethod::FloatMapFull: return "float_full";
+    case AccuracyMethod::CpvsEverywhere: return "cpvs_everywhere";
   }
   return "?";
 }
@@ -205,12 +209,14 @@ struct Inputs {
 // The methods measured at one resolution: the CPVS and the shadow maps, with their rows.
 struct Methods {
   ShadowQuery query;
-  ShadowMap equalBytes, fullMap;
-  bool full = false;
+  ShadowMap equalBytes, fullMap, floatMap;
+  bool full = false, fullFloat = false;
   uint32_t equalSide = 0;
   AccuracyRow cpvs, eq, eqOff, fullRow;
   std::optional<DagMhQuery> dagMh;  // the same receivers' DAG-MH, looked up at the CPVS's offset point
-  AccuracyRow dagMhRow;
+  AccuracyRow dagMhRow, floatRow;
+  std::optional<ShadowQuery> everywhere;  // the CPVS for receivers everywhere, when others are declared
+  AccuracyRow everywhereRow;
 };
 
 // The DAG-MH of the same receivers at this resolution, timed; its row filled in.
@@ -238,21 +244,22 @@ void dagMhRow(const Inputs& in, const OrthoGrid& grid, const std::string& label,
   }
 }
 
-// The CPVS at this resolution, timed per stage; its row's size and times filled in.
-ShadowQuery bakeRow(const Inputs& in, const OrthoGrid& grid, const std::string& label, AccuracyRow& row) {
-  row.method = AccuracyMethod::Cpvs;
+// The CPVS at this resolution for `receivers`, timed per stage; its row's size and times
+// filled in.
+ShadowQuery bakeRow(const Inputs& in, const OrthoGrid& grid, const std::string& label, const ReceiverDeclaration& receivers,
+                    AccuracyRow& row) {
   row.log2Resolution = grid.log2Resolution;
   row.side = grid.resolution();
   CpvsArtifact art;
   art.grid = grid;
   art.options = in.options.bake;
   art.sceneHash = in.geometryHash;
-  art.options.receivers = in.options.receivers.kind;
-  art.options.receiverPcf = uint8_t(in.options.receivers.maxPcf);
+  art.options.receivers = receivers.kind;
+  art.options.receiverPcf = uint8_t(receivers.maxPcf);
   StageTimes st;
   const auto start = std::chrono::steady_clock::now();
   // The bake's own renderer, as `cpvs bake` would prepare it (included in the bake time).
-  const BakeScene prepared(in.scene, grid, in.options.bake.renderer, 0, in.options.receivers);
+  const BakeScene prepared(in.scene, grid, in.options.bake.renderer, 0, receivers);
   art.dag = bakeGrid(prepared, art.options, &st, [&](const Progress& p) {
     return !in.progress || in.progress({label + " bake", p.done, p.total, p.secondsLeft});
   });
@@ -262,11 +269,28 @@ ShadowQuery bakeRow(const Inputs& in, const OrthoGrid& grid, const std::string& 
   return ShadowQuery(art.grid, PackedDag(art.dag));
 }
 
-// The shadow maps: one with the DAG's bytes, one with the CPVS's texels (when not over
-// the size limit), and their rows.
+// The CPVS for receivers everywhere beside one for declared receivers (the first's bytes
+// are what the declaration saves); skipped when the declaration is everywhere.
+void everywhereRow(const Inputs& in, const OrthoGrid& grid, const std::string& label, Methods& m) {
+  AccuracyRow& row = m.everywhereRow;
+  row.method = AccuracyMethod::CpvsEverywhere;
+  row.log2Resolution = grid.log2Resolution;
+  row.side = grid.resolution();
+  if (in.options.receivers.kind == ReceiverKind::Everywhere) {
+    row.skipped = true;
+    row.bytes = m.cpvs.bytes;
+    row.note = "the CPVS row is the bake for receivers everywhere";
+    return;
+  }
+  m.everywhere.emplace(bakeRow(in, grid, label + " everywhere", ReceiverDeclaration{}, row));
+}
+
+// The shadow maps: one with the DAG's bytes, one 16-bit and one float with the CPVS's
+// texels (when not over the size limit), and their rows.
 void baselineRows(const Inputs& in, const OrthoGrid& grid, const std::string& label, Methods& m) {
   const uint64_t R = grid.resolution();
   m.full = R * R * 2 <= in.options.maxFullShadowMapBytes;
+  m.fullFloat = R * R * 4 <= in.options.maxFullShadowMapBytes;
   in.report(label + " shadow maps", 0, m.full ? 2 : 1);
   m.equalSide = uint32_t(std::max<double>(1.0, std::floor(std::sqrt(double(m.cpvs.bytes) / 2.0))));
   m.eq.method = AccuracyMethod::ShadowMapEqualBytes;
@@ -291,6 +315,20 @@ void baselineRows(const Inputs& in, const OrthoGrid& grid, const std::string& la
     m.fullRow.skipped = true;
     m.fullRow.note = "skipped: " + std::to_string(R * R * 2) + " bytes is over the limit of " +
                      std::to_string(in.options.maxFullShadowMapBytes);
+  }
+  AccuracyRow& f = m.floatRow;
+  f.method = AccuracyMethod::FloatMapFull;
+  f.log2Resolution = grid.log2Resolution;
+  f.side = R;
+  f.bytes = R * R * 4;
+  if (m.fullFloat) {
+    start = std::chrono::steady_clock::now();
+    m.floatMap = renderShadowMap(in.rays, grid, uint32_t(R), true);
+    f.bakeSeconds = secondsSince(start);
+  } else {
+    f.skipped = true;
+    f.note = "skipped: " + std::to_string(R * R * 4) + " bytes is over the limit of " +
+             std::to_string(in.options.maxFullShadowMapBytes);
   }
 }
 
@@ -340,6 +378,14 @@ void tallyBinary(const Inputs& in, const OrthoGrid& grid, Methods& m, const Quer
     tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = m.dagMh->visibility(in.points[i], in.normals[i]) > 0.5f; });
     tally(m.dagMhRow, atR, answer, texel);
   }
+  if (m.fullFloat) {
+    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = m.floatMap.filteredAt(atR.points[i], 1) > 0.5f; });
+    tally(m.floatRow, atR, answer, texel);
+  }
+  if (m.everywhere) {
+    tbb::parallel_for(size_t(0), n, [&](size_t i) { answer[i] = m.everywhere->visibility(in.points[i], in.normals[i]) > 0.5f; });
+    tally(m.everywhereRow, atR, answer, texel);
+  }
 }
 
 // PCF of every method against the exact fraction over each lookup's own footprint, at
@@ -353,8 +399,8 @@ void measurePcf(const Inputs& in, const OrthoGrid& grid, const std::string& labe
     constexpr double kNone = -1;  // not compared (inside closed geometry, or no full map)
     constexpr int kArea = kAreaRaysPerTexelSide;
     // Per method, the errors against texel-centre rays [0] and against the area average [1].
-    std::array<std::vector<double>, 2> eCpvs, eEq, eEqOff, eFull, eDagMh;
-    for (auto* e : {&eCpvs, &eEq, &eEqOff, &eFull, &eDagMh})
+    std::array<std::vector<double>, 2> eCpvs, eEq, eEqOff, eFull, eDagMh, eFloat, eEverywhere;
+    for (auto* e : {&eCpvs, &eEq, &eEqOff, &eFull, &eDagMh, &eFloat, &eEverywhere})
       for (auto& v : *e) v.assign(count, kNone);
     forChunks(count, label + " pcf " + std::to_string(pcf), in.report, [&](size_t i) {
       if (!atR.inside[i]) {
@@ -363,12 +409,16 @@ void measurePcf(const Inputs& in, const OrthoGrid& grid, const std::string& labe
         const double fullLookup = m.full ? double(m.fullMap.filteredAt(q, pcf)) : 0.0;
         const double eqLookup = m.equalBytes.filteredAt(q, pcf);
         const double dagMh = m.dagMh ? double(m.dagMh->filtered(in.points[i], in.normals[i], pcf)) : 0.0;
+        const double floatLookup = m.fullFloat ? double(m.floatMap.filteredAt(q, pcf)) : 0.0;
+        const double everywhere = m.everywhere ? double(m.everywhere->filtered(in.points[i], in.normals[i], pcf)) : 0.0;
         for (int ref = 0; ref < 2; ++ref) {
           const int per = ref == 0 ? 1 : kArea;
           const double exactR = exactFootprintLit(in.rays, grid, uint32_t(R), q, pcf, per);
           eCpvs[ref][i] = pcfError(cpvs, exactR, pcf, per);
           if (m.dagMh) eDagMh[ref][i] = pcfError(dagMh, exactR, pcf, per);
           if (m.full) eFull[ref][i] = pcfError(fullLookup, exactR, pcf, per);
+          if (m.fullFloat) eFloat[ref][i] = pcfError(floatLookup, exactR, pcf, per);
+          if (m.everywhere) eEverywhere[ref][i] = pcfError(everywhere, exactR, pcf, per);
           eEqOff[ref][i] = pcfError(eqLookup, exactFootprintLit(in.rays, grid, m.equalSide, q, pcf, per), pcf, per);
         }
       }
@@ -394,6 +444,8 @@ void measurePcf(const Inputs& in, const OrthoGrid& grid, const std::string& labe
     summarizeBoth(m.eqOff, eEqOff);
     summarizeBoth(m.fullRow, eFull);
     summarizeBoth(m.dagMhRow, eDagMh);
+    summarizeBoth(m.floatRow, eFloat);
+    summarizeBoth(m.everywhereRow, eEverywhere);
   }
 }
 
@@ -409,12 +461,17 @@ void timeLookups(const Inputs& in, const std::string& label, Methods& m) {
   m.eq.nsPerQuery = nsPerQuery(n, minT, [&] { m.equalBytes.batch(p, nn, 1, vis); });
   if (m.full) m.fullRow.nsPerQuery = nsPerQuery(n, minT, [&] { m.fullMap.batch(p, nn, 1, vis); });
   if (m.dagMh) m.dagMhRow.nsPerQuery = nsPerQuery(n, minT, [&] { m.dagMh->batch(p, nn, 1, vis); });
+  if (m.fullFloat) m.floatRow.nsPerQuery = nsPerQuery(n, minT, [&] { m.floatMap.batch(p, nn, 1, vis); });
+  if (m.everywhere) m.everywhereRow.nsPerQuery = nsPerQuery(n, minT, [&] { m.everywhere->batch(p, nn, 1, vis); });
   for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) {
     const int pcf = kAccuracyPcfWidths[w];
     m.cpvs.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.query.batch(p, nn, pcf, vis); });
     m.eq.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.equalBytes.batch(p, nn, pcf, vis); });
     if (m.full) m.fullRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.fullMap.batch(p, nn, pcf, vis); });
     if (m.dagMh) m.dagMhRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.dagMh->batch(p, nn, pcf, vis); });
+    if (m.fullFloat) m.floatRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.floatMap.batch(p, nn, pcf, vis); });
+    if (m.everywhere)
+      m.everywhereRow.pcf[w].nsPerQuery = nsPerQuery(n, minT, [&] { m.everywhere->batch(p, nn, pcf, vis); });
   }
   // The CPVS-offset row looks up the same map the same way, from another point.
   m.eqOff.nsPerQuery = m.eq.nsPerQuery;
@@ -484,16 +541,19 @@ AccuracyReport measureAccuracy(const Scene& scene, const LightFrame& frame, cons
     const OrthoGrid grid = makeGrid(scene, frame, log2R);
     const std::string label = resolutionLabel(grid.resolution());
     AccuracyRow cpvsRow;
-    ShadowQuery query = bakeRow(in, grid, label, cpvsRow);
-    Methods m{std::move(query), {}, {}, false, 0, std::move(cpvsRow), {}, {}, {}, std::nullopt, {}};
+    cpvsRow.method = AccuracyMethod::Cpvs;
+    ShadowQuery query = bakeRow(in, grid, label, in.options.receivers, cpvsRow);
+    Methods m{std::move(query), {}, {}, {}, false, false, 0, std::move(cpvsRow), {}, {}, {}, std::nullopt, {}, {}, std::nullopt, {}};
     baselineRows(in, grid, label, m);
     dagMhRow(in, grid, label, m);
+    everywhereRow(in, grid, label, m);
     QueryPoints atR, atS;
     exactReference(in, grid, label, m, atR, atS);
     tallyBinary(in, grid, m, atR, atS);
     measurePcf(in, grid, label, m, atR, atS);
     timeLookups(in, label, m);
-    for (AccuracyRow* r : {&m.cpvs, &m.eq, &m.eqOff, &m.fullRow, &m.dagMhRow}) out.rows.push_back(std::move(*r));
+    for (AccuracyRow* r : {&m.cpvs, &m.eq, &m.eqOff, &m.fullRow, &m.dagMhRow, &m.floatRow, &m.everywhereRow})
+      out.rows.push_back(std::move(*r));
   }
   out.seconds = secondsSince(totalStart);
   return out;

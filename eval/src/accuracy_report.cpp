@@ -185,7 +185,13 @@ std::string accuracyMarkdown(const AccuracyReport& rep) {
     << "- **Shadow maps**: 16-bit enter depth, quantized as floor((d − d0) / depth range × 65536), one Embree ray per "
        "texel centre (packets of 8) over the grid's u, v extent; a texel shadows a point when the point's quantized "
        "depth is greater than the stored one. *Equal bytes*: side floor(sqrt(DAG bytes / 2)); *full*: side R, "
-       "skipped above the byte limit.\n"
+       "skipped above the byte limit. *Float map, full resolution*: side R, the enter depth itself as a 32-bit float "
+       "(R² × 4 bytes: the uncompressed map a DAG-MH stands for), compared with the query point's depth in float; "
+       "looked up at the CPVS's query point.\n"
+    << "- **CPVS, receivers everywhere**: with receivers declared (`--receivers`), the CPVS baked for every voxel "
+       "beside the declared one: its bytes are what the declaration saves; at the declared receivers' points both "
+       "answer alike but where a query point's voxel straddles a closed part's surface (undefined for the declared "
+       "bake: each resolves it its own way).\n"
     << "- **Bake s**: CPVS: the whole `bakeGrid` (render, masks, insert, compress, merge); DAG-MH: the whole "
        "`bakeDagMh` (render, receivers, hierarchy, compress); shadow map: its rendering.\n"
     << "- **ns/lookup**: a batched lookup (`ShadowQuery::batch`, `ShadowMap::batch`: offset included) over all samples, "
@@ -194,20 +200,21 @@ std::string accuracyMarkdown(const AccuracyReport& rep) {
        "queries. The CPVS-offset row shares the equal-bytes map's lookup.\n\n";
 
   o << "## Bake stages (seconds)\n\n| R | render | masks | insert | compress | merge | CPVS total | shadow map, "
-       "equal bytes | shadow map, full |\n|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+       "equal bytes | shadow map, full | float map, full |\n|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   for (size_t i = 0; i < rep.rows.size(); ++i) {
     const AccuracyRow& r = rep.rows[i];
     if (r.method != AccuracyMethod::Cpvs) continue;
     o << "| " << resolutionCell(r) << " | " << stage(r, "render") << " | " << stage(r, "masks") << " | "
       << stage(r, "insert") << " | " << stage(r, "compress") << " | " << stage(r, "merge") << " | "
       << format("%.3f", r.bakeSeconds);
-    std::string eq = "-", full = "-";
+    std::string eq = "-", full = "-", floats = "-";
     for (const AccuracyRow& s : rep.rows)
       if (s.log2Resolution == r.log2Resolution) {
         if (s.method == AccuracyMethod::ShadowMapEqualBytes) eq = format("%.3f", s.bakeSeconds);
         if (s.method == AccuracyMethod::ShadowMapFull) full = s.skipped ? "skipped" : format("%.3f", s.bakeSeconds);
+        if (s.method == AccuracyMethod::FloatMapFull) floats = s.skipped ? "skipped" : format("%.3f", s.bakeSeconds);
       }
-    o << " | " << eq << " | " << full << " |\n";
+    o << " | " << eq << " | " << full << " | " << floats << " |\n";
   }
 
   o << "\n## Lookup time (ns per query, batched, " << rep.threads << " threads)\n\n"
@@ -322,8 +329,8 @@ std::string tickLabel(double v, int kind) {
 std::string accuracySvg(const AccuracyReport& rep) {
   const int W = 1000, H = 490, panelW = 380, panelH = 300, top = 60;
   const int lefts[2] = {90, 580};
-  const char* colours[kAccuracyMethods] = {"#1f77b4", "#d62728", "#ff7f0e", "#2ca02c", "#9467bd"};
-  const char* dashes[kAccuracyMethods] = {"", "", "6,4", "", ""};
+  const char* colours[kAccuracyMethods] = {"#1f77b4", "#d62728", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#1f77b4"};
+  const char* dashes[kAccuracyMethods] = {"", "", "6,4", "", "", "", "2,3"};
 
   double rmin = INFINITY, rmax = 0, tmin = INFINITY, tmax = 0, bmin = INFINITY, bmax = 0;
   bool anyZero = false;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "cpvs/query/shadow_query.h"
@@ -22,11 +23,12 @@ static_assert(kPacketW * kPacketH == uint32_t(kPacketLanes));
 
 }  // namespace
 
-ShadowMap::ShadowMap(const OrthoGrid& grid, uint32_t side) : grid_(grid), side_(side) {
+ShadowMap::ShadowMap(const OrthoGrid& grid, uint32_t side, bool floatDepth) : grid_(grid), side_(side) {
   if (side < 1 || side > kMaxSide)
     throw InputError("shadow map side " + std::to_string(side) + " is outside [1, " + std::to_string(kMaxSide) + "]");
   cells_ = grid.withSide(side);
-  depth_.assign(size_t(side) * side, kEmpty);
+  if (floatDepth) floatDepth_.assign(size_t(side) * side, std::numeric_limits<float>::infinity());
+  else depth_.assign(size_t(side) * side, kEmpty);
 }
 
 uint16_t ShadowMap::quantize(double depthFromNear, double depthExtent) {
@@ -46,14 +48,21 @@ Vec3 ShadowMap::offsetPoint(const Vec3& p, const Vec3& n, PcfWidth pcf) const {
 
 float ShadowMap::filteredAt(const Vec3& q, PcfWidth pcf) const {
   const Vec3 t = toTexel(q);
-  const uint16_t qd = quantize(cells_.depthOf(q), grid_.depthExtent);
+  const double depth = cells_.depthOf(q);
+  const uint16_t qd = quantize(depth, grid_.depthExtent);
+  const float fd = float(depth);
+  const bool floats = floatDepth();
   const int64_t cx = floorToVoxel(t.x), cy = floorToVoxel(t.y), s = int64_t(side_);
   const int r = pcf.radius();
   int lit = 0;
   for (int dy = -r; dy <= r; ++dy)
     for (int dx = -r; dx <= r; ++dx) {
       const int64_t x = cx + dx, y = cy + dy;
-      lit += (x < 0 || y < 0 || x >= s || y >= s) || !(qd > at(uint32_t(x), uint32_t(y)));
+      if (x < 0 || y < 0 || x >= s || y >= s) {
+        ++lit;
+        continue;
+      }
+      lit += floats ? !(fd > floatAt(uint32_t(x), uint32_t(y))) : !(qd > at(uint32_t(x), uint32_t(y)));
     }
   return float(lit) / float(pcf.texels());
 }
@@ -63,8 +72,8 @@ void ShadowMap::batch(const std::vector<Vec3>& points, const std::vector<Vec3>& 
   batchLookups(*this, points, normals, PcfWidth(pcf), out);
 }
 
-ShadowMap renderShadowMap(const RayScene& rays, const OrthoGrid& grid, uint32_t side) {
-  ShadowMap map(grid, side);
+ShadowMap renderShadowMap(const RayScene& rays, const OrthoGrid& grid, uint32_t side, bool floatDepth) {
+  ShadowMap map(grid, side, floatDepth);
   const TexelMapping texels = grid.withSide(side).texelMapping(rays.origin());
   const uint32_t packetRows = (side + kPacketH - 1) / kPacketH;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, packetRows, 4), [&](const auto& range) {
@@ -84,8 +93,7 @@ ShadowMap renderShadowMap(const RayScene& rays, const OrthoGrid& grid, uint32_t 
         }
         rays.firstHits(packet, ClosedMode::Off, hits, found);
         for (uint32_t l = 0; l < uint32_t(kPacketLanes); ++l)
-          if (found[l])
-            map.at(px + l % kPacketW, pr * kPacketH + l / kPacketW) = ShadowMap::quantize(hits[l].t, grid.depthExtent);
+          if (found[l]) map.setDepth(px + l % kPacketW, pr * kPacketH + l / kPacketW, hits[l].t);
       }
     }
   });

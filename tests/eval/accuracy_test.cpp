@@ -90,6 +90,19 @@ TEST(ShadowMap, DepthsMatchBruteForce) {
         bad += std::abs(int(map.at(x, y)) - int(want)) > 1;
       }
     EXPECT_EQ(bad, 0u) << "side " << side;
+    // The float map stores the depths themselves.
+    const ShadowMap floats = renderShadowMap(rays, grid, side, true);
+    EXPECT_EQ(floats.bytes(), uint64_t(side) * side * 4);
+    uint64_t badFloat = 0;
+    for (uint32_t y = 0; y < side; ++y)
+      for (uint32_t x = 0; x < side; ++x) {
+        bool ambiguous = false;
+        const double t = bruteForceHit(scene, map.toWorld({x + 0.5, y + 0.5, 0.0}), grid.frame.dir, ambiguous);
+        if (ambiguous) continue;
+        badFloat += std::isinf(t) ? !std::isinf(floats.floatAt(x, y))
+                                  : std::abs(double(floats.floatAt(x, y)) - t) > 1e-5 * grid.depthExtent;
+      }
+    EXPECT_EQ(badFloat, 0u) << "side " << side;
     EXPECT_GT(hits, uint64_t(side) * side / 2) << "the city fills most of its grid";
     EXPECT_LT(ambiguousTexels, uint64_t(side) * side / 20);
   }
@@ -272,6 +285,40 @@ TEST(CameraSampling, PointsAreWhatTheCamerasSee) {
   EXPECT_THROW(sampleCameraViews(scene, rays, {}, 1.0, 100, 1), InputError);
 }
 
+// With receivers declared, the CPVS for receivers everywhere is measured beside the
+// declared one: more bytes, and at the declared receivers' points the same answers away
+// from closed parts' surfaces.
+TEST(Accuracy, ACpvsForReceiversEverywhereStandsBesideTheDeclaredOne) {
+  const Scene scene = makeProceduralCity(4, 7);
+  AccuracyOptions opt;
+  opt.log2Resolutions = {9};
+  opt.samples = 4000;
+  opt.pcfSamples = 300;
+  opt.minTimingSeconds = 0.002;
+  opt.receivers.kind = ReceiverKind::Surfaces;
+  opt.receivers.maxPcf = 9;
+  const AccuracyReport rep = measureAccuracy(scene, LightFrame::fromElevationAzimuth(35, 20), opt);
+  ASSERT_EQ(rep.rows.size(), size_t(kAccuracyMethods));
+  const AccuracyRow& declared = rep.rows[0];
+  const AccuracyRow& everywhere = rep.rows[size_t(AccuracyMethod::CpvsEverywhere)];
+  ASSERT_EQ(everywhere.method, AccuracyMethod::CpvsEverywhere);
+  ASSERT_FALSE(everywhere.skipped) << everywhere.note;
+  EXPECT_GT(everywhere.bytes, declared.bytes);
+  EXPECT_GT(everywhere.bakeSeconds, 0.0);
+  // Both answer every voxel the receivers read alike; they may differ only where a query
+  // point's voxel straddles a closed part's surface (each resolves it its own way), within
+  // two texels of a boundary.
+  EXPECT_EQ(everywhere.samples, declared.samples);
+  for (int b = 2; b < kDistanceBins; ++b) EXPECT_EQ(everywhere.binMismatches[b], declared.binMismatches[b]) << "bin " << b;
+  EXPECT_LE(everywhere.mismatchRate(), 1.2 * declared.mismatchRate() + 0.001);
+  for (size_t w = 0; w < kAccuracyPcfWidths.size(); ++w) {
+    EXPECT_EQ(everywhere.pcf[w].samples, declared.pcf[w].samples);
+    EXPECT_GT(everywhere.pcf[w].nsPerQuery, 0.0);
+  }
+  EXPECT_NE(accuracyCsv(rep).find("cpvs_everywhere"), std::string::npos);
+  EXPECT_NE(accuracyMarkdown(rep).find("| CPVS, receivers everywhere | 512 |"), std::string::npos);
+}
+
 TEST(Accuracy, MismatchFallsWithResolutionOnTheCity) {
   const Scene scene = makeProceduralCity(4, 7);
   AccuracyOptions opt;
@@ -287,6 +334,11 @@ TEST(Accuracy, MismatchFallsWithResolutionOnTheCity) {
     const AccuracyRow& coarse = rep.rows[m];
     const AccuracyRow& fine = rep.rows[kAccuracyMethods + m];
     ASSERT_EQ(int(coarse.method), m);
+    if (AccuracyMethod(m) == AccuracyMethod::CpvsEverywhere) {  // the CPVS row is that bake here
+      EXPECT_TRUE(coarse.skipped);
+      EXPECT_NE(coarse.note.find("receivers everywhere"), std::string::npos) << coarse.note;
+      continue;
+    }
     EXPECT_EQ(coarse.log2Resolution, 8);
     EXPECT_EQ(fine.log2Resolution, 10);
     EXPECT_FALSE(fine.skipped);
@@ -315,6 +367,14 @@ TEST(Accuracy, MismatchFallsWithResolutionOnTheCity) {
     const AccuracyRow& full = r[3];
     EXPECT_EQ(full.side, r->resolution());
     EXPECT_EQ(full.samples, r->samples);
+    // The float map: the same texels, twice the 16-bit map's bytes, depths without
+    // quantization (so no more mismatches than the 16-bit map's, but for float rounding).
+    const AccuracyRow& floats = r[size_t(AccuracyMethod::FloatMapFull)];
+    ASSERT_EQ(floats.method, AccuracyMethod::FloatMapFull);
+    EXPECT_EQ(floats.side, r->resolution());
+    EXPECT_EQ(floats.bytes, 2 * full.bytes);
+    EXPECT_EQ(floats.samples, r->samples);
+    EXPECT_LE(floats.mismatchRate(), full.mismatchRate() + 0.002);
   }
   // The DAG-MH of the same receivers answers every defined voxel as the CPVS: they differ
   // only where a query point's voxel straddles a closed part's surface (undefined, each
@@ -339,6 +399,7 @@ TEST(Accuracy, MismatchFallsWithResolutionOnTheCity) {
   const AccuracyReport small = measureAccuracy(scene, LightFrame::fromElevationAzimuth(35, 20), opt);
   EXPECT_TRUE(small.rows[3].skipped);
   EXPECT_NE(small.rows[3].note.find("skipped"), std::string::npos);
+  EXPECT_TRUE(small.rows[size_t(AccuracyMethod::FloatMapFull)].skipped);
   EXPECT_NE(accuracyCsv(small).find("skipped"), std::string::npos);
   opt.log2Resolutions.clear();
   EXPECT_THROW(measureAccuracy(scene, LightFrame::fromElevationAzimuth(35, 20), opt), InputError);
@@ -429,20 +490,27 @@ TEST_F(AccuracyCli, WritesTablesCsvAndPlot) {
   EXPECT_EQ(header[0], "scene");
   EXPECT_EQ(header.back(), "note");
   size_t rows = 0;
-  int methodCol = -1, rateCol = -1;
+  int methodCol = -1, rateCol = -1, skippedCol = -1;
   for (size_t i = 0; i < header.size(); ++i) {
     if (header[i] == "method") methodCol = int(i);
     if (header[i] == "mismatch_rate") rateCol = int(i);
+    if (header[i] == "skipped") skippedCol = int(i);
   }
   ASSERT_GE(methodCol, 0);
   ASSERT_GE(rateCol, 0);
+  ASSERT_GE(skippedCol, 0);
   while (std::getline(csv, line)) {
     const auto f = csvFields(line);
     ASSERT_EQ(f.size(), header.size()) << line;
+    ++rows;
+    if (f[skippedCol] == "1") {  // the CPVS for receivers everywhere is the CPVS row's bake here
+      EXPECT_EQ(f[methodCol], "cpvs_everywhere") << line;
+      EXPECT_EQ(f[rateCol], "") << line;
+      continue;
+    }
     const double rate = std::stod(f[rateCol]);
     EXPECT_GE(rate, 0.0);
     EXPECT_LE(rate, 1.0);
-    ++rows;
   }
   EXPECT_EQ(rows, 2u * kAccuracyMethods);
 

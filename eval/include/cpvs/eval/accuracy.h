@@ -81,8 +81,10 @@ enum class AccuracyMethod : uint8_t {
   ShadowMapEqualBytesCpvsOffset = 2,  // the same map, looked up at the CPVS's offset point
   ShadowMapFull = 3,         // 16-bit shadow map of side R (the CPVS's own texels)
   DagMh = 4,                 // the DAG-MH baked at R for the same receivers (bake_dag_mh.h), the CPVS's offset
+  FloatMapFull = 5,          // float shadow map of side R (the CPVS's texels and offset points)
+  CpvsEverywhere = 6,        // the CPVS baked at R for receivers everywhere (when others are declared)
 };
-constexpr int kAccuracyMethods = 5;
+constexpr int kAccuracyMethods = 7;
 /// Human name ("CPVS", "shadow map, equal bytes", ...) and CSV key ("cpvs", "sm_equal_bytes", ...).
 const char* accuracyMethodName(AccuracyMethod m);
 const char* accuracyMethodKey(AccuracyMethod m);

@@ -1,4 +1,5 @@
-// A plain 16-bit shadow map over a light grid: the baseline a CPVS is measured against.
+// A plain shadow map over a light grid, 16-bit or float depths: the baselines a CPVS is
+// measured against.
 #pragma once
 
 #include <cstdint>
@@ -19,19 +20,32 @@ namespace cpvs {
 /// Depths are quantized as q(d) = floor((d - d0) / depthExtent * 65536), clamped to
 /// [0, 65535]; a texel whose ray hits nothing stores kEmpty (65535), behind every point.
 /// A point is shadowed by a texel when its own quantized depth is beyond the stored one.
+///
+/// A float map (floatDepth) stores the enter depth itself as a 32-bit float (infinity where
+/// the ray hits nothing) and compares the point's depth rounded to float: the full-precision
+/// map a DAG-MH compresses.
 class ShadowMap {
  public:
   static constexpr uint16_t kEmpty = 0xFFFF;
   static constexpr double kDepthLevels = 65536.0;
 
   ShadowMap() = default;
-  /// An empty map (every texel kEmpty). side must be in [1, 2^20] (InputError otherwise).
-  ShadowMap(const OrthoGrid& grid, uint32_t side);
+  /// An empty map (every texel kEmpty, or infinity). side must be in [1, 2^20] (InputError
+  /// otherwise).
+  ShadowMap(const OrthoGrid& grid, uint32_t side, bool floatDepth = false);
 
   const OrthoGrid& grid() const { return grid_; }
   uint32_t side() const { return side_; }
-  /// Storage of the texels: side^2 x 2 bytes.
-  uint64_t bytes() const { return uint64_t(depth_.size()) * sizeof(uint16_t); }
+  bool floatDepth() const { return !floatDepth_.empty(); }
+  /// Storage of the texels: side^2 x 2 bytes, or x 4 for a float map.
+  uint64_t bytes() const { return uint64_t(depth_.size()) * sizeof(uint16_t) + uint64_t(floatDepth_.size()) * sizeof(float); }
+  /// Stores the enter depth t (world units from the near plane) of texel (x, y).
+  void setDepth(uint32_t x, uint32_t y, double t) {
+    if (floatDepth_.empty()) at(x, y) = quantize(t, grid_.depthExtent);
+    else floatDepth_[size_t(y) * side_ + x] = float(t);
+  }
+  /// A float map's depth of texel (x, y).
+  float floatAt(uint32_t x, uint32_t y) const { return floatDepth_[size_t(y) * side_ + x]; }
   double texelSize() const { return cells_.texelSize(); }
 
   uint16_t& at(uint32_t x, uint32_t y) { return depth_[size_t(y) * side_ + x]; }
@@ -70,12 +84,13 @@ class ShadowMap {
   OrthoGrid grid_;
   uint32_t side_ = 0;
   OrthoGrid cells_;  // the grid cut into side x side texels: this map's mapping
-  std::vector<uint16_t> depth_;
+  std::vector<uint16_t> depth_;     // a 16-bit map's
+  std::vector<float> floatDepth_;   // a float map's
 };
 
 /// Renders a shadow map of side x side texels over the grid's u, v extent with Embree
 /// packets of 8 rays (4 x 2 texels), one ray along the light through each texel centre
 /// from the grid's near plane, multithreaded. side in [1, 2^20].
-ShadowMap renderShadowMap(const RayScene& rays, const OrthoGrid& grid, uint32_t side);
+ShadowMap renderShadowMap(const RayScene& rays, const OrthoGrid& grid, uint32_t side, bool floatDepth = false);
 
 }  // namespace cpvs
