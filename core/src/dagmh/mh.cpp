@@ -132,13 +132,6 @@ float Mh::value(int level, uint64_t x, uint64_t y) const {
   return contains(lo, hi, m) ? m : lo;
 }
 
-MhState Mh::state(int level, uint64_t x, uint64_t y) const {
-  if (level == 0) return MhState::Full;
-  const uint32_t c = mhChild(x, y, 0);
-  if (!(covered(level - 1, x / 2, y / 2) >> c & 1)) return MhState::Full;
-  return hasFull(level, x, y) ? MhState::Empty : MhState::Absent;
-}
-
 float Mh::lookup(uint64_t x, uint64_t y) const {
   float v = value(0, 0, 0);
   for (int l = 1; l <= log2Side_; ++l) {

@@ -50,8 +50,13 @@ class Mh {
   uint8_t covered(int level, uint64_t x, uint64_t y) const { return levels_[size_t(level)].covered[at(level, x, y)]; }
   /// Whether some node strictly below this one stores a value.
   bool hasFull(int level, uint64_t x, uint64_t y) const { return levels_[size_t(level)].hasFull[at(level, x, y)] != 0; }
-  /// The node's state; the root is always Full.
-  MhState state(int level, uint64_t x, uint64_t y) const;
+  /// The node's state; the root is always Full. (Inline: the hierarchy's walks call it
+  /// for every node.)
+  MhState state(int level, uint64_t x, uint64_t y) const {
+    if (level == 0) return MhState::Full;
+    if (!(covered(level - 1, x / 2, y / 2) >> mhChild(x, y, 0) & 1)) return MhState::Full;
+    return hasFull(level, x, y) ? MhState::Empty : MhState::Absent;
+  }
 
   /// The value a lookup of texel (x, y) finds: that of the last full node on its path.
   float lookup(uint64_t x, uint64_t y) const;
