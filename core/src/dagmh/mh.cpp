@@ -6,6 +6,7 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "cpvs/base/error.h"
@@ -39,6 +40,48 @@ bool contains(float lo, float hi, float v) { return lo <= v && v <= hi; }
       outLo = std::max(outLo, lo[c]);
       outHi = std::min(outHi, hi[c]);
     }
+}
+
+// Four nodes' children at once (GCC's vector types: SSE on any x86-64): rows lo0/hi0 and
+// the row nb below them, eight children across.
+typedef float F4 __attribute__((vector_size(16)));
+typedef int32_t I4 __attribute__((vector_size(16)));
+
+struct Quad {
+  F4 lo, hi;       // each node's intersection of its children's intervals
+  bool allSuit;    // every intersection is an interval: one depth suits all four children
+  bool valid;      // every child's interval is finite and ordered
+};
+
+F4 load4(const float* p) {
+  F4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+
+Quad quadOf(const float* lo0, const float* hi0, uint32_t nb) {
+  const F4 a0 = load4(lo0), a1 = load4(lo0 + 4), b0 = load4(lo0 + nb), b1 = load4(lo0 + nb + 4);
+  const F4 c0 = load4(hi0), c1 = load4(hi0 + 4), d0 = load4(hi0 + nb), d1 = load4(hi0 + nb + 4);
+  // Children 0 and 1 of the four nodes (even and odd columns), row 0 then row 1.
+  const F4 lo00 = __builtin_shufflevector(a0, a1, 0, 2, 4, 6), lo01 = __builtin_shufflevector(a0, a1, 1, 3, 5, 7);
+  const F4 lo10 = __builtin_shufflevector(b0, b1, 0, 2, 4, 6), lo11 = __builtin_shufflevector(b0, b1, 1, 3, 5, 7);
+  const F4 hi00 = __builtin_shufflevector(c0, c1, 0, 2, 4, 6), hi01 = __builtin_shufflevector(c0, c1, 1, 3, 5, 7);
+  const F4 hi10 = __builtin_shufflevector(d0, d1, 0, 2, 4, 6), hi11 = __builtin_shufflevector(d0, d1, 1, 3, 5, 7);
+  auto max = [](F4 p, F4 q) { return p > q ? p : q; };
+  auto min = [](F4 p, F4 q) { return p < q ? p : q; };
+  Quad q;
+  // The scalar path's order: max(max(c0, c1), max(c2, c3)).
+  q.lo = max(max(lo00, lo01), max(lo10, lo11));
+  q.hi = min(min(hi00, hi01), min(hi10, hi11));
+  const I4 suit = q.lo <= q.hi;
+  q.allSuit = (suit[0] & suit[1] & suit[2] & suit[3]) != 0;
+  // Finite and ordered: |v| <= FLT_MAX is false for infinities and NaN.
+  const F4 big = {3.4028235e38f, 3.4028235e38f, 3.4028235e38f, 3.4028235e38f};
+  auto finite = [&](F4 v) { return (v <= big) & (v >= -big); };
+  const I4 ok = finite(a0) & finite(a1) & finite(b0) & finite(b1) & finite(c0) & finite(c1) & finite(d0) & finite(d1) &
+                (a0 <= c0) & (a1 <= c1) & (b0 <= d0) & (b1 <= d1);
+  q.valid = (ok[0] & ok[1] & ok[2] & ok[3]) != 0;
+  return q;
 }
 
 }  // namespace
@@ -89,12 +132,14 @@ void Mh::rebuild(TexelIntervals& texels, std::vector<uint8_t> bottomHasFull) {
         const float* lo0 = below.lo.data() + size_t(2 * y) * nb;
         const float* hi0 = below.hi.data() + size_t(2 * y) * nb;
         const uint8_t* f0 = below.hasFull.data() + size_t(2 * y) * nb;
-        for (uint32_t x = 0; x < n; ++x) {
+        const size_t row = size_t(y) * n;
+        // Node x of this row from its four children.
+        auto one = [&](uint32_t x) {
           const float lo[4] = {lo0[2 * x], lo0[2 * x + 1], lo0[nb + 2 * x], lo0[nb + 2 * x + 1]};
           const float hi[4] = {hi0[2 * x], hi0[2 * x + 1], hi0[nb + 2 * x], hi0[nb + 2 * x + 1]};
           if (checkIntervals)
             for (int c = 0; c < 4; ++c) bad |= !(std::isfinite(lo[c]) && std::isfinite(hi[c]) && lo[c] <= hi[c]);
-          const size_t i = size_t(y) * n + x;
+          const size_t i = row + x;
           // Mostly one depth suits all four children: they are all covered.
           const float gmin = std::max(std::max(lo[0], lo[1]), std::max(lo[2], lo[3]));
           const float gmax = std::min(std::min(hi[0], hi[1]), std::min(hi[2], hi[3]));
@@ -112,7 +157,25 @@ void Mh::rebuild(TexelIntervals& texels, std::vector<uint8_t> bottomHasFull) {
             for (int c = 0; c < 4; ++c) any = any || (covered >> c & 1 && f[c]);
           }
           outHasFull[i] = any;
+        };
+        // Four nodes at a time where one depth suits all their children, the same as one
+        // at a time (maxima and minima are exact); a quad where it does not, node by node.
+        uint32_t x = 0;
+        for (; x + 4 <= n; x += 4) {
+          const Quad q = quadOf(lo0 + 2 * x, hi0 + 2 * x, nb);
+          if (!q.allSuit || (checkIntervals && !q.valid)) {
+            for (uint32_t k = 0; k < 4; ++k) one(x + k);
+            continue;
+          }
+          std::memcpy(outLo + row + x, &q.lo, sizeof q.lo);
+          std::memcpy(outHi + row + x, &q.hi, sizeof q.hi);
+          std::memset(outCovered + row + x, 0xF, 4);
+          for (uint32_t k = 0; k < 4; ++k) {
+            const uint32_t cx = 2 * (x + k);
+            outHasFull[row + x + k] = readFlags && (f0[cx] | f0[cx + 1] | f0[nb + cx] | f0[nb + cx + 1]) != 0;
+          }
         }
+        for (; x < n; ++x) one(x);
       }
       if (bad) invalid = true;
     });
