@@ -2,8 +2,11 @@
 // "lossless"), the structure's value index against the plain MH, chunks against their
 // intervals, merged shapes unique, corrupt structures refused.
 #include <gtest/gtest.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <tuple>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -171,6 +174,54 @@ TEST(Mh, EveryTexelFindsADepthInItsIntervalExhaustively) {
 }
 
 TEST(Mh, AMapOfFourKTexelsIsLosslessEverywhere) { expectLossless(sceneLikeIntervals(4096, 11)); }
+
+// Beyond 4K: a 16K map of scene-like intervals (a sloped ground, boxes on a grid of cells
+// with gaps of none, a little or much, empty cells), built tile by tile as a bake builds
+// it, and 10^7 random texels, each decoded inside its interval.
+TEST(DagMh, TenMillionRandomTexelsOfASixteenKMapLieInTheirIntervals) {
+  constexpr uint32_t kSide = 16384, kTile = 1024;
+  auto interval = [](uint32_t x, uint32_t y) {
+    const float ground = 0.7f * float(kSide) + float((x >> 3) % 512) + 0.5f * float((y >> 3) % 512);
+    const uint64_t cell = (uint64_t(y >> 5) << 20 | (x >> 5)) * 0x9E3779B97F4A7C15ull;
+    const uint32_t kind = uint32_t(cell >> 60);
+    if (kind == 0) return std::pair<float, float>{float(kSide), kNoCasterDepth};  // nothing here
+    if (kind < 6) return std::pair<float, float>{ground, ground + float(kind - 1)};
+    const float top = float((cell >> 20) % (kSide / 2));
+    const float gap = kind < 9 ? 0.0f : kind < 13 ? float((cell >> 8) % 8) : float((cell >> 8) % 2000);
+    return std::pair<float, float>{top, std::min(ground, top + gap)};
+  };
+  DagMhBuilder builder(std::countr_zero(kSide), std::countr_zero(kTile));
+  TexelIntervals tile;
+  tile.side = kTile;
+  tile.lo.resize(tile.texels());
+  tile.hi.resize(tile.texels());
+  Mh mh;
+  for (uint32_t ty = 0; ty < kSide / kTile; ++ty)
+    for (uint32_t tx = 0; tx < kSide / kTile; ++tx) {
+      for (uint32_t y = 0; y < kTile; ++y)
+        for (uint32_t x = 0; x < kTile; ++x)
+          std::tie(tile.lo[size_t(y) * kTile + x], tile.hi[size_t(y) * kTile + x]) = interval(tx * kTile + x, ty * kTile + y);
+      mh.rebuild(tile);
+      builder.addTile(tx, ty, mh);
+    }
+  const DagMh dag = builder.finish();
+  ASSERT_NO_THROW(validateDagMh(dag, "16K"));
+  std::atomic<uint64_t> wrong{0};
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, 1000), [&](const auto& chunks) {
+    for (uint32_t chunk = chunks.begin(); chunk != chunks.end(); ++chunk) {
+      std::mt19937_64 rng(chunk);
+      for (int i = 0; i < 10000; ++i) {
+        const uint32_t x = uint32_t(rng() % kSide), y = uint32_t(rng() % kSide);
+        const auto [a, b] = interval(x, y);
+        const float z = dag.depth(x, y);
+        if (!(a <= z && z <= b) && wrong++ < 5)
+          ADD_FAILURE() << "texel " << x << "," << y << " [" << a << ", " << b << "]: " << z;
+      }
+    }
+  });
+  EXPECT_EQ(wrong.load(), 0u);
+  EXPECT_GT(dag.values.count, 100000u);
+}
 
 TEST(Mh, TheRuleOfTheFourChildren) {
   // Two of four children share a depth range, two others another: the node covers the
