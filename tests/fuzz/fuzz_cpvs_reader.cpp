@@ -1,6 +1,6 @@
 // libFuzzer target: the .cpvs artifact reader (the level section, the packed section and
-// the light bundle's node pool), the .dmh (DAG-MH) reader and the sub-DAG reader on
-// arbitrary bytes.
+// the light bundle's node pool), the .dmh (DAG-MH) reader, the sub-DAG reader and the
+// reader of a DAG-MH tile's parts on arbitrary bytes.
 // Both check a checksum first, which random bytes never pass; so every input is also
 // tried with its last 8 bytes replaced by the right checksum, which lets the fuzzer
 // reach the structural validation behind it. Whatever decodes is then walked.
@@ -15,6 +15,7 @@
 #include "cpvs/io/bundle_file.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/io/dmh_file.h"
+#include "cpvs/io/dmh_tile_file.h"
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/io/sub_dag_file.h"
 
@@ -62,6 +63,16 @@ void tryDecode(const uint8_t* data, size_t size) {
       d.dag.depths(v, v, w, w, footprint);
     }
     (void)cpvs::encodeDmh(d, false);
+  } catch (const cpvs::InputError&) {
+  }
+  try {
+    // A DAG-MH tile's parts (what a worker sends): each one accepted is merged into a
+    // builder of its map, as the coordinator merges them.
+    for (cpvs::DagMhTile& part : cpvs::decodeDagMhTiles(data, size, "fuzz")) {
+      if (part.log2Side > 12) continue;  // the coordinator's builder is its job's, not the part's
+      cpvs::DagMhBuilder builder(part.log2Side, part.log2TileSide);
+      builder.addTile(std::move(part));
+    }
   } catch (const cpvs::InputError&) {
   }
   try {
