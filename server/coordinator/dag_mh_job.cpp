@@ -34,7 +34,12 @@ std::vector<DagMhTile> dagMhPartsOf(const JobRecord& j, uint64_t tile, const std
   const int log2R = sunGridOf(j).log2Resolution;
   const TileCoord at = tilesOf(j).at(tile).tile;
   if (bytes.empty()) return litDagMhFarmTile(log2R, j.options.log2TileSize, at.x, at.y);
-  std::vector<DagMhTile> parts = decodeDagMhTiles(bytes.data(), bytes.size(), source);
+  // The parts this job's tiles have, known before a byte of them is decompressed.
+  DagMhTileShape shape;
+  shape.log2Side = log2R;
+  shape.log2TileSide = dagMhPartLog2(log2R, j.options.log2TileSize);
+  shape.parts = 1u << (2 * (std::min(log2R, j.options.log2TileSize) - shape.log2TileSide));
+  std::vector<DagMhTile> parts = decodeDagMhTiles(bytes.data(), bytes.size(), source, &shape);
   checkDagMhFarmTile(parts, log2R, j.options.log2TileSize, at.x, at.y, source);
   return parts;
 }

@@ -207,6 +207,9 @@ void MergeScheduler::mergeDagMhTile(const JobRecord& j, JobMerge& m, uint64_t ti
     const auto finish = std::chrono::steady_clock::now();
     m.dagMhDone = m.dagMh->finish();
     m.dagMh.reset();
+    // Parts from workers, each checked, could still make a whole no reader takes: the
+    // job fails rather than writing a file its clients refuse.
+    validateDagMh(*m.dagMhDone, "job " + j.id + "'s DAG-MH");
     seconds += secondsSince(finish);
   }
   metrics_.tileMerged(seconds);

@@ -420,6 +420,9 @@ TEST(DagMh, HostilePartsAreRefused) {
   t = good;
   t.log2TileSide = 3;
   EXPECT_TRUE(refused(t, "too small"));
+  t = good;
+  std::fill(t.treelets.end() - 3, t.treelets.end(), 0u);
+  EXPECT_TRUE(refused(t, "stores nothing"));
   // Random words: refused, or merged and finished into a DAG-MH that validates.
   std::mt19937_64 rng(29);
   int refusals = 0;
@@ -457,6 +460,22 @@ TEST(DagMh, HostilePartsAreRefused) {
   for (uint32_t i = 0; i < 16; ++i)
     if (!builder.hasTile(i % 4, i / 4)) builder.addTile(i % 4, i / 4, Mh(tileOf(map, 64, i % 4, i / 4)));
   EXPECT_NO_THROW(validateDagMh(builder.finish(), "merged"));
+  // A reader that knows what to expect refuses other sides or counts before it reads a
+  // section; no reader decompresses more words than a part's geometry holds.
+  const std::vector<uint8_t> one = encodeDagMhTiles({good});
+  DagMhTileShape shape{8, 6, 1};
+  EXPECT_EQ(decodeDagMhTiles(one.data(), one.size(), "parts", &shape).size(), 1u);
+  for (const DagMhTileShape other : {DagMhTileShape{9, 6, 1}, DagMhTileShape{8, 5, 1}, DagMhTileShape{8, 6, 4}})
+    EXPECT_THROW(decodeDagMhTiles(one.data(), one.size(), "parts", &other), FormatError);
+  DagMhTile padded = good;
+  padded.levels[0].resize(10, 0);  // more words than a level of one node can hold
+  const std::vector<uint8_t> big = encodeDagMhTiles({padded});
+  try {
+    decodeDagMhTiles(big.data(), big.size(), "parts");
+    ADD_FAILURE() << "accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("word count 10 is invalid"), std::string::npos) << e.what();
+  }
   // Damaged bytes: the checksum, a truncation.
   std::vector<uint8_t> bytes = encodeDagMhTiles({good});
   bytes[bytes.size() / 2] ^= 4;

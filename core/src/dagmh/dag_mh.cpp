@@ -436,28 +436,30 @@ void validateDagMhTile(const DagMhTile& part, const std::string& source) {
   std::vector<uint64_t> below;
   for (size_t i = 0; i < part.treelets.size(); i += kTreeletWords) {
     if (part.treelets[i + 2] >> (85 - 64)) fail("treelet " + std::to_string(i / kTreeletWords) + " has padding bits set");
+    // A treelet stands for a node that is not absent: something in it stores a value.
+    if (treeletValues(&part.treelets[i]) == 0) fail("treelet " + std::to_string(i / kTreeletWords) + " stores nothing");
     below.push_back(treeletValues(&part.treelets[i]));
   }
   for (int l = t - 1; l >= 0; --l) {
     const std::vector<uint32_t>& words = part.levels[size_t(l)];
     std::vector<uint64_t> here;
     for (size_t at = 0; at < words.size();) {
-      const std::string node = "level " + std::to_string(l) + " word " + std::to_string(at);
+      const auto node = [&] { return "level " + std::to_string(l) + " word " + std::to_string(at); };
       const uint32_t types = words[at];
-      if (types >> 8) fail(node + ": child types 0x" + std::to_string(types));
+      if (types >> 8) fail(node() + ": child types 0x" + std::to_string(types));
       const uint32_t n = innerWords(types);
-      if (at + n > words.size()) fail(node + ": runs past the level's words");
+      if (at + n > words.size()) fail(node() + ": runs past the level's words");
       uint64_t values = 0;
       for (uint32_t k = 0, c = 0; c < 4; ++c) {
         const uint32_t type = (types >> (2 * c)) & 3;
         if (type == kDagMhAbsent) continue;
-        if ((type == kDagMhTreelet) != (l == t - 1)) fail(node + ": child " + std::to_string(c) + " of the wrong kind");
-        if (k > 0 && words[at + prefixWord(k)] != values) fail(node + ": a wrong prefix count");
+        if ((type == kDagMhTreelet) != (l == t - 1)) fail(node() + ": child " + std::to_string(c) + " of the wrong kind");
+        if (k > 0 && words[at + prefixWord(k)] != values) fail(node() + ": a wrong prefix count");
         const uint32_t p = words[at + pointerWord(k++)];
-        if (p >= below.size()) fail(node + ": child " + std::to_string(c) + " names a shape that is not there");
+        if (p >= below.size()) fail(node() + ": child " + std::to_string(c) + " names a shape that is not there");
         values += below[p] + (type == kDagMhFullInner);
       }
-      if (words[at + 1] != values) fail(node + ": a wrong value count");
+      if (words[at + 1] != values) fail(node() + ": a wrong value count");
       here.push_back(values);
       at += n;
     }

@@ -67,8 +67,9 @@ Quad quadOf(const float* lo0, const float* hi0, uint32_t nb) {
   const F4 lo10 = __builtin_shufflevector(b0, b1, 0, 2, 4, 6), lo11 = __builtin_shufflevector(b0, b1, 1, 3, 5, 7);
   const F4 hi00 = __builtin_shufflevector(c0, c1, 0, 2, 4, 6), hi01 = __builtin_shufflevector(c0, c1, 1, 3, 5, 7);
   const F4 hi10 = __builtin_shufflevector(d0, d1, 0, 2, 4, 6), hi11 = __builtin_shufflevector(d0, d1, 1, 3, 5, 7);
-  auto max = [](F4 p, F4 q) { return p > q ? p : q; };
-  auto min = [](F4 p, F4 q) { return p < q ? p : q; };
+  // std::max and std::min's choices on ties, lane by lane.
+  auto max = [](F4 p, F4 q) { return p < q ? q : p; };
+  auto min = [](F4 p, F4 q) { return q < p ? q : p; };
   Quad q;
   // The scalar path's order: max(max(c0, c1), max(c2, c3)).
   q.lo = max(max(lo00, lo01), max(lo10, lo11));

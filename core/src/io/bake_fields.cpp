@@ -1,5 +1,6 @@
 #include "io/bake_fields.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "cpvs/base/text.h"
@@ -83,9 +84,10 @@ void putWordSection(ByteWriter& w, const std::vector<uint32_t>& words, bool zstd
   writeSection(w, bytes, zstd);
 }
 
-std::vector<uint32_t> getWordSection(ByteReader& h, bool zstd, uint64_t minWords, const char* what) {
+std::vector<uint32_t> getWordSection(ByteReader& h, bool zstd, uint64_t minWords, const char* what, uint64_t maxWords) {
   const uint64_t count = h.get<uint64_t>(what);
-  if (count < minWords || count > UINT32_MAX) h.fail(std::string(what) + " word count " + std::to_string(count) + " is invalid");
+  if (count < minWords || count > std::min<uint64_t>(maxWords, UINT32_MAX))
+    h.fail(std::string(what) + " word count " + std::to_string(count) + " is invalid");
   std::vector<uint8_t> storage;
   const uint8_t* bytes = readSection(h, zstd, count * 4, what, storage);
   std::vector<uint32_t> words(count);

@@ -31,8 +31,10 @@ void getReceiversAndPlan(ByteReader& h, BakeOptions& options, Hash128& receiverH
 /// A packed word array (packed_layout.h) as the last section: its word count, then its
 /// words, zstd-compressed when asked.
 void putWordSection(ByteWriter& w, const std::vector<uint32_t>& words, bool zstd);
-/// Reads one: "<what> word count N is invalid" unless minWords <= N < 2^32; the section
-/// must hold exactly those words.
-std::vector<uint32_t> getWordSection(ByteReader& h, bool zstd, uint64_t minWords, const char* what);
+/// Reads one: "<what> word count N is invalid" unless minWords <= N <= maxWords and
+/// N < 2^32 (checked before anything is decompressed); the section must hold exactly
+/// those words.
+std::vector<uint32_t> getWordSection(ByteReader& h, bool zstd, uint64_t minWords, const char* what,
+                                     uint64_t maxWords = UINT32_MAX);
 
 }  // namespace cpvs

@@ -16,8 +16,16 @@ namespace cpvs {
 /// treelets, the value intervals), an XXH3-64 checksum.
 std::vector<uint8_t> encodeDagMhTiles(const std::vector<DagMhTile>& tiles, bool zstd = true);
 
-/// Parses parts and checks each one (validateDagMhTile). FormatError naming `source`
-/// otherwise.
-std::vector<DagMhTile> decodeDagMhTiles(const uint8_t* data, size_t size, const std::string& source);
+/// What a reader that knows expects of the parts (a coordinator: its job's grid and tiles).
+struct DagMhTileShape {
+  int log2Side = 0, log2TileSide = 0;
+  uint32_t parts = 0;
+};
+
+/// Parses parts and checks each one (validateDagMhTile), and with `expected` their sides
+/// and count, before any section is read. No section is decompressed beyond what its
+/// part's geometry can hold. FormatError naming `source` otherwise.
+std::vector<DagMhTile> decodeDagMhTiles(const uint8_t* data, size_t size, const std::string& source,
+                                        const DagMhTileShape* expected = nullptr);
 
 }  // namespace cpvs
