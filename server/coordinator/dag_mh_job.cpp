@@ -35,10 +35,7 @@ std::vector<DagMhTile> dagMhPartsOf(const JobRecord& j, uint64_t tile, const std
   const TileCoord at = tilesOf(j).at(tile).tile;
   if (bytes.empty()) return litDagMhFarmTile(log2R, j.options.log2TileSize, at.x, at.y);
   // The parts this job's tiles have, known before a byte of them is decompressed.
-  DagMhTileShape shape;
-  shape.log2Side = log2R;
-  shape.log2TileSide = dagMhPartLog2(log2R, j.options.log2TileSize);
-  shape.parts = 1u << (2 * (std::min(log2R, j.options.log2TileSize) - shape.log2TileSide));
+  const DagMhTileShape shape = dagMhFarmTileShape(log2R, j.options.log2TileSize);
   std::vector<DagMhTile> parts = decodeDagMhTiles(bytes.data(), bytes.size(), source, &shape);
   checkDagMhFarmTile(parts, log2R, j.options.log2TileSize, at.x, at.y, source);
   return parts;

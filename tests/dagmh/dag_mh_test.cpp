@@ -423,6 +423,14 @@ TEST(DagMh, HostilePartsAreRefused) {
   t = good;
   std::fill(t.treelets.end() - 3, t.treelets.end(), 0u);
   EXPECT_TRUE(refused(t, "stores nothing"));
+  // A part that passed: merged with the map's other tiles into a DAG-MH that validates.
+  auto expectMergesWithTheRest = [&](DagMhTile&& part) {
+    DagMhBuilder builder(8, 6);
+    builder.addTile(std::move(part));
+    for (uint32_t i = 0; i < 16; ++i)
+      if (!builder.hasTile(i % 4, i / 4)) builder.addTile(i % 4, i / 4, Mh(tileOf(map, 64, i % 4, i / 4)));
+    EXPECT_NO_THROW(validateDagMh(builder.finish(), "merged"));
+  };
   // Random words: refused, or merged and finished into a DAG-MH that validates.
   std::mt19937_64 rng(29);
   int refusals = 0;
@@ -436,11 +444,7 @@ TEST(DagMh, HostilePartsAreRefused) {
       ++refusals;
       continue;
     }
-    DagMhBuilder builder(8, 6);
-    builder.addTile(std::move(t));
-    for (uint32_t i = 0; i < 16; ++i)
-      if (!builder.hasTile(i % 4, i / 4)) builder.addTile(i % 4, i / 4, Mh(tileOf(map, 64, i % 4, i / 4)));
-    EXPECT_NO_THROW(validateDagMh(builder.finish(), "merged"));
+    expectMergesWithTheRest(std::move(t));
   }
   EXPECT_GT(refusals, 100);
   // A pointer to another treelet of as many values: a valid part of another shape, merged
@@ -455,11 +459,7 @@ TEST(DagMh, HostilePartsAreRefused) {
     }
   ASSERT_TRUE(swapped);
   ASSERT_NO_THROW(validateDagMhTile(t, "part"));
-  DagMhBuilder builder(8, 6);
-  builder.addTile(std::move(t));
-  for (uint32_t i = 0; i < 16; ++i)
-    if (!builder.hasTile(i % 4, i / 4)) builder.addTile(i % 4, i / 4, Mh(tileOf(map, 64, i % 4, i / 4)));
-  EXPECT_NO_THROW(validateDagMh(builder.finish(), "merged"));
+  expectMergesWithTheRest(std::move(t));
   // A reader that knows what to expect refuses other sides or counts before it reads a
   // section; no reader decompresses more words than a part's geometry holds.
   const std::vector<uint8_t> one = encodeDagMhTiles({good});

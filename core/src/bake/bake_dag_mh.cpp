@@ -128,6 +128,11 @@ void bakeDagMhTiles(const BakeScene& prepared, const BakeOptions& options, int l
   for (const Work& w : works) st.add(w.times);
 }
 
+DagMhTileShape dagMhFarmTileShape(int log2Resolution, int log2FarmTile) {
+  const FarmTile f = farmTileOf(log2Resolution, log2FarmTile, 0, 0);
+  return {log2Resolution, f.log2Part, f.partsPerSide * f.partsPerSide};
+}
+
 std::vector<DagMhTile> bakeDagMhFarmTile(const BakeScene& prepared, const BakeOptions& options, uint64_t tileX,
                                          uint64_t tileY, StageTimes* times) {
   const FarmTile f = farmTileOf(prepared.grid().log2Resolution, options.log2TileSize, tileX, tileY);

@@ -14,6 +14,7 @@
 #include "cpvs/base/progress.h"
 #include "cpvs/dagmh/dag_mh.h"
 #include "cpvs/dagmh/texel_intervals.h"
+#include "cpvs/io/dmh_tile_file.h"
 #include "cpvs/light/ortho_grid.h"
 #include "cpvs/scene/scene.h"
 
@@ -52,6 +53,10 @@ void bakeDagMhTiles(const BakeScene& prepared, const BakeOptions& options, int l
 /// DagMhBuilder. InputError for a tile outside the grid.
 std::vector<DagMhTile> bakeDagMhFarmTile(const BakeScene& prepared, const BakeOptions& options, uint64_t tileX,
                                          uint64_t tileY, StageTimes* times = nullptr);
+
+/// The parts every farm tile of 2^log2FarmTile texels has in a grid of 2^log2Resolution:
+/// what a coordinator expects of a worker's result (decodeDagMhTiles).
+DagMhTileShape dagMhFarmTileShape(int log2Resolution, int log2FarmTile);
 
 /// The parts of a farm tile nothing casts on or no receiver reads (a farm's plan marks
 /// them): all lit, as bakeDagMhFarmTile makes them without rendering.
