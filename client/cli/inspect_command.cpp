@@ -83,10 +83,10 @@ int runInspect(const InspectArgs& a) {
   if (cpvsFormatVersion(bytes.data(), bytes.size(), a.file) == kBundleFormatVersion) return inspectBundle(a, bytes);
   CpvsArtifact art = decodeCpvs(bytes.data(), bytes.size(), a.file);
   const Dag& dag = art.dag;
-  // Bytes as the file holds them: a file written before level 0 named its leaves by 16-bit
-  // index keeps word offsets there.
-  const bool compact = art.packed.header().leafRefs == 1;
-  auto levelBytes = [&](int l) { return dag.levelBytes(l, compact); };
+  // Bytes as they are walked and uploaded: an older file's layout is packed again as today's.
+  auto levelBytes = [&](int l) { return dag.levelBytes(l); };
+  // The bits of each level's references to its children (packed_layout.h): 16 where they fit.
+  auto referenceBits = [&](int l) { return (art.packed.header().wideRefs >> l) & 1 ? 32 : 16; };
   const uint64_t dagBytes = art.packed.bytes();
   const OrthoGrid& g = art.grid;
   uint64_t R = g.resolution();
@@ -115,7 +115,9 @@ int runInspect(const InspectArgs& a) {
     for (int l = -1; l < int(dag.levels.size()); ++l) {
       size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
       s << (l < 0 ? "\n    " : ",\n    ") << "{\"size\": " << (l < 0 ? 1 : (1u << (l + 3))) << ", \"nodes\": " << n
-        << ", \"bytes\": " << levelBytes(l) << "}";
+        << ", \"bytes\": " << levelBytes(l);
+      if (l >= 0) s << ", \"reference_bits\": " << referenceBits(l);
+      s << "}";
     }
     s << "\n  ]\n}\n";
     std::cout << s.str();
@@ -137,10 +139,12 @@ int runInspect(const InspectArgs& a) {
   std::printf("  options      %s\n", optionsText(o).c_str());
   std::printf("  receivers    %s\n", receiversText(o, art.receiverHash).c_str());
   std::printf("  plan         %s\n", art.plan.empty() ? "none recorded (a file before format 3)" : loggable(art.plan, 4000).c_str());
-  std::printf("\n  %-10s %12s %12s\n", "node size", "nodes", "bytes");
+  std::printf("\n  %-10s %12s %12s %12s\n", "node size", "nodes", "bytes", "references");
   for (int l = -1; l < int(dag.levels.size()); ++l) {
     size_t n = l < 0 ? dag.leaves.size() : dag.levels[l].size();
-    std::printf("  %-10s %12zu %12llu\n", levelLabel(l).c_str(), n, static_cast<unsigned long long>(levelBytes(l)));
+    const std::string refs = l < 0 ? "" : std::to_string(referenceBits(l)) + "-bit";
+    std::printf("  %-10s %12zu %12llu %12s\n", levelLabel(l).c_str(), n, static_cast<unsigned long long>(levelBytes(l)),
+                refs.c_str());
   }
   uint64_t sm = R * R * 2;
   std::printf("  %-10s %12zu %12llu\n", "total", dag.nodeCount(), static_cast<unsigned long long>(dagBytes));

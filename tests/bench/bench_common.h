@@ -2,6 +2,8 @@
 // on the command line and in tables.
 #pragma once
 
+#include <algorithm>
+#include <chrono>
 #include <functional>
 #include <optional>
 #include <string>
@@ -64,5 +66,19 @@ std::string humanBytes(uint64_t bytes);
 /// A ratio as "12.3x", "n/a" for NaN.
 std::string times(double ratio);
 double ratio(double num, double den);
+
+/// Nanoseconds per lookup of a lookup object's `batch` over the points at PCF `pcf`, best
+/// of three.
+template <class Lookup>
+double lookupNs(const Lookup& lookup, const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf) {
+  std::vector<float> out;
+  double best = 1e30;
+  for (int r = 0; r < 3; ++r) {
+    const auto start = std::chrono::steady_clock::now();
+    lookup.batch(points, normals, pcf, out);
+    best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
+  return best * 1e9 / double(points.size());
+}
 
 }  // namespace cpvs::bench

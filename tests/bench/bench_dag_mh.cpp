@@ -32,19 +32,6 @@ struct Receivers {
   ReceiverDeclaration declaration;
 };
 
-// Nanoseconds per lookup of `batch` over the points, best of three.
-template <class Lookup>
-double lookupNs(const Lookup& lookup, const std::vector<Vec3>& points, const std::vector<Vec3>& normals, int pcf) {
-  std::vector<float> out;
-  double best = 1e30;
-  for (int r = 0; r < 3; ++r) {
-    const auto start = Clock::now();
-    lookup.batch(points, normals, pcf, out);
-    best = std::min(best, secondsSince(start));
-  }
-  return best * 1e9 / double(points.size());
-}
-
 int run(int argc, char** argv) {
   CommonArgs args;
   args.scenes = {"peercity", "city", "shouse", "maisons"};

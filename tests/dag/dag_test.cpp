@@ -189,6 +189,82 @@ TEST(PackedDag, PointerGridOfEveryDepthAnswersAsTheLevels) {
   }
 }
 
+// A DAG of 256^3 whose nodes and 8x8 slices are nearly all different (seven of eight
+// children a node of their own): more than 65,536 leaves and a level 0 of more than 65,536
+// half-words, so levels 0 and 1 name their children by two half-words, at even and odd
+// half-words alike, and the levels above by one.
+Dag distinctNodesDag(uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  Dag dag;
+  dag.reset(8, 8);
+  const int L = int(dag.levels.size());
+  uint32_t nodes = 1;  // of the level being made; its children are made below in order
+  for (int l = L - 1; l >= 0; --l) {
+    uint32_t next = 0;
+    for (uint32_t i = 0; i < nodes; ++i) {
+      uint16_t codes = 0;
+      uint32_t refs[8];
+      int n = 0;
+      for (int c = 0; c < 8; ++c) {
+        const uint64_t r = rng() % 16;
+        const uint32_t code = r == 0 ? kLit : r == 1 ? kShadowed : kRef;
+        codes |= uint16_t(code << (2 * c));
+        if (code == kRef) refs[n++] = next++;
+      }
+      dag.levels[size_t(l)].append(codes, refs);
+    }
+    nodes = next;
+  }
+  for (uint32_t i = 0; i < nodes; ++i) dag.leaves.push_back(rng());
+  dag.roots.push_back({0, {kRef, 0}});
+  return dag;
+}
+
+TEST(PackedDag, ReferencesOfOneAndTwoHalfWordsAnswerAsTheLevels) {
+  const Dag dag = distinctNodesDag(17);
+  ASSERT_GT(dag.leaves.size(), kMaxNarrowRefTargets);
+  const PackedDag packed(dag);
+  EXPECT_EQ(packed.header().wideRefs, 3u) << "levels 0 and 1 wide, the rest narrow";
+  EXPECT_EQ(packed.bytes(), dag.bytes());
+  // Levels 0 and 1: a code half-word and two per reference; above: one each.
+  const std::vector<PackedLevelForm> forms = packedLevelForms(dag.levels, dag.leaves.size());
+  for (size_t l = 0; l < dag.levels.size(); ++l) {
+    const InternalLevel& level = dag.levels[l];
+    EXPECT_EQ(dag.levelBytes(int(l)), 2 * (level.size() + (l < 2 ? 2 : 1) * level.children.size())) << l;
+    EXPECT_EQ(forms[l].refHalves, l < 2 ? 2u : 1u);
+  }
+  EXPECT_LT(dag.bytes(), dag.bytes(1));
+  const uint64_t R = 256;
+  uint64_t differ = 0;
+  for (uint64_t z = 0; z < R; ++z)
+    for (uint64_t y = 0; y < R; ++y)
+      for (uint64_t x = 0; x < R; ++x) differ += dagVoxelShadowed(dag, x, y, z) != packed.voxelShadowed(x, y, z);
+  EXPECT_EQ(differ, 0u);
+  // The words read back through the validating reader; layout 1 (a word each) too.
+  for (uint32_t version : {1u, kPackedLayoutVersion}) {
+    Dag back;
+    const PackedDag again = PackedDag::fromWords(packPool(dag.leaves, dag.levels, {{8, dag.roots.front().ref}}, version), back);
+    EXPECT_EQ(again.words(), packed.words()) << "layout " << version;
+    for (size_t l = 0; l < dag.levels.size(); ++l) {
+      EXPECT_EQ(back.levels[l].codes, dag.levels[l].codes);
+      EXPECT_EQ(back.levels[l].children, dag.levels[l].children);
+    }
+    EXPECT_EQ(back.leaves, dag.leaves);
+  }
+  // A reference beyond what its level names, in a wide and in a narrow level, is refused.
+  for (int l : {0, 1, 3}) {
+    std::vector<uint32_t> words = packed.words();
+    const PackedHeader& h = packed.header();
+    ASSERT_NE(words[h.levelWord[l]] & 0xAAAA, 0u) << "the level's first node has a kRef child";
+    if (l < 2)
+      words[h.levelWord[l] + 1] |= 0x8000u;  // its first reference (half-words 1 and 2): beyond 2^31
+    else
+      words[h.levelWord[l]] |= 0xFFFF0000u;  // its first reference (half-word 1)
+    Dag back;
+    EXPECT_THROW(PackedDag::fromWords(words, back), InputError) << "level " << l;
+  }
+}
+
 // A DAG whose root is a whole-lit or whole-shadowed code, and one that is not complete.
 TEST(PackedDag, HomogeneousRootsAndIncompleteDags) {
   for (uint32_t code : {uint32_t(kLit), uint32_t(kShadowed)}) {

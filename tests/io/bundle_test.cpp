@@ -86,7 +86,7 @@ TEST(NodePool, DamagedPoolsAreRefused) {
   EXPECT_NE(refusal([](auto& w) { w[kPackedHeaderWords + 5] += 2; }).find("disagree on the shared leaves"), std::string::npos);
   EXPECT_NE(refusal([](auto& w) { w[kPackedHeaderWords + 4] += 1; }).find("level counts do not match"), std::string::npos);
   EXPECT_NE(refusal([&](auto& w) { w[kPackedHeaderWords + 10 + 1] += 1; }).find("disagree on level 1"), std::string::npos);
-  EXPECT_NE(refusal([&](auto& w) { w[h1.gridWord] ^= 1; }).find("pointer grid or the padding"), std::string::npos);
+  EXPECT_NE(refusal([&](auto& w) { w[h1.gridWord] ^= 1; }).find("the pointer grid, the reference widths or the padding"), std::string::npos);
   EXPECT_EQ(refusal([](auto&) {}), "");
   EXPECT_NE(inputErrorOf([&] { parsePackedPool(good, 3); }), "") << "three headers where there are two";
 }
@@ -166,24 +166,26 @@ TEST(LightBundle, BakesRoundTripsAndSharesAcrossLights) {
     }
     EXPECT_EQ(encodeBundle(back, zstd), bytes);
   }
-  // A bundle written before level 0 named its leaves by 16-bit index: its pool holds word
-  // offsets there and its grids' bytes count them. It reads, keeps its layout through a
-  // new pointer grid, and answers as the bundle of today.
-  {
-    ASSERT_TRUE(namesLeavesByIndex(*b.pool));
+  // A bundle of an older packed layout (1: a word per code and per reference, leaves by
+  // word offset; 2: level 0's leaves by 16-bit index): its grids' bytes count its layout.
+  // It reads, is packed again in today's layout with today's bytes, and answers as the
+  // bundle of today.
+  for (uint32_t version : {1u, 2u}) {
+    ASSERT_EQ(packedLayoutVersion(*b.pool), kPackedLayoutVersion);
     const NodePool nodes = parsePackedPool(*b.pool, b.grids.size());
     LightBundle older = b;
-    older.pool = std::make_shared<const std::vector<uint32_t>>(packPool(nodes.leaves, nodes.levels, nodes.roots, false));
-    for (size_t k = 0; k < older.grids.size(); ++k) older.grids[k].bytes = reachableBytes(nodes, k, false);
-    older.poolBytes = nodes.bytes(false);
+    older.pool = std::make_shared<const std::vector<uint32_t>>(packPool(nodes.leaves, nodes.levels, nodes.roots, version));
+    for (size_t k = 0; k < older.grids.size(); ++k) older.grids[k].bytes = reachableBytes(nodes, k, version);
+    older.poolBytes = nodes.bytes(version);
     EXPECT_GT(older.poolBytes, b.poolBytes);
-    EXPECT_EQ((*older.pool)[0], 1u) << "layout version 1";
+    EXPECT_EQ((*older.pool)[0], version);
     const std::vector<uint8_t> bytes = encodeBundle(older, true);
     const LightBundle back = decodeBundle(bytes.data(), bytes.size(), "older");
-    EXPECT_FALSE(namesLeavesByIndex(*back.pool));
-    EXPECT_EQ(back.poolBytes, older.poolBytes);
+    EXPECT_EQ(*back.pool, *b.pool);
+    EXPECT_EQ(back.poolBytes, b.poolBytes);
+    for (size_t k = 0; k < b.grids.size(); ++k) EXPECT_EQ(back.grids[k].bytes, b.grids[k].bytes);
     const LightBundle regridded = withPointerGrids(back, 2);
-    EXPECT_FALSE(namesLeavesByIndex(*regridded.pool));
+    EXPECT_EQ(packedLayoutVersion(*regridded.pool), kPackedLayoutVersion);
     const std::vector<uint8_t> again = encodeBundle(regridded, true);
     EXPECT_NO_THROW(decodeBundle(again.data(), again.size(), "older, regridded"));
     for (size_t k = 0; k < b.grids.size(); ++k) {
@@ -415,11 +417,11 @@ TEST(LightBundle, BadBundlesAndBadLightsAreRefused) {
   EXPECT_NE(refusal([&](auto& v) { v[counts + 8] = 9; }).find("unknown kind"), std::string::npos);
   const size_t cone = counts + 8 + 8 + 48;
   EXPECT_NE(refusal([&](auto& v) { std::memset(v.data() + cone, 0, 8); }).find("cone"), std::string::npos);
-  // A node's code word with a bit beyond the eight codes.
+  // A node's codes (the low half of its first word) holding code 3.
   PackedHeader h;
   std::memcpy(&h, b.pool->data(), sizeof h);
   const size_t pool = good.size() - 8 - 4 * b.pool->size();
-  EXPECT_NE(refusal([&](auto& v) { v[pool + 4 * size_t(h.levelWord[h.internalLevels - 1]) + 2] |= 0x10; })
+  EXPECT_NE(refusal([&](auto& v) { v[pool + 4 * size_t(h.levelWord[h.internalLevels - 1])] |= 0x03; })
                 .find("invalid child code"),
             std::string::npos);
   // Single-light artifacts and bundles are told apart by name.

@@ -125,8 +125,10 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
   auto word = [](uint32_t k) { return kWords + 4 * size_t(k); };
   // Field k of the packed header, and the first child of the first node of a level.
   auto field = [&](size_t offset) { return kWords + offset; };
-  const uint32_t level1Child = h.levelWord[1] + 1;
-  ASSERT_EQ(h.leafRefs, 1u);
+  // A pool this small names every child by one half-word: a node's codes in the low half of
+  // its first word, its first reference in the high half.
+  ASSERT_EQ(h.layoutVersion, kPackedLayoutVersion);
+  ASSERT_EQ(h.wideRefs, 0u);
   ASSERT_NE(packed.words()[h.levelWord[0]] & 0xAAAA, 0u);  // the first nodes have a kRef child
   ASSERT_NE(packed.words()[h.levelWord[1]] & 0xAAAA, 0u);
 
@@ -165,22 +167,22 @@ TEST(MustFail, CpvsFieldsDamagedBehindAValidChecksum) {
        "a level beyond the root is not empty"},
       {"child code 3", [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[0]), get<uint32_t>(b, word(h.levelWord[0])) | 3); },
        "invalid child code"},
-      {"code word above 16 bits", [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[1]), get<uint32_t>(b, word(h.levelWord[1])) | 0x10000); },
-       "invalid child code"},
-      // Level 0 names leaves by 16-bit index (a pool this small): its first child's index
-      // is the high half of the node's first word.
       {"leaf index", [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[0]), get<uint32_t>(b, word(h.levelWord[0])) | 0xFFFF0000u); },
        "a child offset is not a leaf"},
-      {"leaf references", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, leafRefs)), 2); },
-       "leaf references 2 do not fit"},
-      {"layout version 1 with leaf indices", [=](Bytes& b) { put<uint32_t>(b, word(0), 1); },
-       "layout version 1 does not name leaves as its header says"},
-      {"node offset", [=](Bytes& b) { put<uint32_t>(b, word(level1Child), h.levelWord[0] + 1); },
+      {"node offset inside a node",
+       [=](Bytes& b) { put<uint32_t>(b, word(h.levelWord[1]), (get<uint32_t>(b, word(h.levelWord[1])) & 0xFFFFu) | 1u << 16); },
        "not a node of the level below"},
+      {"wide references beyond the levels", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, wideRefs)), 1u << L); },
+       "layout version 3 does not name children as its header says"},
+      {"wide references the sizes do not give", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, wideRefs)), 1u << (L - 1)); },
+       "packed DAG: "},
+      {"layout version 2 (a leaf index per half-word, a word per node reference)", [=](Bytes& b) { put<uint32_t>(b, word(0), 2); },
+       "leaf references 0 do not fit"},
+      {"layout version 1", [=](Bytes& b) { put<uint32_t>(b, word(0), 1); }, "packed DAG: "},
       {"pointer grid", [=](Bytes& b) { put<uint32_t>(b, word(h.gridWord), get<uint32_t>(b, word(h.gridWord)) ^ 1); },
-       "the pointer grid or the padding does not match"},
+       "the pointer grid, the reference widths or the padding do not match"},
       {"reserved word", [=](Bytes& b) { put<uint32_t>(b, field(offsetof(PackedHeader, reserved)), 1); },
-       "the pointer grid or the padding does not match"},
+       "the pointer grid, the reference widths or the padding do not match"},
   };
   cases.insert(cases.end(), packedCases.begin(), packedCases.end());
   expectEveryCaseRejected(valid, cases, decodeDamaged);
@@ -194,10 +196,12 @@ TEST(MustFail, CpvsVersion1FieldsDamagedBehindAValidChecksum) {
   ASSERT_EQ(get<uint32_t>(valid, 4), 1u);
   const CpvsArtifact art = decodeCpvs(valid.data(), valid.size(), "v1.cpvs");
   EXPECT_EQ(art.grid.log2Resolution, 8);
-  // 45,236 bytes as the version 1 build printed it; 34,348 since level 0 names its leaves
-  // by 16-bit index.
-  EXPECT_EQ(art.dag.bytes(), 34348u);
-  EXPECT_EQ(art.packed.bytes(), 34348u);
+  // 45,236 bytes as the version 1 build printed it (packed layout 1); 34,348 in layout 2
+  // (level 0 names its leaves by 16-bit index); fewer in today's half-words.
+  EXPECT_EQ(art.dag.bytes(1), 45236u);
+  EXPECT_EQ(art.dag.bytes(2), 34348u);
+  EXPECT_EQ(art.dag.bytes(), 25514u);
+  EXPECT_EQ(art.packed.bytes(), art.dag.bytes());
   EXPECT_EQ(art.packed.words(), PackedDag(art.dag).words());
   const int levels = int(art.dag.levels.size());
   const size_t payloadSize = kLevelSizes + 16 * size_t(levels), payload = payloadSize + 16;
@@ -285,24 +289,31 @@ TEST(CpvsHeader, ReceiversRoundTripAndVersion2ReadsAsEverywhere) {
   EXPECT_EQ(old.formatVersion, 2u);
   EXPECT_EQ(old.options.receivers, ReceiverKind::Everywhere);
   EXPECT_EQ(old.receiverHash, Hash128{});
-  // Its words name level 0's leaves by word offset, as every array did then: they read as
-  // they are, 45,236 bytes as the version 2 build printed it, and answer every voxel as
-  // the same DAG packed today (34,348 bytes, leaves by 16-bit index).
-  EXPECT_EQ(old.packed.header().leafRefs, 0u);
-  EXPECT_EQ(old.packed.header().layoutVersion, 1u);
-  EXPECT_EQ(old.packed.bytes(), 45236u);
-  EXPECT_EQ(old.packed.words(), packPool(old.dag.leaves, old.dag.levels, {{8, old.dag.roots.front().ref}}, false));
-  const PackedDag today(old.dag);
-  EXPECT_EQ(today.header().leafRefs, 1u);
-  EXPECT_EQ(today.header().layoutVersion, 2u);
-  EXPECT_EQ(today.bytes(), 34348u);
-  EXPECT_EQ(today.arrayBytes() + 4 * (old.dag.levels[0].size() + old.dag.levels[0].children.size()) -
-                old.dag.levelBytes(0),
-            old.packed.arrayBytes());
+  // Its words are packed layout 1 (a word per code and per reference, level 0's leaves by
+  // word offset), 45,236 bytes as the version 2 build printed it: they read, are packed
+  // again in today's layout, and answer every voxel as the DAG they hold.
+  const std::vector<uint32_t> layout1 = packPool(old.dag.leaves, old.dag.levels, {{8, old.dag.roots.front().ref}}, 1);
+  EXPECT_EQ(layout1[0], 1u);
+  EXPECT_EQ(old.dag.bytes(1), 45236u);
+  EXPECT_EQ(old.packed.header().layoutVersion, kPackedLayoutVersion);
+  EXPECT_EQ(old.packed.words(), PackedDag(old.dag).words());
+  EXPECT_EQ(old.packed.bytes(), old.dag.bytes());
+  EXPECT_LT(old.packed.bytes(), old.dag.bytes(2));
   for (uint64_t z = 0; z < 256; ++z)
     for (uint64_t y = 0; y < 256; ++y)
-      for (uint64_t x = 0; x < 256; x += 8)
-        ASSERT_EQ(old.packed.leafSliceMask(x, y, z), today.leafSliceMask(x, y, z)) << x << "," << y << "," << z;
+      for (uint64_t x = 0; x < 256; ++x)
+        ASSERT_EQ(old.packed.voxelShadowed(x, y, z), dagVoxelShadowed(old.dag, x, y, z)) << x << "," << y << "," << z;
+  // The same DAG in each layout reads back as itself.
+  for (uint32_t version = 1; version <= kPackedLayoutVersion; ++version) {
+    Dag back;
+    const PackedDag read = PackedDag::fromWords(packPool(old.dag.leaves, old.dag.levels, {{8, old.dag.roots.front().ref}}, version), back);
+    EXPECT_EQ(read.words(), old.packed.words()) << "layout " << version;
+    EXPECT_EQ(back.levels.size(), old.dag.levels.size());
+    for (size_t l = 0; l < back.levels.size(); ++l) {
+      EXPECT_EQ(back.levels[l].codes, old.dag.levels[l].codes) << "layout " << version;
+      EXPECT_EQ(back.levels[l].children, old.dag.levels[l].children) << "layout " << version;
+    }
+  }
 }
 
 // Byte offsets of the sub-DAG header (sub_dag_file.h).

@@ -534,16 +534,20 @@ TEST(GpuLookups, QuakeLevelAnswersAsTheCpu) {
 TEST(GpuLookups, PeersCityAnswersAsTheCpu) {
   CPVS_SHARED_SCENE_OR_SKIP(path, "loinesg-city/city.obj");
   const Baked b = bake(path, {-0.5, -1, 0.2}, 13);
+  // Its levels name their children by 16 bits and by 32 (levels 1-4), at even and odd half-words.
+  const PackedHeader& h = b.artifact->packed().header();
+  ASSERT_NE(h.wideRefs, 0u);
+  ASSERT_NE(~h.wideRefs & ((1u << h.internalLevels) - 1), 0u);
   GpuShadows gpu(device(), b.artifact);
   expectGpuMatchesCpu(b, gpu, 200000);
   expectNoValidationMessages(device());
 }
 
-// An array written before level 0 named its leaves by 16-bit index (a version 2 file,
-// city:3:7 at 256): the device walks its word offsets as the CPU does.
-TEST(GpuLookups, AnArrayNamingLeavesByWordOffsetAnswersAsTheCpu) {
+// An array of an older layout (a version 2 file, city:3:7 at 256, words of layout 1): it
+// is packed again in today's layout, which the device walks as the CPU does.
+TEST(GpuLookups, AnOlderLayoutAnswersAsTheCpu) {
   const Baked b{ShadowArtifact::open(CPVS_SOURCE_DIR "/tests/io/data/city-256-v2.cpvs"), openScene("city:3:7"), {}, ""};
-  ASSERT_EQ(b.artifact->packed().header().leafRefs, 0u);
+  ASSERT_EQ(b.artifact->packed().header().layoutVersion, kPackedLayoutVersion);
   GpuShadows gpu(device(), b.artifact);
   expectGpuMatchesCpu(b, gpu, 20000);
   expectNoValidationMessages(device());

@@ -38,18 +38,40 @@ size_t Dag::nodeCount() const {
   return n;
 }
 
-uint64_t Dag::levelBytes(int level, std::optional<bool> compact) const {
-  if (level < 0) return 8 * uint64_t(leaves.size());
-  const InternalLevel& l = levels[size_t(level)];
-  if (level > 0 || !compact.value_or(compactLeafRefs(leaves.size()))) return 4 * (uint64_t(l.size()) + l.children.size());
-  uint64_t words = 0;
-  for (size_t i = 0; i < l.size(); ++i) words += packedNodeWords(0, l.refCount(i), true);
-  return 4 * words;
+std::vector<PackedLevelForm> packedLevelForms(const std::vector<InternalLevel>& levels, uint64_t leafCount,
+                                              uint32_t version) {
+  CPVS_CHECK(version >= 1 && version <= kPackedLayoutVersion);
+  CPVS_CHECK(version != 2 || leafCount <= kMaxNarrowRefTargets);
+  std::vector<PackedLevelForm> forms(levels.size());
+  uint64_t below = leafCount;  // what level l's references name: leaves, then half-words
+  for (size_t l = 0; l < levels.size(); ++l) {
+    if (version >= 3)
+      forms[l] = {1, wideRefsInto(below) ? 2u : 1u, false};
+    else if (l == 0 && version == 2)
+      forms[l] = {1, 1, true};
+    else
+      forms[l] = {2, 2, true};
+    below = packedLevelHalves(levels[l], forms[l]);
+  }
+  return forms;
 }
 
-uint64_t Dag::bytes(std::optional<bool> compact) const {
+uint64_t packedLevelHalves(const InternalLevel& level, PackedLevelForm form) {
+  if (!form.wordAligned) return form.codeHalves * uint64_t(level.size()) + form.refHalves * uint64_t(level.children.size());
+  uint64_t halves = 0;
+  for (size_t i = 0; i < level.size(); ++i) halves += form.nodeHalves(level.refCount(i));
+  return halves;
+}
+
+uint64_t Dag::levelBytes(int level, uint32_t version) const {
+  if (level < 0) return 8 * uint64_t(leaves.size());
+  return 2 * packedLevelHalves(levels[size_t(level)], packedLevelForms(levels, leaves.size(), version)[size_t(level)]);
+}
+
+uint64_t Dag::bytes(uint32_t version) const {
+  const std::vector<PackedLevelForm> forms = packedLevelForms(levels, leaves.size(), version);
   uint64_t b = levelBytes(-1);
-  for (int i = 0; i < int(levels.size()); ++i) b += levelBytes(i, compact);
+  for (size_t l = 0; l < levels.size(); ++l) b += 2 * packedLevelHalves(levels[l], forms[l]);
   return b;
 }
 

@@ -27,11 +27,10 @@ struct NodeKeyHash {
 
 }  // namespace
 
-uint64_t NodePool::bytes(std::optional<bool> compactRefs) const {
-  const bool compact = compactRefs.value_or(compactLeafRefs(leaves.size()));
+uint64_t NodePool::bytes(uint32_t version) const {
+  const std::vector<PackedLevelForm> forms = packedLevelForms(levels, leaves.size(), version);
   uint64_t b = 8 * uint64_t(leaves.size());
-  for (size_t l = 0; l < levels.size(); ++l)
-    for (size_t i = 0; i < levels[l].size(); ++i) b += 4 * uint64_t(packedNodeWords(int(l), levels[l].refCount(i), compact));
+  for (size_t l = 0; l < levels.size(); ++l) b += 2 * packedLevelHalves(levels[l], forms[l]);
   return b;
 }
 
@@ -76,8 +75,8 @@ NodePool shareNodes(const std::vector<const Dag*>& dags) {
   return pool;
 }
 
-uint64_t reachableBytes(const NodePool& pool, size_t root, std::optional<bool> compactRefs) {
-  const bool compact = compactRefs.value_or(compactLeafRefs(pool.leaves.size()));
+uint64_t reachableBytes(const NodePool& pool, size_t root, uint32_t version) {
+  const std::vector<PackedLevelForm> forms = packedLevelForms(pool.levels, pool.leaves.size(), version);
   const NodePool::Root& r = pool.roots.at(root);
   if (r.ref.code != kRef) return 0;
   // Level by level from the root: the nodes reached, each counted once.
@@ -87,7 +86,7 @@ uint64_t reachableBytes(const NodePool& pool, size_t root, std::optional<bool> c
     const InternalLevel& level = pool.levels[size_t(l)];
     next.clear();
     for (uint32_t i : reached) {
-      bytes += 4 * uint64_t(packedNodeWords(l, level.refCount(i), compact));
+      bytes += 2 * forms[size_t(l)].nodeHalves(level.refCount(i));
       next.insert(next.end(), level.children.begin() + level.childBegin[i], level.children.begin() + level.childBegin[i + 1]);
     }
     std::sort(next.begin(), next.end());

@@ -28,10 +28,9 @@ LightBundle withPointerGrids(const LightBundle& bundle, int levels) {
   NodePool pool = parsePackedPool(*bundle.pool, bundle.grids.size());
   for (NodePool::Root& r : pool.roots) r.gridLevels = std::min(levels, packedGridLevels(r.log2Resolution));
   LightBundle b = bundle;
-  // The same layout of level 0 (an older bundle's word offsets stay): the grids' recorded
-  // bytes remain true.
-  b.pool = std::make_shared<const std::vector<uint32_t>>(
-      packPool(pool.leaves, pool.levels, pool.roots, namesLeavesByIndex(*bundle.pool)));
+  // A bundle's pool is in today's layout (decodeBundle packs an older one again), so the
+  // grids' recorded bytes remain true.
+  b.pool = std::make_shared<const std::vector<uint32_t>>(packPool(pool.leaves, pool.levels, pool.roots));
   return b;
 }
 
@@ -200,14 +199,17 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
     if (pool.roots[k].log2Resolution != b.grids[k].grid.log2Resolution())
       h.fail("grid " + std::to_string(k) + "'s DAG is of resolution 2^" + std::to_string(pool.roots[k].log2Resolution) +
              ", the grid of 2^" + std::to_string(b.grids[k].grid.log2Resolution()));
-    // In the words' own layout: a bundle written before level 0 named leaves by index
-    // recorded its bytes with word offsets.
-    const uint64_t held = reachableBytes(pool, k, namesLeavesByIndex(words));
+    // In the words' own layout: an older bundle recorded its bytes in its layout.
+    const uint64_t held = reachableBytes(pool, k, packedLayoutVersion(words));
     if (held != b.grids[k].bytes)
       h.fail("grid " + std::to_string(k) + " records " + std::to_string(b.grids[k].bytes) + " bytes, its DAG holds " +
              std::to_string(held));
   }
-  b.poolBytes = pool.bytes(namesLeavesByIndex(words));
+  if (packedLayoutVersion(words) < kPackedLayoutVersion) {  // walked in today's layout
+    words = packPool(pool.leaves, pool.levels, pool.roots);
+    for (uint32_t k = 0; k < gridCount; ++k) b.grids[k].bytes = reachableBytes(pool, k);
+  }
+  b.poolBytes = pool.bytes();
   b.pool = std::make_shared<const std::vector<uint32_t>>(std::move(words));
   return b;
 }

@@ -10,6 +10,7 @@
 #include "cpvs/base/hash.h"
 #include "cpvs/base/limits.h"
 #include "cpvs/dag/child_codes.h"
+#include "cpvs/dag/packed_layout.h"
 
 namespace cpvs {
 
@@ -70,13 +71,20 @@ struct Dag {
   /// Resets to an empty DAG with the right number of levels.
   void reset(int log2Res, int log2Root);
   size_t nodeCount() const;
-  /// Bytes of the node data as stored and uploaded (packed_layout.h): 8 per leaf, 4 per
-  /// internal node header and 4 per child reference, but 2 each at level 0 when the
-  /// leaves are few enough to be named by 16-bit index (a node padded to whole words);
-  /// `compact` says how level 0 is packed when not by that rule (an older array).
-  uint64_t bytes(std::optional<bool> compact = std::nullopt) const;
-  uint64_t levelBytes(int level, std::optional<bool> compact = std::nullopt) const;  // -1 = leaves
+  /// Bytes of the node data as a packed array of layout `version` holds them
+  /// (packed_layout.h): 8 per leaf, and per node 2 for its codes and 2 or 4 per child
+  /// reference (a level's padding to a word is not node data).
+  uint64_t bytes(uint32_t version = kPackedLayoutVersion) const;
+  uint64_t levelBytes(int level, uint32_t version = kPackedLayoutVersion) const;  // -1 = leaves
 };
+
+/// The form of each level of `levels` (level 0 first) in a packed array of layout `version`
+/// whose pool holds `leafCount` leaves: in version 3 a level's references are 16-bit when
+/// the level below (or the leaves) fits them (wideRefsInto).
+std::vector<PackedLevelForm> packedLevelForms(const std::vector<InternalLevel>& levels, uint64_t leafCount,
+                                              uint32_t version = kPackedLayoutVersion);
+/// Half-words of the nodes of `level` in `form`.
+uint64_t packedLevelHalves(const InternalLevel& level, PackedLevelForm form);
 
 /// Packs a root block position into a key (kRootKeyBits = 21 bits each; positions < 2^21).
 constexpr uint64_t kRootKeyAxisMask = (uint64_t(1) << kRootKeyBits) - 1;

@@ -3,7 +3,6 @@
 #pragma once
 
 #include <cstdint>
-#include <optional>
 #include <vector>
 
 #include "cpvs/dag/dag.h"
@@ -24,9 +23,8 @@ struct NodePool {
   std::vector<InternalLevel> levels;  // as many as the finest DAG has
   std::vector<Root> roots;
 
-  /// Bytes of the node data, as Dag::bytes() counts them, level 0 by 16-bit leaf index
-  /// when `compact` (by default when the leaves allow it, as packPool packs them).
-  uint64_t bytes(std::optional<bool> compact = std::nullopt) const;
+  /// Bytes of the node data, as Dag::bytes() counts them, in packed layout `version`.
+  uint64_t bytes(uint32_t version = kPackedLayoutVersion) const;
 };
 
 /// The union of complete DAGs (one root each; any resolutions): leaves and nodes equal in
@@ -36,7 +34,7 @@ struct NodePool {
 NodePool shareNodes(const std::vector<const Dag*>& dags);
 
 /// Bytes of the nodes root `root` reaches: what its DAG alone would hold, compressed, in
-/// the pool's layout (`compact` as for NodePool::bytes).
-uint64_t reachableBytes(const NodePool& pool, size_t root, std::optional<bool> compact = std::nullopt);
+/// the pool's layout of `version` (its references as wide as the whole pool's need).
+uint64_t reachableBytes(const NodePool& pool, size_t root, uint32_t version = kPackedLayoutVersion);
 
 }  // namespace cpvs

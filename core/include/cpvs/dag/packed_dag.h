@@ -18,20 +18,20 @@ namespace cpvs {
 
 /// The packed layout of a pool of complete DAGs (node_pool.h): one header per root at
 /// word 48 k, each root's pointer grid after the headers in root order, then the shared
-/// nodes (top level first) and leaves. Every header's offsets are into the whole array;
-/// its levels are the pool's below its root, its leaves the pool's. One root gives
-/// exactly the layout of a single DAG. Each root's pointer grid has its gridLevels levels
-/// (the most by default). Level-0 nodes name their leaves by 16-bit index when `compact`
-/// (by default when the leaves allow it: compactLeafRefs). InputError beyond 2^32 words
-/// (16 GiB).
+/// nodes (top level first) and leaves. Every header lists the pool's levels; offsets are
+/// into the whole array. One root gives exactly the layout of a single DAG. Each root's
+/// pointer grid has its gridLevels levels (the most by default). `version` is
+/// kPackedLayoutVersion but in tests of the older layouts (1, 2: their headers list their
+/// own levels; 2 needs at most 65,536 leaves). InputError beyond 2^32 words (16 GiB).
 std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::vector<InternalLevel>& levels,
-                               const std::vector<NodePool::Root>& roots, std::optional<bool> compact = std::nullopt);
-/// Whether a packed array's level-0 nodes name their leaves by 16-bit index (its first
-/// header's leafRefs; false for an array too short to hold one).
-bool namesLeavesByIndex(const std::vector<uint32_t>& words);
-/// The pool that packPool packed into `words` for `rootCount` roots, after checking every
-/// header, code, offset and grid entry: packing it again must give exactly `words`.
-/// InputError naming what is wrong otherwise.
+                               const std::vector<NodePool::Root>& roots, uint32_t version = kPackedLayoutVersion);
+/// The layout version of a packed array (its first header's; 0 for an array too short to
+/// hold one).
+uint32_t packedLayoutVersion(const std::vector<uint32_t>& words);
+/// The pool that packPool packed into `words` for `rootCount` roots, in any layout version
+/// it reads (1 to kPackedLayoutVersion), after checking every header, code, offset and grid
+/// entry: packing it again in that version must give exactly `words`. InputError naming
+/// what is wrong otherwise.
 NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t rootCount);
 
 /// One array of 32-bit words: header, pointer grid, internal nodes (code word, then the
@@ -51,13 +51,14 @@ class PackedDag {
 
   /// Adopts the words of a packed section as they were read, after checking every field,
   /// code, offset and grid entry: the words must be exactly what packing the DAG they
-  /// describe gives. The DAG is returned in `dag` (levels as Dag holds them, no hashes).
-  /// InputError naming what is wrong otherwise.
+  /// describe gives. An older layout (version 1 or 2) is packed again as today's. The DAG
+  /// is returned in `dag` (levels as Dag holds them, no hashes). InputError naming what is
+  /// wrong otherwise.
   static PackedDag fromWords(std::vector<uint32_t> words, Dag& dag);
 
   const PackedHeader& header() const { return header_; }
   int log2Resolution() const { return int(header_.log2Resolution); }
-  /// Bytes of the node data (8 per leaf, 4 per node word), as Dag::bytes() counts them.
+  /// Bytes of the node data (8 per leaf, 2 per node half-word), as Dag::bytes() counts them.
   uint64_t bytes() const { return nodeBytes_; }
   /// Bytes of the whole array, header and pointer grid included: what a GPU holds.
   uint64_t arrayBytes() const { return words_->size() * 4; }
@@ -78,19 +79,23 @@ class PackedDag {
       const int side = log2Resolution() - int(header_.gridLevels);
       return {at == kGridShadowed ? ~uint64_t{0} : 0, side, side, true};
     }
+    // `at` is a node's half-word offset in its level, then below level 0 a leaf's index.
     for (int level = header_.cellLevel(); level >= 0; --level) {
-      CPVS_DCHECK(at < words_->size());
-      const uint32_t codes = w[at];
+      const uint32_t* nodes = w + header_.levelWord[level];
+      CPVS_DCHECK(header_.levelWord[level] + at / 2 < words_->size());
+      const uint32_t codes = halfWord(nodes, at);
       const int c = childOfVoxel(level, x, y, z);
       const uint32_t code = childCode(codes, c);
       // A node of level l is 2^(l+3) a side; its children half that, but level 0's are
       // its 8x8x1 depth slices.
       if (code != kRef) return {code == kShadowed ? ~uint64_t{0} : 0, level + 2 + (level == 0), level == 0 ? 0 : level + 2, true};
       const uint32_t rank = uint32_t(refRank(codes, c));
-      at = level == 0 && header_.leafRefs ? compactLeafWord(w, at, rank, header_.leafWord) : w[at + 1 + rank];
+      const bool wide = (header_.wideRefs >> level) & 1;
+      at = packedRef(nodes, at + 1 + (rank << uint32_t(wide)), wide);
     }
-    CPVS_DCHECK(at + 1 < words_->size());
-    return {uint64_t(w[at]) | uint64_t(w[at + 1]) << 32, 3, 0, false};
+    const uint32_t* leaf = w + header_.leafWord + 2 * uint64_t(at);
+    CPVS_DCHECK(header_.leafWord + 2 * uint64_t(at) + 1 < words_->size());
+    return {uint64_t(leaf[0]) | uint64_t(leaf[1]) << 32, 3, 0, false};
   }
   /// The 8x8 shadow mask (bit ty*8+tx set = shadowed) of the leaf slice holding voxel
   /// (x, y, z), each < 2^log2Resolution; all ones or zeros inside a homogeneous node. One

@@ -1,21 +1,29 @@
 // The packed DAG as one flat array of 32-bit words: the layout that a lookup walks on the
-// CPU, that the .cpvs file stores (format version 2) and that a GPU buffer holds as it
-// is. Everything a walk needs sits in the array, addressed by word offsets from its
-// start; the shader include (runtime/shaders) is generated from this header and
-// child_codes.h, so the two cannot drift.
+// CPU, that the .cpvs file stores and that a GPU buffer holds as it is. Everything a walk
+// needs sits in the array; the shader include (runtime/shaders) is generated from this
+// header and child_codes.h, so the two cannot drift.
 //
 //   [PackedHeader][pointer grid: 8^gridLevels words][nodes, top level first][leaves]
 //
-// An internal node is its code word (child_codes.h) followed by one word per kRef child:
-// the word offset of that child (a node one level down; for level 0, a leaf). In a pool of
-// at most kMaxCompactLeaves leaves (header field leafRefs = 1) a level-0 node is 16-bit
-// half-words instead: its codes in the low half of its first word, then the index of each
-// kRef child's leaf, low half first, the last word padded with zero; its 8 slices
-// mostly differ, and the half-words halve the level that holds most of a DAG's bytes. A leaf is
-// two words, the low and high halves of its 8x8 mask, at an even offset, so that a GPU
-// binding of an even number of words never splits one. The pointer grid answers the top
-// `gridLevels` levels in one read (seed 000 §6.3): entry (cx, cy, cz) holds the node of
-// level cellLevel() that covers cell (cx, cy, cz), or kGridLit / kGridShadowed.
+// Layout version 3 (what is written): the nodes are 16-bit half-words. A node is its codes
+// (child_codes.h) in one half-word, then one reference per kRef child, in child order: the
+// child's half-word offset from the start of the level below, or below level 0 its leaf's
+// index. A level's references take one half-word when what they name fits 16 bits (the
+// level below holds at most 65,536 half-words, or there are at most 65,536 leaves), else
+// two, low half first (header field wideRefs, a bit per level); each level starts at a word.
+// Most levels of a real DAG name a level below of more than 65,536 half-words, so the
+// gain over a word per code and per reference is the code's half-word and, near the top
+// and at level 0 of smaller pools, half of every reference.
+// A leaf is two words, the low and high halves of its 8x8 mask, at an even offset, so
+// that a GPU binding of an even number of words never splits one. The pointer grid
+// answers the top `gridLevels` levels in one read (seed 000 §6.3): entry (cx, cy, cz)
+// holds the half-word offset, in level cellLevel(), of the node that covers cell
+// (cx, cy, cz), or kGridLit / kGridShadowed.
+//
+// Versions 1 and 2 (arrays written before version 3; read, and packed again as version 3):
+// a code word and one word per reference, the child's word offset in the array (below
+// level 0 its leaf's word); version 2 names level 0's leaves by 16-bit index in half-words,
+// each node padded to a word.
 #pragma once
 
 #include <cstddef>
@@ -29,17 +37,16 @@ namespace cpvs {
 constexpr int kMaxInternalLevels = kMaxLog2Resolution - 2;
 /// How many levels the pointer grid replaces at most: 32^3 entries, 128 KiB.
 constexpr int kMaxGridLevels = 5;
-/// The newest version of this layout, in every header: 2 for arrays whose level 0 names
-/// leaves by 16-bit index (leafRefs = 1), 1 for the older layout every other array keeps
-/// (an older reader reads those, and refuses the others by their version).
-constexpr uint32_t kPackedLayoutVersion = 2;
+/// The version of this layout that is written, in every header (an older reader refuses
+/// it by its version). Versions 1 and 2 are read (packPool writes them for tests).
+constexpr uint32_t kPackedLayoutVersion = 3;
 /// Pointer-grid entries for cells that are homogeneous (above or at the cell level).
 constexpr uint32_t kGridLit = 0xFFFFFFFFu;
 constexpr uint32_t kGridShadowed = 0xFFFFFFFEu;
 
 /// Word 0 of the array. Plain 32-bit words only, so that a shader reads field k as word k.
 struct PackedHeader {
-  uint32_t layoutVersion;   // 2 when leafRefs, else 1 (kPackedLayoutVersion)
+  uint32_t layoutVersion;   // kPackedLayoutVersion (1 or 2 in an older array)
   uint32_t log2Resolution;  // the grid is 2^log2Resolution voxels a side
   uint32_t internalLevels;  // L = log2Resolution - 2: levels 0 (8^3 nodes) .. L-1 (the root)
   uint32_t gridLevels;      // G = min(kMaxGridLevels, L - 1): the grid is 2^G cells a side
@@ -48,10 +55,14 @@ struct PackedHeader {
   uint32_t leafCount;
   uint32_t wordCount;       // words of the whole array, header included (even)
   uint32_t rootCode;        // the root: kLit, kShadowed, or kRef at rootWord
-  uint32_t rootWord;
-  uint32_t levelWord[kMaxInternalLevels];   // first word of level l (l < L; 0 beyond)
-  uint32_t levelNodes[kMaxInternalLevels];  // nodes of level l
-  uint32_t leafRefs;        // 1: level-0 nodes name leaves by 16-bit index (compactLeafRefs); 0: by word offset
+  uint32_t rootWord;        // the root's half-word offset in level L - 1 (before version 3: its word)
+  // First word and node count of level l, for every level of the pool, the same in every
+  // header of a pool (before version 3: the header's own levels l < L only); 0 beyond.
+  uint32_t levelWord[kMaxInternalLevels];
+  uint32_t levelNodes[kMaxInternalLevels];
+  // Bit l set: level l names its children by two half-words (wideRefsInto). Before version
+  // 3: 1 in version 2 (level 0 names leaves by 16-bit index), 0 in version 1.
+  uint32_t wideRefs;
   uint32_t reserved;        // zero
 
   /// The level of the nodes the grid points at: their size is the cell's.
@@ -63,19 +74,31 @@ static_assert(sizeof(PackedHeader) == kPackedHeaderWords * 4, "the header is 48 
 static_assert(offsetof(PackedHeader, levelWord) == 40 && offsetof(PackedHeader, levelNodes) == 112,
               "the shader include reads the header by these word offsets");
 
-/// The most leaves a pool may hold for its level-0 nodes to name them by 16-bit index.
-constexpr uint64_t kMaxCompactLeaves = 65536;
-constexpr bool compactLeafRefs(uint64_t leafCount) { return leafCount <= kMaxCompactLeaves; }
-/// Words of an internal node of `level` with `refs` kRef children: one code word and one
-/// word per child, or at level 0 of a compact pool one half-word each.
-constexpr uint32_t packedNodeWords(int level, uint32_t refs, bool compact) {
-  return level == 0 && compact ? (refs + 2) / 2 : 1 + refs;
-}
-/// The word offset of the leaf that kRef child `rank` of the level-0 node at word `at`
-/// names in a compact pool whose leaves start at leafWord.
-constexpr uint32_t compactLeafWord(const uint32_t* w, uint32_t at, uint32_t rank, uint32_t leafWord) {
-  const uint32_t half = 1 + rank;
-  return leafWord + 2 * ((w[at + half / 2] >> (16 * (half & 1))) & 0xFFFFu);
+/// The most half-words a level (or leaves) may hold for the references into it to be 16-bit.
+constexpr uint64_t kMaxNarrowRefTargets = 65536;
+/// Whether references into `targets` half-words of a level (or `targets` leaves) take two
+/// half-words.
+constexpr bool wideRefsInto(uint64_t targets) { return targets > kMaxNarrowRefTargets; }
+
+/// How one level of a packed array holds its nodes, in half-words: the codes, then
+/// refHalves per reference; before version 3 each node is whole words.
+struct PackedLevelForm {
+  uint32_t codeHalves = 1;  // 2 before version 3: a code word
+  uint32_t refHalves = 1;   // 1 or 2
+  bool wordAligned = false;
+  constexpr uint64_t nodeHalves(uint64_t refs) const {
+    const uint64_t h = codeHalves + refs * refHalves;
+    return wordAligned ? h + (h & 1) : h;
+  }
+};
+
+/// Half-word p of the words from w (low half first).
+constexpr uint32_t halfWord(const uint32_t* w, uint32_t p) { return (w[p >> 1] >> (16 * (p & 1))) & 0xFFFFu; }
+/// The reference at half-word p of the words from w: one half-word, or two, low half first.
+constexpr uint32_t packedRef(const uint32_t* w, uint32_t p, bool wide) {
+  if (!wide) return halfWord(w, p);
+  const uint32_t lo = w[p >> 1];
+  return (p & 1) == 0 ? lo : lo >> 16 | w[(p >> 1) + 1] << 16;
 }
 
 /// Pointer-grid levels for a grid of 2^log2Resolution.
@@ -90,8 +113,9 @@ constexpr uint32_t gridCell(int log2Resolution, int gridLevels, uint64_t x, uint
   return uint32_t((((z >> shift) << gridLevels | (y >> shift)) << gridLevels) | (x >> shift));
 }
 
-static_assert(packedNodeWords(0, 1, true) == 1 && packedNodeWords(0, 2, true) == 2 && packedNodeWords(0, 8, true) == 5 &&
-              packedNodeWords(0, 8, false) == 9 && packedNodeWords(1, 8, true) == 9);
+static_assert(PackedLevelForm{}.nodeHalves(8) == 9 && PackedLevelForm{1, 2, false}.nodeHalves(3) == 7 &&
+              PackedLevelForm{1, 1, true}.nodeHalves(2) == 4 && PackedLevelForm{2, 2, true}.nodeHalves(1) == 4);
+static_assert(!wideRefsInto(65536) && wideRefsInto(65537));
 static_assert(packedGridLevels(3) == 0 && packedGridLevels(8) == 5 && packedGridLevels(20) == 5);
 static_assert(gridCell(12, 5, 4095, 0, 128) == (1u << 10) + 31);
 
