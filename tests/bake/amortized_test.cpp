@@ -80,6 +80,18 @@ TEST(AmortizedBake, ZeroBudgetsRunOneUnitPerStep) {
   EXPECT_EQ(bake.stats().units, steps);
   EXPECT_GE(steps, 128u / 8 + 5);  // 16 stripes, then pyramid, insert, compress, merge, final
   EXPECT_EQ(bake.tilesDone(), bake.tileCount());
+  // Every unit counted once under its kind, each of which outlasts a budget of zero.
+  std::vector<std::string> kinds;
+  uint64_t units = 0;
+  for (const auto& k : bake.stats().unitKinds) {
+    kinds.push_back(k.name);
+    units += k.count;
+    EXPECT_EQ(k.overBudget, k.count) << k.name;
+    EXPECT_GE(k.totalSeconds, k.longestSeconds);
+    EXPECT_LE(k.longestSeconds, bake.stats().longestUnitSeconds);
+  }
+  EXPECT_EQ(units, steps);
+  EXPECT_EQ(kinds, (std::vector<std::string>{"render and masks", "pyramid", "insert", "compress", "merge", "final merge and roots"}));
   EXPECT_TRUE(bake.step(0ns));  // done stays done
   testing::expectSameDag(bakeGrid(prepared, o), bake.takeResult());
   EXPECT_THROW(bake.takeResult(), std::logic_error);

@@ -135,6 +135,12 @@ bool AmortizedBake::step(std::chrono::nanoseconds budget) {
       stats_.longestUnitSeconds = seconds;
       stats_.longestUnit = name;
     }
+    auto kind = std::find_if(stats_.unitKinds.begin(), stats_.unitKinds.end(), [&](const auto& k) { return k.name == name; });
+    if (kind == stats_.unitKinds.end()) kind = stats_.unitKinds.insert(kind, Stats::UnitKind{name});
+    ++kind->count;
+    kind->overBudget += seconds * 1e9 > double(budget.count());
+    kind->longestSeconds = std::max(kind->longestSeconds, seconds);
+    kind->totalSeconds += seconds;
   } while (!done() && Clock::now() - start < budget);
   ++stats_.steps;
   stats_.longestStepSeconds = std::max(stats_.longestStepSeconds, secondsBetween(start, Clock::now()));

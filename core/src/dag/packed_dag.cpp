@@ -281,6 +281,11 @@ PackedDag::PackedDag(std::shared_ptr<const std::vector<uint32_t>> pool, size_t r
   w_ = words_->data();
   headerWord_ = uint32_t(kPackedHeaderWords * root);
   std::memcpy(&header_, w_ + headerWord_, sizeof header_);
+  CPVS_CHECK(header_.layoutVersion == kPackedLayoutVersion);
+  for (int l = 0; l < int(header_.internalLevels); ++l) {
+    const uint32_t wide = (header_.wideRefs >> l) & 1;
+    levels_[l] = {w_ + header_.levelWord[l], wide, wide ? 0xFFFFFFFFu : 0xFFFFu};
+  }
 }
 
 PackedDag::PackedDag(const Dag& dag) {

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "cpvs/bake/bake_scene.h"
 #include "cpvs/bake/column_masks.h"
@@ -43,6 +44,15 @@ class AmortizedBake {
     uint64_t steps = 0, units = 0;
     double longestStepSeconds = 0, longestUnitSeconds = 0;
     std::string longestUnit;  // "insert", "render and masks", ...
+    /// Each kind of unit, in the order first run: how many ran, how many alone took
+    /// longer than their step's whole budget (what keeps a step over it: a unit is never
+    /// split), their longest and their total.
+    struct UnitKind {
+      std::string name;
+      uint64_t count = 0, overBudget = 0;
+      double longestSeconds = 0, totalSeconds = 0;
+    };
+    std::vector<UnitKind> unitKinds;
   };
   const Stats& stats() const { return stats_; }
   const StageTimes& stageTimes() const { return times_; }

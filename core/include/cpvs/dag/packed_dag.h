@@ -2,6 +2,7 @@
 // walk, the .cpvs file stores and a GPU buffer takes as it is.
 #pragma once
 
+#include <bit>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -39,6 +40,8 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t rootCount);
 /// usually one cache line per level below the grid, where Dag's levels spread a node
 /// over three arrays (codes, childBegin, children). A light bundle's DAGs share one
 /// array (packPool), each with its own header.
+static_assert(std::endian::native == std::endian::little, "the walk reads half-words by their byte offset");
+
 class PackedDag {
  public:
   PackedDag() : PackedDag(emptyDag()) {}
@@ -80,18 +83,26 @@ class PackedDag {
       return {at == kGridShadowed ? ~uint64_t{0} : 0, side, side, true};
     }
     // `at` is a node's half-word offset in its level, then below level 0 a leaf's index.
+    // Half-word h of a level lies at its byte 2h (little-endian words, low half first), so
+    // a walk reads its codes and references with plain 16- and 32-bit loads, as it read
+    // words before: no shift on the half-word's parity.
     for (int level = header_.cellLevel(); level >= 0; --level) {
-      const uint32_t* nodes = w + header_.levelWord[level];
-      CPVS_DCHECK(header_.levelWord[level] + at / 2 < words_->size());
-      const uint32_t codes = halfWord(nodes, at);
+      const LevelWalk& lw = levels_[level];
+      CPVS_DCHECK(size_t(lw.nodes - w) + at / 2 < words_->size());
+      const auto* bytes = reinterpret_cast<const unsigned char*>(lw.nodes);
+      uint16_t codes;
+      std::memcpy(&codes, bytes + 2 * uint64_t(at), 2);
       const int c = childOfVoxel(level, x, y, z);
       const uint32_t code = childCode(codes, c);
       // A node of level l is 2^(l+3) a side; its children half that, but level 0's are
       // its 8x8x1 depth slices.
       if (code != kRef) return {code == kShadowed ? ~uint64_t{0} : 0, level + 2 + (level == 0), level == 0 ? 0 : level + 2, true};
-      const uint32_t rank = uint32_t(refRank(codes, c));
-      const bool wide = (header_.wideRefs >> level) & 1;
-      at = packedRef(nodes, at + 1 + (rank << uint32_t(wide)), wide);
+      // The reference: two half-words read at once, the second masked off when it is one.
+      // A reference never lies in the array's last half-word (the leaves follow the nodes).
+      const uint32_t p = at + 1 + (uint32_t(refRank(codes, c)) << lw.wide);
+      uint32_t ref;
+      std::memcpy(&ref, bytes + 2 * uint64_t(p), 4);
+      at = ref & lw.mask;
     }
     const uint32_t* leaf = w + header_.leafWord + 2 * uint64_t(at);
     CPVS_DCHECK(header_.leafWord + 2 * uint64_t(at) + 1 < words_->size());
@@ -121,6 +132,14 @@ class PackedDag {
   uint32_t headerWord_ = 0;
   PackedHeader header_{};  // a copy of the header, read without aliasing the array
   uint64_t nodeBytes_ = 0;
+  // What a walk needs of each level, from the header: where its nodes start, and its
+  // references' width (wide: 1 for two half-words) and mask.
+  struct LevelWalk {
+    const uint32_t* nodes = nullptr;
+    uint32_t wide = 0;
+    uint32_t mask = 0xFFFFu;
+  };
+  LevelWalk levels_[kMaxInternalLevels];
 };
 
 }  // namespace cpvs

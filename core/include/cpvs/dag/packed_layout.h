@@ -92,15 +92,6 @@ struct PackedLevelForm {
   }
 };
 
-/// Half-word p of the words from w (low half first).
-constexpr uint32_t halfWord(const uint32_t* w, uint32_t p) { return (w[p >> 1] >> (16 * (p & 1))) & 0xFFFFu; }
-/// The reference at half-word p of the words from w: one half-word, or two, low half first.
-constexpr uint32_t packedRef(const uint32_t* w, uint32_t p, bool wide) {
-  if (!wide) return halfWord(w, p);
-  const uint32_t lo = w[p >> 1];
-  return (p & 1) == 0 ? lo : lo >> 16 | w[(p >> 1) + 1] << 16;
-}
-
 /// Pointer-grid levels for a grid of 2^log2Resolution.
 constexpr int packedGridLevels(int log2Resolution) {
   const int levels = log2Resolution - 2;
