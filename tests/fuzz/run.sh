@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the fuzz targets with clang (libFuzzer + ASan + UBSan) into build/fuzz and runs
 # each for SECONDS (default 15). Seeds: small .cpvs and .dmh files made by the main build's `cpvs`
-# (the current format version, one with translucent casters) when it exists, and a version 1 file from tests/io/data. A crash or sanitizer report fails the run and leaves the
+# (the current format version, one with translucent casters) when it exists, and version 1 and 2 files from tests/io/data. A crash or sanitizer report fails the run and leaves the
 # input in build/fuzz/artifacts/.
 #   bash tests/fuzz/run.sh 15      # the bounded run of the test suite
 #   bash tests/fuzz/run.sh 3600    # a longer run
@@ -19,10 +19,11 @@ fi
 ninja -C "$out" -j "${CPVS_JOBS:-2}" >/dev/null
 mkdir -p "$out/corpus-cpvs" "$out/corpus-scene" "$out/artifacts"
 cli=build/bin/cpvs
-if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64.cpvs" ]; then
-  "$cli" bake city:1 --sun-dir 0.3,-1,0.2 -r 64 --tile-size 64 -q -o "$out/corpus-cpvs/seed-city64.cpvs" >/dev/null
-  "$cli" bake city:1 --sun-dir 0,-1,0 -r 32 --no-zstd -q -o "$out/corpus-cpvs/seed-city32-raw.cpvs" >/dev/null
-  "$cli" bake city:1 --sun-dir 0.1,-1,0.5 -r 8 --no-zstd -q -o "$out/corpus-cpvs/seed-city8-raw.cpvs" >/dev/null
+# Named by the packed layout they hold (3), so that a corpus from before gets them too.
+if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-l3-city64.cpvs" ]; then
+  "$cli" bake city:1 --sun-dir 0.3,-1,0.2 -r 64 --tile-size 64 -q -o "$out/corpus-cpvs/seed-l3-city64.cpvs" >/dev/null
+  "$cli" bake city:1 --sun-dir 0,-1,0 -r 32 --no-zstd -q -o "$out/corpus-cpvs/seed-l3-city32-raw.cpvs" >/dev/null
+  "$cli" bake city:1 --sun-dir 0.1,-1,0.5 -r 8 --no-zstd -q -o "$out/corpus-cpvs/seed-l3-city8-raw.cpvs" >/dev/null
 fi
 if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-city64.dmh" ]; then
   # DAG-MH files: a one-treelet map, one with inner nodes and a skip list.
@@ -44,7 +45,9 @@ if [ -x "$cli" ] && [ ! -f "$out/corpus-cpvs/seed-glass-raw.cpvs" ]; then
   "$cli" bake "$glass/glass.obj" --sun-dir 0.2,-1,0.1 -r 16 --no-zstd -q -o "$out/corpus-cpvs/seed-glass-raw.cpvs" >/dev/null
   rm -rf "$glass"
 fi
+# Older files: format 1, and format 2 holding packed layout 1.
 cp -n tests/io/data/city-256-v1.cpvs "$out/corpus-cpvs/seed-city256-v1.cpvs"
+cp -n tests/io/data/city-256-v2.cpvs "$out/corpus-cpvs/seed-city256-v2.cpvs"
 for target in fuzz_cpvs_reader fuzz_scene_input; do
   corpus="$out/corpus-${target#fuzz_}"
   [ "$target" = fuzz_cpvs_reader ] && corpus="$out/corpus-cpvs"

@@ -11,7 +11,7 @@ namespace cpvs {
 
 namespace {
 
-// A node's content in the pool: its code word and its children's pool indices.
+// A node's content in the pool: its codes and its children's pool indices.
 struct NodeKey {
   uint16_t codes;
   std::vector<uint32_t> children;

@@ -78,10 +78,12 @@ std::vector<uint32_t> packPool(const std::vector<uint64_t>& leaves, const std::v
     start[size_t(l)].resize(level.size());
     uint64_t at = 0;
     for (size_t i = 0; i < level.size(); ++i) {
-      if (at >= kGridShadowed)
-        throw InputError("packing a DAG for lookups: level " + std::to_string(l) + " holds more than 2^32 half-words");
       start[size_t(l)][i] = uint32_t(at);
       at += forms[size_t(l)].nodeHalves(level.refCount(i));
+      // Every half-word of a node, not only its start, lies below the grid's sentinels, so
+      // the walks' 32-bit half-word arithmetic within a node never wraps.
+      if (at > kGridShadowed)
+        throw InputError("packing a DAG for lookups: level " + std::to_string(l) + " holds more than 2^32 half-words");
       total = levelWord[size_t(l)] + (at + 1) / 2;
       fits();
     }
@@ -214,7 +216,8 @@ NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t N) {
       named = &hk;
     }
     if (named->levelWord[l] != at) invalid("level " + std::to_string(l) + " does not start where the one above ends");
-    if (named->levelNodes[l] > h0.wordCount) invalid("level " + std::to_string(l) + " counts more nodes than words");
+    if (named->levelNodes[l] > leafHalf - 2 * at)  // a node holds at least a half-word
+      invalid("level " + std::to_string(l) + " counts more nodes than the half-words before the leaves");
     const PackedLevelForm form = forms[size_t(l)];
     InternalLevel& level = pool.levels[size_t(l)];
     starts[size_t(l)].reserve(named->levelNodes[l]);

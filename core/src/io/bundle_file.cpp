@@ -28,9 +28,11 @@ LightBundle withPointerGrids(const LightBundle& bundle, int levels) {
   NodePool pool = parsePackedPool(*bundle.pool, bundle.grids.size());
   for (NodePool::Root& r : pool.roots) r.gridLevels = std::min(levels, packedGridLevels(r.log2Resolution));
   LightBundle b = bundle;
-  // A bundle's pool is in today's layout (decodeBundle packs an older one again), so the
-  // grids' recorded bytes remain true.
+  // In today's layout (a pool of an older one, built in memory, is packed again), and its
+  // bytes counted in it.
   b.pool = std::make_shared<const std::vector<uint32_t>>(packPool(pool.leaves, pool.levels, pool.roots));
+  for (size_t k = 0; k < b.grids.size(); ++k) b.grids[k].bytes = reachableBytes(pool, k);
+  b.poolBytes = pool.bytes();
   return b;
 }
 
@@ -206,7 +208,11 @@ LightBundle decodeBundle(const uint8_t* data, size_t size, const std::string& so
              std::to_string(held));
   }
   if (packedLayoutVersion(words) < kPackedLayoutVersion) {  // walked in today's layout
-    words = packPool(pool.leaves, pool.levels, pool.roots);
+    try {
+      words = packPool(pool.leaves, pool.levels, pool.roots);
+    } catch (const InputError& e) {
+      h.fail(e.what());
+    }
     for (uint32_t k = 0; k < gridCount; ++k) b.grids[k].bytes = reachableBytes(pool, k);
   }
   b.poolBytes = pool.bytes();

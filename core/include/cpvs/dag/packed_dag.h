@@ -35,8 +35,9 @@ uint32_t packedLayoutVersion(const std::vector<uint32_t>& words);
 /// what is wrong otherwise.
 NodePool parsePackedPool(const std::vector<uint32_t>& words, size_t rootCount);
 
-/// One array of 32-bit words: header, pointer grid, internal nodes (code word, then the
-/// word offsets of its kRef children), leaves as word pairs. A lookup reads one array,
+/// One array of 32-bit words: header, pointer grid, internal nodes (in half-words: the
+/// codes, then each kRef child's offset in the level below, in one or two half-words),
+/// leaves as word pairs. A lookup reads one array,
 /// usually one cache line per level below the grid, where Dag's levels spread a node
 /// over three arrays (codes, childBegin, children). A light bundle's DAGs share one
 /// array (packPool), each with its own header.
