@@ -154,6 +154,36 @@ TEST(DagMerge, IsSymmetric) {
   EXPECT_THROW(mergeDags(a, a), std::invalid_argument);
 }
 
+// A large merge cut into parts, each merged on its own core, gives the bytes of one sweep
+// and of compressing the two DAGs laid end to end (the reference: compression alone), for
+// parts of every size down to one node.
+TEST(DagMerge, PartsOfAnySizeGiveTheOneSweepsBytes) {
+  // Noisy ramps that repeat every 48 texels: many distinct nodes, many shared by the tiles.
+  const uint32_t R = 128;
+  TexelSlices d = syntheticSlices(R, false, 11);
+  for (uint32_t y = 0; y < R; ++y)
+    for (uint32_t x = 0; x < R; ++x) {
+      const uint32_t px = x % 48, py = y % 48;
+      const uint32_t z = (px + py / 2 + ((px * 73856093u) ^ (py * 19349663u)) % 11) % (R - 8);
+      d.firstUndefined[y * R + x] = d.firstShadowed[y * R + x] = std::min(d.firstUndefined[y * R + x], z);
+    }
+  Dag a = testing::buildTile(d, 7, 6, 0, 0, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
+  Dag b = testing::buildTile(d, 7, 6, 1, 0, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
+  Dag c = testing::buildTile(d, 7, 6, 0, 1, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
+  const Dag ab = mergeDags(a, b, CompressMode::TopDown, SIZE_MAX);
+  ASSERT_GT(ab.leaves.size(), 500u);
+  ASSERT_LT(ab.leaves.size(), a.leaves.size() + b.leaves.size());  // some collapse
+  Dag concatenated = mergeDags(a, b, CompressMode::None);
+  computeHashes(concatenated, HashKind::Xxh3);
+  expectSameDag(ab, compressDag(std::move(concatenated), CompressMode::TopDown));
+  const Dag abc = mergeDags(ab, c, CompressMode::TopDown, SIZE_MAX);
+  for (size_t part : {size_t(1), size_t(2), size_t(7), size_t(100), size_t(5000)}) {
+    SCOPED_TRACE(part);
+    expectSameDag(mergeDags(a, b, CompressMode::TopDown, part), ab);
+    expectSameDag(mergeDags(c, ab, CompressMode::TopDown, part), abc);
+  }
+}
+
 CpvsArtifact sampleArtifact() {
   TexelSlices d = syntheticSlices(64, true, 9);
   CpvsArtifact art;

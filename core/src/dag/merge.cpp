@@ -1,5 +1,8 @@
 #include "cpvs/dag/merge.h"
 
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -76,9 +79,136 @@ Dag concatenate(const Dag& a, const Dag& b) {
   return out;
 }
 
+// One hash range of a level being merged: the inputs' nodes in it, merged on their own.
+struct MergePart {
+  size_t a0 = 0, a1 = 0, b0 = 0, b1 = 0;
+  std::vector<uint64_t> picks;  // per node it gives: the input node copied (kFromB | index in b, or index in a)
+  uint64_t children = 0;        // the child references of those nodes
+  size_t nodeOffset = 0;        // where its nodes start in the merged level
+  uint64_t childOffset = 0;     // where their references start
+};
+
+constexpr uint64_t kFromB = uint64_t(1) << 32;
+
+// Merges level l (-1 = leaves) of a and b into `out`, their children already merged and
+// renumbered through childA and childB; mapA and mapB receive where each input node went.
+// Equal hashes never straddle two parts (each part is a range of hashes), so the parts
+// merge apart and their outputs, laid end to end, are the one sweep's: the same bytes for
+// any number of parts.
+void mergeLevel(const Dag& a, const Dag& b, int l, const std::vector<uint32_t>& childA,
+                const std::vector<uint32_t>& childB, size_t partNodes, Dag& out, std::vector<uint32_t>& mapA,
+                std::vector<uint32_t>& mapB) {
+  const auto& ha = l < 0 ? a.leafHashes : a.levelHashes[size_t(l)];
+  const auto& hb = l < 0 ? b.leafHashes : b.levelHashes[size_t(l)];
+  const size_t na = l < 0 ? a.leaves.size() : a.levels[size_t(l)].size();
+  const size_t nb = l < 0 ? b.leaves.size() : b.levels[size_t(l)].size();
+  mapA.assign(na, 0);
+  mapB.assign(nb, 0);
+
+  const size_t count = std::clamp<size_t>((na + nb) / std::max<size_t>(partNodes, 1), 1, 1024);
+  std::vector<MergePart> parts(count);
+  const auto& big = na >= nb ? ha : hb;
+  for (size_t k = 0; k < count; ++k) {
+    MergePart& p = parts[k];
+    p.a0 = k == 0 ? 0 : parts[k - 1].a1;
+    p.b0 = k == 0 ? 0 : parts[k - 1].b1;
+    if (k + 1 == count) {
+      p.a1 = na;
+      p.b1 = nb;
+    } else {
+      const Hash128 pivot = big[big.size() * (k + 1) / count];
+      p.a1 = size_t(std::lower_bound(ha.begin(), ha.end(), pivot) - ha.begin());
+      p.b1 = size_t(std::lower_bound(hb.begin(), hb.end(), pivot) - hb.begin());
+    }
+  }
+
+  const auto intoA = [&](uint32_t k) { return childA[k]; };
+  const auto intoB = [&](uint32_t k) { return childB[k]; };
+  const auto refs = [&](const Dag& src, size_t i) -> uint64_t { return l < 0 ? 0 : src.levels[size_t(l)].refCount(i); };
+  // Content order with children mapped into the merged level below; each input stays
+  // sorted under it because the maps are monotone.
+  const auto sweep = [&](MergePart& p) {
+    p.picks.reserve((p.a1 - p.a0) + (p.b1 - p.b0));
+    size_t i = p.a0, j = p.b0;
+    while (i < p.a1 || j < p.b1) {
+      int c = i == p.a1 ? 1 : (j == p.b1 ? -1 : 0);
+      if (c == 0) {
+        c = ha[i] < hb[j] ? -1 : (hb[j] < ha[i] ? 1 : compareNodesMapped(a, l, uint32_t(i), intoA, b, uint32_t(j), intoB));
+      }
+      const uint32_t local = uint32_t(p.picks.size());
+      if (c <= 0) {
+        mapA[i] = local;
+        p.picks.push_back(i);
+        p.children += refs(a, i);
+        if (c == 0) mapB[j++] = local;
+        ++i;
+      } else {
+        mapB[j] = local;
+        p.picks.push_back(kFromB | j);
+        p.children += refs(b, j);
+        ++j;
+      }
+    }
+  };
+  // Where each part's nodes go, then the nodes themselves.
+  const auto write = [&](MergePart& p) {
+    for (size_t i = p.a0; i < p.a1; ++i) mapA[i] += uint32_t(p.nodeOffset);
+    for (size_t j = p.b0; j < p.b1; ++j) mapB[j] += uint32_t(p.nodeOffset);
+    size_t n = p.nodeOffset;
+    uint64_t c = p.childOffset;
+    for (const uint64_t pick : p.picks) {
+      const bool fromB = (pick & kFromB) != 0;
+      const Dag& src = fromB ? b : a;
+      const size_t i = size_t(pick & (kFromB - 1));
+      if (l < 0) {
+        out.leaves[n] = src.leaves[i];
+        out.leafHashes[n] = src.leafHashes[i];
+      } else {
+        const InternalLevel& sl = src.levels[size_t(l)];
+        InternalLevel& dl = out.levels[size_t(l)];
+        const std::vector<uint32_t>& childMap = fromB ? childB : childA;
+        dl.codes[n] = sl.codes[i];
+        for (uint32_t k = sl.childBegin[i]; k < sl.childBegin[i + 1]; ++k) dl.children[c++] = childMap[sl.children[k]];
+        dl.childBegin[n + 1] = uint32_t(c);
+        out.levelHashes[size_t(l)][n] = src.levelHashes[size_t(l)][i];
+      }
+      ++n;
+    }
+  };
+  const auto eachPart = [&](const auto& f) {
+    if (count == 1) return f(parts[0]);
+    // Isolated: a thread waiting here must not take up a tile baking beside the merge.
+    tbb::this_task_arena::isolate([&] {
+      tbb::parallel_for(size_t(0), count, [&](size_t k) { f(parts[k]); }, tbb::simple_partitioner());
+    });
+  };
+
+  eachPart(sweep);
+  size_t nodes = 0;
+  uint64_t children = 0;
+  for (MergePart& p : parts) {
+    p.nodeOffset = nodes;
+    p.childOffset = children;
+    nodes += p.picks.size();
+    children += p.children;
+  }
+  if (children > UINT32_MAX) throw std::length_error("mergeDags: more than 2^32 child references in one level");
+  if (l < 0) {
+    out.leaves.resize(nodes);
+    out.leafHashes.resize(nodes);
+  } else {
+    InternalLevel& dl = out.levels[size_t(l)];
+    dl.codes.resize(nodes);
+    dl.childBegin.assign(nodes + 1, 0);
+    dl.children.resize(children);
+    out.levelHashes[size_t(l)].resize(nodes);
+  }
+  eachPart(write);
+}
+
 }  // namespace
 
-Dag mergeDags(const Dag& a, const Dag& b, CompressMode mode) {
+Dag mergeDags(const Dag& a, const Dag& b, CompressMode mode, size_t partNodes) {
   checkShapes(a, b);
   if (mode == CompressMode::None) return concatenate(a, b);
   Dag out;
@@ -86,54 +216,7 @@ Dag mergeDags(const Dag& a, const Dag& b, CompressMode mode) {
   std::vector<uint32_t> childA, childB, mapA, mapB;
   const int levels = int(a.levels.size());
   for (int l = -1; l < levels; ++l) {
-    const auto& ha = l < 0 ? a.leafHashes : a.levelHashes[l];
-    const auto& hb = l < 0 ? b.leafHashes : b.levelHashes[l];
-    size_t na = l < 0 ? a.leaves.size() : a.levels[l].size();
-    size_t nb = l < 0 ? b.leaves.size() : b.levels[l].size();
-    mapA.assign(na, 0);
-    mapB.assign(nb, 0);
-    // Content order with children mapped into the merged level below; each input stays
-    // sorted under it because the maps are monotone.
-    const auto intoA = [&](uint32_t k) { return childA[k]; };
-    const auto intoB = [&](uint32_t k) { return childB[k]; };
-    auto compare = [&](uint32_t i, uint32_t j) -> int {
-      if (ha[i] != hb[j]) return ha[i] < hb[j] ? -1 : 1;
-      return compareNodesMapped(a, l, i, intoA, b, j, intoB);
-    };
-    auto emit = [&](const Dag& src, uint32_t i, const std::vector<uint32_t>& childMap,
-                    const Hash128& h) -> uint32_t {
-      if (l < 0) {
-        out.leaves.push_back(src.leaves[i]);
-        out.leafHashes.push_back(h);
-        return uint32_t(out.leaves.size() - 1);
-      }
-      const InternalLevel& sl = src.levels[l];
-      InternalLevel& dl = out.levels[l];
-      dl.codes.push_back(sl.codes[i]);
-      for (uint32_t k = sl.childBegin[i]; k < sl.childBegin[i + 1]; ++k) dl.children.push_back(childMap[sl.children[k]]);
-      dl.childBegin.push_back(uint32_t(dl.children.size()));
-      out.levelHashes[l].push_back(h);
-      return uint32_t(dl.size() - 1);
-    };
-    if (l >= 0) {
-      out.levels[l].codes.reserve(na + nb);
-      out.levelHashes[l].reserve(na + nb);
-    }
-    size_t i = 0, j = 0;
-    while (i < na || j < nb) {
-      int c = i == na ? 1 : (j == nb ? -1 : compare(uint32_t(i), uint32_t(j)));
-      if (c < 0) {
-        mapA[i] = emit(a, uint32_t(i), childA, ha[i]);
-        ++i;
-      } else if (c > 0) {
-        mapB[j] = emit(b, uint32_t(j), childB, hb[j]);
-        ++j;
-      } else {
-        mapA[i] = mapB[j] = emit(a, uint32_t(i), childA, ha[i]);
-        ++i;
-        ++j;
-      }
-    }
+    mergeLevel(a, b, l, childA, childB, partNodes, out, mapA, mapB);
     childA.swap(mapA);
     childB.swap(mapB);
   }
