@@ -1,0 +1,64 @@
+// The programs' operator new (core/src/base/huge_page_new.cpp): a large block starts on a
+// 2 MiB boundary and its mapping is advised for huge pages; a small one is malloc's.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+// The VmFlags line of the mapping of /proc/self/smaps that holds `p`; empty if none.
+std::string vmFlagsOf(const void* p) {
+  const auto at = reinterpret_cast<uintptr_t>(p);
+  std::ifstream smaps("/proc/self/smaps");
+  std::string line;
+  bool inside = false;
+  while (std::getline(smaps, line)) {
+    uintptr_t begin = 0, end = 0;
+    char dash = 0;
+    std::istringstream range(line);
+    if (range >> std::hex >> begin >> dash >> end && dash == '-' && line.find(' ') != std::string::npos &&
+        line.find(':') > line.find(' ')) {
+      inside = begin <= at && at < end;
+      continue;
+    }
+    if (inside && line.rfind("VmFlags:", 0) == 0) return line;
+  }
+  return "";
+}
+
+// Under AddressSanitizer the sanitizer's operator new is kept: nothing to check there.
+#if !defined(__SANITIZE_ADDRESS__)
+TEST(HugePageNew, LargeBlocksAreAlignedAndAdvisedForHugePages) {
+  std::vector<uint8_t> large(size_t(24) << 20, 1);
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(large.data()) % (size_t(2) << 20), 0u);
+  const std::string flags = vmFlagsOf(large.data());
+  ASSERT_FALSE(flags.empty()) << "no mapping holds the block in /proc/self/smaps";
+  EXPECT_NE(flags.find(" hg"), std::string::npos) << flags;
+  EXPECT_EQ(large[(size_t(24) << 20) - 1], 1);
+
+  // Arrays and the nothrow form go through it too; all of them are freed by delete.
+  std::unique_ptr<uint32_t[]> array(new uint32_t[size_t(2) << 20]);
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(array.get()) % (size_t(2) << 20), 0u);
+  uint64_t* nothrow = new (std::nothrow) uint64_t[size_t(1) << 20];
+  ASSERT_NE(nothrow, nullptr);
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(nothrow) % (size_t(2) << 20), 0u);
+  delete[] nothrow;
+
+  // A small block is malloc's, on its usual alignment.
+  auto small = std::make_unique<std::vector<uint8_t>>(4096, 2);
+  EXPECT_EQ((*small)[4095], 2);
+}
+
+TEST(HugePageNew, AnImpossibleBlockThrowsBadAlloc) {
+  volatile size_t beyondAnyMachine = SIZE_MAX - 4096, beyondThisOne = size_t(1) << 62;  // unknown to the compiler
+  EXPECT_THROW((void)::operator new(beyondAnyMachine), std::bad_alloc);
+  EXPECT_THROW((void)::operator new(beyondThisOne), std::bad_alloc);
+}
+#endif
+
+}  // namespace
