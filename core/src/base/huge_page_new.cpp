@@ -12,7 +12,8 @@
 // Linked into the executables only (cpvs, cpvs-server, cpvs-worker, the tests and
 // benchmarks), never into the runtime library an engine links. Only the one replaceable
 // `operator new(std::size_t)` is replaced: libstdc++'s other forms call it, and every
-// `operator delete` frees with free(), which takes what aligned_alloc and malloc give.
+// `operator delete` frees with free(). A block is malloc's, so its bytes are laid out as
+// before (no alignment of our own, which fragmented malloc's heap).
 // Under AddressSanitizer the sanitizer's own operator new is kept.
 #if !defined(__SANITIZE_ADDRESS__)
 
@@ -26,16 +27,19 @@
 namespace {
 
 constexpr std::size_t kHugePage = std::size_t(2) << 20;
-// Below this a block's rounding to whole huge pages would waste more than it saves.
+// Blocks from here on have at least one whole huge page inside.
 constexpr std::size_t kLargeBlock = std::size_t(4) << 20;
 
 }  // namespace
 
 void* operator new(std::size_t size) {
-  if (size >= kLargeBlock && size <= SIZE_MAX - kHugePage) {
-    const std::size_t rounded = (size + kHugePage - 1) & ~(kHugePage - 1);
-    if (void* p = std::aligned_alloc(kHugePage, rounded)) {
-      (void)madvise(p, rounded, MADV_HUGEPAGE);  // advice only: refused, the pages are small
+  if (size >= kLargeBlock) {
+    if (void* p = std::malloc(size)) {
+      // The whole 2 MiB pages inside the block: only they can be huge, and nothing but
+      // this block lies in them.
+      const uintptr_t begin = (reinterpret_cast<uintptr_t>(p) + kHugePage - 1) & ~uintptr_t(kHugePage - 1);
+      const uintptr_t end = (reinterpret_cast<uintptr_t>(p) + size) & ~uintptr_t(kHugePage - 1);
+      if (end > begin) (void)madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);  // advice only
       return p;
     }
   }
