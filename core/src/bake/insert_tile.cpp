@@ -9,6 +9,53 @@ namespace {
 
 constexpr uint64_t kAllShadowed = ~uint64_t(0);
 
+uint64_t mix(uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
+// The nodes of one level of the tile, by content: a block equal to one built before
+// takes its index instead of a copy. Exact: the content is compared, and children are
+// compared by index, which names one subtree because the level below is shared the same
+// way. Open addressing; a slot holds 32 bits of the content's hash (its place in the
+// table follows from them, so the table can grow without the content) and the index + 1.
+class UniqueTable {
+ public:
+  // The index of the node whose content `equal` recognises, or the one `add()` appends.
+  template <class Equal, class Add>
+  uint32_t find(uint64_t hash, const Equal& equal, const Add& add) {
+    if ((count_ + 1) * 2 > slots_.size()) grow();
+    const uint64_t key = hash >> 32, mask = slots_.size() - 1;
+    for (uint64_t at = mix(key) & mask;; at = (at + 1) & mask) {
+      const uint64_t slot = slots_[at];
+      if (slot == 0) {
+        const uint32_t index = add();
+        slots_[at] = (key << 32) | (uint64_t(index) + 1);
+        ++count_;
+        return index;
+      }
+      if ((slot >> 32) == key && equal(uint32_t(slot) - 1)) return uint32_t(slot) - 1;
+    }
+  }
+
+ private:
+  void grow() {
+    std::vector<uint64_t> old = std::move(slots_);
+    slots_.assign(old.empty() ? 1024 : old.size() * 2, 0);
+    const uint64_t mask = slots_.size() - 1;
+    for (const uint64_t slot : old) {
+      if (slot == 0) continue;
+      uint64_t at = mix(slot >> 32) & mask;
+      while (slots_[at] != 0) at = (at + 1) & mask;
+      slots_[at] = slot;
+    }
+  }
+
+  std::vector<uint64_t> slots_;
+  size_t count_ = 0;
+};
+
 // The last block completed at each (level, x, y), for culling: its depth index, its
 // reference, and a lower bound of the first mask transition strictly behind its start
 // (over its footprint). The next block in depth is identical when that bound reaches the
@@ -31,6 +78,7 @@ class TileInserter {
       : masks_(masks), pyramid_(pyramid), log2Tile_(log2Tile), cull_(cull), out_(out), stats_(stats),
         R_(masks.resolution) {
     if (cull_) {
+      unique_.resize(size_t(log2Tile - 2));
       last_.resize(log2Tile + 1);
       for (int l = 3; l <= log2Tile; ++l) {
         const auto& lv = pyramid_.levels[l - 3];
@@ -98,8 +146,36 @@ class TileInserter {
       codes |= uint16_t(cr.ref.code << (2 * c));
       if (cr.ref.code == kRef) refs[n++] = cr.ref.index;
     }
-    ++stats_.nodesCreated;
-    return {NodeRef{kRef, out_.levels[l - 3].append(codes, refs)}, next};
+    return {NodeRef{kRef, appendNode(l, codes, refs, n)}, next};
+  }
+
+  // With reuse on (cull), a block equal to one built before in this tile shares its node:
+  // the tile's DAG comes out with no repeated subtree, so compression has none to find.
+  uint32_t appendNode(int l, uint16_t codes, const uint32_t* refs, int n) {
+    InternalLevel& lv = out_.levels[size_t(l - 3)];
+    const auto add = [&] {
+      ++stats_.nodesCreated;
+      return lv.append(codes, refs);
+    };
+    if (!cull_) return add();
+    uint64_t h = mix(codes + 1);
+    for (int k = 0; k < n; ++k) h = mix(h + refs[k]);
+    return unique_[size_t(l - 3)].find(
+        h,
+        [&](uint32_t i) {
+          return lv.codes[i] == codes && std::equal(refs, refs + n, lv.children.begin() + lv.childBegin[i]);
+        },
+        add);
+  }
+
+  uint32_t appendLeaf(uint64_t mask) {
+    const auto add = [&] {
+      ++stats_.leavesCreated;
+      out_.leaves.push_back(mask);
+      return uint32_t(out_.leaves.size() - 1);
+    };
+    if (!cull_) return add();
+    return uniqueLeaves_.find(mix(mask), [&](uint32_t i) { return out_.leaves[i] == mask; }, add);
   }
 
   // A node of size 8: its children are the 8 depth slices of one 8x8 column.
@@ -141,16 +217,13 @@ class TileInserter {
         refs[n++] = prevLeaf.index;
         ++stats_.culledLeaves;
       } else {
-        uint32_t index = uint32_t(out_.leaves.size());
-        out_.leaves.push_back(mask);
-        ++stats_.leavesCreated;
+        const uint32_t index = appendLeaf(mask);
         refs[n++] = index;
         prevLeaf = NodeRef{kRef, index};
       }
       prevSame = true;
     }
-    ++stats_.nodesCreated;
-    return {NodeRef{kRef, out_.levels[0].append(codes, refs)}, next};
+    return {NodeRef{kRef, appendNode(3, codes, refs, n)}, next};
   }
 
   const ColumnMasks& masks_;
@@ -161,6 +234,8 @@ class TileInserter {
   InsertStats& stats_;
   uint32_t R_;
   std::vector<std::vector<LastBlock>> last_;
+  std::vector<UniqueTable> unique_;  // per level, with reuse on
+  UniqueTable uniqueLeaves_;
 };
 
 }  // namespace
