@@ -192,7 +192,8 @@ void mergeLevel(const Dag& a, const Dag& b, int l, const std::vector<uint32_t>& 
     nodes += p.picks.size();
     children += p.children;
   }
-  if (children > UINT32_MAX) throw std::length_error("mergeDags: more than 2^32 child references in one level");
+  if (nodes > UINT32_MAX - 1 || children > UINT32_MAX)
+    throw std::length_error("mergeDags: more than 2^32 nodes or child references in one level");
   if (l < 0) {
     out.leaves.resize(nodes);
     out.leafHashes.resize(nodes);

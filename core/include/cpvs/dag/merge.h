@@ -22,8 +22,8 @@ inline constexpr size_t kMergePartNodes = size_t(1) << 16;
 /// std::invalid_argument when both hold the same root key or the shapes differ.
 /// With CompressMode::None the DAGs are concatenated instead (duplicates remain).
 ///
-/// A level of more than `partNodes` nodes is cut into ranges of hashes of about that many
-/// nodes, merged on every core; the bytes do not depend on it.
+/// A level of at least twice `partNodes` nodes is cut into ranges of hashes of about that
+/// many nodes each, merged on every core; the bytes do not depend on it.
 Dag mergeDags(const Dag& a, const Dag& b, CompressMode mode = CompressMode::TopDown,
               size_t partNodes = kMergePartNodes);
 
