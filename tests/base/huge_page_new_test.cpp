@@ -10,16 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "cpvs/base/sanitizers.h"
+
 // Under AddressSanitizer the sanitizer's operator new is kept: nothing to check there.
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define CPVS_KEEP_SANITIZER_NEW 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__)
-#define CPVS_KEEP_SANITIZER_NEW 1
-#endif
-#if !defined(CPVS_KEEP_SANITIZER_NEW)
+#if !defined(CPVS_ADDRESS_SANITIZER)
 
 namespace {
 

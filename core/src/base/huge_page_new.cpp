@@ -15,15 +15,9 @@
 // `operator delete` frees with free(). A block is malloc's, so its bytes are laid out as
 // before (no alignment of our own, which fragmented malloc's heap).
 // Under AddressSanitizer the sanitizer's own operator new is kept.
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define CPVS_KEEP_SANITIZER_NEW 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__)
-#define CPVS_KEEP_SANITIZER_NEW 1
-#endif
-#if !defined(CPVS_KEEP_SANITIZER_NEW)
+#include "cpvs/base/sanitizers.h"
+
+#if !defined(CPVS_ADDRESS_SANITIZER)
 
 #include <sys/mman.h>
 
