@@ -3,10 +3,12 @@
 
 #include <algorithm>
 #include <random>
+#include <set>
 
 #include "cpvs/base/error.h"
 #include "cpvs/io/cpvs_file.h"
 #include "cpvs/dag/packed_dag.h"
+#include "cpvs/dag/symmetry.h"
 #include "dag_testing.h"
 
 namespace cpvs {
@@ -182,6 +184,90 @@ TEST(DagMerge, PartsOfAnySizeGiveTheOneSweepsBytes) {
     expectSameDag(mergeDags(a, b, CompressMode::TopDown, part), ab);
     expectSameDag(mergeDags(c, ab, CompressMode::TopDown, part), abc);
   }
+}
+
+// The voxels of node `ref` of `level` (-1: a leaf, 8x8x1), x fastest; side^2 * depth.
+std::vector<uint8_t> nodeVoxels(const Dag& dag, int level, NodeRef ref) {
+  const uint32_t side = level < 0 ? 8 : 8u << level, depth = level < 0 ? 1 : side;
+  std::vector<uint8_t> v(size_t(side) * side * depth);
+  if (ref.code != kRef) {
+    std::fill(v.begin(), v.end(), uint8_t(ref.code == kShadowed));
+  } else if (level < 0) {
+    for (uint32_t i = 0; i < 64; ++i) v[i] = uint8_t((dag.leaves[ref.index] >> i) & 1);
+  } else {
+    const uint32_t half = side / 2;
+    for (int c = 0; c < kChildren; ++c) {
+      const std::vector<uint8_t> child = nodeVoxels(dag, level - 1, dag.levels[size_t(level)].child(ref.index, c));
+      // Level 0's children are its depth slices; above, octants of half the side.
+      const uint32_t cs = level == 0 ? 8 : half, cd = level == 0 ? 1 : half;
+      const uint32_t x0 = level == 0 ? 0 : (c & 1) * half, y0 = level == 0 ? 0 : (c >> 1 & 1) * half;
+      const uint32_t z0 = level == 0 ? uint32_t(c) : (c >> 2 & 1) * half;
+      for (uint32_t z = 0; z < cd; ++z)
+        for (uint32_t y = 0; y < cs; ++y)
+          for (uint32_t x = 0; x < cs; ++x)
+            v[(size_t(z0 + z) * side + y0 + y) * side + x0 + x] = child[(size_t(z) * cs + y) * cs + x];
+    }
+  }
+  return v;
+}
+
+// The voxels reflected and inverted as transform t says, voxel by voxel.
+std::vector<uint8_t> transformVoxels(const std::vector<uint8_t>& v, uint32_t side, uint32_t depth, uint32_t t) {
+  std::vector<uint8_t> out(v.size());
+  for (uint32_t z = 0; z < depth; ++z)
+    for (uint32_t y = 0; y < side; ++y)
+      for (uint32_t x = 0; x < side; ++x) {
+        const uint32_t sx = t & kReflectX ? side - 1 - x : x, sy = t & kReflectY ? side - 1 - y : y;
+        const uint32_t sz = t & kReflectZ ? depth - 1 - z : z;
+        out[(size_t(z) * side + y) * side + x] = uint8_t(v[(size_t(sz) * side + sy) * side + sx] ^ (t & kInvert ? 1 : 0));
+      }
+  return out;
+}
+
+// The census counts, per level, the classes that the voxels themselves fall into when
+// subtrees equal under a reflection or inversion are one (the brute-force reference: every
+// node expanded, transformed voxel by voxel, the least of its images kept).
+TEST(DagSymmetry, CensusCountsTheClassesOfTheVoxels) {
+  for (const uint32_t seed : {3u, 8u}) {
+    TexelSlices d = syntheticSlices(64, seed == 8, seed);
+    const Dag dag = buildTiled(d, 6, 6, UndefinedRule::New, true, CompressMode::TopDown, HashKind::Xxh3);
+    for (const uint32_t generators : {0u, uint32_t(kReflectX), uint32_t(kReflectX | kReflectY), uint32_t(kInvert),
+                                      uint32_t(kReflectZ | kInvert), kAllSymmetries}) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " generators " << generators);
+      const SymmetryCensus census = symmetryCensus(dag, generators);
+      ASSERT_EQ(census.classes.size(), dag.levels.size() + 1);
+      EXPECT_EQ(census.plainBytes, dag.bytes());
+      for (int level = -1; level < int(dag.levels.size()); ++level) {
+        const size_t n = level < 0 ? dag.leaves.size() : dag.levels[size_t(level)].size();
+        const uint32_t side = level < 0 ? 8 : 8u << level, depth = level < 0 ? 1 : side;
+        std::set<std::vector<uint8_t>> classes;
+        for (size_t i = 0; i < n; ++i) {
+          const std::vector<uint8_t> v = nodeVoxels(dag, level, {kRef, uint32_t(i)});
+          std::vector<uint8_t> least = v;
+          for (uint32_t t = 1; t < 16; ++t)
+            if ((t & ~generators) == 0) least = std::min(least, transformVoxels(v, side, depth, t));
+          classes.insert(least);
+        }
+        EXPECT_EQ(census.nodes[size_t(level + 1)], n);
+        EXPECT_EQ(census.classes[size_t(level + 1)], classes.size()) << "level " << level;
+        if (generators == 0) {
+          EXPECT_EQ(classes.size(), n);
+        }
+      }
+      if (generators == 0) {
+        EXPECT_EQ(census.symmetricBytes, dag.bytes());
+      }
+      if (generators == kAllSymmetries) {
+        EXPECT_LT(census.classes[1], census.nodes[1]);  // the boxes mirror
+      }
+    }
+  }
+  // A leaf's transforms, bit by bit.
+  const uint64_t m = 0x8000000000000001ull | (uint64_t{1} << (2 * 8 + 1));  // (0,0), (7,7), (1,2)
+  EXPECT_EQ(transformLeaf(m, kReflectX), 0x0100000000000080ull | (uint64_t{1} << (2 * 8 + 6)));
+  EXPECT_EQ(transformLeaf(m, kReflectY), 0x0100000000000080ull | (uint64_t{1} << (5 * 8 + 1)));
+  EXPECT_EQ(transformLeaf(m, kReflectZ), m);
+  EXPECT_EQ(transformLeaf(m, kInvert | kReflectX | kReflectY), ~(0x8000000000000001ull | (uint64_t{1} << (5 * 8 + 6))));
 }
 
 CpvsArtifact sampleArtifact() {
