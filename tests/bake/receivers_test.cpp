@@ -636,6 +636,50 @@ INSTANTIATE_TEST_SUITE_P(RealScenes, SurfacesAsEverywhere,
                                            RealScene{"quake_house", "openarena/oa_shouse.obj", {-0.31, -1, 0.22}, 11}),
                          [](const ::testing::TestParamInfo<RealScene>& info) { return std::string(info.param.name); });
 
+// Each texel's own free range (the reads alone) holds the slice its 8x8 column shares:
+// the shared transition only picks, inside what the reads leave free, one slice that all
+// 64 texels allow; columns that cannot share keep their texels' ranges.
+TEST(Receivers, AColumnsSharedSliceLiesInEachTexelsOwnRange) {
+  const Scene scene = testScene();
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.25}), 7);
+  const uint32_t R = uint32_t(grid.resolution());
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Surfaces;
+  d.maxPcf = 3;
+  const ReceiverSet set(scene, grid, d);
+  TexelSlices shared, own;
+  rasterTexelSlices(RasterScene(scene, grid), ClosedMode::Auto, ExitMode::Exact, 0, 0, R, R, shared);
+  own = shared;
+  set.freeIntervals(0, 0, R, R, shared);
+  set.freeIntervals(0, 0, R, R, own, false);
+  uint64_t collapsed = 0, wide = 0;
+  for (uint32_t by = 0; by < R; by += 8)
+    for (uint32_t bx = 0; bx < R; bx += 8) {
+      bool same = true;
+      for (uint32_t y = by; y < by + 8; ++y)
+        for (uint32_t x = bx; x < bx + 8; ++x) {
+          const size_t t = size_t(y) * R + x, first = size_t(by) * R + bx;
+          ASSERT_LE(own.firstUndefined[t], shared.firstUndefined[t]);
+          ASSERT_GE(own.firstShadowed[t], shared.firstShadowed[t]);
+          same = same && shared.firstUndefined[t] == shared.firstUndefined[first] &&
+                 shared.firstShadowed[t] == shared.firstUndefined[first];
+          wide += own.firstShadowed[t] >= own.firstUndefined[t] + 8;
+        }
+      if (same) {
+        ++collapsed;
+      } else {  // not shared: each texel as its reads leave it
+        for (uint32_t y = by; y < by + 8; ++y)
+          for (uint32_t x = bx; x < bx + 8; ++x) {
+            const size_t t = size_t(y) * R + x;
+            EXPECT_EQ(own.firstUndefined[t], shared.firstUndefined[t]);
+            EXPECT_EQ(own.firstShadowed[t], shared.firstShadowed[t]);
+          }
+      }
+    }
+  EXPECT_GT(collapsed, 0u);
+  EXPECT_GT(wide, uint64_t(R) * R / 4);  // most of the grid is free to the reads alone
+}
+
 TEST(Receivers, TilesNoReceiverReadsAreNotRendered) {
   Scene scene;
   appendQuad(scene, {0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0});

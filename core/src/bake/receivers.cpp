@@ -771,7 +771,8 @@ bool ReceiverSet::columnRange(const Span& s, const Ring& r, const double* dirYTi
   return true;
 }
 
-void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices) const {
+void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices,
+                                bool shareColumns) const {
   if (kind_ == ReceiverKind::Everywhere) return;
   CPVS_CHECK(slices.firstUndefined.size() == size_t(width) * height && slices.firstShadowed.size() == slices.firstUndefined.size());
   const uint32_t bands = (height + kBandRows - 1) / kBandRows;
@@ -919,7 +920,7 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
     // An 8x8 column whose texels can share one transition gets it, at the most aligned
     // slice they allow: whole leaves and nodes become homogeneous, and neighbouring
     // columns with overlapping freedom pick the same slice.
-    for (uint32_t by = 0; by + 8 <= rowEnd - rowBegin; by += 8)
+    for (uint32_t by = 0; shareColumns && by + 8 <= rowEnd - rowBegin; by += 8)
       for (uint32_t bx = 0; bx + 8 <= width; bx += 8) {
         uint32_t L = 0, H = R_;
         for (uint32_t y = by; y < by + 8; ++y)

@@ -125,8 +125,12 @@ class ReceiverSet {
   /// major, as rendered) to what the receivers need: firstUndefined becomes one past the
   /// last slice a lookup needs lit (0: none), firstShadowed the first slice a lookup needs
   /// shadowed (R: none). Slices a lookup reads inside the old undefined range stay free.
-  /// Multithreaded; depends only on each texel's own position.
-  void freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices) const;
+  /// Then each 8x8 column whose texels' ranges share a slice is given one transition at
+  /// the most aligned such slice (`shareColumns`; false leaves every texel's range as its
+  /// reads make it: what a bound on the free voxels measures). Multithreaded; depends only
+  /// on each texel's own position and its 8x8 column.
+  void freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32_t height, TexelSlices& slices,
+                     bool shareColumns = true) const;
 
   /// Rings a span may have: a surface's lookups are bounded per pair of filter widths
   /// (1-3, 5-7, 9).
