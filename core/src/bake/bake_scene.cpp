@@ -48,24 +48,46 @@ void BakeScene::columnMasks(const BakeOptions& options, uint64_t x0, uint64_t y0
     times.add("render", secondsSince(start));
     return;
   }
-  // One pair of depth buffers per thread, reused from tile to tile (a fresh 128 MiB per
-  // 4096^2 tile costs its page faults and zeroing every time).
+  // The block is rendered, freed and resolved in strips of rows, each in one pair of depth
+  // buffers per thread reused from strip to strip: a 4096-wide strip of 128 rows is 4 MiB,
+  // which the three passes over it find in cache, where a whole 4096^2 tile's 128 MiB came
+  // from memory three times (and cost its page faults and zeroing on every thread).
+  // Every stage depends only on each texel's position and its 8x8 column, so the masks are
+  // the whole block's.
+  constexpr uint32_t kStripRows = 128;
   thread_local TexelSlices depths;
-  if (renderer_ == Renderer::Raster)
-    rasterTexelSlices(raster_, options.closed, options.exit, x0, y0, width, height, depths);
-  else if (const PerspectiveGrid* spot = raster_.spot())
-    renderTexelSlices(*rays_, *spot, raster_.tanCone(), options.closed, options.exit, x0, y0, width, height, depths);
-  else
-    renderTexelSlices(*rays_, grid(), options.closed, options.exit, x0, y0, width, height, depths);
-  times.add("render", secondsSince(start));
-  if (receivers_.kind() != ReceiverKind::Everywhere) {
+  thread_local ColumnMasks rows;
+  out.columnsX = width / 8;
+  out.columnsY = 0;
+  out.resolution = R;
+  out.begin.assign(1, 0);
+  out.begin.reserve(size_t(out.columnsX) * (height / 8) + 1);
+  out.slice.clear();
+  out.mask.clear();
+  out.firstShadow.clear();
+  out.fullShadow.clear();
+  out.firstShadow.reserve(out.begin.capacity() - 1);
+  out.fullShadow.reserve(out.begin.capacity() - 1);
+  for (uint32_t y = 0; y < height; y += kStripRows) {
+    const uint32_t strip = std::min(kStripRows, height - y);
     start = std::chrono::steady_clock::now();
-    receivers_.freeIntervals(x0, y0, width, height, depths);
-    times.add("receivers", secondsSince(start));
+    if (renderer_ == Renderer::Raster)
+      rasterTexelSlices(raster_, options.closed, options.exit, x0, y0 + y, width, strip, depths);
+    else if (const PerspectiveGrid* spot = raster_.spot())
+      renderTexelSlices(*rays_, *spot, raster_.tanCone(), options.closed, options.exit, x0, y0 + y, width, strip, depths);
+    else
+      renderTexelSlices(*rays_, grid(), options.closed, options.exit, x0, y0 + y, width, strip, depths);
+    times.add("render", secondsSince(start));
+    if (receivers_.kind() != ReceiverKind::Everywhere) {
+      start = std::chrono::steady_clock::now();
+      receivers_.freeIntervals(x0, y0 + y, width, strip, depths);
+      times.add("receivers", secondsSince(start));
+    }
+    start = std::chrono::steady_clock::now();
+    buildColumnMasks(depths, width, strip, R, options.undefinedRule, rows);
+    appendColumnRows(out, rows);
+    times.add("masks", secondsSince(start));
   }
-  start = std::chrono::steady_clock::now();
-  buildColumnMasks(depths, width, height, R, options.undefinedRule, out);
-  times.add("masks", secondsSince(start));
 }
 
 }  // namespace cpvs

@@ -1,8 +1,11 @@
 #include "cpvs/bake/column_masks.h"
 
+#include "cpvs/base/error.h"
+
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 
 namespace cpvs {
@@ -64,6 +67,19 @@ void buildColumnMasks(const TexelSlices& depths, uint32_t width, uint32_t height
     std::copy(rowSlices[cy].begin(), rowSlices[cy].end(), out.slice.begin() + at);
     std::copy(rowMasks[cy].begin(), rowMasks[cy].end(), out.mask.begin() + at);
   }
+}
+
+void appendColumnRows(ColumnMasks& to, const ColumnMasks& rows) {
+  CPVS_CHECK(rows.columnsX == to.columnsX && rows.resolution == to.resolution && !to.begin.empty());
+  const uint64_t base = to.begin.back();
+  if (base + rows.slice.size() > std::numeric_limits<uint32_t>::max())
+    throw std::length_error("appendColumnRows: more than 2^32 transitions in one block");
+  to.columnsY += rows.columnsY;
+  for (size_t c = 1; c < rows.begin.size(); ++c) to.begin.push_back(uint32_t(base + rows.begin[c]));
+  to.slice.insert(to.slice.end(), rows.slice.begin(), rows.slice.end());
+  to.mask.insert(to.mask.end(), rows.mask.begin(), rows.mask.end());
+  to.firstShadow.insert(to.firstShadow.end(), rows.firstShadow.begin(), rows.firstShadow.end());
+  to.fullShadow.insert(to.fullShadow.end(), rows.fullShadow.begin(), rows.fullShadow.end());
 }
 
 }  // namespace cpvs

@@ -33,6 +33,10 @@ struct ColumnMasks {
 void buildColumnMasks(const TexelSlices& depths, uint32_t width, uint32_t height, uint32_t R,
                       UndefinedRule rule, ColumnMasks& out);
 
+/// Appends the columns of `rows` (as wide as `to`) below those of `to`: the masks of a
+/// block resolved strip by strip are the block's.
+void appendColumnRows(ColumnMasks& to, const ColumnMasks& rows);
+
 /// Appends the transitions of one 8x8 column, texel (tx, ty) at ty * 8 + tx: lo is the
 /// first undefined slice, hi the first shadowed one (hi >= lo). Returns firstShadow and
 /// fullShadow as ColumnMasks stores them. What buildColumnMasks runs per column.
