@@ -218,6 +218,40 @@ TEST(ReceiverReads, ARunAppliesEachColumnAsTheScalarLoop) {
   hwy::SetSupportedTargetsForTest(0);
 }
 
+// The column-sharing passes (fill, greatest and least over rows, select) against their
+// scalar loops, at every length around the vector widths, on every SIMD target compiled.
+TEST(ReceiverReads, TheSharingPassesAnswerAsTheScalarLoops) {
+  for (int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    SCOPED_TRACE(hwy::TargetName(target));
+    hwy::SetSupportedTargetsForTest(target);
+    std::mt19937_64 rng(9);
+    for (size_t n = 0; n < 70; ++n) {
+      const size_t stride = n + rng() % 5, rows = 1 + rng() % 8;
+      std::vector<uint32_t> lo(rows * stride + 1), hi(lo.size()), shared(n), in(n);
+      for (size_t i = 0; i < lo.size(); ++i) lo[i] = uint32_t(rng() % (1u << 18)), hi[i] = uint32_t(rng() % (1u << 18));
+      for (size_t i = 0; i < n; ++i) {
+        shared[i] = rng() % 3 == 0 ? kNoSharedSlice : uint32_t(rng() % (1u << 18));
+        in[i] = uint32_t(rng());
+      }
+      std::vector<uint32_t> filled(n + 1, 7);
+      fillSlices(filled.data(), n, 1u << 18);
+      for (size_t i = 0; i < n; ++i) ASSERT_EQ(filled[i], 1u << 18);
+      ASSERT_EQ(filled[n], 7u);  // nothing past the end
+      std::vector<uint32_t> rowLo(n), rowHi(n), out(n);
+      rowsMaxMin(lo.data(), hi.data(), stride, rows, n, rowLo.data(), rowHi.data());
+      selectShared(shared.data(), in.data(), out.data(), n);
+      for (size_t x = 0; x < n; ++x) {
+        uint32_t l = lo[x], h = hi[x];
+        for (size_t r = 1; r < rows; ++r) l = std::max(l, lo[r * stride + x]), h = std::min(h, hi[r * stride + x]);
+        ASSERT_EQ(rowLo[x], l) << "n " << n << " x " << x;
+        ASSERT_EQ(rowHi[x], h) << "n " << n << " x " << x;
+        ASSERT_EQ(out[x], shared[x] == kNoSharedSlice ? in[x] : shared[x]);
+      }
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
+}
+
 struct Case {
   Vec3 sun;
   int log2R;

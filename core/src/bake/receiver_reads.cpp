@@ -1,4 +1,4 @@
-// applyPlanarRun for every SIMD target (Highway's foreach_target re-includes this file
+// applyPlanarRun and the column-sharing passes for every SIMD target (Highway's foreach_target re-includes this file
 // for each), chosen at run time by HWY_DYNAMIC_DISPATCH.
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "bake/receiver_reads.cpp"
@@ -56,6 +56,50 @@ void ApplyPlanarRunImpl(const PlanarRun& r, const uint32_t* lo, const uint32_t* 
   for (; i < n; ++i) applyColumn(r, r.xa + int64_t(i), i, lo, hi, newLo, newHi);
 }
 
+void FillSlicesImpl(uint32_t* out, size_t n, uint32_t v) {
+  const hn::ScalableTag<uint32_t> d;
+  const size_t N = hn::Lanes(d);
+  const auto value = hn::Set(d, v);
+  size_t i = 0;
+  for (; i + N <= n; i += N) hn::StoreU(value, d, out + i);
+  for (; i < n; ++i) out[i] = v;
+}
+
+void RowsMaxMinImpl(const uint32_t* lo, const uint32_t* hi, size_t stride, size_t rows, size_t n, uint32_t* rowLo,
+                    uint32_t* rowHi) {
+  const hn::ScalableTag<int32_t> d;  // slices < 2^31: signed lanes order them
+  const size_t N = hn::Lanes(d);
+  const auto* l = reinterpret_cast<const int32_t*>(lo);
+  const auto* h = reinterpret_cast<const int32_t*>(hi);
+  size_t x = 0;
+  for (; x + N <= n; x += N) {
+    auto ml = hn::LoadU(d, l + x), mh = hn::LoadU(d, h + x);
+    for (size_t r = 1; r < rows; ++r) {
+      ml = hn::Max(ml, hn::LoadU(d, l + r * stride + x));
+      mh = hn::Min(mh, hn::LoadU(d, h + r * stride + x));
+    }
+    hn::StoreU(ml, d, reinterpret_cast<int32_t*>(rowLo) + x);
+    hn::StoreU(mh, d, reinterpret_cast<int32_t*>(rowHi) + x);
+  }
+  for (; x < n; ++x) {
+    uint32_t ml = lo[x], mh = hi[x];
+    for (size_t r = 1; r < rows; ++r) ml = std::max(ml, lo[r * stride + x]), mh = std::min(mh, hi[r * stride + x]);
+    rowLo[x] = ml, rowHi[x] = mh;
+  }
+}
+
+void SelectSharedImpl(const uint32_t* shared, const uint32_t* in, uint32_t* out, size_t n) {
+  const hn::ScalableTag<uint32_t> d;
+  const size_t N = hn::Lanes(d);
+  const auto none = hn::Set(d, kNoSharedSlice);
+  size_t i = 0;
+  for (; i + N <= n; i += N) {
+    const auto s = hn::LoadU(d, shared + i);
+    hn::StoreU(hn::IfThenElse(hn::Eq(s, none), hn::LoadU(d, in + i), s), d, out + i);
+  }
+  for (; i < n; ++i) out[i] = shared[i] == kNoSharedSlice ? in[i] : shared[i];
+}
+
 }  // namespace HWY_NAMESPACE
 }  // namespace cpvs
 HWY_AFTER_NAMESPACE();
@@ -64,9 +108,23 @@ HWY_AFTER_NAMESPACE();
 namespace cpvs {
 
 HWY_EXPORT(ApplyPlanarRunImpl);
+HWY_EXPORT(FillSlicesImpl);
+HWY_EXPORT(RowsMaxMinImpl);
+HWY_EXPORT(SelectSharedImpl);
 
 void applyPlanarRun(const PlanarRun& run, const uint32_t* lo, const uint32_t* hi, uint32_t* newLo, uint32_t* newHi) {
   HWY_DYNAMIC_DISPATCH(ApplyPlanarRunImpl)(run, lo, hi, newLo, newHi);
+}
+
+void fillSlices(uint32_t* out, size_t n, uint32_t v) { HWY_DYNAMIC_DISPATCH(FillSlicesImpl)(out, n, v); }
+
+void rowsMaxMin(const uint32_t* lo, const uint32_t* hi, size_t stride, size_t rows, size_t n, uint32_t* rowLo,
+                uint32_t* rowHi) {
+  HWY_DYNAMIC_DISPATCH(RowsMaxMinImpl)(lo, hi, stride, rows, n, rowLo, rowHi);
+}
+
+void selectShared(const uint32_t* shared, const uint32_t* in, uint32_t* out, size_t n) {
+  HWY_DYNAMIC_DISPATCH(SelectSharedImpl)(shared, in, out, n);
 }
 
 }  // namespace cpvs

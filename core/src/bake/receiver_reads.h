@@ -1,9 +1,11 @@
 // The slices a receiver span reads along a run of one row's columns, applied to the
-// band's freed ranges: the inner loop of ReceiverSet::freeIntervals, compiled for every
-// SIMD target Highway offers and chosen at run time. Private to the bake layer.
+// band's freed ranges, and the passes that share a transition per 8x8 column: the inner
+// loops of ReceiverSet::freeIntervals, compiled for every SIMD target Highway offers and
+// chosen at run time. Private to the bake layer.
 #pragma once
 
 #include <algorithm>
+#include <cstddef>
 #include <cstdint>
 
 namespace cpvs {
@@ -32,5 +34,17 @@ inline bool planarReads(const PlanarRun& r, int64_t x, uint32_t& a, uint32_t& b)
 /// shadowed one at or behind it lowers newHi to max(a, hi). Every target computes the
 /// scalar loop's IEEE operations in its order, so the ranges are the same bits.
 void applyPlanarRun(const PlanarRun& run, const uint32_t* lo, const uint32_t* hi, uint32_t* newLo, uint32_t* newHi);
+
+/// Sets out[0, n) to v.
+void fillSlices(uint32_t* out, size_t n, uint32_t v);
+
+/// rowLo[x] = the greatest of lo[r * stride + x], rowHi[x] = the least of hi[r * stride + x]
+/// over the `rows` rows, for x in [0, n); slices below 2^31.
+void rowsMaxMin(const uint32_t* lo, const uint32_t* hi, size_t stride, size_t rows, size_t n, uint32_t* rowLo,
+                uint32_t* rowHi);
+
+/// out[x] = shared[x] unless it is kNoSharedSlice, else in[x], for x in [0, n).
+constexpr uint32_t kNoSharedSlice = 0xFFFFFFFFu;
+void selectShared(const uint32_t* shared, const uint32_t* in, uint32_t* out, size_t n);
 
 }  // namespace cpvs

@@ -784,8 +784,10 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
     // Each thread's buffers, reused from band to band (the body starts no nested work, so
     // no other band runs on this thread meanwhile): fresh ones cost page faults per band.
     thread_local std::vector<uint32_t> newLo, newHi;
-    newLo.assign(texels, 0);
-    newHi.assign(texels, R_);
+    newLo.resize(texels);
+    newHi.resize(texels);
+    fillSlices(newLo.data(), texels, 0);
+    fillSlices(newHi.data(), texels, R_);
     // The reads [a, b] at texel k: a lit slice needed below the old range, a shadowed
     // one at or behind it.
     auto need = [&](size_t k, uint32_t a, uint32_t b) {
@@ -919,18 +921,26 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
     }
     // An 8x8 column whose texels can share one transition gets it, at the most aligned
     // slice they allow: whole leaves and nodes become homogeneous, and neighbouring
-    // columns with overlapping freedom pick the same slice.
-    for (uint32_t by = 0; shareColumns && by + 8 <= rowEnd - rowBegin; by += 8)
-      for (uint32_t bx = 0; bx + 8 <= width; bx += 8) {
+    // columns with overlapping freedom pick the same slice. Written straight into the
+    // band's rows of `slices`; per 8 rows, the greatest lo and least hi of each x first
+    // (rows are contiguous, so this runs on vectors), then each column's of those 8.
+    uint32_t* outLo = slices.firstUndefined.data() + size_t(rowBegin) * width;
+    uint32_t* outHi = slices.firstShadowed.data() + size_t(rowBegin) * width;
+    const uint32_t rows = rowEnd - rowBegin;
+    const uint32_t sharedRows = shareColumns ? rows / 8 * 8 : 0;
+    thread_local std::vector<uint32_t> rowLo, rowHi, shared;
+    rowLo.resize(width), rowHi.resize(width), shared.resize(width);
+    for (uint32_t by = 0; by < sharedRows; by += 8) {
+      const uint32_t* lo8 = newLo.data() + size_t(by) * width;
+      const uint32_t* hi8 = newHi.data() + size_t(by) * width;
+      rowsMaxMin(lo8, hi8, width, 8, width, rowLo.data(), rowHi.data());
+      for (uint32_t c = 0; c < width / 8; ++c) {
         uint32_t L = 0, H = R_;
-        for (uint32_t y = by; y < by + 8; ++y)
-          for (uint32_t x = bx; x < bx + 8; ++x) {
-            L = std::max(L, newLo[size_t(y) * width + x]);
-            H = std::min(H, newHi[size_t(y) * width + x]);
-          }
-        if (L > H) continue;
+        for (uint32_t x = 8 * c; x < 8 * c + 8; ++x) L = std::max(L, rowLo[x]), H = std::min(H, rowHi[x]);
         uint32_t k = H;
-        if (H < R_)
+        if (L > H) {
+          k = kNoSharedSlice;
+        } else if (H < R_) {
           for (int j = 31; j >= 0; --j) {
             const uint32_t aligned = j == 31 ? 0 : (H >> j) << j;
             if (aligned >= L) {
@@ -938,11 +948,17 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
               break;
             }
           }
-        for (uint32_t y = by; y < by + 8; ++y)
-          for (uint32_t x = bx; x < bx + 8; ++x) newLo[size_t(y) * width + x] = newHi[size_t(y) * width + x] = k;
+        }
+        std::fill_n(shared.begin() + 8 * c, 8, k);
       }
-    std::copy(newLo.begin(), newLo.end(), slices.firstUndefined.begin() + ptrdiff_t(size_t(rowBegin) * width));
-    std::copy(newHi.begin(), newHi.end(), slices.firstShadowed.begin() + ptrdiff_t(size_t(rowBegin) * width));
+      for (uint32_t y = 0; y < 8; ++y) {
+        const size_t at = size_t(by + y) * width;
+        selectShared(shared.data(), lo8 + size_t(y) * width, outLo + at, width);
+        selectShared(shared.data(), hi8 + size_t(y) * width, outHi + at, width);
+      }
+    }
+    std::copy(newLo.begin() + ptrdiff_t(size_t(sharedRows) * width), newLo.begin() + ptrdiff_t(texels), outLo + size_t(sharedRows) * width);
+    std::copy(newHi.begin() + ptrdiff_t(size_t(sharedRows) * width), newHi.begin() + ptrdiff_t(texels), outHi + size_t(sharedRows) * width);
   });
 }
 
