@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -362,6 +363,11 @@ ReceiverSet::ReceiverSet(const Scene& scene, const OrthoGrid& grid, const Receiv
 
   // Surfaces: each side a receiver may be on, moved along its normal in voxels.
   const std::vector<uint8_t> receiving = receivingSides(scene, d);
+  // At most one span per side, volume triangle and walkable triangle: reserved at once, so
+  // that the spans (hundreds of bytes each) are written once, not copied as they grow.
+  size_t most = d.volume.triangleCount() + (d.groundLayer > 0 ? scene.triangleCount() : 0);
+  for (const uint8_t sides : receiving) most += size_t(std::popcount(unsigned(sides)));
+  spans_.reserve(most);
   for (size_t t = 0; t < scene.triangleCount(); ++t) {
     const uint8_t sides = receiving[t];
     if (sides == 0) continue;
