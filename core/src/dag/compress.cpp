@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstring>
 #include <numeric>
+#include <utility>
 
 #include "cpvs/base/error.h"
 #include "cpvs/dag/invariants.h"
@@ -194,17 +195,26 @@ Dag compressTopDown(const Dag& in) {
   std::vector<std::vector<uint32_t>> rep(levels + 1), survivors(levels + 1);
   SubtreeEquality eq(in);
   std::vector<uint32_t> current;
+  std::vector<uint8_t> seen;
+  std::vector<std::pair<Hash128, uint32_t>> keyed;
   for (const auto& r : in.roots)
     if (r.ref.code == kRef) current.push_back(r.ref.index);
   for (int l = levels - 1; l >= -1; --l) {
     size_t count = l < 0 ? in.leaves.size() : in.levels[l].size();
     const auto& hashes = l < 0 ? in.leafHashes : in.levelHashes[l];
-    // One sort by (hash, index) groups equal hashes and makes repeated indices adjacent.
-    tbb::parallel_sort(current.begin(), current.end(), [&](uint32_t a, uint32_t b) {
-      if (hashes[a] != hashes[b]) return hashes[a] < hashes[b];
-      return a < b;
-    });
-    current.erase(std::unique(current.begin(), current.end()), current.end());
+    // The distinct nodes referenced, each once, sorted by (hash, index) with their hashes
+    // beside them: equal hashes end up adjacent. (Sorting the references would sort every
+    // repeat too, through an indirection per comparison.)
+    seen.assign(count, 0);
+    keyed.clear();
+    for (const uint32_t o : current)
+      if (!seen[o]) {
+        seen[o] = 1;
+        keyed.push_back({hashes[o], o});
+      }
+    tbb::parallel_sort(keyed.begin(), keyed.end());
+    current.resize(keyed.size());
+    for (size_t k = 0; k < keyed.size(); ++k) current[k] = keyed[k].second;
     auto& rp = rep[l + 1];
     rp.assign(count, UINT32_MAX);
     auto& sv = survivors[l + 1];
