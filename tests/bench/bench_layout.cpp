@@ -10,9 +10,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "bench_common.h"
-#include "cpvs/bake/bake.h"
-#include "cpvs/bake/bake_scene.h"
+#include "bench_dags.h"
 #include "cpvs/bake/raster_slices.h"
 #include "cpvs/dag/packed_dag.h"
 #include "cpvs/eval/surface_sampling.h"
@@ -23,9 +21,6 @@ namespace {
 
 using namespace cpvs;
 using namespace cpvs::bench;
-
-constexpr Vec3 kPeerSun{0.505259, -0.379456, 0.775066};
-constexpr int kPeerDepthSlices = 4096;
 
 // The walk of layouts 1 and 2 as it was (PackedDag::block before layout 3), for the
 // timing beside today's: the 8x8 mask of the leaf slice holding voxel (x, y, z).
@@ -101,69 +96,44 @@ int run(int argc, char** argv) {
   std::printf("| scene | R | depth slices | receivers | layout 1 | layout 2 | layout 3 | 3 / 2 | 3 / 1 | levels of 32-bit "
               "references | walk ns, layout 1 or 2 | walk ns, layout 3 | lookup ns 1 | lookup ns 9x9 |\n");
   std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
-  for (const std::string& spec : args.scenes) {
-    std::optional<BenchScene> s = openBenchScene(spec, "bench_layout", notes);
-    if (!s) continue;
-    const bool peer = spec == "peercity";
-    const Vec3 sun = peer ? kPeerSun : args.sunDir;
-    for (const int log2R : args.log2Resolutions) {
-      std::vector<int> depths{0};
-      if (peer && log2R > 12) depths.push_back(kPeerDepthSlices);
-      for (const int depth : depths) {
-        const OrthoGrid grid = makeGrid(s->scene, LightFrame::fromDirection(sun), log2R, depth);
-        const RayScene rays(s->scene, grid.origin);
-        for (const ReceiverKind kind : {ReceiverKind::Everywhere, ReceiverKind::Surfaces}) {
-          ReceiverDeclaration declaration;
-          declaration.kind = kind;
-          BakeOptions options;
-          options.receivers = kind;
-          options.receiverPcf = uint8_t(declaration.maxPcf);
-          Dag dag;
-          {
-            const BakeScene prepared(s->scene, grid, Renderer::Raster, args.threads, declaration);
-            dag = bakeGrid(prepared, options);
-          }
-          const uint64_t b1 = dag.bytes(1), b3 = dag.bytes();
-          const bool fits2 = dag.leaves.size() <= kMaxNarrowRefTargets;  // layout 2 names leaves by 16 bits
-          const uint64_t b2 = fits2 ? dag.bytes(2) : 0;
-          const ShadowQuery query(grid, PackedDag(dag));
-          const uint32_t wide = query.dag().header().wideRefs;
-          std::vector<Vec3> points, normals;
-          for (const SurfaceSample& p : sampleReceivers(s->scene, rays, options.closed, grid.frame.dir, declaration, lookups, 1)) {
-            points.push_back(p.point);
-            normals.push_back(p.normal);
-          }
-          // The walks a 9x9 lookup makes: the leaf slices at the corners of the footprint
-          // around each point's offset voxel, in the layout before (2 where it holds the
-          // leaves, else 1) and today's.
-          std::vector<std::array<uint64_t, 3>> voxels;
-          const double last = double(grid.resolution() - 1);
-          for (size_t i = 0; i < points.size(); ++i) {
-            const Vec3 v = grid.offsetVoxel(points[i], normals[i], 5.5);
-            const double z = std::clamp(std::floor(v.z), 0.0, last);
-            for (const double dy : {-4.0, 4.0})
-              for (const double dx : {-4.0, 4.0})
-                voxels.push_back({uint64_t(std::clamp(std::floor(v.x + dx), 0.0, last)),
-                                  uint64_t(std::clamp(std::floor(v.y + dy), 0.0, last)), uint64_t(z)});
-          }
-          const std::vector<uint32_t> before = packPool(dag.leaves, dag.levels, {{dag.log2Resolution, dag.roots.front().ref}}, fits2 ? 2 : 1);
-          PackedHeader hb;
-          std::memcpy(&hb, before.data(), sizeof hb);
-          const auto [nsBefore, nsToday] =
-              walkNs(voxels, [&](uint64_t x, uint64_t y, uint64_t z) { return legacyMask(before.data(), hb, x, y, z); },
-                     [&](uint64_t x, uint64_t y, uint64_t z) { return query.dag().leafSliceMask(x, y, z); });
-          std::printf("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %.1f | %.1f | %.0f | %.0f |\n", s->label.c_str(),
-                      resolutionLabel(log2R).c_str(), depth ? std::to_string(depth).c_str() : "cubic",
-                      kind == ReceiverKind::Everywhere ? "everywhere" : "surfaces, PCF <= 9", humanBytes(b1).c_str(),
-                      fits2 ? humanBytes(b2).c_str() : "(> 65,536 leaves)", humanBytes(b3).c_str(),
-                      fits2 ? format("%.3f", ratio(double(b3), double(b2))).c_str() : "-",
-                      format("%.3f", ratio(double(b3), double(b1))).c_str(), wideLevels(wide).c_str(), nsBefore, nsToday,
-                      lookupNs(query, points, normals, 1), lookupNs(query, points, normals, 9));
-          std::fflush(stdout);
-        }
-      }
+  forEachBenchDag(args, "bench_layout", notes, [&](const BenchDag& b) {
+    const Dag& dag = b.dag;
+    const RayScene rays(b.scene.scene, b.grid.origin);
+    const uint64_t b1 = dag.bytes(1), b3 = dag.bytes();
+    const bool fits2 = dag.leaves.size() <= kMaxNarrowRefTargets;  // layout 2 names leaves by 16 bits
+    const uint64_t b2 = fits2 ? dag.bytes(2) : 0;
+    const ShadowQuery query(b.grid, PackedDag(dag));
+    const uint32_t wide = query.dag().header().wideRefs;
+    std::vector<Vec3> points, normals;
+    for (const SurfaceSample& p : sampleReceivers(b.scene.scene, rays, b.options.closed, b.grid.frame.dir, b.declaration, lookups, 1)) {
+      points.push_back(p.point);
+      normals.push_back(p.normal);
     }
-  }
+    // The walks a 9x9 lookup makes: the leaf slices at the corners of the footprint
+    // around each point's offset voxel, in the layout before (2 where it holds the
+    // leaves, else 1) and today's.
+    std::vector<std::array<uint64_t, 3>> voxels;
+    const double last = double(b.grid.resolution() - 1);
+    for (size_t i = 0; i < points.size(); ++i) {
+      const Vec3 v = b.grid.offsetVoxel(points[i], normals[i], 5.5);
+      const double z = std::clamp(std::floor(v.z), 0.0, last);
+      for (const double dy : {-4.0, 4.0})
+        for (const double dx : {-4.0, 4.0})
+          voxels.push_back({uint64_t(std::clamp(std::floor(v.x + dx), 0.0, last)),
+                            uint64_t(std::clamp(std::floor(v.y + dy), 0.0, last)), uint64_t(z)});
+    }
+    const std::vector<uint32_t> before = packPool(dag.leaves, dag.levels, {{dag.log2Resolution, dag.roots.front().ref}}, fits2 ? 2 : 1);
+    PackedHeader hb;
+    std::memcpy(&hb, before.data(), sizeof hb);
+    const auto [nsBefore, nsToday] =
+        walkNs(voxels, [&](uint64_t x, uint64_t y, uint64_t z) { return legacyMask(before.data(), hb, x, y, z); },
+               [&](uint64_t x, uint64_t y, uint64_t z) { return query.dag().leafSliceMask(x, y, z); });
+    std::printf("| %s | %s | %s | %s | %s | %s | %s | %.1f | %.1f | %.0f | %.0f |\n", benchDagCells(b).c_str(), humanBytes(b1).c_str(),
+                fits2 ? humanBytes(b2).c_str() : "(> 65,536 leaves)", humanBytes(b3).c_str(),
+                fits2 ? format("%.3f", ratio(double(b3), double(b2))).c_str() : "-",
+                format("%.3f", ratio(double(b3), double(b1))).c_str(), wideLevels(wide).c_str(), nsBefore, nsToday,
+                lookupNs(query, points, normals, 1), lookupNs(query, points, normals, 9));
+  });
   for (const std::string& n : notes) std::printf("\nnote: %s", n.c_str());
   std::printf("\nBytes: the DAG's node data in each packed layout (the same nodes; 8 per leaf, 2 per half-word). Layout 2 "
               "named leaves by 16-bit index and holds at most 65,536. Walks: the leaf slices at the corners of the 9x9 footprints, one core, the best of seven rounds in turn; lookups: "

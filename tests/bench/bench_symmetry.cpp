@@ -5,18 +5,13 @@
 #include <string>
 #include <vector>
 
-#include "bench_common.h"
-#include "cpvs/bake/bake.h"
-#include "cpvs/bake/bake_scene.h"
+#include "bench_dags.h"
 #include "cpvs/dag/symmetry.h"
 
 namespace {
 
 using namespace cpvs;
 using namespace cpvs::bench;
-
-constexpr Vec3 kPeerSun{0.505259, -0.379456, 0.775066};
-constexpr int kPeerDepthSlices = 4096;
 
 struct Generators {
   const char* name;
@@ -49,46 +44,20 @@ int run(int argc, char** argv) {
   std::printf("\n| --- | --- | --- | --- | --- | --- | --- |");
   for (size_t i = 0; i < std::size(kSets); ++i) std::printf(" --- | --- |");
   std::printf("\n");
-  for (const std::string& spec : args.scenes) {
-    std::optional<BenchScene> s = openBenchScene(spec, "bench_symmetry", notes);
-    if (!s) continue;
-    const bool peer = spec == "peercity";
-    const Vec3 sun = peer ? kPeerSun : args.sunDir;
-    for (const int log2R : args.log2Resolutions) {
-      std::vector<int> depths{0};
-      if (peer && log2R > 12) depths.push_back(kPeerDepthSlices);
-      for (const int depth : depths) {
-        const OrthoGrid grid = makeGrid(s->scene, LightFrame::fromDirection(sun), log2R, depth);
-        for (const ReceiverKind kind : {ReceiverKind::Everywhere, ReceiverKind::Surfaces}) {
-          ReceiverDeclaration declaration;
-          declaration.kind = kind;
-          BakeOptions options;
-          options.receivers = kind;
-          options.receiverPcf = uint8_t(declaration.maxPcf);
-          Dag dag;
-          {
-            const BakeScene prepared(s->scene, grid, Renderer::Raster, args.threads, declaration);
-            dag = bakeGrid(prepared, options);
-          }
-          const uint64_t nodes = dag.nodeCount() + dag.leaves.size();
-          std::printf("| %s | %s | %s | %s | %s | %s | %.2f |", s->label.c_str(), resolutionLabel(log2R).c_str(),
-                      depth ? std::to_string(depth).c_str() : "cubic",
-                      kind == ReceiverKind::Everywhere ? "everywhere" : "surfaces, PCF <= 9", std::to_string(nodes).c_str(),
-                      humanBytes(dag.bytes()).c_str(), ratio(double(dag.levelBytes(-1)), double(dag.bytes())));
-          for (const Generators& g : kSets) {
-            const SymmetryCensus c = symmetryCensus(dag, g.bits);
-            uint64_t classes = 0;
-            for (const uint64_t n : c.classes) classes += n;
-            std::printf(" %.3f (leaves %.3f) | %.3f |", ratio(double(classes), double(nodes)),
-                        ratio(double(c.classes[0]), double(c.nodes[0])),
-                        ratio(double(c.symmetricBytes), double(c.plainBytes)));
-          }
-          std::printf("\n");
-          std::fflush(stdout);
-        }
-      }
+  forEachBenchDag(args, "bench_symmetry", notes, [](const BenchDag& b) {
+    const Dag& dag = b.dag;
+    const uint64_t nodes = dag.nodeCount() + dag.leaves.size();
+    std::printf("| %s | %s | %s | %.2f |", benchDagCells(b).c_str(), std::to_string(nodes).c_str(),
+                humanBytes(dag.bytes()).c_str(), ratio(double(dag.levelBytes(-1)), double(dag.bytes())));
+    for (const Generators& g : kSets) {
+      const SymmetryCensus c = symmetryCensus(dag, g.bits);
+      uint64_t classes = 0;
+      for (const uint64_t n : c.classes) classes += n;
+      std::printf(" %.3f (leaves %.3f) | %.3f |", ratio(double(classes), double(nodes)),
+                  ratio(double(c.classes[0]), double(c.nodes[0])), ratio(double(c.symmetricBytes), double(c.plainBytes)));
     }
-  }
+    std::printf("\n");
+  });
   for (const std::string& n : notes) std::printf("\nnote: %s", n.c_str());
   std::printf("\nnodes + leaves: the DAG's (every level free of duplicates); bytes: its node data in today's packed layout. "
               "Per set of transforms: classes and bytes as fractions of those; the bytes keep one node per class, "

@@ -10,9 +10,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "bench_common.h"
-#include "cpvs/bake/bake.h"
-#include "cpvs/bake/bake_scene.h"
+#include "bench_dags.h"
 #include "cpvs/bake/raster_slices.h"
 #include "cpvs/bake/receivers.h"
 #include "cpvs/base/error.h"
@@ -21,9 +19,6 @@ namespace {
 
 using namespace cpvs;
 using namespace cpvs::bench;
-
-constexpr Vec3 kPeerSun{0.505259, -0.379456, 0.775066};
-constexpr int kPeerDepthSlices = 4096;
 
 // Per 8x8-texel block of each level (level k: blocks of 8 << k texels), over its texels:
 // the latest start and the earliest end of their free ranges (a block of slices inside
@@ -193,50 +188,30 @@ int run(int argc, char** argv) {
         "bench_unread [--scenes peercity,city,shouse,maisons,bunny] [--resolutions 4K] [--sun-dir X,Y,Z]\n"
         "  One DAG per scene and receivers (everywhere; surfaces with PCF up to 9), and the same DAG with every\n"
         "  block that no receiver's lookup reads made lit: the bound on what a child code for unread blocks could\n"
-        "  save. The peer's city takes its own sun, and above 4K its grid of 4,096 slices. Holds the whole grid's\n"
-        "  texels in memory (8 bytes each): 2 GiB at 16K.\n");
+        "  save. The peer's city takes its own sun, and above 4K also its grid of 4,096 slices. Holds the whole\n"
+        "  grid's texels in memory (8 bytes each): 2 GiB at 16K.\n");
     return 0;
   }
   std::vector<std::string> notes;
   std::printf("CPU: %s; %s\n\n", cpuModel().c_str(), now().c_str());
   std::printf("| scene | R | depth slices | receivers | DAG | unread blocks lit | ratio | unread blocks made lit | unread blocks already one code | read voxels checked |\n");
   std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
-  for (const std::string& spec : args.scenes) {
-    std::optional<BenchScene> s = openBenchScene(spec, "bench_unread", notes);
-    if (!s) continue;
-    const bool peer = spec == "peercity";
-    const Vec3 sun = peer ? kPeerSun : args.sunDir;
-    for (const int log2R : args.log2Resolutions) {
-      const int depth = peer && log2R > 12 ? kPeerDepthSlices : 0;
-      const OrthoGrid grid = makeGrid(s->scene, LightFrame::fromDirection(sun), log2R, depth);
-      const uint64_t R = grid.resolution();
-      for (const ReceiverKind kind : {ReceiverKind::Everywhere, ReceiverKind::Surfaces}) {
-        ReceiverDeclaration declaration;
-        declaration.kind = kind;
-        BakeOptions options;
-        options.receivers = kind;
-        options.receiverPcf = uint8_t(declaration.maxPcf);
-        const BakeScene prepared(s->scene, grid, Renderer::Raster, args.threads, declaration);
-        const Dag dag = bakeGrid(prepared, options);
-        TexelSlices slices;
-        rasterTexelSlices(prepared.raster(), options.closed, options.exit, 0, 0, uint32_t(R), uint32_t(R), slices);
-        prepared.receivers().freeIntervals(0, 0, uint32_t(R), uint32_t(R), slices, false);
-        const FreePyramid free(slices, R, dag.levels.size());
-        UnreadLit rewrite(dag, free);
-        const Dag lit = rewrite.run();
-        const uint64_t samples = 1000000;
-        const uint64_t differ = readVoxelsThatDiffer(dag, lit, slices, R, samples);
-        if (differ) throw std::runtime_error(format("%.0f read voxels changed", double(differ)));
-        std::printf("| %s | %s | %s | %s | %s | %s | %.3f | %llu | %llu | %llu random, none differ |\n", s->label.c_str(),
-                    resolutionLabel(log2R).c_str(), depth ? std::to_string(depth).c_str() : "cubic",
-                    kind == ReceiverKind::Everywhere ? "everywhere" : "surfaces, PCF <= 9", humanBytes(dag.bytes()).c_str(),
-                    humanBytes(lit.bytes()).c_str(), ratio(double(lit.bytes()), double(dag.bytes())),
-                    static_cast<unsigned long long>(rewrite.unreadBlocks),
-                    static_cast<unsigned long long>(rewrite.unreadHomogeneous), static_cast<unsigned long long>(samples));
-        std::fflush(stdout);
-      }
-    }
-  }
+  forEachBenchDag(args, "bench_unread", notes, [](const BenchDag& b) {
+    const uint64_t R = b.grid.resolution();
+    TexelSlices slices;
+    rasterTexelSlices(b.prepared.raster(), b.options.closed, b.options.exit, 0, 0, uint32_t(R), uint32_t(R), slices);
+    b.prepared.receivers().freeIntervals(0, 0, uint32_t(R), uint32_t(R), slices, false);
+    const FreePyramid free(slices, R, b.dag.levels.size());
+    UnreadLit rewrite(b.dag, free);
+    const Dag lit = rewrite.run();
+    const uint64_t samples = 1000000;
+    const uint64_t differ = readVoxelsThatDiffer(b.dag, lit, slices, R, samples);
+    if (differ) throw std::runtime_error(format("%.0f read voxels changed", double(differ)));
+    std::printf("| %s | %s | %s | %.3f | %llu | %llu | %llu random, none differ |\n", benchDagCells(b).c_str(),
+                humanBytes(b.dag.bytes()).c_str(), humanBytes(lit.bytes()).c_str(),
+                ratio(double(lit.bytes()), double(b.dag.bytes())), static_cast<unsigned long long>(rewrite.unreadBlocks),
+                static_cast<unsigned long long>(rewrite.unreadHomogeneous), static_cast<unsigned long long>(samples));
+  });
   for (const std::string& n : notes) std::printf("\nnote: %s", n.c_str());
   std::printf("\nDAG: today's bake, node data in today's packed layout. Unread blocks lit: the same DAG with every "
               "non-homogeneous block (a node, or a leaf slice) whose voxels no receiver reads made lit, position by "
