@@ -12,6 +12,11 @@
 #include "cpvs/bake/bake_lights.h"
 #include "cpvs/bake/light_plan.h"
 #include "cpvs/bake/bake_plan.h"
+#include "cpvs/bake/bake_scene.h"
+#include "cpvs/bake/column_masks.h"
+#include "cpvs/bake/stage_times.h"
+#include "cpvs/bake/texel_slices.h"
+#include "cpvs/raytrace/ray_scene.h"
 #include "cpvs/bake/raster_slices.h"
 #include "bake/receiver_reads.h"
 #include "cpvs/bake/receivers.h"
@@ -712,6 +717,48 @@ TEST(Receivers, AColumnsSharedSliceLiesInEachTexelsOwnRange) {
     }
   EXPECT_GT(collapsed, 0u);
   EXPECT_GT(wide, uint64_t(R) * R / 4);  // most of the grid is free to the reads alone
+}
+
+// A block resolved in strips of rows (BakeScene::columnMasks) has the masks of the whole
+// block rendered, freed and resolved at once, with either renderer, at a height that is
+// no multiple of the strip's and an origin off the tiles'.
+TEST(Receivers, StripsOfRowsGiveTheWholeBlocksMasks) {
+  const Scene scene = testScene();
+  const OrthoGrid grid = makeGrid(scene, LightFrame::fromDirection({0.3, -1, 0.25}), 9);
+  const uint32_t R = uint32_t(grid.resolution());
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Surfaces;
+  d.maxPcf = 5;
+  for (const Renderer renderer : {Renderer::Raster, Renderer::Embree}) {
+    SCOPED_TRACE(renderer == Renderer::Raster ? "raster" : "embree");
+    const BakeScene prepared(scene, grid, renderer, 0, d);
+    BakeOptions options;
+    options.renderer = renderer;
+    options.receivers = d.kind;
+    options.receiverPcf = uint8_t(d.maxPcf);
+    const uint64_t x0 = 64, y0 = 8;
+    const uint32_t width = 384, height = 296;  // two strips of 128 rows and part of one
+    ColumnMasks strips;
+    StageTimes times;
+    prepared.columnMasks(options, x0, y0, width, height, strips, times);
+    TexelSlices whole;
+    if (renderer == Renderer::Raster)
+      rasterTexelSlices(prepared.raster(), options.closed, options.exit, x0, y0, width, height, whole);
+    else
+      renderTexelSlices(RayScene(scene, grid.origin), grid, options.closed, options.exit, x0, y0, width, height, whole);
+    prepared.receivers().freeIntervals(x0, y0, width, height, whole);
+    ColumnMasks want;
+    buildColumnMasks(whole, width, height, R, options.undefinedRule, want);
+    EXPECT_GT(want.slice.size(), 500u);  // transitions in many columns
+    EXPECT_EQ(strips.columnsX, want.columnsX);
+    EXPECT_EQ(strips.columnsY, want.columnsY);
+    EXPECT_EQ(strips.resolution, want.resolution);
+    EXPECT_EQ(strips.begin, want.begin);
+    EXPECT_EQ(strips.slice, want.slice);
+    EXPECT_EQ(strips.mask, want.mask);
+    EXPECT_EQ(strips.firstShadow, want.firstShadow);
+    EXPECT_EQ(strips.fullShadow, want.fullShadow);
+  }
 }
 
 TEST(Receivers, TilesNoReceiverReadsAreNotRendered) {

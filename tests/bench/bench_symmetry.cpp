@@ -46,7 +46,7 @@ int run(int argc, char** argv) {
   std::printf("\n");
   forEachBenchDag(args, "bench_symmetry", notes, [](const BenchDag& b) {
     const Dag& dag = b.dag;
-    const uint64_t nodes = dag.nodeCount() + dag.leaves.size();
+    const uint64_t nodes = dag.nodeCount();  // internal nodes and leaves
     std::printf("| %s | %s | %s | %.2f |", benchDagCells(b).c_str(), std::to_string(nodes).c_str(),
                 humanBytes(dag.bytes()).c_str(), ratio(double(dag.levelBytes(-1)), double(dag.bytes())));
     for (const Generators& g : kSets) {

@@ -1,8 +1,9 @@
 // What a fourth child code for blocks no receiver reads could save, per scene: the DAG
-// baked as today, and the same DAG with every non-homogeneous block that no lookup reads
-// made lit (at every position it occupies, then shared again). A code of its own could
-// merge no more than lit does (lit also equals the lit blocks beside it), so the second
-// size bounds what such a code, or any choice of the unread blocks' values, can reach.
+// baked as today, and the same DAG with every block that no lookup reads made lit (at
+// every position it occupies, non-homogeneous or all shadowed, then shared again). A
+// distinct code on those blocks merges nodes only where they agree on it, and lit merges
+// with all of that and with the lit blocks beside them, so the second size bounds what
+// such a code could reach. (It bounds no other choice of the free voxels' values.)
 #include <algorithm>
 #include <cstdio>
 #include <random>
@@ -77,23 +78,25 @@ class UnreadLit {
     out_.roots.push_back({0, rewrite(top, dag_.roots.front().ref, 0, 0, 0)});
     return std::move(out_);
   }
-  uint64_t unreadBlocks = 0;       // non-homogeneous blocks nobody reads: made lit
-  uint64_t unreadHomogeneous = 0;  // blocks nobody reads that already were one code
+  // The blocks nobody reads, met on the way (outermost only): non-homogeneous, all
+  // shadowed (both made lit) and already lit.
+  uint64_t unreadMixed = 0, unreadShadowed = 0, unreadLit = 0;
 
  private:
+  void count(NodeRef ref) {
+    (ref.code == kRef ? unreadMixed : ref.code == kShadowed ? unreadShadowed : unreadLit) += 1;
+  }
+
   NodeRef rewrite(int level, NodeRef ref, uint64_t bx, uint64_t by, uint64_t bz) {
     const FreePyramid::Level& f = free_.levels[size_t(level)];
     const size_t at = by * f.width + bx;
     const uint64_t s = uint64_t(8) << level, z0 = bz * s, z1 = z0 + s;
     const bool unread = z0 >= f.latestStart[at] && z1 <= f.earliestEnd[at];
-    if (ref.code != kRef) {
-      unreadHomogeneous += unread;
-      return ref;
-    }
     if (unread) {
-      ++unreadBlocks;
+      count(ref);
       return {kLit, 0};
     }
+    if (ref.code != kRef) return ref;
     if (!f.anyFree[at]) return {kRef, copy(level, ref.index)};  // every voxel read: as it is
     uint16_t codes = 0;
     uint32_t refs[kChildren];
@@ -104,10 +107,8 @@ class UnreadLit {
       if (level == 0) {  // a depth slice of the 8x8 column
         const uint64_t z = z0 + uint64_t(c);
         const bool unread = z >= f.latestStart[at] && z + 1 <= f.earliestEnd[at];
-        if (child.code != kRef) {
-          unreadHomogeneous += unread;
-        } else if (unread) {
-          ++unreadBlocks;
+        if (unread) {
+          count(child);
           to = {kLit, 0};
         } else if (child.code == kRef) {
           to.index = leaf(dag_.leaves[child.index]);
@@ -187,15 +188,15 @@ int run(int argc, char** argv) {
     std::printf(
         "bench_unread [--scenes peercity,city,shouse,maisons,bunny] [--resolutions 4K] [--sun-dir X,Y,Z]\n"
         "  One DAG per scene and receivers (everywhere; surfaces with PCF up to 9), and the same DAG with every\n"
-        "  block that no receiver's lookup reads made lit: the bound on what a child code for unread blocks could\n"
-        "  save. The peer's city takes its own sun, and above 4K also its grid of 4,096 slices. Holds the whole\n"
+        "  block that no receiver's lookup reads made lit: the bound on what a distinct child code for unread blocks\n"
+        "  could save. The peer's city takes its own sun, and above 4K also its grid of 4,096 slices. Holds the whole\n"
         "  grid's texels in memory (8 bytes each): 2 GiB at 16K.\n");
     return 0;
   }
   std::vector<std::string> notes;
   std::printf("CPU: %s; %s\n\n", cpuModel().c_str(), now().c_str());
-  std::printf("| scene | R | depth slices | receivers | DAG | unread blocks lit | ratio | unread blocks made lit | unread blocks already one code | read voxels checked |\n");
-  std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+  std::printf("| scene | R | depth slices | receivers | DAG | unread blocks lit | ratio | unread blocks: mixed | all shadowed | already lit | read voxels checked |\n");
+  std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
   forEachBenchDag(args, "bench_unread", notes, [](const BenchDag& b) {
     const uint64_t R = b.grid.resolution();
     TexelSlices slices;
@@ -207,17 +208,18 @@ int run(int argc, char** argv) {
     const uint64_t samples = 1000000;
     const uint64_t differ = readVoxelsThatDiffer(b.dag, lit, slices, R, samples);
     if (differ) throw std::runtime_error(format("%.0f read voxels changed", double(differ)));
-    std::printf("| %s | %s | %s | %.3f | %llu | %llu | %llu random, none differ |\n", benchDagCells(b).c_str(),
+    std::printf("| %s | %s | %s | %.3f | %llu | %llu | %llu | %llu random, none differ |\n", benchDagCells(b).c_str(),
                 humanBytes(b.dag.bytes()).c_str(), humanBytes(lit.bytes()).c_str(),
-                ratio(double(lit.bytes()), double(b.dag.bytes())), static_cast<unsigned long long>(rewrite.unreadBlocks),
-                static_cast<unsigned long long>(rewrite.unreadHomogeneous), static_cast<unsigned long long>(samples));
+                ratio(double(lit.bytes()), double(b.dag.bytes())), static_cast<unsigned long long>(rewrite.unreadMixed),
+                static_cast<unsigned long long>(rewrite.unreadShadowed), static_cast<unsigned long long>(rewrite.unreadLit),
+                static_cast<unsigned long long>(samples));
   });
   for (const std::string& n : notes) std::printf("\nnote: %s", n.c_str());
   std::printf("\nDAG: today's bake, node data in today's packed layout. Unread blocks lit: the same DAG with every "
-              "non-homogeneous block (a node, or a leaf slice) whose voxels no receiver reads made lit, position by "
-              "position, equal nodes shared again: the least a child code for such blocks could keep. Already one code: the unread blocks met on the way "
-              "(children of the nodes walked) that the undefined rule had already made all lit or all shadowed. Read voxels: "
-              "samples outside the free ranges (half of them just in front of one), compared in both DAGs.\n");
+              "block (a node, or a leaf slice) whose voxels no receiver reads made lit, position by position, equal "
+              "nodes shared again: the least a distinct child code on those blocks could keep. Unread blocks: the "
+              "outermost ones met on the way, by what the bake had made of them. Read voxels: samples outside the free "
+              "ranges (half of them just in front of one), compared in both DAGs.\n");
   return 0;
 }
 

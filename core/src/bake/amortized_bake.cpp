@@ -16,23 +16,6 @@ using Clock = std::chrono::steady_clock;
 
 double secondsBetween(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
-// Appends the masks of the rows below `add` to `to`: columns are stored row by row, so a
-// stripe's columns follow the stripes above it.
-void appendStripe(ColumnMasks& to, ColumnMasks&& add) {
-  if (to.begin.empty()) {
-    to = std::move(add);
-    return;
-  }
-  CPVS_CHECK(to.columnsX == add.columnsX && to.resolution == add.resolution);
-  const uint32_t base = to.begin.back();
-  for (size_t i = 1; i < add.begin.size(); ++i) to.begin.push_back(base + add.begin[i]);
-  to.slice.insert(to.slice.end(), add.slice.begin(), add.slice.end());
-  to.mask.insert(to.mask.end(), add.mask.begin(), add.mask.end());
-  to.firstShadow.insert(to.firstShadow.end(), add.firstShadow.begin(), add.firstShadow.end());
-  to.fullShadow.insert(to.fullShadow.end(), add.fullShadow.begin(), add.fullShadow.end());
-  to.columnsY += add.columnsY;
-}
-
 }  // namespace
 
 AmortizedBake::AmortizedBake(const BakeScene& scene, const BakeOptions& options)
@@ -70,7 +53,7 @@ const char* AmortizedBake::runUnit(std::chrono::nanoseconds budget) {
       const auto start = Clock::now();
       ColumnMasks stripe;
       scene_.columnMasks(options_, t.x * tileSide_, t.y * tileSide_ + rowsDone_, tileSide_, rows, stripe, times_);
-      appendStripe(masks_, std::move(stripe));
+      appendColumnRows(masks_, stripe);
       secondsPerRow_ = secondsBetween(start, Clock::now()) / rows;
       rowsDone_ += rows;
       if (rowsDone_ == tileSide_) stage_ = Stage::Pyramid;

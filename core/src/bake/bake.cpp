@@ -151,7 +151,8 @@ Dag bakeGrid(const BakeScene& scene, const BakeOptions& options, StageTimes* tim
                   }
                 // Isolated: a thread waiting inside this tile's parallel loops must not take
                 // up the other tile in flight, whose stages would share its thread's scratch
-                // buffers (BakeScene::columnMasks keeps its texel slices per thread).
+                // buffers (BakeScene::columnMasks keeps its strips' texel slices and masks
+                // per thread).
                 tbb::this_task_arena::isolate(
                     [&] { b->dag = bakeTile(scene, tile.x, tile.y, options, &b->times); });
                 b->seconds = secondsSince(start);

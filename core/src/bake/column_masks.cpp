@@ -70,7 +70,11 @@ void buildColumnMasks(const TexelSlices& depths, uint32_t width, uint32_t height
 }
 
 void appendColumnRows(ColumnMasks& to, const ColumnMasks& rows) {
-  CPVS_CHECK(rows.columnsX == to.columnsX && rows.resolution == to.resolution && !to.begin.empty());
+  if (to.begin.empty()) {  // nothing yet: the rows are the block so far
+    to = rows;
+    return;
+  }
+  CPVS_CHECK(rows.columnsX == to.columnsX && rows.resolution == to.resolution);
   const uint64_t base = to.begin.back();
   if (base + rows.slice.size() > std::numeric_limits<uint32_t>::max())
     throw std::length_error("appendColumnRows: more than 2^32 transitions in one block");

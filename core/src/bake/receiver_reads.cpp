@@ -67,19 +67,17 @@ void FillSlicesImpl(uint32_t* out, size_t n, uint32_t v) {
 
 void RowsMaxMinImpl(const uint32_t* lo, const uint32_t* hi, size_t stride, size_t rows, size_t n, uint32_t* rowLo,
                     uint32_t* rowHi) {
-  const hn::ScalableTag<int32_t> d;  // slices < 2^31: signed lanes order them
+  const hn::ScalableTag<uint32_t> d;
   const size_t N = hn::Lanes(d);
-  const auto* l = reinterpret_cast<const int32_t*>(lo);
-  const auto* h = reinterpret_cast<const int32_t*>(hi);
   size_t x = 0;
   for (; x + N <= n; x += N) {
-    auto ml = hn::LoadU(d, l + x), mh = hn::LoadU(d, h + x);
+    auto ml = hn::LoadU(d, lo + x), mh = hn::LoadU(d, hi + x);
     for (size_t r = 1; r < rows; ++r) {
-      ml = hn::Max(ml, hn::LoadU(d, l + r * stride + x));
-      mh = hn::Min(mh, hn::LoadU(d, h + r * stride + x));
+      ml = hn::Max(ml, hn::LoadU(d, lo + r * stride + x));
+      mh = hn::Min(mh, hn::LoadU(d, hi + r * stride + x));
     }
-    hn::StoreU(ml, d, reinterpret_cast<int32_t*>(rowLo) + x);
-    hn::StoreU(mh, d, reinterpret_cast<int32_t*>(rowHi) + x);
+    hn::StoreU(ml, d, rowLo + x);
+    hn::StoreU(mh, d, rowHi + x);
   }
   for (; x < n; ++x) {
     uint32_t ml = lo[x], mh = hi[x];

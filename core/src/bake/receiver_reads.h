@@ -39,7 +39,7 @@ void applyPlanarRun(const PlanarRun& run, const uint32_t* lo, const uint32_t* hi
 void fillSlices(uint32_t* out, size_t n, uint32_t v);
 
 /// rowLo[x] = the greatest of lo[r * stride + x], rowHi[x] = the least of hi[r * stride + x]
-/// over the `rows` rows, for x in [0, n); slices below 2^31.
+/// over the `rows` rows (at least one), for x in [0, n).
 void rowsMaxMin(const uint32_t* lo, const uint32_t* hi, size_t stride, size_t rows, size_t n, uint32_t* rowLo,
                 uint32_t* rowHi);
 

@@ -936,6 +936,7 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
     const uint32_t sharedRows = shareColumns ? rows / 8 * 8 : 0;
     thread_local std::vector<uint32_t> rowLo, rowHi, shared;
     rowLo.resize(width), rowHi.resize(width), shared.resize(width);
+    std::fill(shared.begin() + width / 8 * 8, shared.end(), kNoSharedSlice);  // a last part column: as read
     for (uint32_t by = 0; by < sharedRows; by += 8) {
       const uint32_t* lo8 = newLo.data() + size_t(by) * width;
       const uint32_t* hi8 = newHi.data() + size_t(by) * width;

@@ -33,8 +33,9 @@ struct ColumnMasks {
 void buildColumnMasks(const TexelSlices& depths, uint32_t width, uint32_t height, uint32_t R,
                       UndefinedRule rule, ColumnMasks& out);
 
-/// Appends the columns of `rows` (as wide as `to`) below those of `to`: the masks of a
-/// block resolved strip by strip are the block's.
+/// Appends the columns of `rows` (as wide as `to`) below those of `to` (a `to` with no
+/// `begin` yet becomes `rows`): the masks of a block resolved strip by strip are the
+/// block's. std::length_error past 2^32 transitions.
 void appendColumnRows(ColumnMasks& to, const ColumnMasks& rows);
 
 /// Appends the transitions of one 8x8 column, texel (tx, ty) at ty * 8 + tx: lo is the
