@@ -57,17 +57,18 @@ void BakeScene::columnMasks(const BakeOptions& options, uint64_t x0, uint64_t y0
   constexpr uint32_t kStripRows = 128;
   thread_local TexelSlices depths;
   thread_local ColumnMasks rows;
+  const size_t columns = size_t(width / 8) * (height / 8);
   out.columnsX = width / 8;
   out.columnsY = 0;
   out.resolution = R;
   out.begin.assign(1, 0);
-  out.begin.reserve(size_t(out.columnsX) * (height / 8) + 1);
+  out.begin.reserve(columns + 1);
   out.slice.clear();
   out.mask.clear();
   out.firstShadow.clear();
   out.fullShadow.clear();
-  out.firstShadow.reserve(out.begin.capacity() - 1);
-  out.fullShadow.reserve(out.begin.capacity() - 1);
+  out.firstShadow.reserve(columns);
+  out.fullShadow.reserve(columns);
   for (uint32_t y = 0; y < height; y += kStripRows) {
     const uint32_t strip = std::min(kStripRows, height - y);
     start = std::chrono::steady_clock::now();
