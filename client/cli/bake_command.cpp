@@ -6,6 +6,8 @@
 #include <memory>
 #include <sstream>
 
+#include <tbb/task_group.h>
+
 #include "bake_flags.h"
 #include "bundle_text.h"
 #include "cpvs/bake/bake_lights.h"
@@ -274,7 +276,12 @@ int runBake(const BakeArgs& a) {
   art.options = opt;
   art.sceneHash = sceneHash(scene);
   art.receiverHash = receiverHash(receivers);
-  art.plan = planJson(planBake(scene, ss, opt, receivers, prepared.raster(), prepared.receivers(), declaredMedia(a.options)));
+  // The plan, stored in the file, reads the prepared scene only: made while tiles bake.
+  tbb::task_group planning;
+  std::string plan;
+  planning.run([&] {
+    plan = planJson(planBake(scene, ss, opt, receivers, prepared.raster(), prepared.receivers(), declaredMedia(a.options)));
+  });
   std::optional<TileCache> cache;
   if (!a.tileCache.empty()) {
     cache.emplace(a.tileCache, a.tileCacheMb << 20);
@@ -284,6 +291,8 @@ int runBake(const BakeArgs& a) {
   }
   art.dag = bakeGrid(prepared, opt, &st, [&](const Progress& p) { return progress.update(p); }, cache ? &*cache : nullptr);
   progress.finish();
+  planning.wait();
+  art.plan = std::move(plan);
   if (hasTranslucentMeshes(scene)) {
     start = std::chrono::steady_clock::now();
     art.translucent = std::make_shared<const TopTree>(translucentTree(scene, PsvLight::sun(grid.frame.dir)));

@@ -1,6 +1,9 @@
 #include "cpvs/bake/bake_scene.h"
 
 #include <chrono>
+#include <optional>
+
+#include <tbb/parallel_invoke.h>
 
 #include "cpvs/bake/raster_slices.h"
 #include "cpvs/bake/stage_times.h"
@@ -17,15 +20,34 @@ const Scene& sunCasters(const Scene& scene, std::optional<Scene>& storage) {
   return *storage;
 }
 
+namespace {
+
+// The rasterizer's scene and the receivers' spans need nothing of each other: each is
+// made on its own core, the receivers into `receivers`, the scene returned.
+template <class MakeRaster, class MakeReceivers>
+RasterScene makeBoth(MakeRaster&& makeRaster, MakeReceivers&& makeReceivers, ReceiverSet& receivers) {
+  std::optional<RasterScene> raster;
+  tbb::parallel_invoke([&] { raster.emplace(makeRaster()); }, [&] { receivers = makeReceivers(); });
+  return std::move(*raster);
+}
+
+}  // namespace
+
 BakeScene::BakeScene(const Scene& scene, const OrthoGrid& grid, Renderer renderer, int threads,
                      const ReceiverDeclaration& receivers)
-    : renderer_(renderer), raster_(sunCasters(scene, opaque_), grid), receivers_(scene, grid, receivers) {
+    : renderer_(renderer),
+      receivers_(ReceiverSet::everywhere(0)),
+      raster_(makeBoth([&] { return RasterScene(sunCasters(scene, opaque_), grid); },
+                       [&] { return ReceiverSet(scene, grid, receivers); }, receivers_)) {
   if (renderer == Renderer::Embree) rays_ = std::make_unique<RayScene>(opaque_ ? *opaque_ : scene, grid.origin, threads);
 }
 
 BakeScene::BakeScene(const Scene& scene, const PerspectiveGrid& grid, double tanCone, Renderer renderer, int threads,
                      const ReceiverDeclaration& receivers, const Scene* receiving)
-    : renderer_(renderer), raster_(scene, grid, tanCone), receivers_(receiving ? *receiving : scene, grid, receivers) {
+    : renderer_(renderer),
+      receivers_(ReceiverSet::everywhere(0)),
+      raster_(makeBoth([&] { return RasterScene(scene, grid, tanCone); },
+                       [&] { return ReceiverSet(receiving ? *receiving : scene, grid, receivers); }, receivers_)) {
   if (renderer == Renderer::Embree) rays_ = std::make_unique<RayScene>(scene, grid.position(), threads);
 }
 

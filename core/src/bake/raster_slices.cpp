@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cstring>
 
 #include "bake/raster_bin.h"
 #include "cpvs/base/error.h"
@@ -75,6 +76,7 @@ void maskCone(const RasterScene& scene, const RasterBinJob& job) {
 struct BinOutput {
   RasterBinScratch scratch;
   std::vector<uint32_t> lo, hi;
+  bool allLit = false;  // lo and hi hold an empty bin's answer (all R) from the bin before
 };
 
 // Rasterizes a tile bin by bin in parallel; `sink(bin, job)` receives each bin's block
@@ -98,11 +100,16 @@ void rasterTile(const RasterScene& scene, ClosedMode closed, ExitMode exit, uint
                        int64_t(x0 + bx * kBinSide), int64_t(y0 + by * kBinSide),
                        std::min(kBinBlocks, (width - bx * kBinSide) / 8), std::min(kBinBlocks, (height - by * kBinSide) / 8),
                        closed, exit == ExitMode::Exact, o.lo.data(), o.hi.data()};
+      // Empty bins come in runs (open sky): the buffers keep their answer between them.
       if (job.triangleCount == 0) {
-        std::fill(o.lo.begin(), o.lo.end(), R);
-        std::fill(o.hi.begin(), o.hi.end(), R);
+        if (!o.allLit) {
+          std::fill(o.lo.begin(), o.lo.end(), R);
+          std::fill(o.hi.begin(), o.hi.end(), R);
+        }
+        o.allLit = scene.spot() == nullptr;  // maskCone writes into them
       } else {
         rasterBin(job, o.scratch);
+        o.allLit = false;
       }
       maskCone(scene, job);
       sink(b, job);
@@ -120,10 +127,11 @@ void rasterTexelSlices(const RasterScene& scene, ClosedMode closed, ExitMode exi
     for (uint32_t k = 0; k < job.blocksX * job.blocksY; ++k) {
       const size_t tx = size_t(job.x0 - int64_t(x0)) + 8 * (k % job.blocksX);
       const size_t ty = size_t(job.y0 - int64_t(y0)) + 8 * (k / job.blocksX);
+      // memcpy of a constant 32 bytes is two moves; std::copy_n is a memmove call each.
       for (int row = 0; row < 8; ++row) {
         const size_t at = (ty + size_t(row)) * width + tx;
-        std::copy_n(job.lo + 64 * size_t(k) + 8 * row, 8, out.firstUndefined.begin() + ptrdiff_t(at));
-        std::copy_n(job.hi + 64 * size_t(k) + 8 * row, 8, out.firstShadowed.begin() + ptrdiff_t(at));
+        std::memcpy(out.firstUndefined.data() + at, job.lo + 64 * size_t(k) + 8 * row, 8 * sizeof(uint32_t));
+        std::memcpy(out.firstShadowed.data() + at, job.hi + 64 * size_t(k) + 8 * row, 8 * sizeof(uint32_t));
       }
     }
   });

@@ -67,8 +67,8 @@ class BakeScene {
  private:
   std::optional<Scene> opaque_;  // the sun's casters when some mesh is translucent (sunCasters)
   Renderer renderer_;
+  ReceiverSet receivers_;  // before raster_: made beside it (bake_scene.cpp)
   RasterScene raster_;
-  ReceiverSet receivers_;
   std::unique_ptr<RayScene> rays_;  // the Embree renderer only
 };
 
