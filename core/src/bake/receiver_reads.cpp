@@ -23,37 +23,59 @@ HWY_INLINE void applyColumn(const PlanarRun& r, int64_t x, size_t i, const uint3
   if (b >= hi[i]) newHi[i] = std::min(newHi[i], std::max(a, hi[i]));
 }
 
-void ApplyPlanarRunImpl(const PlanarRun& r, const uint32_t* lo, const uint32_t* hi, uint32_t* newLo, uint32_t* newHi) {
-  const hn::ScalableTag<double> d;
-  const hn::Rebind<int32_t, decltype(d)> di;  // slices < 2^31: signed lanes compare as unsigned
-  const size_t N = hn::Lanes(d), n = size_t(r.xb - r.xa + 1);
-  const auto base = hn::Set(d, r.base), gx = hn::Set(d, r.gx), zLo = hn::Set(d, r.zLo), zHi = hn::Set(d, r.zHi);
-  const auto loOff = hn::Set(d, r.loOff), hiOff = hn::Set(d, r.hiOff), top = hn::Set(d, r.top);
-  const auto half = hn::Set(d, 0.5), zero = hn::Zero(d), iota = hn::Iota(d, 0.0);
+// The columns [i, i + Lanes(d)) of the run, each with the scalar statement's operations
+// in order.
+template <class D>
+HWY_INLINE void applyColumns(D d, const PlanarRun& r, size_t i, const uint32_t* lo, const uint32_t* hi, uint32_t* newLo,
+                             uint32_t* newHi) {
+  const hn::Rebind<int32_t, D> di;  // slices < 2^31: signed lanes compare as unsigned
+  const auto half = hn::Set(d, 0.5), zero = hn::Zero(d);
   // A column that reads nothing gets a = 2^31 - 1 and b = -1: neither update applies.
   const auto none = hn::Set(d, 2147483647.0), below = hn::Set(d, -1.0);
-  const auto one = hn::Set(di, 1);
+  const auto one = hn::Set(di, 1), top = hn::Set(d, r.top);
   auto* nlo = reinterpret_cast<int32_t*>(newLo);
   auto* nhi = reinterpret_cast<int32_t*>(newHi);
-  size_t i = 0;
-  for (; i + N <= n; i += N) {
-    // double(x) exactly (|x| < 2^53), then the scalar statement's operations in order.
-    const auto x = hn::Add(hn::Set(d, double(r.xa + int64_t(i))), iota);
-    const auto z = hn::Add(base, hn::Mul(gx, hn::Add(x, half)));
-    const auto lower = hn::Max(zLo, hn::Add(z, loOff)), upper = hn::Min(zHi, hn::Add(z, hiOff));
-    const auto reads = hn::And(hn::Le(lower, upper), hn::Ge(upper, zero));
-    // Truncated towards zero, as uint32_t() does.
-    const auto a = hn::DemoteTo(di, hn::IfThenElse(reads, hn::Min(top, hn::Max(zero, lower)), none));
-    const auto b = hn::DemoteTo(di, hn::IfThenElse(reads, hn::Min(top, upper), below));
-    const auto l = hn::LoadU(di, reinterpret_cast<const int32_t*>(lo) + i);
-    const auto h = hn::LoadU(di, reinterpret_cast<const int32_t*>(hi) + i);
-    auto nl = hn::LoadU(di, nlo + i), nh = hn::LoadU(di, nhi + i);
-    nl = hn::IfThenElse(hn::Lt(a, l), hn::Max(nl, hn::Min(hn::Add(b, one), l)), nl);
-    nh = hn::IfThenElse(hn::Gt(b, hn::Sub(h, one)), hn::Min(nh, hn::Max(a, h)), nh);  // b >= h
-    hn::StoreU(nl, di, nlo + i);
-    hn::StoreU(nh, di, nhi + i);
+  // double(x) exactly (|x| < 2^53), then the scalar statement's operations in order.
+  const auto x = hn::Add(hn::Set(d, double(r.xa + int64_t(i))), hn::Iota(d, 0.0));
+  const auto z = hn::Add(hn::Set(d, r.base), hn::Mul(hn::Set(d, r.gx), hn::Add(x, half)));
+  const auto lower = hn::Max(hn::Set(d, r.zLo), hn::Add(z, hn::Set(d, r.loOff)));
+  const auto upper = hn::Min(hn::Set(d, r.zHi), hn::Add(z, hn::Set(d, r.hiOff)));
+  const auto reads = hn::And(hn::Le(lower, upper), hn::Ge(upper, zero));
+  // Truncated towards zero, as uint32_t() does.
+  const auto a = hn::DemoteTo(di, hn::IfThenElse(reads, hn::Min(top, hn::Max(zero, lower)), none));
+  const auto b = hn::DemoteTo(di, hn::IfThenElse(reads, hn::Min(top, upper), below));
+  const auto l = hn::LoadU(di, reinterpret_cast<const int32_t*>(lo) + i);
+  const auto h = hn::LoadU(di, reinterpret_cast<const int32_t*>(hi) + i);
+  auto nl = hn::LoadU(di, nlo + i), nh = hn::LoadU(di, nhi + i);
+  nl = hn::IfThenElse(hn::Lt(a, l), hn::Max(nl, hn::Min(hn::Add(b, one), l)), nl);
+  nh = hn::IfThenElse(hn::Gt(b, hn::Sub(h, one)), hn::Min(nh, hn::Max(a, h)), nh);  // b >= h
+  hn::StoreU(nl, di, nlo + i);
+  hn::StoreU(nh, di, nhi + i);
+}
+
+void ApplyPlanarRunImpl(const PlanarRun& r, const uint32_t* lo, const uint32_t* hi, uint32_t* newLo, uint32_t* newHi) {
+  const hn::ScalableTag<double> d;
+  const size_t N = hn::Lanes(d), n = size_t(r.xb - r.xa + 1);
+  // A column's update only raises newLo and lowers newHi to values of its own: applied
+  // twice it changes nothing. So a run's last columns are one more whole vector that
+  // overlaps the one before, and a run shorter than a vector two overlapping halves:
+  // most runs are a few vectors long, and their tails were a third of the columns.
+  if (n >= N) {
+    size_t i = 0;
+    for (; i + N <= n; i += N) applyColumns(d, r, i, lo, hi, newLo, newHi);
+    if (i < n) applyColumns(d, r, n - N, lo, hi, newLo, newHi);
+    return;
   }
-  for (; i < n; ++i) applyColumn(r, r.xa + int64_t(i), i, lo, hi, newLo, newHi);
+#if HWY_TARGET != HWY_SCALAR
+  const hn::Half<decltype(d)> dh;
+  const size_t H = hn::Lanes(dh);
+  if (H >= 2 && n >= H) {  // H <= n < 2H
+    applyColumns(dh, r, 0, lo, hi, newLo, newHi);
+    applyColumns(dh, r, n - H, lo, hi, newLo, newHi);
+    return;
+  }
+#endif
+  for (size_t i = 0; i < n; ++i) applyColumn(r, r.xa + int64_t(i), i, lo, hi, newLo, newHi);
 }
 
 void FillSlicesImpl(uint32_t* out, size_t n, uint32_t v) {
