@@ -223,6 +223,59 @@ TEST(ReceiverReads, ARunAppliesEachColumnAsTheScalarLoop) {
   hwy::SetSupportedTargetsForTest(0);
 }
 
+// The SIMD kernel of a ring's columns row by row against the scalar statement, row by
+// row: random half-planes (either sign of dirX, and dirX = 0 with room on either side),
+// 0 to 8 directions, runs of every length around the vector widths, at negative and large
+// y; on every SIMD target compiled. And that statement against the half-planes themselves:
+// a column inside the range meets them all but for rounding, one beside it misses one.
+TEST(ReceiverReads, RingRowsAnswerAsTheScalarStatement) {
+  for (int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    SCOPED_TRACE(hwy::TargetName(target));
+    hwy::SetSupportedTargetsForTest(target);
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int trial = 0; trial < 20000; ++trial) {
+      double support[8], dirX[8], invDirX[8], dirY[8];
+      const uint32_t dirs = uint32_t(rng() % 9);
+      const double scale = trial % 2 ? 100.0 : 70000.0;
+      for (uint32_t k = 0; k < dirs; ++k) {
+        dirX[k] = rng() % 6 == 0 ? 0.0 : u(rng);
+        dirY[k] = u(rng);
+        invDirX[k] = dirX[k] != 0 ? 1 / dirX[k] : 0;
+        support[k] = u(rng) * scale;
+      }
+      const double xMin = std::floor(u(rng) * scale), xMax = xMin + double(rng() % 4096);
+      const RingRows ring{support, dirX, invDirX, dirY, dirs, xMin, xMax};
+      const int64_t y0 = int64_t(u(rng) * scale);
+      const size_t n = 1 + rng() % 40;
+      std::vector<double> x0(n), x1(n);
+      ringColumnRows(ring, y0, n, x0.data(), x1.data());
+      for (size_t i = 0; i < n; ++i) {
+        double w0 = 0, w1 = 0;
+        ringColumns(ring, y0 + int64_t(i), w0, w1);
+        ASSERT_EQ(x0[i] <= x1[i], w0 <= w1) << "trial " << trial << " row " << i;
+        if (w0 <= w1) {
+          ASSERT_EQ(x0[i], w0) << "trial " << trial << " row " << i;
+          ASSERT_EQ(x1[i], w1) << "trial " << trial << " row " << i;
+        }
+        if (target != hwy::SupportedAndGeneratedTargets().front()) continue;
+        const double cy = double(y0 + int64_t(i)) + 0.5;
+        auto meets = [&](double c, double slack) {
+          for (uint32_t k = 0; k < dirs; ++k)
+            if (dirX[k] * (c + 0.5) > support[k] - dirY[k] * cy + slack) return false;
+          return c >= xMin && c <= xMax;
+        };
+        if (w0 <= w1) {
+          EXPECT_TRUE(meets(w0, 1e-6 * scale) && meets(w1, 1e-6 * scale)) << "trial " << trial;
+          EXPECT_FALSE(meets(w0 - 1, -1e-6 * scale)) << "trial " << trial;
+          EXPECT_FALSE(meets(w1 + 1, -1e-6 * scale)) << "trial " << trial;
+        }
+      }
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
+}
+
 // The column-sharing passes (fill, greatest and least over rows, select) against their
 // scalar loops, at every length around the vector widths, on every SIMD target compiled.
 TEST(ReceiverReads, TheSharingPassesAnswerAsTheScalarLoops) {

@@ -78,6 +78,44 @@ void ApplyPlanarRunImpl(const PlanarRun& r, const uint32_t* lo, const uint32_t* 
   for (size_t i = 0; i < n; ++i) applyColumn(r, r.xa + int64_t(i), i, lo, hi, newLo, newHi);
 }
 
+// ringColumns for the rows y0 + i + [0, Lanes(d)), lane by lane.
+template <class D>
+HWY_INLINE void ringColumnsOf(D d, const RingRows& r, int64_t y0, size_t i, double* x0, double* x1) {
+  const auto cy = hn::Add(hn::Add(hn::Set(d, double(y0 + int64_t(i))), hn::Iota(d, 0.0)), hn::Set(d, 0.5));
+  const auto half = hn::Set(d, 0.5), zero = hn::Zero(d);
+  auto lo = hn::Set(d, r.xMin), hi = hn::Set(d, r.xMax);
+  auto dead = hn::Lt(zero, zero);  // no lane yet
+  for (uint32_t k = 0; k < r.dirs; ++k) {
+    const auto room = hn::Sub(hn::Set(d, r.support[k]), hn::Mul(hn::Set(d, r.dirY[k]), cy));
+    if (r.dirX[k] > 0) {
+      const auto bound = hn::Floor(hn::Sub(hn::Mul(room, hn::Set(d, r.invDirX[k])), half));
+      hi = hn::IfThenElse(hn::Lt(bound, hi), bound, hi);  // std::min(hi, bound)
+    } else if (r.dirX[k] < 0) {
+      const auto bound = hn::Ceil(hn::Sub(hn::Mul(room, hn::Set(d, r.invDirX[k])), half));
+      lo = hn::IfThenElse(hn::Lt(lo, bound), bound, lo);  // std::max(lo, bound)
+    } else {
+      dead = hn::Or(dead, hn::Not(hn::Ge(room, zero)));
+    }
+  }
+  const auto inf = hn::Set(d, std::numeric_limits<double>::infinity());
+  hn::StoreU(hn::IfThenElse(dead, inf, lo), d, x0 + i);
+  hn::StoreU(hn::IfThenElse(dead, hn::Neg(inf), hi), d, x1 + i);
+}
+
+void RingColumnRowsImpl(const RingRows& r, int64_t y0, size_t n, double* x0, double* x1) {
+  const hn::ScalableTag<double> d;
+  const size_t N = hn::Lanes(d);
+  // A row's columns depend on the row alone: the last rows are one more whole vector
+  // overlapping the one before, rewritten alike.
+  if (n >= N) {
+    size_t i = 0;
+    for (; i + N <= n; i += N) ringColumnsOf(d, r, y0, i, x0, x1);
+    if (i < n) ringColumnsOf(d, r, y0, n - N, x0, x1);
+    return;
+  }
+  for (size_t i = 0; i < n; ++i) ringColumns(r, y0 + int64_t(i), x0[i], x1[i]);
+}
+
 void FillSlicesImpl(uint32_t* out, size_t n, uint32_t v) {
   const hn::ScalableTag<uint32_t> d;
   const size_t N = hn::Lanes(d);
@@ -128,12 +166,17 @@ HWY_AFTER_NAMESPACE();
 namespace cpvs {
 
 HWY_EXPORT(ApplyPlanarRunImpl);
+HWY_EXPORT(RingColumnRowsImpl);
 HWY_EXPORT(FillSlicesImpl);
 HWY_EXPORT(RowsMaxMinImpl);
 HWY_EXPORT(SelectSharedImpl);
 
 void applyPlanarRun(const PlanarRun& run, const uint32_t* lo, const uint32_t* hi, uint32_t* newLo, uint32_t* newHi) {
   HWY_DYNAMIC_DISPATCH(ApplyPlanarRunImpl)(run, lo, hi, newLo, newHi);
+}
+
+void ringColumnRows(const RingRows& ring, int64_t y0, size_t n, double* x0, double* x1) {
+  HWY_DYNAMIC_DISPATCH(RingColumnRowsImpl)(ring, y0, n, x0, x1);
 }
 
 void fillSlices(uint32_t* out, size_t n, uint32_t v) { HWY_DYNAMIC_DISPATCH(FillSlicesImpl)(out, n, v); }

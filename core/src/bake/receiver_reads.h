@@ -5,8 +5,10 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 
 namespace cpvs {
 
@@ -28,6 +30,41 @@ inline bool planarReads(const PlanarRun& r, int64_t x, uint32_t& a, uint32_t& b)
   b = uint32_t(std::min(r.top, upper));
   return true;
 }
+
+/// A ring of a receiver span, row by row: the columns c in [xMin, xMax] with
+/// dirX[k] (c + 1/2) <= support[k] - dirY[k] (y + 1/2) for every k < dirs (the arrays are
+/// the span's and the ring's, ReceiverSet::Span and Ring).
+struct RingRows {
+  const double* support;
+  const double* dirX;
+  const double* invDirX;  // 1 / dirX (0 where dirX is 0)
+  const double* dirY;
+  uint32_t dirs;
+  double xMin, xMax;
+};
+
+/// The columns [x0, x1] the ring reaches in one row y (whole numbers; none unless
+/// x0 <= x1): the bound of each direction rounded inwards, as ReceiverSet::columnRange
+/// rounds it. The one statement every SIMD target repeats operation for operation.
+inline void ringColumns(const RingRows& r, int64_t y, double& x0, double& x1) {
+  const double cy = double(y) + 0.5;
+  double lo = r.xMin, hi = r.xMax;
+  for (uint32_t k = 0; k < r.dirs; ++k) {
+    const double room = r.support[k] - r.dirY[k] * cy;  // dirX * cx <= room
+    if (r.dirX[k] > 0) {
+      hi = std::min(hi, std::floor(room * r.invDirX[k] - 0.5));
+    } else if (r.dirX[k] < 0) {
+      lo = std::max(lo, std::ceil(room * r.invDirX[k] - 0.5));
+    } else if (!(room >= 0)) {
+      lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      break;
+    }
+  }
+  x0 = lo, x1 = hi;
+}
+
+/// ringColumns for the rows y0 + i, i < n, into x0[i] and x1[i].
+void ringColumnRows(const RingRows& ring, int64_t y0, size_t n, double* x0, double* x1);
 
 /// For each column of the run (element x - xa of the arrays) whose reads [a, b] are not
 /// empty: a lit slice read below the old range [lo, hi) raises newLo to min(b + 1, lo), a

@@ -32,6 +32,10 @@ constexpr double kOffsetExcess = 1.0 + 1.0 / 255.0;
 constexpr int kLog2Cell = 8;
 constexpr uint32_t kBandRows = 32;
 
+RingRows ringRows(const ReceiverSet::Span& s, const ReceiverSet::Ring& r) {
+  return {r.support, s.dirX, s.invDirX, s.dirY, s.dirs, double(r.xMin), double(r.xMax)};
+}
+
 struct Point2 {
   double x, y;
 };
@@ -748,29 +752,17 @@ std::vector<uint8_t> ReceiverSet::reachedColumns() const {
   for (const Span& s : spans_)
     for (int64_t y = s.yMin; y <= s.yMax; ++y) {
       int64_t x0 = 0, x1 = 0;
-      double dyc[8];
-      for (uint32_t k = 0; k < s.dirs; ++k) dyc[k] = s.dirY[k] * (double(y) + 0.5);
       for (uint32_t k = 0; k < s.rings; ++k)
-        if (y >= s.ring[k].yMin && y <= s.ring[k].yMax && columnRange(s, s.ring[k], dyc, x0, x1))
+        if (y >= s.ring[k].yMin && y <= s.ring[k].yMax && columnRange(s, s.ring[k], y, x0, x1))
           std::fill_n(reached.begin() + ptrdiff_t(size_t(y) * R_ + size_t(x0)), x1 - x0 + 1, 1);
     }
   return reached;
 }
 
-// The columns of a row a ring of the span reaches, [x0, x1]; false when none. The row is
-// given by its centre cy times each direction's dirY.
-bool ReceiverSet::columnRange(const Span& s, const Ring& r, const double* dirYTimesCy, int64_t& x0, int64_t& x1) {
-  double lo = double(r.xMin), hi = double(r.xMax);
-  for (uint32_t k = 0; k < s.dirs; ++k) {
-    const double room = r.support[k] - dirYTimesCy[k];  // dirX * cx <= room
-    if (s.dirX[k] > 0) {
-      hi = std::min(hi, std::floor(room * s.invDirX[k] - 0.5));
-    } else if (s.dirX[k] < 0) {
-      lo = std::max(lo, std::ceil(room * s.invDirX[k] - 0.5));
-    } else if (!(room >= 0)) {
-      return false;
-    }
-  }
+// The columns of row y a ring of the span reaches, [x0, x1]; false when none.
+bool ReceiverSet::columnRange(const Span& s, const Ring& r, int64_t y, int64_t& x0, int64_t& x1) {
+  double lo = 0, hi = 0;
+  ringColumns(ringRows(s, r), y, lo, hi);
   if (!(lo <= hi)) return false;
   x0 = int64_t(lo);
   x1 = int64_t(hi);
@@ -820,10 +812,12 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
     const double top = double(R_) - 1;
     auto forColumns = [&](const Span& s, auto&& fn) {
       const int64_t ya = std::max<int64_t>(s.yMin, int64_t(gy0)), yb = std::min<int64_t>(s.yMax, int64_t(gy1));
+      if (ya > yb) return;
+      // Each ring's columns in each of the span's rows in the band, on vectors of rows.
+      double ringX0[kMaxRings][kBandRows], ringX1[kMaxRings][kBandRows];
+      for (uint32_t k = 0; k < s.rings; ++k) ringColumnRows(ringRows(s, s.ring[k]), ya, size_t(yb - ya + 1), ringX0[k], ringX1[k]);
       for (int64_t y = ya; y <= yb; ++y) {
         const double cy = double(y) + 0.5;
-        double dyc[8];
-        for (uint32_t k = 0; k < s.dirs; ++k) dyc[k] = s.dirY[k] * cy;
         // Each ring's columns in the row, cut at their ends into runs that the same
         // rings reach: a run reads the union of their depth ranges.
         int64_t from[kMaxRings], to[kMaxRings], cuts[2 * kMaxRings];
@@ -831,21 +825,61 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
         int ringOf[kMaxRings];
         for (uint32_t k = 0; k < s.rings; ++k) {
           const Ring& r = s.ring[k];
-          int64_t xa = 0, xb = 0;
-          if (y < r.yMin || y > r.yMax || !columnRange(s, r, dyc, xa, xb)) continue;
-          xa = std::max<int64_t>(xa, int64_t(x0));
-          xb = std::min<int64_t>(xb, int64_t(gx1));
+          const double lo = ringX0[k][y - ya], hi = ringX1[k][y - ya];
+          if (y < r.yMin || y > r.yMax || !(lo <= hi)) continue;
+          const int64_t xa = std::max<int64_t>(int64_t(lo), int64_t(x0));
+          const int64_t xb = std::min<int64_t>(int64_t(hi), int64_t(gx1));
           if (xa > xb) continue;
           from[rings] = xa, to[rings] = xb, ringOf[rings] = int(k), ++rings;
           cuts[ncuts++] = xa, cuts[ncuts++] = xb + 1;
         }
         if (rings == 0) continue;
-        // At most 2 * kMaxRings cuts: insertion sort (std::sort's 16-element branch,
-        // unreachable here, is what GCC's -Warray-bounds sees).
-        for (uint32_t c = 1; c < ncuts; ++c)
-          for (uint32_t d = c; d > 0 && cuts[d - 1] > cuts[d]; --d) std::swap(cuts[d - 1], cuts[d]);
         const size_t row = size_t(y - int64_t(gy0)) * width - size_t(x0);
         const double base = s.pz - s.gx * s.px + s.gy * (cy - s.py);
+        // The columns [xa, xb] read the depths [loOff, hiOff] about the plane.
+        auto emit = [&](int64_t xa, int64_t xb, double loOff, double hiOff) {
+          if (xa > xb || !(loOff <= hiOff)) return;
+          if (!s.planar) {
+            if (!(s.zLo <= s.zHi) || s.zHi < 0) return;
+            const uint32_t a = uint32_t(std::min(top, std::max(0.0, s.zLo))), b = uint32_t(std::min(top, s.zHi));
+            for (int64_t x = xa; x <= xb; ++x) fn(row + size_t(x), a, b);
+            return;
+          }
+          const PlanarRun run{base, s.gx, s.zLo, s.zHi, loOff, hiOff, top, xa, xb};
+          if constexpr (std::is_same_v<std::decay_t<decltype(fn)>, std::decay_t<decltype(need)>>) {
+            // The most common run of all: a surface's reads applied at once (receiver_reads.h).
+            const size_t at = row + size_t(xa);
+            applyPlanarRun(run, lo + at, hi + at, newLo.data() + at, newHi.data() + at);
+            return;
+          }
+          for (int64_t x = xa; x <= xb; ++x) {
+            uint32_t a = 0, b = 0;
+            if (planarReads(run, x, a, b)) fn(row + size_t(x), a, b);
+          }
+        };
+        // Most rows' rings nest, each inside the next: the runs are known without a sort,
+        // each reading the union of the rings from its own outwards. (How a row is cut
+        // into runs changes nothing: a column reads the union of the rings reaching it.)
+        bool nested = true;
+        for (uint32_t k = 0; k + 1 < rings; ++k) nested = nested && from[k + 1] <= from[k] && to[k] <= to[k + 1];
+        if (nested) {
+          double outLo[kMaxRings], outHi[kMaxRings];  // the union of the rings k, k + 1, ...
+          double ul = std::numeric_limits<double>::infinity(), uh = -ul;
+          for (uint32_t k = rings; k-- > 0;) {
+            ul = std::min(ul, s.ring[ringOf[k]].loOff), uh = std::max(uh, s.ring[ringOf[k]].hiOff);
+            outLo[k] = ul, outHi[k] = uh;
+          }
+          for (uint32_t k = rings - 1; k > 0; --k) {
+            emit(from[k], from[k - 1] - 1, outLo[k], outHi[k]);
+            emit(to[k - 1] + 1, to[k], outLo[k], outHi[k]);
+          }
+          emit(from[0], to[0], outLo[0], outHi[0]);
+          continue;
+        }
+        // Otherwise cut at every ring's ends. At most 2 * kMaxRings cuts: insertion sort
+        // (std::sort's 16-element branch, unreachable here, is what GCC's -Warray-bounds sees).
+        for (uint32_t c = 1; c < ncuts; ++c)
+          for (uint32_t d = c; d > 0 && cuts[d - 1] > cuts[d]; --d) std::swap(cuts[d - 1], cuts[d]);
         for (uint32_t c = 0; c + 1 < ncuts; ++c) {
           const int64_t xa = cuts[c], xb = cuts[c + 1] - 1;
           double loOff = std::numeric_limits<double>::infinity(), hiOff = -loOff;
@@ -854,24 +888,7 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
               loOff = std::min(loOff, s.ring[ringOf[k]].loOff);
               hiOff = std::max(hiOff, s.ring[ringOf[k]].hiOff);
             }
-          if (xa > xb || !(loOff <= hiOff)) continue;  // between rings
-          if (!s.planar) {
-            if (!(s.zLo <= s.zHi) || s.zHi < 0) continue;
-            const uint32_t a = uint32_t(std::min(top, std::max(0.0, s.zLo))), b = uint32_t(std::min(top, s.zHi));
-            for (int64_t x = xa; x <= xb; ++x) fn(row + size_t(x), a, b);
-            continue;
-          }
-          const PlanarRun run{base, s.gx, s.zLo, s.zHi, loOff, hiOff, top, xa, xb};
-          if constexpr (std::is_same_v<std::decay_t<decltype(fn)>, std::decay_t<decltype(need)>>) {
-            // The most common run of all: a surface's reads applied at once (receiver_reads.h).
-            const size_t at = row + size_t(xa);
-            applyPlanarRun(run, lo + at, hi + at, newLo.data() + at, newHi.data() + at);
-            continue;
-          }
-          for (int64_t x = xa; x <= xb; ++x) {
-            uint32_t a = 0, b = 0;
-            if (planarReads(run, x, a, b)) fn(row + size_t(x), a, b);
-          }
+          emit(xa, xb, loOff, hiOff);  // nothing between rings
         }
       }
     };

@@ -173,7 +173,7 @@ class ReceiverSet {
 
  private:
   ReceiverSet() = default;
-  static bool columnRange(const Span& s, const Ring& r, const double* dirYTimesCy, int64_t& x0, int64_t& x1);
+  static bool columnRange(const Span& s, const Ring& r, int64_t y, int64_t& x0, int64_t& x1);
   /// What span s reads at column (x, y): kReads and the slices [a, b], or why none. Along
   /// a row the answer is monotone (the read range moves one way, and each kind of none
   /// holds at one end only), so a run whose ends agree answers alike in between.
