@@ -2,6 +2,7 @@
 // against every triangle) on every texel it does not mark ambiguous, the Embree renderer,
 // the exact one-texel coverage test, and its own fused masks against the unfused path.
 #include <gtest/gtest.h>
+#include <hwy/targets.h>
 
 #include <algorithm>
 #include <random>
@@ -249,6 +250,52 @@ TEST(ColumnTransitions, EqualThePlainStatement) {
       ASSERT_EQ(full, wantFull);
     }
   }
+}
+
+// A column read in place from a block's rows (any stride, hi below lo read as lo) against
+// the same column gathered into 64 texels, each rule, on every SIMD target compiled: and
+// the aligned rule against the new rule on alignedRanges' narrowing, the scalar statement.
+TEST(ColumnTransitions, AColumnOfRowsIsTheGatheredColumn) {
+  for (int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    SCOPED_TRACE(hwy::TargetName(target));
+    hwy::SetSupportedTargetsForTest(target);
+    std::mt19937 rng(23);
+    for (int trial = 0; trial < 3000; ++trial) {
+      const uint32_t R = 1u << (3 + rng() % 16);
+      const size_t stride = 8 * (1 + rng() % 6) + (trial % 2 ? 0 : 8 * (rng() % 3));
+      const uint32_t base = rng() % R, spread = trial % 3 == 0 ? 12 : R;
+      std::vector<uint32_t> lo(8 * stride), hi(8 * stride);
+      for (size_t i = 0; i < lo.size(); ++i) {
+        lo[i] = rng() % 7 == 0 ? R : std::min(R, base + uint32_t(rng() % spread)) % (R + 1);
+        hi[i] = rng() % 4 == 0 ? uint32_t(rng() % (R + 1)) : std::min(R, lo[i] + uint32_t(rng() % spread));
+      }
+      const size_t x = 8 * (rng() % (stride / 8));
+      uint32_t glo[64], ghi[64];
+      for (size_t ty = 0; ty < 8; ++ty)
+        for (size_t tx = 0; tx < 8; ++tx) {
+          glo[ty * 8 + tx] = lo[ty * stride + x + tx];
+          ghi[ty * 8 + tx] = std::max(glo[ty * 8 + tx], hi[ty * stride + x + tx]);
+        }
+      for (UndefinedRule rule : {UndefinedRule::New, UndefinedRule::Old, UndefinedRule::Aligned}) {
+        std::vector<uint32_t> slices, wantSlices;
+        std::vector<uint64_t> masks, wantMasks;
+        uint32_t first = 0, full = 0, wantFirst = 1, wantFull = 1;
+        columnTransitionsOfRows(lo.data() + x, hi.data() + x, stride, R, rule, slices, masks, first, full);
+        if (rule == UndefinedRule::Aligned) {
+          uint32_t nlo[64], nhi[64];
+          alignedRanges(glo, ghi, R, nlo, nhi);
+          columnTransitions(nlo, nhi, R, UndefinedRule::New, wantSlices, wantMasks, wantFirst, wantFull);
+        } else {
+          columnTransitions(glo, ghi, R, rule, wantSlices, wantMasks, wantFirst, wantFull);
+        }
+        ASSERT_EQ(slices, wantSlices) << "trial " << trial;
+        ASSERT_EQ(masks, wantMasks) << "trial " << trial;
+        ASSERT_EQ(first, wantFirst) << "trial " << trial;
+        ASSERT_EQ(full, wantFull) << "trial " << trial;
+      }
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
 }
 
 // The aligned rule: the new rule's plain statement on the narrowed ranges, every narrowed

@@ -36,19 +36,14 @@ void buildColumnMasks(const TexelSlices& depths, uint32_t width, uint32_t height
   std::vector<std::vector<uint32_t>> rowSlices(out.columnsY), rowCounts(out.columnsY);
   std::vector<std::vector<uint64_t>> rowMasks(out.columnsY);
   tbb::parallel_for(uint32_t(0), out.columnsY, [&](uint32_t cy) {
-    uint32_t lo[64], hi[64];
     auto& counts = rowCounts[cy];
     counts.resize(out.columnsX);
     for (uint32_t cx = 0; cx < out.columnsX; ++cx) {
-      for (int ty = 0; ty < 8; ++ty)
-        for (int tx = 0; tx < 8; ++tx) {
-          size_t at = size_t(cy * 8 + ty) * width + cx * 8 + tx;
-          lo[ty * 8 + tx] = depths.firstUndefined[at];
-          hi[ty * 8 + tx] = std::max(depths.firstUndefined[at], depths.firstShadowed[at]);
-        }
+      const size_t at = size_t(cy) * 8 * width + size_t(cx) * 8;
       size_t before = rowSlices[cy].size();
       size_t c = out.column(cx, cy);
-      columnTransitions(lo, hi, R, rule, rowSlices[cy], rowMasks[cy], out.firstShadow[c], out.fullShadow[c]);
+      columnTransitionsOfRows(depths.firstUndefined.data() + at, depths.firstShadowed.data() + at, width, R, rule,
+                              rowSlices[cy], rowMasks[cy], out.firstShadow[c], out.fullShadow[c]);
       counts[cx] = uint32_t(rowSlices[cy].size() - before);
     }
   });

@@ -20,14 +20,14 @@ namespace cpvs {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-void ColumnTransitionsImpl(const uint32_t* lo, const uint32_t* hi, uint32_t R, UndefinedRule rule,
-                           std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
-                           uint32_t& fullShadow) {
+// The transitions of one column whose 64 texels are in lo and hi (hi >= lo), by `rule`
+// (New or Old).
+HWY_INLINE void transitionsOf(const int32_t* loS, const int32_t* hiS, uint32_t R, UndefinedRule rule,
+                              std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
+                              uint32_t& fullShadow) {
   // Slices stay below 2^21: signed lanes compare them exactly.
   const hn::ScalableTag<int32_t> d;
   const size_t lanes = std::min<size_t>(hn::Lanes(d), 64);
-  const auto* loS = reinterpret_cast<const int32_t*>(lo);
-  const auto* hiS = reinterpret_cast<const int32_t*>(hi);
   const auto* nextS = rule == UndefinedRule::New ? hiS : loS;
   const auto none = hn::Set(d, int32_t(R));
   firstShadow = fullShadow = R;
@@ -65,6 +65,48 @@ void ColumnTransitionsImpl(const uint32_t* lo, const uint32_t* hi, uint32_t R, U
   }
 }
 
+// The column of texels (tx, ty) at lo[ty * stride + tx] and hi[...] (hi read as at least
+// lo): gathered row by row, narrowed as alignedRanges narrows them for the aligned rule,
+// then its transitions.
+void ColumnTransitionsImpl(const uint32_t* lo, const uint32_t* hi, size_t stride, uint32_t R, UndefinedRule rule,
+                           std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
+                           uint32_t& fullShadow) {
+  const hn::CappedTag<int32_t, 8> d8;
+  const size_t n8 = hn::Lanes(d8);
+  HWY_ALIGN int32_t L[64], H[64];
+  for (size_t ty = 0; ty < 8; ++ty)
+    for (size_t tx = 0; tx < 8; tx += n8) {
+      const auto l = hn::LoadU(d8, reinterpret_cast<const int32_t*>(lo) + ty * stride + tx);
+      const auto h = hn::LoadU(d8, reinterpret_cast<const int32_t*>(hi) + ty * stride + tx);
+      hn::Store(l, d8, L + ty * 8 + tx);
+      hn::Store(hn::Max(l, h), d8, H + ty * 8 + tx);
+    }
+  if (rule == UndefinedRule::Aligned) {
+    const hn::ScalableTag<int32_t> d;
+    const size_t lanes = std::min<size_t>(hn::Lanes(d), 64);
+    auto maxLo = hn::Zero(d), minHi = hn::Set(d, int32_t(R));
+    for (size_t i = 0; i < 64; i += lanes) {
+      maxLo = hn::Max(maxLo, hn::Load(d, L + i));
+      minHi = hn::Min(minHi, hn::Load(d, H + i));
+    }
+    const int32_t litEnd = hn::GetLane(hn::MinOfLanes(d, minHi)) & ~7;
+    const int32_t shadowStart = (hn::GetLane(hn::MaxOfLanes(d, maxLo)) + 7) & ~7;
+    const auto lit = hn::Set(d, litEnd), shadow = hn::Set(d, shadowStart);
+    for (size_t i = 0; i < 64; i += lanes) {
+      if (shadowStart <= litEnd) {  // one transition for the whole column (none at R)
+        hn::Store(lit, d, L + i);
+        hn::Store(lit, d, H + i);
+      } else {
+        const auto l = hn::Max(hn::Load(d, L + i), lit);
+        hn::Store(l, d, L + i);
+        hn::Store(hn::Max(l, hn::Min(hn::Load(d, H + i), shadow)), d, H + i);
+      }
+    }
+    rule = UndefinedRule::New;
+  }
+  transitionsOf(L, H, R, rule, slices, masks, firstShadow, fullShadow);
+}
+
 }  // namespace HWY_NAMESPACE
 }  // namespace cpvs
 HWY_AFTER_NAMESPACE();
@@ -97,13 +139,13 @@ void alignedRanges(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, uin
 void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, UndefinedRule rule,
                        std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
                        uint32_t& fullShadow) {
-  if (rule == UndefinedRule::Aligned) {
-    uint32_t narrowLo[64], narrowHi[64];
-    alignedRanges(lo, hi, R, narrowLo, narrowHi);
-    return HWY_DYNAMIC_DISPATCH(ColumnTransitionsImpl)(narrowLo, narrowHi, R, UndefinedRule::New, slices, masks,
-                                                       firstShadow, fullShadow);
-  }
-  HWY_DYNAMIC_DISPATCH(ColumnTransitionsImpl)(lo, hi, R, rule, slices, masks, firstShadow, fullShadow);
+  HWY_DYNAMIC_DISPATCH(ColumnTransitionsImpl)(lo, hi, 8, R, rule, slices, masks, firstShadow, fullShadow);
+}
+
+void columnTransitionsOfRows(const uint32_t* lo, const uint32_t* hi, size_t stride, uint32_t R, UndefinedRule rule,
+                             std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
+                             uint32_t& fullShadow) {
+  HWY_DYNAMIC_DISPATCH(ColumnTransitionsImpl)(lo, hi, stride, R, rule, slices, masks, firstShadow, fullShadow);
 }
 
 }  // namespace cpvs

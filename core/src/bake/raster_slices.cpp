@@ -156,15 +156,14 @@ void rasterColumnMasks(const RasterScene& scene, ClosedMode closed, ExitMode exi
     auto& masks = binMasks[b];
     slices.clear();
     masks.clear();
-    uint32_t hi[64];
     for (uint32_t k = 0; k < job.blocksX * job.blocksY; ++k) {
       const size_t cx = size_t(job.x0 - int64_t(x0)) / 8 + k % job.blocksX;
       const size_t cy = size_t(job.y0 - int64_t(y0)) / 8 + k / job.blocksX;
       const size_t c = out.column(uint32_t(cx), uint32_t(cy));
-      const uint32_t* lo = job.lo + 64 * size_t(k);
-      for (int t = 0; t < 64; ++t) hi[t] = std::max(lo[t], job.hi[64 * size_t(k) + size_t(t)]);
       columnStart[c] = uint32_t(slices.size());
-      columnTransitions(lo, hi, R, rule, slices, masks, out.firstShadow[c], out.fullShadow[c]);
+      // The block's 64 texels in row order, a stride of 8 (hi read as at least lo).
+      columnTransitionsOfRows(job.lo + 64 * size_t(k), job.hi + 64 * size_t(k), 8, R, rule, slices, masks,
+                              out.firstShadow[c], out.fullShadow[c]);
       columnCount[c] = uint32_t(slices.size()) - columnStart[c];
     }
   });

@@ -1,6 +1,7 @@
 // Visibility masks of 8x8-texel columns (§3.4).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -44,6 +45,12 @@ void appendColumnRows(ColumnMasks& to, const ColumnMasks& rows);
 void columnTransitions(const uint32_t lo[64], const uint32_t hi[64], uint32_t R, UndefinedRule rule,
                        std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
                        uint32_t& fullShadow);
+
+/// columnTransitions of the column whose texel (tx, ty) is at lo[ty * stride + tx] and
+/// hi[ty * stride + tx], hi read as at least lo: a column inside a block's rows.
+void columnTransitionsOfRows(const uint32_t* lo, const uint32_t* hi, size_t stride, uint32_t R, UndefinedRule rule,
+                             std::vector<uint32_t>& slices, std::vector<uint64_t>& masks, uint32_t& firstShadow,
+                             uint32_t& fullShadow);
 
 /// The aligned rule's ranges for one 8x8 column (texel t: lit before lo[t], shadowed from
 /// hi[t]; hi < lo reads as hi = lo): narrowed so that the column is wholly lit below the
