@@ -277,10 +277,13 @@ int runBake(const BakeArgs& a) {
   art.sceneHash = sceneHash(scene);
   art.receiverHash = receiverHash(receivers);
   // The plan, stored in the file, reads the prepared scene only: made while tiles bake.
-  tbb::task_group planning;
+  // Its inputs are checked here, and the string it fills outlives the group, which waits
+  // for it on every way out.
   std::string plan;
+  const auto media = declaredMedia(a.options);
+  tbb::task_group planning;
   planning.run([&] {
-    plan = planJson(planBake(scene, ss, opt, receivers, prepared.raster(), prepared.receivers(), declaredMedia(a.options)));
+    plan = planJson(planBake(scene, ss, opt, receivers, prepared.raster(), prepared.receivers(), media));
   });
   std::optional<TileCache> cache;
   if (!a.tileCache.empty()) {

@@ -6,6 +6,7 @@
 #include <hwy/targets.h>
 
 #include <array>
+#include <map>
 #include <random>
 
 #include "cpvs/bake/bake.h"
@@ -229,7 +230,8 @@ TEST(ReceiverReads, ARunAppliesEachColumnAsTheScalarLoop) {
 // y; on every SIMD target compiled. And that statement against the half-planes themselves:
 // a column inside the range meets them all but for rounding, one beside it misses one.
 TEST(ReceiverReads, RingRowsAnswerAsTheScalarStatement) {
-  for (int64_t target : hwy::SupportedAndGeneratedTargets()) {
+  const std::vector<int64_t> targets = hwy::SupportedAndGeneratedTargets();
+  for (int64_t target : targets) {
     SCOPED_TRACE(hwy::TargetName(target));
     hwy::SetSupportedTargetsForTest(target);
     std::mt19937_64 rng(11);
@@ -258,7 +260,7 @@ TEST(ReceiverReads, RingRowsAnswerAsTheScalarStatement) {
           ASSERT_EQ(x0[i], w0) << "trial " << trial << " row " << i;
           ASSERT_EQ(x1[i], w1) << "trial " << trial << " row " << i;
         }
-        if (target != hwy::SupportedAndGeneratedTargets().front()) continue;
+        if (target != targets.front()) continue;
         const double cy = double(y0 + int64_t(i)) + 0.5;
         auto meets = [&](double c, double slack) {
           for (uint32_t k = 0; k < dirs; ++k)
@@ -274,6 +276,56 @@ TEST(ReceiverReads, RingRowsAnswerAsTheScalarStatement) {
     }
   }
   hwy::SetSupportedTargetsForTest(0);
+}
+
+// A row's rings cut into runs, nested (the common case, cut without a sort) or not:
+// each column some ring reaches is in one run, with the least loOff and the greatest
+// hiOff of the rings that reach it; no other column is. Random rings, equal ends, one
+// ring and kMostRings.
+TEST(ReceiverReads, RingRunsGiveEachColumnTheUnionOfItsRings) {
+  std::mt19937_64 rng(13);
+  std::uniform_real_distribution<double> u(-8, 8);
+  int nestedRows = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const uint32_t rings = trial % 50 == 0 ? kMostRings : 1 + uint32_t(rng() % 5);
+    int64_t from[kMostRings], to[kMostRings];
+    double loOff[kMostRings], hiOff[kMostRings];
+    const bool nest = trial % 2 == 0;
+    int64_t a = int64_t(rng() % 64) - 32, b = a + int64_t(rng() % 12);
+    for (uint32_t k = 0; k < rings; ++k) {
+      if (nest) {  // each ring inside the next, ends shared now and then
+        a -= int64_t(rng() % 3), b += int64_t(rng() % 3);
+        from[k] = a, to[k] = b;
+      } else {
+        from[k] = int64_t(rng() % 64) - 32, to[k] = from[k] + int64_t(rng() % 20);
+      }
+      loOff[k] = u(rng), hiOff[k] = loOff[k] + std::abs(u(rng));
+    }
+    bool isNested = true;
+    for (uint32_t k = 0; k + 1 < rings; ++k) isNested = isNested && from[k + 1] <= from[k] && to[k] <= to[k + 1];
+    nestedRows += isNested;
+    std::map<int64_t, std::pair<double, double>> got;
+    ringRuns(from, to, loOff, hiOff, rings, [&](int64_t xa, int64_t xb, double lo, double hi) {
+      ASSERT_LE(xa, xb) << "trial " << trial;
+      for (int64_t x = xa; x <= xb; ++x) {
+        ASSERT_TRUE(got.emplace(x, std::make_pair(lo, hi)).second) << "trial " << trial << ": column " << x << " twice";
+      }
+    });
+    for (int64_t x = -80; x <= 120; ++x) {
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      bool reached = false;
+      for (uint32_t k = 0; k < rings; ++k)
+        if (from[k] <= x && x <= to[k]) lo = std::min(lo, loOff[k]), hi = std::max(hi, hiOff[k]), reached = true;
+      const auto it = got.find(x);
+      ASSERT_EQ(it != got.end(), reached) << "trial " << trial << " column " << x;
+      if (reached) {
+        ASSERT_EQ(it->second.first, lo) << "trial " << trial << " column " << x;
+        ASSERT_EQ(it->second.second, hi) << "trial " << trial << " column " << x;
+      }
+    }
+  }
+  EXPECT_GT(nestedRows, 5000);  // both paths taken
+  EXPECT_LT(nestedRows, 15000);
 }
 
 // The column-sharing passes (fill, greatest and least over rows, select) against their

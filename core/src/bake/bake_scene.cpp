@@ -4,6 +4,7 @@
 #include <optional>
 
 #include <tbb/parallel_invoke.h>
+#include <tbb/task_arena.h>
 
 #include "cpvs/bake/raster_slices.h"
 #include "cpvs/bake/stage_times.h"
@@ -27,7 +28,10 @@ namespace {
 template <class MakeRaster, class MakeReceivers>
 RasterScene makeBoth(MakeRaster&& makeRaster, MakeReceivers&& makeReceivers, ReceiverSet& receivers) {
   std::optional<RasterScene> raster;
-  tbb::parallel_invoke([&] { raster.emplace(makeRaster()); }, [&] { receivers = makeReceivers(); });
+  // Isolated: a farm worker builds scenes under a lock, where waiting must not take up
+  // another task's tile.
+  tbb::this_task_arena::isolate(
+      [&] { tbb::parallel_invoke([&] { raster.emplace(makeRaster()); }, [&] { receivers = makeReceivers(); }); });
   return std::move(*raster);
 }
 

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <utility>
 
 namespace cpvs {
 
@@ -65,6 +66,53 @@ inline void ringColumns(const RingRows& r, int64_t y, double& x0, double& x1) {
 
 /// ringColumns for the rows y0 + i, i < n, into x0[i] and x1[i].
 void ringColumnRows(const RingRows& ring, int64_t y0, size_t n, double* x0, double* x1);
+
+/// The most rings ringRuns takes.
+constexpr uint32_t kMostRings = 16;
+
+/// A row's rings: ring k < rings (at most kMostRings) reaches the columns [from[k], to[k]]
+/// (from <= to) and reads the depths [loOff[k], hiOff[k]] about the plane there. Calls
+/// emit(xa, xb, lo, hi) for runs that cover each column some ring reaches once, none
+/// other, with the union of the depths of the rings that reach it (the least loOff, the
+/// greatest hiOff). How a row is cut into runs changes no column's union.
+template <class Emit>
+void ringRuns(const int64_t* from, const int64_t* to, const double* loOff, const double* hiOff, uint32_t rings,
+              Emit&& emit) {
+  // Most rows' rings nest, each inside the next: their runs are known without a sort,
+  // each reading the union of the rings from its own outwards.
+  bool nested = true;
+  for (uint32_t k = 0; nested && k + 1 < rings; ++k) nested = from[k + 1] <= from[k] && to[k] <= to[k + 1];
+  if (nested) {
+    double outLo[kMostRings], outHi[kMostRings];  // the union of the rings k, k + 1, ...
+    double ul = std::numeric_limits<double>::infinity(), uh = -ul;
+    for (uint32_t k = rings; k-- > 0;) {
+      ul = std::min(ul, loOff[k]), uh = std::max(uh, hiOff[k]);
+      outLo[k] = ul, outHi[k] = uh;
+    }
+    for (uint32_t k = rings; k-- > 1;) {
+      if (from[k] < from[k - 1]) emit(from[k], from[k - 1] - 1, outLo[k], outHi[k]);
+      if (to[k - 1] < to[k]) emit(to[k - 1] + 1, to[k], outLo[k], outHi[k]);
+    }
+    if (rings > 0) emit(from[0], to[0], outLo[0], outHi[0]);
+    return;
+  }
+  // Otherwise cut at every ring's ends (insertion sort: a few cuts), each run reading the
+  // union of the rings that reach its first column.
+  int64_t cuts[2 * kMostRings];
+  const uint32_t ncuts = 2 * rings;
+  for (uint32_t k = 0; k < rings; ++k) cuts[2 * k] = from[k], cuts[2 * k + 1] = to[k] + 1;
+  for (uint32_t c = 1; c < ncuts; ++c)
+    for (uint32_t d = c; d > 0 && cuts[d - 1] > cuts[d]; --d) std::swap(cuts[d - 1], cuts[d]);
+  for (uint32_t c = 0; c + 1 < ncuts; ++c) {
+    const int64_t xa = cuts[c], xb = cuts[c + 1] - 1;
+    if (xa > xb) continue;
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    bool reached = false;
+    for (uint32_t k = 0; k < rings; ++k)
+      if (from[k] <= xa && xa <= to[k]) lo = std::min(lo, loOff[k]), hi = std::max(hi, hiOff[k]), reached = true;
+    if (reached) emit(xa, xb, lo, hi);  // none between rings
+  }
+}
 
 /// For each column of the run (element x - xa of the arrays) whose reads [a, b] are not
 /// empty: a lit slice read below the old range [lo, hi) raises newLo to min(b + 1, lo), a

@@ -32,6 +32,8 @@ constexpr double kOffsetExcess = 1.0 + 1.0 / 255.0;
 constexpr int kLog2Cell = 8;
 constexpr uint32_t kBandRows = 32;
 
+static_assert(ReceiverSet::kMaxRings <= int(kMostRings), "ringRuns takes every ring of a row");
+
 RingRows ringRows(const ReceiverSet::Span& s, const ReceiverSet::Ring& r) {
   return {r.support, s.dirX, s.invDirX, s.dirY, s.dirs, double(r.xMin), double(r.xMax)};
 }
@@ -820,9 +822,9 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
         const double cy = double(y) + 0.5;
         // Each ring's columns in the row, cut at their ends into runs that the same
         // rings reach: a run reads the union of their depth ranges.
-        int64_t from[kMaxRings], to[kMaxRings], cuts[2 * kMaxRings];
-        uint32_t rings = 0, ncuts = 0;
-        int ringOf[kMaxRings];
+        int64_t from[kMaxRings], to[kMaxRings];
+        double ringLo[kMaxRings], ringHi[kMaxRings];
+        uint32_t rings = 0;
         for (uint32_t k = 0; k < s.rings; ++k) {
           const Ring& r = s.ring[k];
           const double lo = ringX0[k][y - ya], hi = ringX1[k][y - ya];
@@ -830,8 +832,7 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
           const int64_t xa = std::max<int64_t>(int64_t(lo), int64_t(x0));
           const int64_t xb = std::min<int64_t>(int64_t(hi), int64_t(gx1));
           if (xa > xb) continue;
-          from[rings] = xa, to[rings] = xb, ringOf[rings] = int(k), ++rings;
-          cuts[ncuts++] = xa, cuts[ncuts++] = xb + 1;
+          from[rings] = xa, to[rings] = xb, ringLo[rings] = r.loOff, ringHi[rings] = r.hiOff, ++rings;
         }
         if (rings == 0) continue;
         const size_t row = size_t(y - int64_t(gy0)) * width - size_t(x0);
@@ -857,39 +858,7 @@ void ReceiverSet::freeIntervals(uint64_t x0, uint64_t y0, uint32_t width, uint32
             if (planarReads(run, x, a, b)) fn(row + size_t(x), a, b);
           }
         };
-        // Most rows' rings nest, each inside the next: the runs are known without a sort,
-        // each reading the union of the rings from its own outwards. (How a row is cut
-        // into runs changes nothing: a column reads the union of the rings reaching it.)
-        bool nested = true;
-        for (uint32_t k = 0; k + 1 < rings; ++k) nested = nested && from[k + 1] <= from[k] && to[k] <= to[k + 1];
-        if (nested) {
-          double outLo[kMaxRings], outHi[kMaxRings];  // the union of the rings k, k + 1, ...
-          double ul = std::numeric_limits<double>::infinity(), uh = -ul;
-          for (uint32_t k = rings; k-- > 0;) {
-            ul = std::min(ul, s.ring[ringOf[k]].loOff), uh = std::max(uh, s.ring[ringOf[k]].hiOff);
-            outLo[k] = ul, outHi[k] = uh;
-          }
-          for (uint32_t k = rings - 1; k > 0; --k) {
-            emit(from[k], from[k - 1] - 1, outLo[k], outHi[k]);
-            emit(to[k - 1] + 1, to[k], outLo[k], outHi[k]);
-          }
-          emit(from[0], to[0], outLo[0], outHi[0]);
-          continue;
-        }
-        // Otherwise cut at every ring's ends. At most 2 * kMaxRings cuts: insertion sort
-        // (std::sort's 16-element branch, unreachable here, is what GCC's -Warray-bounds sees).
-        for (uint32_t c = 1; c < ncuts; ++c)
-          for (uint32_t d = c; d > 0 && cuts[d - 1] > cuts[d]; --d) std::swap(cuts[d - 1], cuts[d]);
-        for (uint32_t c = 0; c + 1 < ncuts; ++c) {
-          const int64_t xa = cuts[c], xb = cuts[c + 1] - 1;
-          double loOff = std::numeric_limits<double>::infinity(), hiOff = -loOff;
-          for (uint32_t k = 0; k < rings; ++k)
-            if (from[k] <= xa && xa <= to[k]) {
-              loOff = std::min(loOff, s.ring[ringOf[k]].loOff);
-              hiOff = std::max(hiOff, s.ring[ringOf[k]].hiOff);
-            }
-          emit(xa, xb, loOff, hiOff);  // nothing between rings
-        }
+        ringRuns(from, to, ringLo, ringHi, rings, emit);
       }
     };
     // On a spot grid, each column of a span's reach in the band (frustumReads).

@@ -9,7 +9,7 @@
 // asked (transparent_hugepage "madvise", Debian's default) are asked here, block by block;
 // where they give none ("never") the advice is ignored and nothing else changes.
 //
-// Linked into the executables only (cpvs, cpvs-server, cpvs-worker, the tests and
+// Linked into the executables only (cpvs, cpvs-server, cpvs-worker, cpvs-import, the tests and
 // benchmarks), never into the runtime library an engine links. Only the one replaceable
 // `operator new(std::size_t)` is replaced: libstdc++'s other forms call it, and every
 // `operator delete` frees with free(). A block is malloc's, so its bytes are laid out as
