@@ -866,6 +866,51 @@ TEST(Receivers, StripsOfRowsGiveTheWholeBlocksMasks) {
   }
 }
 
+// The same on a spot light's grid, whose texels outside the cone are undefined: the
+// strips of the cone-cut raster and of the receivers' frustum spans give the masks of
+// the whole block.
+TEST(SpotReceivers, StripsOfRowsGiveTheWholeBlocksMasks) {
+  const Scene scene = openScene("city:3:5");
+  const std::vector<Light> lights = sceneLights(scene);
+  ASSERT_GE(lights.size(), 1u);
+  ReceiverDeclaration d;
+  d.kind = ReceiverKind::Surfaces;
+  d.maxPcf = 9;
+  BakeOptions options;
+  options.log2TileSize = 7;
+  options.receivers = d.kind;
+  options.receiverPcf = uint8_t(d.maxPcf);
+  const LightBundle bundle =
+      bakeLights(scene, lights, defaultFootprint(scene) * 16, options, sceneHash(scene), nullptr, nullptr, nullptr, d);
+  // The largest grid of a spot light (a cone that cuts texels off).
+  const BundleGrid* spot = nullptr;
+  for (const BundleGrid& g : bundle.grids)
+    if (bundle.lights[g.light].light.kind == LightKind::Spot && (!spot || g.grid.resolution() > spot->grid.resolution()))
+      spot = &g;
+  ASSERT_NE(spot, nullptr);
+  const uint32_t R = uint32_t(spot->grid.resolution());
+  ASSERT_GE(R, 256u);
+  const BakeScene prepared(scene, spot->grid, spot->tanCone, Renderer::Raster, 0, d);
+  const uint64_t x0 = 8, y0 = 8;
+  const uint32_t width = 240, height = 240;  // a strip of 128 rows and part of one
+  ColumnMasks strips;
+  StageTimes times;
+  prepared.columnMasks(options, x0, y0, width, height, strips, times);
+  TexelSlices whole;
+  rasterTexelSlices(prepared.raster(), options.closed, options.exit, x0, y0, width, height, whole);
+  prepared.receivers().freeIntervals(x0, y0, width, height, whole);
+  ColumnMasks want;
+  buildColumnMasks(whole, width, height, R, options.undefinedRule, want);
+  EXPECT_GT(want.slice.size(), 500u);  // transitions in many columns
+  EXPECT_EQ(strips.columnsX, want.columnsX);
+  EXPECT_EQ(strips.columnsY, want.columnsY);
+  EXPECT_EQ(strips.begin, want.begin);
+  EXPECT_EQ(strips.slice, want.slice);
+  EXPECT_EQ(strips.mask, want.mask);
+  EXPECT_EQ(strips.firstShadow, want.firstShadow);
+  EXPECT_EQ(strips.fullShadow, want.fullShadow);
+}
+
 TEST(Receivers, TilesNoReceiverReadsAreNotRendered) {
   Scene scene;
   appendQuad(scene, {0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0});
