@@ -824,6 +824,17 @@ TEST(Receivers, AColumnsSharedSliceLiesInEachTexelsOwnRange) {
   EXPECT_GT(wide, uint64_t(R) * R / 4);  // most of the grid is free to the reads alone
 }
 
+// The columns, their transitions and their first and full shadows of two blocks' masks.
+void expectSameColumns(const ColumnMasks& got, const ColumnMasks& want) {
+  EXPECT_EQ(got.columnsX, want.columnsX);
+  EXPECT_EQ(got.columnsY, want.columnsY);
+  EXPECT_EQ(got.begin, want.begin);
+  EXPECT_EQ(got.slice, want.slice);
+  EXPECT_EQ(got.mask, want.mask);
+  EXPECT_EQ(got.firstShadow, want.firstShadow);
+  EXPECT_EQ(got.fullShadow, want.fullShadow);
+}
+
 // A block resolved in strips of rows (BakeScene::columnMasks) has the masks of the whole
 // block rendered, freed and resolved at once, with either renderer, at a height that is
 // no multiple of the strip's and an origin off the tiles'.
@@ -855,14 +866,8 @@ TEST(Receivers, StripsOfRowsGiveTheWholeBlocksMasks) {
     ColumnMasks want;
     buildColumnMasks(whole, width, height, R, options.undefinedRule, want);
     EXPECT_GT(want.slice.size(), 500u);  // transitions in many columns
-    EXPECT_EQ(strips.columnsX, want.columnsX);
-    EXPECT_EQ(strips.columnsY, want.columnsY);
     EXPECT_EQ(strips.resolution, want.resolution);
-    EXPECT_EQ(strips.begin, want.begin);
-    EXPECT_EQ(strips.slice, want.slice);
-    EXPECT_EQ(strips.mask, want.mask);
-    EXPECT_EQ(strips.firstShadow, want.firstShadow);
-    EXPECT_EQ(strips.fullShadow, want.fullShadow);
+    expectSameColumns(strips, want);
   }
 }
 
@@ -902,13 +907,7 @@ TEST(SpotReceivers, StripsOfRowsGiveTheWholeBlocksMasks) {
   ColumnMasks want;
   buildColumnMasks(whole, width, height, R, options.undefinedRule, want);
   EXPECT_GT(want.slice.size(), 500u);  // transitions in many columns
-  EXPECT_EQ(strips.columnsX, want.columnsX);
-  EXPECT_EQ(strips.columnsY, want.columnsY);
-  EXPECT_EQ(strips.begin, want.begin);
-  EXPECT_EQ(strips.slice, want.slice);
-  EXPECT_EQ(strips.mask, want.mask);
-  EXPECT_EQ(strips.firstShadow, want.firstShadow);
-  EXPECT_EQ(strips.fullShadow, want.fullShadow);
+  expectSameColumns(strips, want);
 }
 
 TEST(Receivers, TilesNoReceiverReadsAreNotRendered) {
